@@ -1,0 +1,166 @@
+/// @file solver.h
+/// The FastLSM dynamics (Rivers & James 2007): shape matching over lattice regions, region
+/// damping, external forces, pins and drags, advanced at a fixed time step.
+#pragma once
+
+#include "deformable_flsm/core/fast_summation.h"
+#include "deformable_flsm/core/lattice.h"
+#include "deformable_flsm/core/solver_params.h"
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace deformable_flsm {
+
+/// A drag: particles pulled so that their centroid goes to `target`, keeping their arrangement
+/// at the moment they were grabbed.
+struct Drag {
+  /// grabbed particle indices
+  std::vector<std::uint32_t> particles;
+  /// per particle: its target is target + offsets[i] (m)
+  std::vector<Eigen::Vector3d> offsets;
+  /// where the centroid of the grabbed particles is pulled to (m, simulation frame)
+  Eigen::Vector3d target = Eigen::Vector3d::Zero();
+  /// 0 for a hard constraint (the particles follow the target exactly); otherwise the stiffness
+  /// (N/m) of a spring from each particle to its target, scaled by the particle's mass share
+  double stiffness = 0.0;
+};
+
+/// A force spread over a set of particles in proportion to their masses, so that all of them
+/// get the same acceleration F / M (M = their total mass).
+struct TimedForce {
+  std::vector<std::uint32_t> particles;
+  /// total force (N)
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();
+  /// simulated time left (s)
+  double remaining = 0.0;
+};
+
+class Solver {
+ public:
+  /// @throws std::invalid_argument if params.validate() fails or params.regionHalfWidth differs
+  ///         from the lattice's.
+  Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& params);
+
+  const Lattice& lattice() const { return *lattice_; }
+  const SolverParams& params() const { return params_; }
+  /// Changes stiffness, damping, gravity, time step, substeps and density-free settings at run
+  /// time. @throws std::invalid_argument if invalid, or if regionHalfWidth or density change
+  /// (they define the lattice: build a new Solver).
+  void setParams(const SolverParams& params);
+
+  /// Advances the simulation by params().timeStep in params().substeps sub-steps.
+  void step();
+  /// Simulated time since construction or reset() (s).
+  double time() const { return time_; }
+  /// Sub-steps taken since construction or reset().
+  std::uint64_t substepCount() const { return substeps_; }
+
+  /// Back to rest: positions = rest positions, zero velocities; drags, forces released; pins kept.
+  void reset();
+
+  /// #P current positions x (m)
+  const std::vector<Eigen::Vector3d>& positions() const { return x_; }
+  /// #P current velocities v (m/s)
+  const std::vector<Eigen::Vector3d>& velocities() const { return v_; }
+  /// Overwrites the state (for tests and scenario set-up). Sizes must equal lattice().size().
+  void setPositions(const std::vector<Eigen::Vector3d>& x);
+  void setVelocities(const std::vector<Eigen::Vector3d>& v);
+  /// #P rotations of the regions (region r is centred on particle r) from the last sub-step.
+  const std::vector<Eigen::Quaterniond>& regionRotations() const { return rotations_; }
+  /// Goal positions g of the last sub-step (m).
+  const std::vector<Eigen::Vector3d>& goals() const { return goals_; }
+  /// Recomputes goal positions for the current positions without stepping (m).
+  void computeGoals(std::vector<Eigen::Vector3d>& goals);
+
+  // --- pins -----------------------------------------------------------------------------
+  /// Pins (or unpins) the particles whose rest positions lie in the box [lo, hi] (m). A pinned
+  /// particle is held where it is when pinned (at its rest position after reset()).
+  /// Returns how many particles the box holds.
+  std::size_t pinBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, bool pinned);
+  void setPinned(std::uint32_t particle, bool pinned);
+  bool isPinned(std::uint32_t particle) const { return pinned_[particle] != 0; }
+  std::size_t pinnedCount() const;
+
+  // --- drags ----------------------------------------------------------------------------
+  /// Grabs `particles` under `id` (replacing a drag of the same id) and pulls their centroid to
+  /// `target`. stiffness 0 = hard constraint, > 0 = spring (N/m).
+  void grab(const std::string& id, const std::vector<std::uint32_t>& particles,
+            const Eigen::Vector3d& target, double stiffness);
+  /// Moves the target of drag `id`. Returns false if there is no such drag.
+  bool moveDrag(const std::string& id, const Eigen::Vector3d& target);
+  /// Releases drag `id`. Returns false if there is no such drag.
+  bool release(const std::string& id);
+  void releaseAll();
+  const std::map<std::string, Drag>& drags() const { return drags_; }
+
+  // --- forces ---------------------------------------------------------------------------
+  /// Adds impulse J (N s) spread over `particles` by mass (every particle's velocity changes by
+  /// J / M); applied at the start of the next sub-step.
+  void applyImpulse(const std::vector<std::uint32_t>& particles, const Eigen::Vector3d& impulse);
+  /// Applies total force F (N) over `particles` for `duration` seconds of simulated time.
+  void applyForce(const std::vector<std::uint32_t>& particles, const Eigen::Vector3d& force,
+                  double duration);
+  const std::vector<TimedForce>& activeForces() const { return forces_; }
+
+  // --- queries --------------------------------------------------------------------------
+  /// The `count` particles nearest to `point` in the current configuration, nearest first.
+  std::vector<std::uint32_t> nearestParticles(const Eigen::Vector3d& point, std::size_t count) const;
+  /// The particles within `radius` of `point` in the current configuration.
+  std::vector<std::uint32_t> particlesWithin(const Eigen::Vector3d& point, double radius) const;
+
+  // --- diagnostics ----------------------------------------------------------------------
+  double kineticEnergy() const;
+  Eigen::Vector3d linearMomentum() const;
+  /// about the origin
+  Eigen::Vector3d angularMomentum() const;
+  /// Largest |x_i - x0_i| (m).
+  double maxDisplacement() const;
+  /// Best rigid fit of the whole object: the transform T with T x0 ~ x in the least-squares
+  /// sense (mass-weighted), i.e. the object's frame relative to its rest pose.
+  Eigen::Isometry3d rigidFrame() const;
+  /// RMS distance (m) between x and the best rigid fit of the rest shape: 0 at the rest shape
+  /// up to rigid motion.
+  double shapeError() const;
+  /// true while a drag, a timed force or an impulse is active: the object is being acted on.
+  bool hasPendingCommands() const;
+
+ private:
+  void substep(double h);
+  void shapeMatch();
+  void regionDamping(double kd);
+  void accumulateForces(double h);
+
+  std::shared_ptr<const Lattice> lattice_;
+  SolverParams params_;
+  std::unique_ptr<RegionSummer> summer_;
+
+  std::vector<Eigen::Vector3d> x_, v_, goals_;
+  std::vector<Eigen::Quaterniond> rotations_;
+  std::vector<Eigen::Vector3d> restCentered_;  // q_i = x0_i - rest centre of mass
+  Eigen::Vector3d restCom_ = Eigen::Vector3d::Zero();
+  std::vector<double> invCount_;               // 1 / n_i
+  std::vector<double> regionMass_;             // M_r = sum of m~ over region r
+  std::vector<Eigen::Vector3d> regionRestCenter_;  // c0_r (rest-centred frame)
+  std::vector<Eigen::Vector3d> regionCenter_;  // c_r of the last shape match (frame of xref_)
+  Eigen::Vector3d xref_ = Eigen::Vector3d::Zero();  // current centre of mass, subtracted in sums
+  std::vector<char> pinned_;
+  std::vector<Eigen::Vector3d> pinPosition_;
+  mutable Eigen::Quaterniond frameRotation_ = Eigen::Quaterniond::Identity();  // rigidFrame warm start
+  std::vector<Eigen::Vector3d> impulseDv_;  // velocity change pending from impulses
+  bool impulsePending_ = false;
+  std::map<std::string, Drag> drags_;
+  std::vector<TimedForce> forces_;
+  std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
+  std::vector<double> regionData_, regionSums_;  // scratch, K doubles per particle
+  double time_ = 0.0;
+  std::uint64_t substeps_ = 0;
+};
+
+}  // namespace deformable_flsm

@@ -1,0 +1,116 @@
+#include "deformable_flsm/core/fast_summation.h"
+
+#include <algorithm>
+#include <array>
+#include <stdexcept>
+#include <string>
+
+namespace deformable_flsm {
+
+namespace {
+
+/// One sliding-window pass for a compile-time channel count.
+template <int K>
+void windowPassK(const Lattice& lattice, int axis, const double* in, double* out) {
+  const auto& order = lattice.runOrder(axis);
+  const auto& starts = lattice.runStarts(axis);
+  const std::ptrdiff_t w = lattice.regionHalfWidth();
+  std::array<double, K> acc;
+  for (std::size_t q = 0; q + 1 < starts.size(); ++q) {
+    const std::uint32_t* run = order.data() + starts[q];
+    const std::ptrdiff_t len = static_cast<std::ptrdiff_t>(starts[q + 1] - starts[q]);
+    acc.fill(0.0);
+    // window of element 0: [0, min(w, len-1)]
+    const std::ptrdiff_t first = std::min(w, len - 1);
+    for (std::ptrdiff_t u = 0; u <= first; ++u) {
+      const double* src = in + static_cast<std::size_t>(run[u]) * K;
+      for (int c = 0; c < K; ++c) acc[c] += src[c];
+    }
+    for (std::ptrdiff_t t = 0; t < len; ++t) {
+      if (t > 0) {
+        if (t + w < len) {
+          const double* src = in + static_cast<std::size_t>(run[t + w]) * K;
+          for (int c = 0; c < K; ++c) acc[c] += src[c];
+        }
+        if (t - w - 1 >= 0) {
+          const double* src = in + static_cast<std::size_t>(run[t - w - 1]) * K;
+          for (int c = 0; c < K; ++c) acc[c] -= src[c];
+        }
+      }
+      double* dst = out + static_cast<std::size_t>(run[t]) * K;
+      for (int c = 0; c < K; ++c) dst[c] = acc[c];
+    }
+  }
+}
+
+}  // namespace
+
+void windowPass(const Lattice& lattice, int axis, const double* in, int K, double* out) {
+  switch (K) {
+    case 1: return windowPassK<1>(lattice, axis, in, out);
+    case 3: return windowPassK<3>(lattice, axis, in, out);
+    case 6: return windowPassK<6>(lattice, axis, in, out);
+    case 12: return windowPassK<12>(lattice, axis, in, out);
+    case 24: return windowPassK<24>(lattice, axis, in, out);
+    default: break;
+  }
+  throw std::invalid_argument("windowPass: unsupported channel count " + std::to_string(K));
+}
+
+BarSummer::BarSummer(const Lattice& lattice) : lattice_(lattice) {}
+
+void BarSummer::gather(const std::vector<double>& in, int K, std::vector<double>& out) {
+  out.resize(in.size());
+  tmpA_.resize(in.size());
+  tmpB_.resize(in.size());
+  windowPass(lattice_, 0, in.data(), K, tmpA_.data());
+  windowPass(lattice_, 1, tmpA_.data(), K, tmpB_.data());
+  windowPass(lattice_, 2, tmpB_.data(), K, out.data());
+}
+
+void BarSummer::scatter(const std::vector<double>& in, int K, std::vector<double>& out) {
+  out.resize(in.size());
+  tmpA_.resize(in.size());
+  tmpB_.resize(in.size());
+  windowPass(lattice_, 2, in.data(), K, tmpA_.data());
+  windowPass(lattice_, 1, tmpA_.data(), K, tmpB_.data());
+  windowPass(lattice_, 0, tmpB_.data(), K, out.data());
+}
+
+NaiveSummer::NaiveSummer(const Lattice& lattice) {
+  const std::size_t n = lattice.size();
+  offsets_.reserve(n + 1);
+  offsets_.push_back(0);
+  std::vector<std::uint32_t> m;
+  for (std::size_t r = 0; r < n; ++r) {
+    lattice.regionMembers(r, m);
+    members_.insert(members_.end(), m.begin(), m.end());
+    offsets_.push_back(static_cast<std::uint32_t>(members_.size()));
+  }
+}
+
+void NaiveSummer::gather(const std::vector<double>& in, int K, std::vector<double>& out) {
+  out.assign(in.size(), 0.0);
+  const std::size_t n = offsets_.size() - 1;
+  for (std::size_t r = 0; r < n; ++r) {
+    double* dst = out.data() + r * K;
+    for (std::uint32_t e = offsets_[r]; e < offsets_[r + 1]; ++e) {
+      const double* src = in.data() + static_cast<std::size_t>(members_[e]) * K;
+      for (int c = 0; c < K; ++c) dst[c] += src[c];
+    }
+  }
+}
+
+void NaiveSummer::scatter(const std::vector<double>& in, int K, std::vector<double>& out) {
+  out.assign(in.size(), 0.0);
+  const std::size_t n = offsets_.size() - 1;
+  for (std::size_t r = 0; r < n; ++r) {
+    const double* src = in.data() + r * K;
+    for (std::uint32_t e = offsets_[r]; e < offsets_[r + 1]; ++e) {
+      double* dst = out.data() + static_cast<std::size_t>(members_[e]) * K;
+      for (int c = 0; c < K; ++c) dst[c] += src[c];
+    }
+  }
+}
+
+}  // namespace deformable_flsm

@@ -1,0 +1,98 @@
+#include "deformable_flsm/core/polar.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <cmath>
+
+namespace deformable_flsm {
+
+namespace {
+
+/// Relative tolerance for "H is positive semi-definite" (scaled by |A|): Newton's fixed point
+/// must be a maximum of tr(R^T A), not a saddle; round-off of order 1e-12 |A| is not a saddle.
+constexpr double kSaddleTolerance = 1e-9;
+
+/// Closest proper rotation to A through the SVD A = U Sigma V^T: R = U diag(1, 1, det(U V^T)) V^T.
+Eigen::Matrix3d rotationBySvd(const Eigen::Matrix3d& A) {
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(A, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d U = svd.matrixU();
+  const Eigen::Matrix3d& V = svd.matrixV();
+  if ((U * V.transpose()).determinant() < 0.0) U.col(2) = -U.col(2);
+  return U * V.transpose();
+}
+
+/// true when symmetric H is positive semi-definite up to `tol` (all principal minors >= -tol^k).
+bool isPositiveSemiDefinite(const Eigen::Matrix3d& H, double tol) {
+  if (H(0, 0) < -tol || H(1, 1) < -tol || H(2, 2) < -tol) return false;
+  const double tol2 = tol * std::max(tol, H.diagonal().cwiseAbs().maxCoeff());
+  if (H(0, 0) * H(1, 1) - H(0, 1) * H(1, 0) < -tol2) return false;
+  if (H(0, 0) * H(2, 2) - H(0, 2) * H(2, 0) < -tol2) return false;
+  if (H(1, 1) * H(2, 2) - H(1, 2) * H(2, 1) < -tol2) return false;
+  return H.determinant() >= -tol2 * std::max(tol, H.diagonal().cwiseAbs().maxCoeff());
+}
+
+}  // namespace
+
+Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& A, Eigen::Quaterniond& q,
+                                const PolarOptions& opts, PolarStats* stats) {
+  if (stats != nullptr) *stats = PolarStats();
+  if (!A.allFinite()) return q.toRotationMatrix();
+  const double scale = A.cwiseAbs().maxCoeff();
+  if (!(q.norm() > 0.0) || !q.coeffs().allFinite()) q.setIdentity();
+  q.normalize();
+  if (scale == 0.0) return q.toRotationMatrix();
+
+  const double tol = kSaddleTolerance * scale;
+  Eigen::Matrix3d R = q.toRotationMatrix();
+  Eigen::Matrix3d H;
+  bool converged = false;
+  int it = 0;
+  for (; it < opts.maxIterations; ++it) {
+    const Eigen::Matrix3d S = R.transpose() * A;
+    // f(theta) = tr((R exp[theta])^T A) ~ tr S + g.theta - 1/2 theta^T H theta
+    const Eigen::Vector3d g(S(2, 1) - S(1, 2), S(0, 2) - S(2, 0), S(1, 0) - S(0, 1));
+    H = Eigen::Matrix3d::Identity() * S.trace() - 0.5 * (S + S.transpose());
+    Eigen::Vector3d theta;
+    const Eigen::LLT<Eigen::Matrix3d> llt(H);
+    if (llt.info() == Eigen::Success && H.diagonal().minCoeff() > tol) {
+      theta = llt.solve(g);
+    } else {
+      // Not a concave neighbourhood: gradient step of Mueller et al. 2016 (bounded length).
+      theta = g / (std::abs(S.trace()) + scale);
+    }
+    const double angle = theta.norm();
+    if (!std::isfinite(angle)) break;
+    if (angle < opts.angleTolerance) {
+      converged = true;
+      break;
+    }
+    // q <- q * exp(theta); exact exponential so that large steps stay rotations of the right size.
+    const double half = 0.5 * std::min(angle, M_PI);
+    const Eigen::Vector3d axis = theta / angle;
+    const Eigen::Quaterniond dq(std::cos(half), std::sin(half) * axis.x(), std::sin(half) * axis.y(),
+                                std::sin(half) * axis.z());
+    q = (q * dq).normalized();
+    R = q.toRotationMatrix();
+  }
+  if (stats != nullptr) stats->iterations = it;
+  if (converged && isPositiveSemiDefinite(H, tol)) return R;
+
+  // A saddle of tr(R^T A) (e.g. A = -I from the identity) or no convergence: take the SVD answer,
+  // unless it is no better than where Newton ended (A's null directions leave a choice).
+  const Eigen::Matrix3d Rsvd = rotationBySvd(A);
+  if (stats != nullptr) stats->usedSvd = true;
+  if ((Rsvd.transpose() * A).trace() > (R.transpose() * A).trace() + tol) {
+    q = Eigen::Quaterniond(Rsvd);
+    q.normalize();
+  }
+  return q.toRotationMatrix();
+}
+
+Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& A) {
+  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+  return extractRotation(A, q);
+}
+
+}  // namespace deformable_flsm

@@ -1,0 +1,491 @@
+#include "deformable_flsm/core/solver.h"
+
+#include "deformable_flsm/core/polar.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+namespace deformable_flsm {
+
+namespace {
+
+/// Channels per particle of the shape-matching sums: m~ p (3) and m~ p q^T (9).
+constexpr int kShapeChannels = 12;
+/// Channels per region of the transforms scattered back: R (9, row-major) and t (3).
+constexpr int kTransformChannels = 12;
+/// Channels per particle of the damping sums: m~ v (3), m~ p x v (3), m~ p p^T (6, upper).
+constexpr int kDampingChannels = 12;
+/// Channels per region of the rigid velocity fields scattered back: u (3) and omega (3).
+constexpr int kVelocityFieldChannels = 6;
+/// Inertia eigenvalues below this fraction of the largest are treated as zero (a collinear
+/// region cannot spin about its own line), so that omega = I^+ L stays finite and exact.
+constexpr double kInertiaRankTolerance = 1e-10;
+
+/// omega = I^+ L for a symmetric positive semi-definite inertia tensor.
+Eigen::Vector3d solveInertia(const Eigen::Matrix3d& I, const Eigen::Vector3d& L) {
+  const double trace = I.trace();
+  if (!(trace > 0.0)) return Eigen::Vector3d::Zero();
+  const Eigen::LLT<Eigen::Matrix3d> llt(I);
+  // Fast path: well conditioned (every pivot of the Cholesky factor clearly positive).
+  if (llt.info() == Eigen::Success &&
+      llt.matrixLLT().diagonal().cwiseAbs2().minCoeff() > kInertiaRankTolerance * trace)
+    return llt.solve(L);
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+  eig.computeDirect(I);
+  const Eigen::Vector3d& lambda = eig.eigenvalues();
+  const double cutoff = kInertiaRankTolerance * lambda.cwiseAbs().maxCoeff();
+  Eigen::Vector3d inv;
+  for (int k = 0; k < 3; ++k) inv[k] = lambda[k] > cutoff ? 1.0 / lambda[k] : 0.0;
+  const Eigen::Matrix3d& V = eig.eigenvectors();
+  return V * inv.asDiagonal() * (V.transpose() * L);
+}
+
+Eigen::Vector3d centroidOf(const std::vector<Eigen::Vector3d>& x,
+                           const std::vector<std::uint32_t>& particles) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (std::uint32_t p : particles) c += x[p];
+  return c / static_cast<double>(particles.size());
+}
+
+}  // namespace
+
+Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& params)
+    : lattice_(std::move(lattice)), params_(params) {
+  if (!lattice_) throw std::invalid_argument("solver: no lattice");
+  params_.validate();
+  if (params_.regionHalfWidth != lattice_->regionHalfWidth())
+    throw std::invalid_argument("solver: region half-width " + std::to_string(params_.regionHalfWidth) +
+                                " differs from the lattice's " +
+                                std::to_string(lattice_->regionHalfWidth()));
+  const Lattice& L = *lattice_;
+  const std::size_t n = L.size();
+  if (params_.kind == SolverKind::Fast)
+    summer_ = std::make_unique<BarSummer>(L);
+  else
+    summer_ = std::make_unique<NaiveSummer>(L);
+
+  const auto& x0 = L.restPositions();
+  const auto& m = L.masses();
+  restCom_.setZero();
+  for (std::size_t i = 0; i < n; ++i) restCom_ += m[i] * x0[i];
+  restCom_ /= L.totalMass();
+  restCentered_.resize(n);
+  invCount_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    restCentered_[i] = x0[i] - restCom_;
+    invCount_[i] = 1.0 / L.regionCounts()[i];
+  }
+
+  // Rest region masses and centres: M_r = sum m~, c0_r = sum m~ q / M_r.
+  std::vector<double> mass(L.regionMassFractions()), massSum;
+  summer_->gather(mass, 1, massSum);
+  std::vector<double> moment(3 * n), momentSum;
+  for (std::size_t i = 0; i < n; ++i)
+    for (int a = 0; a < 3; ++a) moment[3 * i + a] = mass[i] * restCentered_[i][a];
+  summer_->gather(moment, 3, momentSum);
+  regionMass_ = massSum;
+  regionRestCenter_.resize(n);
+  for (std::size_t r = 0; r < n; ++r)
+    regionRestCenter_[r] = Eigen::Vector3d(momentSum[3 * r], momentSum[3 * r + 1], momentSum[3 * r + 2]) /
+                           regionMass_[r];
+
+  x_ = x0;
+  v_.assign(n, Eigen::Vector3d::Zero());
+  goals_ = x0;
+  rotations_.assign(n, Eigen::Quaterniond::Identity());
+  regionCenter_.assign(n, Eigen::Vector3d::Zero());
+  pinned_.assign(n, 0);
+  pinPosition_ = x0;
+  impulseDv_.assign(n, Eigen::Vector3d::Zero());
+  forceAccel_.assign(n, Eigen::Vector3d::Zero());
+  const int maxChannels = std::max({kShapeChannels, kTransformChannels, kDampingChannels});
+  regionData_.assign(n * maxChannels, 0.0);
+  regionSums_.assign(n * maxChannels, 0.0);
+}
+
+void Solver::setParams(const SolverParams& params) {
+  params.validate();
+  if (params.regionHalfWidth != params_.regionHalfWidth)
+    throw std::invalid_argument("solver: region_half_width cannot change at run time (it defines the "
+                                "regions); restart with the new value");
+  if (params.density != params_.density)
+    throw std::invalid_argument("solver: density cannot change at run time (it defines the particle "
+                                "masses); restart with the new value");
+  if (params.kind != params_.kind) {
+    if (params.kind == SolverKind::Fast)
+      summer_ = std::make_unique<BarSummer>(*lattice_);
+    else
+      summer_ = std::make_unique<NaiveSummer>(*lattice_);
+  }
+  params_ = params;
+}
+
+void Solver::reset() {
+  x_ = lattice_->restPositions();
+  std::fill(v_.begin(), v_.end(), Eigen::Vector3d::Zero());
+  goals_ = x_;
+  std::fill(rotations_.begin(), rotations_.end(), Eigen::Quaterniond::Identity());
+  pinPosition_ = x_;
+  drags_.clear();
+  forces_.clear();
+  std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
+  impulsePending_ = false;
+  frameRotation_.setIdentity();
+  time_ = 0.0;
+  substeps_ = 0;
+}
+
+void Solver::setPositions(const std::vector<Eigen::Vector3d>& x) {
+  if (x.size() != x_.size()) throw std::invalid_argument("solver: setPositions with the wrong size");
+  x_ = x;
+}
+
+void Solver::setVelocities(const std::vector<Eigen::Vector3d>& v) {
+  if (v.size() != v_.size()) throw std::invalid_argument("solver: setVelocities with the wrong size");
+  v_ = v;
+}
+
+void Solver::step() {
+  const double h = params_.timeStep / params_.substeps;
+  for (int s = 0; s < params_.substeps; ++s) substep(h);
+}
+
+// Goal positions (Rivers & James 2007, eqs. 3-6), with every region sum taken by the summer:
+//   c_r = (1/M_r) sum m~_j x_j,   A_r = sum m~_j x_j q_j^T - M_r c_r c0_r^T,   R_r = polar(A_r),
+//   T_r x = R_r (x - c0_r) + c_r,  g_i = (1/n_i) sum_{r contains i} T_r q_i
+//        = (1/n_i) [ (sum R_r) q_i + sum (c_r - R_r c0_r) ].
+// Positions enter relative to the current centre of mass xref and rest positions relative to the
+// rest centre of mass, which keeps the sums free of cancellation when the object is far away.
+void Solver::shapeMatch() {
+  const Lattice& L = *lattice_;
+  const std::size_t n = L.size();
+  const auto& mt = L.regionMassFractions();
+  const auto& m = L.masses();
+
+  xref_.setZero();
+  for (std::size_t i = 0; i < n; ++i) xref_ += m[i] * x_[i];
+  xref_ /= L.totalMass();
+
+  regionData_.resize(n * kShapeChannels);
+  double* d = regionData_.data();
+  for (std::size_t i = 0; i < n; ++i, d += kShapeChannels) {
+    const Eigen::Vector3d p = mt[i] * (x_[i] - xref_);
+    const Eigen::Vector3d& q = restCentered_[i];
+    d[0] = p.x();
+    d[1] = p.y();
+    d[2] = p.z();
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) d[3 + 3 * a + b] = p[a] * q[b];
+  }
+  summer_->gather(regionData_, kShapeChannels, regionSums_);
+
+  const double* s = regionSums_.data();
+  double* t = regionData_.data();
+  for (std::size_t r = 0; r < n; ++r, s += kShapeChannels, t += kTransformChannels) {
+    const Eigen::Vector3d c = Eigen::Vector3d(s[0], s[1], s[2]) / regionMass_[r];
+    const Eigen::Vector3d& c0 = regionRestCenter_[r];
+    Eigen::Matrix3d A;
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) A(a, b) = s[3 + 3 * a + b];
+    A.noalias() -= regionMass_[r] * c * c0.transpose();
+    const Eigen::Matrix3d R = extractRotation(A, rotations_[r]);
+    const Eigen::Vector3d tr = c - R * c0;
+    regionCenter_[r] = c;
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) t[3 * a + b] = R(a, b);
+    t[9] = tr.x();
+    t[10] = tr.y();
+    t[11] = tr.z();
+  }
+  summer_->scatter(regionData_, kTransformChannels, regionSums_);
+
+  s = regionSums_.data();
+  for (std::size_t i = 0; i < n; ++i, s += kTransformChannels) {
+    const Eigen::Vector3d& q = restCentered_[i];
+    Eigen::Vector3d g(s[9], s[10], s[11]);
+    for (int a = 0; a < 3; ++a) g[a] += s[3 * a] * q.x() + s[3 * a + 1] * q.y() + s[3 * a + 2] * q.z();
+    goals_[i] = g * invCount_[i] + xref_;
+  }
+}
+
+// Momentum-conserving region damping (Rivers & James 2007, sec. 5): every region's velocities are
+// pulled towards the region's rigid motion v_r + omega_r x (x - c_r), where v_r and omega_r keep
+// the region's linear and angular momentum (omega_r = I_r^+ L_r); the pulls of all regions
+// containing a particle are averaged. Summed over a region the pull has zero linear and angular
+// momentum, so the object's momenta are conserved.
+void Solver::regionDamping(double kd) {
+  if (kd <= 0.0) return;
+  const Lattice& L = *lattice_;
+  const std::size_t n = L.size();
+  const auto& mt = L.regionMassFractions();
+
+  regionData_.resize(n * kDampingChannels);
+  double* d = regionData_.data();
+  for (std::size_t i = 0; i < n; ++i, d += kDampingChannels) {
+    const Eigen::Vector3d p = x_[i] - xref_;
+    const Eigen::Vector3d mv = mt[i] * v_[i];
+    const Eigen::Vector3d l = p.cross(mv);
+    const Eigen::Vector3d mp = mt[i] * p;
+    d[0] = mv.x(); d[1] = mv.y(); d[2] = mv.z();
+    d[3] = l.x(); d[4] = l.y(); d[5] = l.z();
+    d[6] = mp.x() * p.x(); d[7] = mp.y() * p.y(); d[8] = mp.z() * p.z();
+    d[9] = mp.x() * p.y(); d[10] = mp.x() * p.z(); d[11] = mp.y() * p.z();
+  }
+  summer_->gather(regionData_, kDampingChannels, regionSums_);
+
+  regionData_.resize(n * kVelocityFieldChannels);
+  const double* s = regionSums_.data();
+  double* f = regionData_.data();
+  for (std::size_t r = 0; r < n; ++r, s += kDampingChannels, f += kVelocityFieldChannels) {
+    const double M = regionMass_[r];
+    const Eigen::Vector3d& c = regionCenter_[r];
+    const Eigen::Vector3d vr = Eigen::Vector3d(s[0], s[1], s[2]) / M;
+    const Eigen::Vector3d Lr = Eigen::Vector3d(s[3], s[4], s[5]) - M * c.cross(vr);
+    // second moment about c: sum m~ (p - c)(p - c)^T = sum m~ p p^T - M c c^T
+    Eigen::Matrix3d P;
+    P << s[6], s[9], s[10], s[9], s[7], s[11], s[10], s[11], s[8];
+    P.noalias() -= M * c * c.transpose();
+    const Eigen::Matrix3d I = Eigen::Matrix3d::Identity() * P.trace() - P;
+    const Eigen::Vector3d w = solveInertia(I, Lr);
+    const Eigen::Vector3d u = vr - w.cross(c);
+    f[0] = u.x(); f[1] = u.y(); f[2] = u.z();
+    f[3] = w.x(); f[4] = w.y(); f[5] = w.z();
+  }
+  summer_->scatter(regionData_, kVelocityFieldChannels, regionSums_);
+
+  s = regionSums_.data();
+  for (std::size_t i = 0; i < n; ++i, s += kVelocityFieldChannels) {
+    const Eigen::Vector3d p = x_[i] - xref_;
+    const Eigen::Vector3d target =
+        (Eigen::Vector3d(s[0], s[1], s[2]) + Eigen::Vector3d(s[3], s[4], s[5]).cross(p)) * invCount_[i];
+    v_[i] += kd * (target - v_[i]);
+  }
+}
+
+void Solver::accumulateForces(double h) {
+  std::fill(forceAccel_.begin(), forceAccel_.end(), Eigen::Vector3d::Zero());
+  const auto& m = lattice_->masses();
+  for (const TimedForce& f : forces_) {
+    double M = 0.0;
+    for (std::uint32_t p : f.particles) M += m[p];
+    // The last sub-step of a force applies only its remaining fraction, so that the delivered
+    // impulse is exactly force * duration.
+    const Eigen::Vector3d a = f.force / M * std::min(1.0, f.remaining / h);
+    for (std::uint32_t p : f.particles) forceAccel_[p] += a;
+  }
+  for (const auto& entry : drags_) {
+    const Drag& drag = entry.second;
+    if (drag.stiffness <= 0.0) continue;
+    double M = 0.0;
+    for (std::uint32_t p : drag.particles) M += m[p];
+    // total stiffness k shared by mass: particle force k m_i / M (target_i - x_i)
+    const double k = drag.stiffness / M;
+    for (std::size_t e = 0; e < drag.particles.size(); ++e) {
+      const std::uint32_t p = drag.particles[e];
+      forceAccel_[p] += k * (drag.target + drag.offsets[e] - x_[p]);
+    }
+  }
+}
+
+// One sub-step of FastLSM dynamics (Rivers & James 2007, eq. 7):
+//   v <- v + alpha (g - x) / h + h f / m,   damping,   x <- x + h v.
+void Solver::substep(double h) {
+  const std::size_t n = x_.size();
+  if (impulsePending_) {
+    for (std::size_t i = 0; i < n; ++i) v_[i] += impulseDv_[i];
+    std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
+    impulsePending_ = false;
+  }
+  shapeMatch();
+  accumulateForces(h);
+  const double pull = params_.stiffness / h;
+  for (std::size_t i = 0; i < n; ++i)
+    v_[i] += pull * (goals_[i] - x_[i]) + h * (params_.gravity + forceAccel_[i]);
+  regionDamping(1.0 - std::exp(-params_.damping * h));
+
+  for (const auto& entry : drags_) {
+    const Drag& drag = entry.second;
+    if (drag.stiffness > 0.0) continue;
+    for (std::size_t e = 0; e < drag.particles.size(); ++e) {
+      const std::uint32_t p = drag.particles[e];
+      v_[p] = (drag.target + drag.offsets[e] - x_[p]) / h;
+    }
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (pinned_[i]) {
+      v_[i].setZero();
+      x_[i] = pinPosition_[i];
+    } else {
+      x_[i] += h * v_[i];
+    }
+  }
+
+  for (TimedForce& f : forces_) f.remaining -= h;
+  forces_.erase(std::remove_if(forces_.begin(), forces_.end(),
+                               [](const TimedForce& f) { return f.remaining <= 0.0; }),
+                forces_.end());
+  time_ += h;
+  ++substeps_;
+}
+
+void Solver::computeGoals(std::vector<Eigen::Vector3d>& goals) {
+  shapeMatch();
+  goals = goals_;
+}
+
+std::size_t Solver::pinBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, bool pinned) {
+  const auto& x0 = lattice_->restPositions();
+  std::size_t count = 0;
+  for (std::size_t i = 0; i < x0.size(); ++i) {
+    if ((x0[i].array() >= lo.array()).all() && (x0[i].array() <= hi.array()).all()) {
+      setPinned(static_cast<std::uint32_t>(i), pinned);
+      ++count;
+    }
+  }
+  return count;
+}
+
+void Solver::setPinned(std::uint32_t particle, bool pinned) {
+  if (particle >= pinned_.size()) throw std::out_of_range("solver: particle index out of range");
+  if (pinned && !pinned_[particle]) {
+    pinPosition_[particle] = x_[particle];
+    v_[particle].setZero();
+  }
+  pinned_[particle] = pinned ? 1 : 0;
+}
+
+std::size_t Solver::pinnedCount() const {
+  return static_cast<std::size_t>(std::count(pinned_.begin(), pinned_.end(), 1));
+}
+
+void Solver::grab(const std::string& id, const std::vector<std::uint32_t>& particles,
+                  const Eigen::Vector3d& target, double stiffness) {
+  if (particles.empty()) throw std::invalid_argument("solver: a drag needs at least one particle");
+  for (std::uint32_t p : particles)
+    if (p >= x_.size()) throw std::out_of_range("solver: particle index out of range");
+  if (!target.allFinite() || !std::isfinite(stiffness) || stiffness < 0.0)
+    throw std::invalid_argument("solver: drag target must be finite and stiffness >= 0");
+  Drag drag;
+  drag.particles = particles;
+  const Eigen::Vector3d c = centroidOf(x_, particles);
+  drag.offsets.reserve(particles.size());
+  for (std::uint32_t p : particles) drag.offsets.push_back(x_[p] - c);
+  drag.target = target;
+  drag.stiffness = stiffness;
+  drags_[id] = std::move(drag);
+}
+
+bool Solver::moveDrag(const std::string& id, const Eigen::Vector3d& target) {
+  auto it = drags_.find(id);
+  if (it == drags_.end()) return false;
+  if (!target.allFinite()) throw std::invalid_argument("solver: drag target must be finite");
+  it->second.target = target;
+  return true;
+}
+
+bool Solver::release(const std::string& id) { return drags_.erase(id) > 0; }
+
+void Solver::releaseAll() { drags_.clear(); }
+
+void Solver::applyImpulse(const std::vector<std::uint32_t>& particles, const Eigen::Vector3d& impulse) {
+  if (particles.empty()) throw std::invalid_argument("solver: an impulse needs at least one particle");
+  if (!impulse.allFinite()) throw std::invalid_argument("solver: impulse must be finite");
+  const auto& m = lattice_->masses();
+  double M = 0.0;
+  for (std::uint32_t p : particles) {
+    if (p >= x_.size()) throw std::out_of_range("solver: particle index out of range");
+    M += m[p];
+  }
+  for (std::uint32_t p : particles) impulseDv_[p] += impulse / M;
+  impulsePending_ = true;
+}
+
+void Solver::applyForce(const std::vector<std::uint32_t>& particles, const Eigen::Vector3d& force,
+                        double duration) {
+  if (particles.empty()) throw std::invalid_argument("solver: a force needs at least one particle");
+  if (!force.allFinite()) throw std::invalid_argument("solver: force must be finite");
+  if (!(duration > 0.0) || !std::isfinite(duration))
+    throw std::invalid_argument("solver: force duration must be finite and > 0");
+  for (std::uint32_t p : particles)
+    if (p >= x_.size()) throw std::out_of_range("solver: particle index out of range");
+  forces_.push_back(TimedForce{particles, force, duration});
+}
+
+std::vector<std::uint32_t> Solver::nearestParticles(const Eigen::Vector3d& point, std::size_t count) const {
+  std::vector<std::uint32_t> idx(x_.size());
+  std::iota(idx.begin(), idx.end(), 0u);
+  count = std::min(count, idx.size());
+  auto closer = [&](std::uint32_t a, std::uint32_t b) {
+    return (x_[a] - point).squaredNorm() < (x_[b] - point).squaredNorm();
+  };
+  std::partial_sort(idx.begin(), idx.begin() + static_cast<std::ptrdiff_t>(count), idx.end(), closer);
+  idx.resize(count);
+  return idx;
+}
+
+std::vector<std::uint32_t> Solver::particlesWithin(const Eigen::Vector3d& point, double radius) const {
+  std::vector<std::uint32_t> out;
+  const double r2 = radius * radius;
+  for (std::size_t i = 0; i < x_.size(); ++i)
+    if ((x_[i] - point).squaredNorm() <= r2) out.push_back(static_cast<std::uint32_t>(i));
+  return out;
+}
+
+double Solver::kineticEnergy() const {
+  const auto& m = lattice_->masses();
+  double e = 0.0;
+  for (std::size_t i = 0; i < v_.size(); ++i) e += 0.5 * m[i] * v_[i].squaredNorm();
+  return e;
+}
+
+Eigen::Vector3d Solver::linearMomentum() const {
+  const auto& m = lattice_->masses();
+  Eigen::Vector3d P = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < v_.size(); ++i) P += m[i] * v_[i];
+  return P;
+}
+
+Eigen::Vector3d Solver::angularMomentum() const {
+  const auto& m = lattice_->masses();
+  Eigen::Vector3d L = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < v_.size(); ++i) L += m[i] * x_[i].cross(v_[i]);
+  return L;
+}
+
+double Solver::maxDisplacement() const {
+  const auto& x0 = lattice_->restPositions();
+  double d = 0.0;
+  for (std::size_t i = 0; i < x_.size(); ++i) d = std::max(d, (x_[i] - x0[i]).squaredNorm());
+  return std::sqrt(d);
+}
+
+Eigen::Isometry3d Solver::rigidFrame() const {
+  const auto& m = lattice_->masses();
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < x_.size(); ++i) c += m[i] * x_[i];
+  c /= lattice_->totalMass();
+  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < x_.size(); ++i) A.noalias() += m[i] * (x_[i] - c) * restCentered_[i].transpose();
+  const Eigen::Matrix3d R = extractRotation(A, frameRotation_);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = c - R * restCom_;
+  return T;
+}
+
+double Solver::shapeError() const {
+  const Eigen::Isometry3d T = rigidFrame();
+  const auto& x0 = lattice_->restPositions();
+  double e = 0.0;
+  for (std::size_t i = 0; i < x_.size(); ++i) e += (x_[i] - T * x0[i]).squaredNorm();
+  return std::sqrt(e / static_cast<double>(x_.size()));
+}
+
+bool Solver::hasPendingCommands() const { return !drags_.empty() || !forces_.empty() || impulsePending_; }
+
+}  // namespace deformable_flsm

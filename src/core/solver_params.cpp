@@ -1,0 +1,59 @@
+#include "deformable_flsm/core/solver_params.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace deformable_flsm {
+
+namespace {
+
+/// Largest region half-width accepted: (2w+1)^3 = 9261 cells per region at w = 10, beyond any
+/// useful stiffness and a likely typo.
+constexpr int kMaxRegionHalfWidth = 10;
+/// Largest time step accepted (s); beyond it even a stiff lattice is a slideshow.
+constexpr double kMaxTimeStep = 0.1;
+constexpr int kMaxSubsteps = 1000;
+
+[[noreturn]] void fail(const std::string& field, const std::string& value,
+                       const std::string& expected) {
+  throw std::invalid_argument("invalid solver parameter '" + field + "' = " + value + ": " +
+                              expected);
+}
+
+std::string str(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+}  // namespace
+
+SolverKind parseSolverKind(const std::string& name) {
+  if (name == "fast") return SolverKind::Fast;
+  if (name == "naive") return SolverKind::Naive;
+  throw std::invalid_argument("invalid solver '" + name + "': expected 'fast' or 'naive'");
+}
+
+const char* toString(SolverKind kind) { return kind == SolverKind::Fast ? "fast" : "naive"; }
+
+void SolverParams::validate() const {
+  if (regionHalfWidth < 1 || regionHalfWidth > kMaxRegionHalfWidth)
+    fail("region_half_width", std::to_string(regionHalfWidth),
+         "expected an integer from 1 to " + std::to_string(kMaxRegionHalfWidth));
+  if (!std::isfinite(stiffness) || stiffness <= 0.0 || stiffness > 1.0)
+    fail("stiffness", str(stiffness), "expected a fraction in (0, 1]");
+  if (!std::isfinite(damping) || damping < 0.0)
+    fail("damping", str(damping), "expected a finite rate >= 0 (1/s)");
+  if (!gravity.allFinite())
+    fail("gravity", "[" + str(gravity.x()) + ", " + str(gravity.y()) + ", " + str(gravity.z()) + "]",
+         "expected three finite numbers (m/s^2)");
+  if (!std::isfinite(timeStep) || timeStep <= 0.0 || timeStep > kMaxTimeStep)
+    fail("time_step", str(timeStep), "expected a step in (0, " + str(kMaxTimeStep) + "] seconds");
+  if (substeps < 1 || substeps > kMaxSubsteps)
+    fail("substeps", std::to_string(substeps),
+         "expected an integer from 1 to " + std::to_string(kMaxSubsteps));
+  if (!std::isfinite(density) || density <= 0.0)
+    fail("density", str(density), "expected a finite density > 0 (kg/m^3)");
+}
+
+}  // namespace deformable_flsm
