@@ -267,6 +267,31 @@ void Solver::regionDamping(double kd) {
   }
 }
 
+// Whole-object damping: the same pull as regionDamping() with one region holding every particle
+// (full masses), i.e. towards v_cm + omega x (x - c) with the object's momenta.
+void Solver::globalDamping(double kd) {
+  if (kd <= 0.0) return;
+  const auto& m = lattice_->masses();
+  const double M = lattice_->totalMass();
+  const std::size_t n = x_.size();
+  Eigen::Vector3d c = Eigen::Vector3d::Zero(), P = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    c += m[i] * x_[i];
+    P += m[i] * v_[i];
+  }
+  c /= M;
+  const Eigen::Vector3d vcm = P / M;
+  Eigen::Vector3d L = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d p = x_[i] - c;
+    L += m[i] * p.cross(v_[i] - vcm);
+    second.noalias() += m[i] * p * p.transpose();
+  }
+  const Eigen::Vector3d w = solveInertia(Eigen::Matrix3d::Identity() * second.trace() - second, L);
+  for (std::size_t i = 0; i < n; ++i) v_[i] += kd * (vcm + w.cross(x_[i] - c) - v_[i]);
+}
+
 void Solver::accumulateForces(double h) {
   std::fill(forceAccel_.begin(), forceAccel_.end(), Eigen::Vector3d::Zero());
   const auto& m = lattice_->masses();
@@ -307,6 +332,7 @@ void Solver::substep(double h) {
   for (std::size_t i = 0; i < n; ++i)
     v_[i] += pull * (goals_[i] - x_[i]) + h * (params_.gravity + forceAccel_[i]);
   regionDamping(1.0 - std::exp(-params_.damping * h));
+  globalDamping(1.0 - std::exp(-params_.globalDamping * h));
 
   for (const auto& entry : drags_) {
     const Drag& drag = entry.second;

@@ -44,6 +44,8 @@ void SolverParams::validate() const {
     fail("stiffness", str(stiffness), "expected a fraction in (0, 1]");
   if (!std::isfinite(damping) || damping < 0.0)
     fail("damping", str(damping), "expected a finite rate >= 0 (1/s)");
+  if (!std::isfinite(globalDamping) || globalDamping < 0.0)
+    fail("global_damping", str(globalDamping), "expected a finite rate >= 0 (1/s)");
   if (!gravity.allFinite())
     fail("gravity", "[" + str(gravity.x()) + ", " + str(gravity.y()) + ", " + str(gravity.z()) + "]",
          "expected three finite numbers (m/s^2)");

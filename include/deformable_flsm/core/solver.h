@@ -135,6 +135,7 @@ class Solver {
   void substep(double h);
   void shapeMatch();
   void regionDamping(double kd);
+  void globalDamping(double kd);
   void accumulateForces(double h);
 
   std::shared_ptr<const Lattice> lattice_;

@@ -1,0 +1,254 @@
+#include "deformable_flsm/core/solver.h"
+
+#include "fixtures.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+using deformable_flsm::Lattice;
+using deformable_flsm::Solver;
+using deformable_flsm::SolverKind;
+using deformable_flsm::SolverParams;
+using deformable_flsm::test::makeBox;
+
+namespace {
+
+/// A 12 x 4 x 4 bar of 1 cm cells (12 cm long).
+std::shared_ptr<const Lattice> bar(int w = 2) {
+  return std::make_shared<const Lattice>(makeBox(12, 4, 4, 0.01), 1000.0, w);
+}
+
+SolverParams weightless() {
+  SolverParams p;
+  p.gravity.setZero();
+  return p;
+}
+
+bool allFinite(const std::vector<Eigen::Vector3d>& x) {
+  for (const auto& v : x)
+    if (!v.allFinite()) return false;
+  return true;
+}
+
+Eigen::Isometry3d someRigidMotion() {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(2.5, Eigen::Vector3d(1, -2, 0.5).normalized()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(3.0, -1.0, 0.4);
+  return T;
+}
+
+}  // namespace
+
+TEST(Solver, RestStaysAtRest) {
+  Solver s(bar(), weightless());
+  for (int i = 0; i < 200; ++i) s.step();
+  // Only round-off moves anything: rotations converge to 1e-13 rad per sub-step, so 800
+  // sub-steps may drift by ~1e-11 of the object size; a real force would move it by far more.
+  EXPECT_LT(s.maxDisplacement(), 1e-10 * s.lattice().objectSize());
+  EXPECT_LT(s.kineticEnergy(), 1e-20);
+}
+
+TEST(Solver, RigidlyMovedObjectHasGoalsEqualToPositions) {
+  for (SolverKind kind : {SolverKind::Fast, SolverKind::Naive}) {
+    SolverParams p = weightless();
+    p.kind = kind;
+    Solver s(bar(), p);
+    const Eigen::Isometry3d T = someRigidMotion();
+    std::vector<Eigen::Vector3d> x;
+    for (const auto& x0 : s.lattice().restPositions()) x.push_back(T * x0);
+    s.setPositions(x);
+    std::vector<Eigen::Vector3d> g;
+    s.computeGoals(g);
+    double err = 0.0;
+    for (std::size_t i = 0; i < x.size(); ++i) err = std::max(err, (g[i] - x[i]).norm());
+    EXPECT_LT(err, 1e-12 * s.lattice().objectSize() * 10) << toString(kind);
+    // and the rigid frame recovers T
+    const Eigen::Isometry3d F = s.rigidFrame();
+    EXPECT_LT((F.matrix() - T.matrix()).norm(), 1e-10);
+  }
+}
+
+TEST(Solver, ConservesLinearAndAngularMomentum) {
+  // No pins, gravity or forces: shape matching and region damping exchange momentum only inside
+  // the object. Start deformed and spinning so that every term is exercised.
+  Solver s(bar(), weightless());
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Eigen::Vector3d> x = s.positions(), v(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    x[i] += 0.003 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    v[i] = Eigen::Vector3d(0.1, 0.0, 0.2) + Eigen::Vector3d(0, 0, 3.0).cross(x[i]) +
+           0.5 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+  }
+  s.setPositions(x);
+  s.setVelocities(v);
+  const Eigen::Vector3d P0 = s.linearMomentum(), L0 = s.angularMomentum();
+  // Momentum scales: sum m|v| and sum m|x||v|, against which round-off is measured.
+  double pScale = 0.0, lScale = 0.0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    pScale += s.lattice().masses()[i] * v[i].norm();
+    lScale += s.lattice().masses()[i] * x[i].norm() * v[i].norm();
+  }
+  const double error0 = s.shapeError();
+  for (int i = 0; i < 300; ++i) s.step();
+  // Linear momentum: exact algebra, round-off ~1e-16 per sub-step over 1200 sub-steps.
+  EXPECT_LT((s.linearMomentum() - P0).norm(), 1e-12 * pScale);
+  // Angular momentum: exact when rotations are exact polar factors (R^T A symmetric); they
+  // converge to 1e-13 rad.
+  EXPECT_LT((s.angularMomentum() - L0).norm(), 1e-10 * lScale);
+  // Damping removed the random deformation; what is left is the centrifugal stretch of the spin.
+  EXPECT_LT(s.shapeError(), 0.1 * error0);
+}
+
+TEST(Solver, RecoversRestShapeAfterLargeDragIsReleased) {
+  Solver s(bar(), weightless());
+  const double size = s.lattice().objectSize();
+  // grab the 4 particles nearest the tip and pull them 50% of the object size sideways
+  // and hold the other end: the bar is bent by the drag, held until it settles, then let go
+  const Eigen::Vector3d tip(0.12, 0.02, 0.02);
+  const auto grabbed = s.nearestParticles(tip, 4);
+  s.pinBox(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d(0.016, 1.0, 1.0), true);
+  s.grab("tip", grabbed, tip + Eigen::Vector3d(0.0, 0.5 * size, 0.0), 0.0);
+  for (int i = 0; i < 300; ++i) s.step();
+  const double bent = s.shapeError();
+  EXPECT_GT(bent, 0.02 * size) << "the drag did not deform the bar";
+  ASSERT_TRUE(s.release("tip"));
+  s.pinBox(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d(0.016, 1.0, 1.0), false);
+  for (int i = 0; i < 600; ++i) s.step();
+  EXPECT_TRUE(allFinite(s.positions()));
+  // back to the rest shape to 0.1% of the object size (it was bent by > 2%)
+  EXPECT_LT(s.shapeError(), 1e-3 * size);
+}
+
+TEST(Solver, HardDragPutsParticlesOnTheTargetAndSpringDragPullsTowardsIt) {
+  Solver s(bar(), weightless());
+  const auto grabbed = s.nearestParticles(Eigen::Vector3d(0.12, 0.0, 0.0), 1);
+  const Eigen::Vector3d target(0.15, 0.05, 0.0);
+  s.grab("hard", grabbed, target, 0.0);
+  for (int i = 0; i < 30; ++i) s.step();
+  EXPECT_LT((s.positions()[grabbed[0]] - target).norm(), 1e-12);
+  ASSERT_TRUE(s.moveDrag("hard", target + Eigen::Vector3d(0.0, 0.0, 0.02)));
+  s.step();
+  EXPECT_LT((s.positions()[grabbed[0]] - target - Eigen::Vector3d(0.0, 0.0, 0.02)).norm(), 1e-12);
+  s.releaseAll();
+  EXPECT_TRUE(s.drags().empty());
+
+  Solver t(bar(), weightless());
+  const auto other = t.nearestParticles(Eigen::Vector3d(0.0, 0.0, 0.0), 2);
+  const Eigen::Vector3d start = 0.5 * (t.positions()[other[0]] + t.positions()[other[1]]);
+  t.grab("a", grabbed, target, 50.0);
+  t.grab("b", other, start - Eigen::Vector3d(0.03, 0.0, 0.0), 50.0);
+  EXPECT_EQ(t.drags().size(), 2u);
+  const double d0 = (t.positions()[grabbed[0]] - target).norm();
+  for (int i = 0; i < 120; ++i) t.step();
+  EXPECT_LT((t.positions()[grabbed[0]] - target).norm(), 0.5 * d0);
+  EXPECT_FALSE(t.release("nobody"));
+}
+
+TEST(Solver, ForcesDeliverExactlyTheirImpulse) {
+  Solver s(bar(), weightless());
+  const auto all = s.particlesWithin(Eigen::Vector3d(0.06, 0.02, 0.02), 1.0);
+  ASSERT_EQ(all.size(), s.lattice().size());
+  const auto some = s.particlesWithin(Eigen::Vector3d(0.12, 0.0, 0.0), 0.03);
+  // 2 N for 0.1 s (not a multiple of the sub-step) = 0.2 N s; then an impulse of 0.05 N s.
+  s.applyForce(some, Eigen::Vector3d(2.0, 0.0, 0.0), 0.1);
+  for (int i = 0; i < 20; ++i) s.step();
+  EXPECT_TRUE(s.activeForces().empty());
+  EXPECT_NEAR(s.linearMomentum().x(), 0.2, 1e-12);
+  s.applyImpulse(some, Eigen::Vector3d(0.0, 0.0, 0.05));
+  EXPECT_TRUE(s.hasPendingCommands());
+  s.step();
+  EXPECT_NEAR(s.linearMomentum().z(), 0.05, 1e-12);
+  EXPECT_THROW(s.applyForce(some, Eigen::Vector3d::UnitX(), 0.0), std::invalid_argument);
+  EXPECT_THROW(s.applyImpulse({}, Eigen::Vector3d::UnitX()), std::invalid_argument);
+  EXPECT_THROW(s.grab("x", {100000}, Eigen::Vector3d::Zero(), 0.0), std::out_of_range);
+}
+
+TEST(Solver, PinnedParticlesHoldTheCantileverUnderGravity) {
+  SolverParams p;
+  Solver s(bar(), p);
+  const std::size_t pinned = s.pinBox(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(0.016, 1, 1), true);
+  EXPECT_EQ(pinned, 2u * 16u);
+  EXPECT_EQ(s.pinnedCount(), pinned);
+  for (int i = 0; i < 240; ++i) s.step();
+  const auto& x0 = s.lattice().restPositions();
+  double tipSag = 0.0;
+  for (std::size_t i = 0; i < x0.size(); ++i) {
+    if (s.isPinned(static_cast<std::uint32_t>(i))) {
+      EXPECT_EQ(s.positions()[i], x0[i]);
+    }
+    if (x0[i].x() > 0.11) tipSag = std::max(tipSag, x0[i].z() - s.positions()[i].z());
+  }
+  EXPECT_GT(tipSag, 1e-4) << "gravity should bend the free end down";
+  EXPECT_LT(tipSag, 0.12) << "the bar should not fall off its pins";
+  s.reset();
+  EXPECT_EQ(s.pinnedCount(), pinned);
+  EXPECT_EQ(s.maxDisplacement(), 0.0);
+}
+
+// Stability where explicit methods blow up: a time step of 1/30 s, one sub-step, and starting
+// states with no resemblance to the rest shape. No NaN, and back to the rest shape.
+class Stability : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(Stability, RecoversFromDegenerateStartWithLargeStep) {
+  SolverParams p = weightless();
+  p.timeStep = 1.0 / 30.0;
+  p.substeps = 1;
+  Solver s(bar(), p);
+  const std::string name = GetParam();
+  const double size = s.lattice().objectSize();
+  std::vector<Eigen::Vector3d> x = s.positions();
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (auto& xi : x) {
+    if (name == "point") xi = Eigen::Vector3d(0.3, 0.3, 0.3);
+    if (name == "plane") xi.z() = 0.0;
+    if (name == "scrambled") xi = size * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    if (name == "stretched") xi *= 10.0;
+  }
+  s.setPositions(x);
+  for (int i = 0; i < 900; ++i) {
+    s.step();
+    ASSERT_TRUE(allFinite(s.positions())) << "NaN at step " << i;
+  }
+  EXPECT_LT(s.shapeError(), 1e-3 * size);
+}
+
+INSTANTIATE_TEST_SUITE_P(Starts, Stability, ::testing::Values("point", "plane", "scrambled", "stretched"));
+
+TEST(SolverParams, ValidateNamesTheFieldAndRange) {
+  auto message = [](const SolverParams& p) {
+    try {
+      p.validate();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  SolverParams p;
+  EXPECT_EQ(message(p), "");
+  p.stiffness = 1.5;
+  EXPECT_NE(message(p).find("stiffness"), std::string::npos);
+  p = SolverParams();
+  p.regionHalfWidth = 0;
+  EXPECT_NE(message(p).find("region_half_width"), std::string::npos);
+  p = SolverParams();
+  p.timeStep = std::nan("");
+  EXPECT_NE(message(p).find("time_step"), std::string::npos);
+  p = SolverParams();
+  p.gravity.x() = INFINITY;
+  EXPECT_NE(message(p).find("gravity"), std::string::npos);
+  p = SolverParams();
+  p.substeps = 0;
+  EXPECT_NE(message(p).find("substeps"), std::string::npos);
+  p = SolverParams();
+  p.damping = -1;
+  EXPECT_NE(message(p).find("damping"), std::string::npos);
+  EXPECT_THROW(deformable_flsm::parseSolverKind("fastest"), std::invalid_argument);
+  EXPECT_EQ(deformable_flsm::parseSolverKind("naive"), SolverKind::Naive);
+  // a solver refuses a width that differs from its lattice's
+  p = SolverParams();
+  p.regionHalfWidth = 3;
+  EXPECT_THROW(Solver(bar(2), p), std::invalid_argument);
+}
