@@ -1,0 +1,129 @@
+// Prints the cost of a FastLSM solver step, in ns per particle-step, for the fast and naive
+// solvers at region half-widths w = 1..4, on the bunny voxelized to about --particles particles.
+// A benchmark, not a test: it prints figures and never fails because the machine is slow.
+//
+//   bench_solver [--mesh PATH] [--particles N] [--steps N] [--repeats N] [--max-naive-w W]
+
+#include "deformable_flsm/core/lattice.h"
+#include "deformable_flsm/core/mesh.h"
+#include "deformable_flsm/core/solver.h"
+#include "deformable_flsm/core/voxelizer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <vector>
+
+using namespace deformable_flsm;
+
+namespace {
+
+struct Args {
+  std::string mesh = "/usr/share/glmark2/models/bunny.obj";
+  std::size_t particles = 10000;
+  int steps = 40;
+  int repeats = 5;
+  int maxNaiveW = 4;
+};
+
+Args parse(int argc, char** argv) {
+  Args a;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string k = argv[i];
+    const char* v = argv[i + 1];
+    if (k == "--mesh") a.mesh = v;
+    else if (k == "--particles") a.particles = std::strtoul(v, nullptr, 10);
+    else if (k == "--steps") a.steps = std::atoi(v);
+    else if (k == "--repeats") a.repeats = std::atoi(v);
+    else if (k == "--max-naive-w") a.maxNaiveW = std::atoi(v);
+    else {
+      std::fprintf(stderr, "unknown option %s\n", k.c_str());
+      std::exit(2);
+    }
+  }
+  return a;
+}
+
+/// The resolution whose voxelization has the particle count closest to `target`.
+Voxelization voxelizeNear(const TriMesh& mesh, std::size_t target) {
+  int lo = 4, hi = 400;
+  Voxelization best;
+  while (lo <= hi) {
+    const int mid = (lo + hi) / 2;
+    VoxelizeOptions o;
+    o.resolution = mid;
+    o.maxParticles = 4 * target;
+    Voxelization v;
+    try {
+      v = voxelize(mesh, o);
+    } catch (const VoxelizationError&) {  // far over the target: search lower
+      hi = mid - 1;
+      continue;
+    }
+    const bool under = v.cells.size() < target;
+    if (best.cells.empty() ||
+        std::abs(double(v.cells.size()) - double(target)) < std::abs(double(best.cells.size()) - double(target)))
+      best = std::move(v);
+    if (under) lo = mid + 1;
+    else hi = mid - 1;
+  }
+  return best;
+}
+
+/// Median ns per particle-step over `repeats` runs of `steps` steps, after one warm-up step.
+double measure(const std::shared_ptr<const Lattice>& lattice, const SolverParams& params, int steps,
+               int repeats) {
+  Solver s(lattice, params);
+  // a deformed, moving state so that the rotation extraction does real work
+  std::vector<Eigen::Vector3d> x = s.positions();
+  for (std::size_t i = 0; i < x.size(); ++i) x[i] += 0.05 * lattice->spacing() * Eigen::Vector3d(std::sin(7.0 * i), std::cos(3.0 * i), std::sin(5.0 * i));
+  s.setPositions(x);
+  s.step();
+  std::vector<double> samples;
+  for (int r = 0; r < repeats; ++r) {
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int i = 0; i < steps; ++i) s.step();
+    const auto t1 = std::chrono::steady_clock::now();
+    const double ns = std::chrono::duration<double, std::nano>(t1 - t0).count();
+    samples.push_back(ns / (double(steps) * params.substeps * double(lattice->size())));
+  }
+  std::sort(samples.begin(), samples.end());
+  return samples[samples.size() / 2];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args args = parse(argc, argv);
+  const TriMesh mesh = loadMesh(args.mesh, 0.1);
+  const Voxelization vox = voxelizeNear(mesh, args.particles);
+  std::printf("mesh %s: %zu triangles; lattice %d x %d x %d cells, spacing %.4g m, %zu particles\n",
+              args.mesh.c_str(), mesh.triangles.size(), vox.dims.x(), vox.dims.y(), vox.dims.z(), vox.spacing,
+              vox.cells.size());
+  std::printf("single thread, double precision, one sub-step per step, median of %d runs of %d steps\n",
+              args.repeats, args.steps);
+  std::printf("%3s %16s %16s %10s\n", "w", "fast ns/p-step", "naive ns/p-step", "naive/fast");
+  double fast1 = 0.0;
+  for (int w = 1; w <= 4; ++w) {
+    auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
+    SolverParams p;
+    p.regionHalfWidth = w;
+    p.substeps = 1;
+    p.kind = SolverKind::Fast;
+    const double fast = measure(lattice, p, args.steps, args.repeats);
+    if (w == 1) fast1 = fast;
+    if (w <= args.maxNaiveW) {
+      p.kind = SolverKind::Naive;
+      const double naive = measure(lattice, p, std::max(1, args.steps / (w * w)), args.repeats);
+      std::printf("%3d %16.1f %16.1f %10.1f\n", w, fast, naive, naive / fast);
+    } else {
+      std::printf("%3d %16.1f %16s %10s\n", w, fast, "-", "-");
+    }
+    if (w == 4) std::printf("fast w=4 / w=1 cost ratio: %.2f\n", fast / fast1);
+  }
+  return 0;
+}
