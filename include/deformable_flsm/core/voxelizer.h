@@ -70,8 +70,27 @@ struct Voxelization {
 /// leaky mesh, the surface cells plus whatever a flood fill from outside cannot reach are
 /// occupied, each with fraction 1, and a warning says so.
 ///
+/// @param[in] mesh     surface to voxelize (m); must pass validateMesh()
+/// @param[in] options  lattice spacing or resolution, and the particle budget
+/// @throws MeshError when the mesh fails validateMesh().
 /// @throws VoxelizationError on invalid options, or when more than options.maxParticles cells
 ///         would be occupied (the message names a resolution that fits).
 Voxelization voxelize(const TriMesh& mesh, const VoxelizeOptions& options);
+
+namespace detail {
+
+/// Separating-axis test of a triangle against an axis-aligned box (Akenine-Moeller 2001, "Fast
+/// 3D triangle-box overlap testing"): the two are disjoint iff their projections are disjoint on
+/// one of 13 axes, namely the 3 box normals, the triangle normal and the 9 cross products of a
+/// box normal with a triangle edge. Touching counts as overlapping.
+/// @param[in] boxCenter    3 by 1 centre of the box (m)
+/// @param[in] boxHalfSize  3 by 1 half edge lengths of the box (m), >= 0
+/// @param[in] a, b, c      3 by 1 triangle corners (m); a degenerate triangle is a segment or point
+/// @return true when the closed triangle and the closed box share a point.
+bool triangleBoxOverlap(const Eigen::Vector3d& boxCenter, const Eigen::Vector3d& boxHalfSize,
+                        const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                        const Eigen::Vector3d& c);
+
+}  // namespace detail
 
 }  // namespace deformable_flsm
