@@ -1,6 +1,7 @@
 #include "deformable_flsm/core/polar.h"
 
-#include <Eigen/Cholesky>
+#include "deformable_flsm/core/small_matrix.h"
+
 #include <Eigen/SVD>
 
 #include <algorithm>
@@ -55,10 +56,7 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& A, Eigen::Quaterniond& q,
     const Eigen::Vector3d g(S(2, 1) - S(1, 2), S(0, 2) - S(2, 0), S(1, 0) - S(0, 1));
     H = Eigen::Matrix3d::Identity() * S.trace() - 0.5 * (S + S.transpose());
     Eigen::Vector3d theta;
-    const Eigen::LLT<Eigen::Matrix3d> llt(H);
-    if (llt.info() == Eigen::Success && H.diagonal().minCoeff() > tol) {
-      theta = llt.solve(g);
-    } else {
+    if (!solveSymmetricPositive3(H, g, tol, theta)) {
       // Not a concave neighbourhood: gradient step of Mueller et al. 2016 (bounded length).
       theta = g / (std::abs(S.trace()) + scale);
     }
@@ -68,11 +66,10 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& A, Eigen::Quaterniond& q,
       converged = true;
       break;
     }
-    // q <- q * exp(theta); exact exponential so that large steps stay rotations of the right size.
-    const double half = 0.5 * std::min(angle, M_PI);
-    const Eigen::Vector3d axis = theta / angle;
-    const Eigen::Quaterniond dq(std::cos(half), std::sin(half) * axis.x(), std::sin(half) * axis.y(),
-                                std::sin(half) * axis.z());
+    // q <- q * dq with dq = (1, theta/2) normalised: the rotation by 2 atan(|theta|/2) about theta,
+    // equal to exp(theta) to second order; the fixed point (g = 0) is unchanged and large steps
+    // are shortened, never lengthened.
+    const Eigen::Quaterniond dq(1.0, 0.5 * theta.x(), 0.5 * theta.y(), 0.5 * theta.z());
     q = (q * dq).normalized();
     R = q.toRotationMatrix();
   }

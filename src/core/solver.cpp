@@ -1,8 +1,8 @@
 #include "deformable_flsm/core/solver.h"
 
 #include "deformable_flsm/core/polar.h"
+#include "deformable_flsm/core/small_matrix.h"
 
-#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -30,11 +30,9 @@ constexpr double kInertiaRankTolerance = 1e-10;
 Eigen::Vector3d solveInertia(const Eigen::Matrix3d& I, const Eigen::Vector3d& L) {
   const double trace = I.trace();
   if (!(trace > 0.0)) return Eigen::Vector3d::Zero();
-  const Eigen::LLT<Eigen::Matrix3d> llt(I);
-  // Fast path: well conditioned (every pivot of the Cholesky factor clearly positive).
-  if (llt.info() == Eigen::Success &&
-      llt.matrixLLT().diagonal().cwiseAbs2().minCoeff() > kInertiaRankTolerance * trace)
-    return llt.solve(L);
+  // Fast path: well conditioned (every pivot clearly positive).
+  Eigen::Vector3d w;
+  if (solveSymmetricPositive3(I, L, kInertiaRankTolerance * trace, w)) return w;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
   eig.computeDirect(I);
   const Eigen::Vector3d& lambda = eig.eigenvalues();
