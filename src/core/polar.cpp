@@ -47,7 +47,7 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& A, Eigen::Quaterniond& q,
 
   const double tol = kSaddleTolerance * scale;
   Eigen::Matrix3d R = q.toRotationMatrix();
-  Eigen::Matrix3d H;
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
   bool converged = false;
   int it = 0;
   for (; it < opts.maxIterations; ++it) {

@@ -62,6 +62,7 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
                                 std::to_string(lattice_->regionHalfWidth()));
   const Lattice& L = *lattice_;
   const std::size_t n = L.size();
+  alpha_ = std::min(params_.stiffness, params_.requestedAlpha(L.spacing()));
   if (params_.kind == SolverKind::Fast)
     summer_ = std::make_unique<BarSummer>(L);
   else
@@ -121,6 +122,11 @@ void Solver::setParams(const SolverParams& params) {
       summer_ = std::make_unique<NaiveSummer>(*lattice_);
   }
   params_ = params;
+  alpha_ = std::min(params_.stiffness, params_.requestedAlpha(lattice_->spacing()));
+}
+
+bool Solver::stiffnessSaturated() const {
+  return params_.requestedAlpha(lattice_->spacing()) > params_.stiffness;
 }
 
 void Solver::reset() {
@@ -265,31 +271,6 @@ void Solver::regionDamping(double kd) {
   }
 }
 
-// Whole-object damping: the same pull as regionDamping() with one region holding every particle
-// (full masses), i.e. towards v_cm + omega x (x - c) with the object's momenta.
-void Solver::globalDamping(double kd) {
-  if (kd <= 0.0) return;
-  const auto& m = lattice_->masses();
-  const double M = lattice_->totalMass();
-  const std::size_t n = x_.size();
-  Eigen::Vector3d c = Eigen::Vector3d::Zero(), P = Eigen::Vector3d::Zero();
-  for (std::size_t i = 0; i < n; ++i) {
-    c += m[i] * x_[i];
-    P += m[i] * v_[i];
-  }
-  c /= M;
-  const Eigen::Vector3d vcm = P / M;
-  Eigen::Vector3d L = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d p = x_[i] - c;
-    L += m[i] * p.cross(v_[i] - vcm);
-    second.noalias() += m[i] * p * p.transpose();
-  }
-  const Eigen::Vector3d w = solveInertia(Eigen::Matrix3d::Identity() * second.trace() - second, L);
-  for (std::size_t i = 0; i < n; ++i) v_[i] += kd * (vcm + w.cross(x_[i] - c) - v_[i]);
-}
-
 void Solver::accumulateForces(double h) {
   std::fill(forceAccel_.begin(), forceAccel_.end(), Eigen::Vector3d::Zero());
   const auto& m = lattice_->masses();
@@ -326,11 +307,13 @@ void Solver::substep(double h) {
   }
   shapeMatch();
   accumulateForces(h);
-  const double pull = params_.stiffness / h;
+  const double pull = alpha_ / h;
   for (std::size_t i = 0; i < n; ++i)
     v_[i] += pull * (goals_[i] - x_[i]) + h * (params_.gravity + forceAccel_[i]);
   regionDamping(1.0 - std::exp(-params_.damping * h));
-  globalDamping(1.0 - std::exp(-params_.globalDamping * h));
+  const double keep = std::exp(-params_.ambientDamping * h);
+  if (keep < 1.0)
+    for (auto& vi : v_) vi *= keep;
 
   for (const auto& entry : drags_) {
     const Drag& drag = entry.second;

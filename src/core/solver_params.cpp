@@ -1,5 +1,6 @@
 #include "deformable_flsm/core/solver_params.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -36,16 +37,38 @@ SolverKind parseSolverKind(const std::string& name) {
 
 const char* toString(SolverKind kind) { return kind == SolverKind::Fast ? "fast" : "naive"; }
 
+int regionHalfWidthForRadius(double radius, double spacing) {
+  if (!std::isfinite(radius) || radius <= 0.0)
+    fail("region_radius", str(radius), "expected a finite radius > 0 (m)");
+  if (!std::isfinite(spacing) || spacing <= 0.0)
+    fail("spacing", str(spacing), "expected a finite lattice spacing > 0 (m)");
+  const double w = std::round(radius / spacing);
+  if (w > kMaxRegionHalfWidth)
+    fail("region_radius", str(radius),
+         "is " + str(w) + " cells at spacing " + str(spacing) + " m; at most " +
+             std::to_string(kMaxRegionHalfWidth) + " cells: use a smaller radius or a coarser lattice");
+  return std::max(1, static_cast<int>(w));
+}
+
+double SolverParams::requestedAlpha(double spacing) const {
+  if (youngsModulus <= 0.0) return stiffness;
+  const double h = substepLength();
+  const double w = regionHalfWidth;
+  return 3.0 * youngsModulus * h * h / (density * spacing * spacing * w * (w + 1.0));
+}
+
 void SolverParams::validate() const {
   if (regionHalfWidth < 1 || regionHalfWidth > kMaxRegionHalfWidth)
     fail("region_half_width", std::to_string(regionHalfWidth),
          "expected an integer from 1 to " + std::to_string(kMaxRegionHalfWidth));
   if (!std::isfinite(stiffness) || stiffness <= 0.0 || stiffness > 1.0)
     fail("stiffness", str(stiffness), "expected a fraction in (0, 1]");
+  if (!std::isfinite(youngsModulus) || youngsModulus < 0.0)
+    fail("youngs_modulus", str(youngsModulus), "expected a finite modulus >= 0 (Pa; 0 uses stiffness)");
   if (!std::isfinite(damping) || damping < 0.0)
     fail("damping", str(damping), "expected a finite rate >= 0 (1/s)");
-  if (!std::isfinite(globalDamping) || globalDamping < 0.0)
-    fail("global_damping", str(globalDamping), "expected a finite rate >= 0 (1/s)");
+  if (!std::isfinite(ambientDamping) || ambientDamping < 0.0)
+    fail("ambient_damping", str(ambientDamping), "expected a finite rate >= 0 (1/s)");
   if (!gravity.allFinite())
     fail("gravity", "[" + str(gravity.x()) + ", " + str(gravity.y()) + ", " + str(gravity.z()) + "]",
          "expected three finite numbers (m/s^2)");

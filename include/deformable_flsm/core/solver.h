@@ -55,6 +55,12 @@ class Solver {
   /// (they define the lattice: build a new Solver).
   void setParams(const SolverParams& params);
 
+  /// alpha used per sub-step: params().requestedAlpha(spacing) capped at params().stiffness.
+  double alpha() const { return alpha_; }
+  /// true when youngsModulus asks for more than the cap: the material is softer than asked,
+  /// by the factor alpha() / params().requestedAlpha(); more sub-steps fix it.
+  bool stiffnessSaturated() const;
+
   /// Advances the simulation by params().timeStep in params().substeps sub-steps.
   void step();
   /// Simulated time since construction or reset() (s).
@@ -135,7 +141,6 @@ class Solver {
   void substep(double h);
   void shapeMatch();
   void regionDamping(double kd);
-  void globalDamping(double kd);
   void accumulateForces(double h);
 
   std::shared_ptr<const Lattice> lattice_;
@@ -160,6 +165,7 @@ class Solver {
   std::vector<TimedForce> forces_;
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
   std::vector<double> regionData_, regionSums_;  // scratch, K doubles per particle
+  double alpha_ = 1.0;
   double time_ = 0.0;
   std::uint64_t substeps_ = 0;
 };

@@ -23,22 +23,40 @@ SolverKind parseSolverKind(const std::string& name);
 /// "fast" or "naive".
 const char* toString(SolverKind kind);
 
+/// Region half-width w (cells) for a region radius in metres: the nearest whole number of cells,
+/// at least 1, so that regions keep their physical size whatever the lattice spacing.
+/// @throws std::invalid_argument for a non-positive or non-finite radius or spacing
+int regionHalfWidthForRadius(double radius, double spacing);
+
 struct SolverParams {
   /// Region half-width w in lattice cells: a region spans up to (2w+1)^3 cells. Larger is stiffer.
   int regionHalfWidth = 2;
-  /// Fraction alpha in (0, 1] of the way to the goal positions taken per time step:
-  /// v += alpha (g - x) / h (Rivers & James 2007, eq. 7).
+  /// Fraction alpha in (0, 1] of the way to the goal positions taken per sub-step:
+  /// v += alpha (g - x) / h (Rivers & James 2007, eq. 7). Used as is when youngsModulus is 0;
+  /// otherwise it is the cap on the alpha that youngsModulus asks for (alpha > 1 overshoots).
+  /// alpha alone changes meaning with the time step and the lattice: prefer youngsModulus.
   double stiffness = 1.0;
+  /// Young's modulus E (Pa) of the material; 0 to use `stiffness` as alpha directly.
+  ///
+  /// Shape matching's impulses are the gradient of E_sm = k/2 sum_r sum_{i in r} m~_i |T_r x0_i - x_i|^2
+  /// with k = alpha / h^2 (h the sub-step). For a small uniform strain eps, an interior region
+  /// of (2w+1)^3 cells of spacing dx holds k/2 m dx^2 sigma^2 tr(eps^2), sigma^2 = w(w+1)/3, one
+  /// region per cell: the energy density of linear elasticity with shear modulus
+  /// mu = k rho dx^2 sigma^2 / 2 and lambda = 0, i.e. E = 2 mu = k rho dx^2 w(w+1)/3 and
+  /// Poisson's ratio 0. So alpha = 3 E h^2 / (rho dx^2 w(w+1)): the same E gives the same
+  /// material at every time step and lattice spacing, as long as alpha stays under its cap
+  /// (Solver::stiffnessSaturated() tells when the step is too long for E).
+  double youngsModulus = 0.0;
   /// Rate (1/s) at which each region's deviation from rigid motion is damped; 0 for none.
   /// Momentum-conserving: linear and angular momentum of every region are kept. Bending modes
   /// longer than a region look nearly rigid inside each region and are damped far more slowly
   /// than this rate, hence a default well above the wobble one wants to see.
   double damping = 10.0;
-  /// Rate (1/s) at which every particle's deviation from the whole object's rigid motion (the
-  /// velocity field with the object's linear and angular momentum) is damped; 0 for none. It
-  /// reaches the long bending modes that region damping hardly sees, damps every mode alike,
-  /// and conserves the object's linear and angular momentum.
-  double globalDamping = 1.0;
+  /// Rate (1/s) of drag towards rest in the world frame, as by a surrounding medium (air):
+  /// v <- v exp(-ambientDamping h). It settles the long, slow modes (a cantilever's first bending
+  /// mode looks rigid inside every region, so region damping hardly reaches it); it does not
+  /// conserve momentum (the medium takes it). 0 for none.
+  double ambientDamping = 0.5;
   /// Gravitational acceleration (m/s^2).
   Eigen::Vector3d gravity = Eigen::Vector3d(0.0, 0.0, -9.81);
   /// Simulated time advanced by one call of Solver::step() (s).
@@ -51,6 +69,12 @@ struct SolverParams {
 
   /// @throws std::invalid_argument with a message naming the field, its value and the valid range.
   void validate() const;
+
+  /// Sub-step length h = timeStep / substeps (s).
+  double substepLength() const { return timeStep / substeps; }
+  /// The alpha that youngsModulus asks for on a lattice of the given spacing (m), before the cap;
+  /// `stiffness` when youngsModulus is 0.
+  double requestedAlpha(double spacing) const;
 };
 
 }  // namespace deformable_flsm
