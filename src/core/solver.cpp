@@ -22,6 +22,10 @@ constexpr int kTransformChannels = 12;
 constexpr int kDampingChannels = 12;
 /// Channels per region of the rigid velocity fields scattered back: u (3) and omega (3).
 constexpr int kVelocityFieldChannels = 6;
+/// Largest region weight beta_r (physical mode). The isotropic weight restores the energy of a
+/// region clipped by the surface; a region resolved along one axis only (a rod or sheet a cell
+/// thick) would get a weight that stiffens what the lattice cannot represent anyway.
+constexpr double kMaxRegionWeight = 4.0;
 /// Inertia eigenvalues below this fraction of the largest are treated as zero (a collinear
 /// region cannot spin about its own line), so that omega = I^+ L stays finite and exact.
 constexpr double kInertiaRankTolerance = 1e-10;
@@ -62,7 +66,6 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
                                 std::to_string(lattice_->regionHalfWidth()));
   const Lattice& L = *lattice_;
   const std::size_t n = L.size();
-  alpha_ = std::min(params_.stiffness, params_.requestedAlpha(L.spacing()));
   if (params_.kind == SolverKind::Fast)
     summer_ = std::make_unique<BarSummer>(L);
   else
@@ -93,6 +96,8 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
     regionRestCenter_[r] = Eigen::Vector3d(momentSum[3 * r], momentSum[3 * r + 1], momentSum[3 * r + 2]) /
                            regionMass_[r];
 
+  computeRegionWeights();
+
   x_ = x0;
   v_.assign(n, Eigen::Vector3d::Zero());
   goals_ = x0;
@@ -105,6 +110,49 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
   const int maxChannels = std::max({kShapeChannels, kTransformChannels, kDampingChannels});
   regionData_.assign(n * maxChannels, 0.0);
   regionSums_.assign(n * maxChannels, 0.0);
+}
+
+// Region weights (physical mode only; classic FastLSM has beta_r = 1). Under a uniform strain eps
+// region r holds k/2 beta_r sum_{i in r} m~_i q_i^T eps^2 q_i, q_i = x0_i - c0_r. An interior region
+// has sum m~ |q|^2 = 3 m dx^2 sigma^2 with sigma^2 = w(w+1)/3 (the calibration behind
+// youngsModulus); a region clipped by the surface has less, which makes material near the surface
+// softer than inside, the more so the coarser the lattice. beta_r = m_r dx^2 w(w+1) / sum m~ |q|^2
+// gives every region the energy of the volume its centre cell stands for (m_r / rho).
+// The forces f_i = k m~_i sum_{r contains i} beta_r (T_r x0_i - x_i) still sum to zero, with zero
+// torque, over every region: momentum is conserved as in classic shape matching. Per particle
+// that is v += alpha s_i (g_i - x_i) / h with g_i the beta-weighted mean goal,
+// s_i = (sum_r beta_r) / n_i.
+void Solver::computeRegionWeights() {
+  const Lattice& L = *lattice_;
+  const std::size_t n = L.size();
+  regionWeight_.assign(n, 1.0);
+  if (params_.youngsModulus > 0.0) {
+    const auto& mt = L.regionMassFractions();
+    std::vector<double> second(n), secondSum;
+    for (std::size_t i = 0; i < n; ++i) second[i] = mt[i] * restCentered_[i].squaredNorm();
+    summer_->gather(second, 1, secondSum);
+    const double w = params_.regionHalfWidth;
+    const double interior = L.spacing() * L.spacing() * w * (w + 1.0);
+    for (std::size_t r = 0; r < n; ++r) {
+      const double Q = secondSum[r] - regionMass_[r] * regionRestCenter_[r].squaredNorm();
+      const double target = L.masses()[r] * interior;
+      // Q <= 0 only for a region of one particle, which has no shape to keep.
+      if (Q > 1e-12 * target) regionWeight_[r] = std::min(kMaxRegionWeight, target / Q);
+    }
+  }
+  std::vector<double> weightSum;
+  summer_->scatter(regionWeight_, 1, weightSum);
+  invWeightSum_.resize(n);
+  stiffnessFactor_.resize(n);
+  double maxFactor = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    invWeightSum_[i] = 1.0 / weightSum[i];
+    stiffnessFactor_[i] = weightSum[i] * invCount_[i];
+    maxFactor = std::max(maxFactor, stiffnessFactor_[i]);
+  }
+  // alpha s_i <= stiffness for every particle
+  alphaCap_ = params_.stiffness / maxFactor;
+  alpha_ = std::min(alphaCap_, params_.requestedAlpha(L.spacing()));
 }
 
 void Solver::setParams(const SolverParams& params) {
@@ -122,11 +170,11 @@ void Solver::setParams(const SolverParams& params) {
       summer_ = std::make_unique<NaiveSummer>(*lattice_);
   }
   params_ = params;
-  alpha_ = std::min(params_.stiffness, params_.requestedAlpha(lattice_->spacing()));
+  computeRegionWeights();
 }
 
 bool Solver::stiffnessSaturated() const {
-  return params_.requestedAlpha(lattice_->spacing()) > params_.stiffness;
+  return params_.requestedAlpha(lattice_->spacing()) > alphaCap_;
 }
 
 void Solver::reset() {
@@ -200,11 +248,12 @@ void Solver::shapeMatch() {
     const Eigen::Matrix3d R = extractRotation(A, rotations_[r]);
     const Eigen::Vector3d tr = c - R * c0;
     regionCenter_[r] = c;
+    const double beta = regionWeight_[r];
     for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) t[3 * a + b] = R(a, b);
-    t[9] = tr.x();
-    t[10] = tr.y();
-    t[11] = tr.z();
+      for (int b = 0; b < 3; ++b) t[3 * a + b] = beta * R(a, b);
+    t[9] = beta * tr.x();
+    t[10] = beta * tr.y();
+    t[11] = beta * tr.z();
   }
   summer_->scatter(regionData_, kTransformChannels, regionSums_);
 
@@ -213,7 +262,7 @@ void Solver::shapeMatch() {
     const Eigen::Vector3d& q = restCentered_[i];
     Eigen::Vector3d g(s[9], s[10], s[11]);
     for (int a = 0; a < 3; ++a) g[a] += s[3 * a] * q.x() + s[3 * a + 1] * q.y() + s[3 * a + 2] * q.z();
-    goals_[i] = g * invCount_[i] + xref_;
+    goals_[i] = g * invWeightSum_[i] + xref_;
   }
 }
 
@@ -309,7 +358,7 @@ void Solver::substep(double h) {
   accumulateForces(h);
   const double pull = alpha_ / h;
   for (std::size_t i = 0; i < n; ++i)
-    v_[i] += pull * (goals_[i] - x_[i]) + h * (params_.gravity + forceAccel_[i]);
+    v_[i] += pull * stiffnessFactor_[i] * (goals_[i] - x_[i]) + h * (params_.gravity + forceAccel_[i]);
   regionDamping(1.0 - std::exp(-params_.damping * h));
   const double keep = std::exp(-params_.ambientDamping * h);
   if (keep < 1.0)

@@ -55,11 +55,14 @@ class Solver {
   /// (they define the lattice: build a new Solver).
   void setParams(const SolverParams& params);
 
-  /// alpha used per sub-step: params().requestedAlpha(spacing) capped at params().stiffness.
+  /// alpha used per sub-step: params().requestedAlpha(spacing), capped so that no particle's
+  /// alpha s_i exceeds params().stiffness (s_i = 1 in classic mode, see computeRegionWeights()).
   double alpha() const { return alpha_; }
   /// true when youngsModulus asks for more than the cap: the material is softer than asked,
   /// by the factor alpha() / params().requestedAlpha(); more sub-steps fix it.
   bool stiffnessSaturated() const;
+  /// #P region weights beta_r (1 in classic mode; see computeRegionWeights()).
+  const std::vector<double>& regionWeights() const { return regionWeight_; }
 
   /// Advances the simulation by params().timeStep in params().substeps sub-steps.
   void step();
@@ -142,6 +145,7 @@ class Solver {
   void shapeMatch();
   void regionDamping(double kd);
   void accumulateForces(double h);
+  void computeRegionWeights();
 
   std::shared_ptr<const Lattice> lattice_;
   SolverParams params_;
@@ -165,6 +169,10 @@ class Solver {
   std::vector<TimedForce> forces_;
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
   std::vector<double> regionData_, regionSums_;  // scratch, K doubles per particle
+  std::vector<double> regionWeight_;     // beta_r
+  std::vector<double> invWeightSum_;     // 1 / sum_{r contains i} beta_r
+  std::vector<double> stiffnessFactor_;  // s_i = sum_{r contains i} beta_r / n_i
+  double alphaCap_ = 1.0;
   double alpha_ = 1.0;
   double time_ = 0.0;
   std::uint64_t substeps_ = 0;
