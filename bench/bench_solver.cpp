@@ -2,6 +2,8 @@
 // solvers at region half-widths w = 1..4, on the bunny voxelized to about --particles particles.
 // A benchmark, not a test: it prints figures and never fails because the machine is slow.
 //
+// Then the fast solver at w = 2 with every hardware thread against one thread (same results).
+//
 //   bench_solver [--mesh PATH] [--particles N] [--steps N] [--repeats N] [--max-naive-w W]
 
 #include "deformable_flsm/core/lattice.h"
@@ -16,6 +18,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <thread>
 #include <vector>
 
 using namespace deformable_flsm;
@@ -76,7 +79,7 @@ Voxelization voxelizeNear(const TriMesh& mesh, std::size_t target) {
 
 /// Median ns per particle-step over `repeats` runs of `steps` steps, after one warm-up step.
 double measure(const std::shared_ptr<const Lattice>& lattice, const SolverParams& params, int steps,
-               int repeats) {
+               int repeats, std::vector<Eigen::Vector3d>* finalPositions = nullptr) {
   Solver s(lattice, params);
   // a deformed, moving state so that the rotation extraction does real work
   std::vector<Eigen::Vector3d> x = s.positions();
@@ -91,6 +94,7 @@ double measure(const std::shared_ptr<const Lattice>& lattice, const SolverParams
     const double ns = std::chrono::duration<double, std::nano>(t1 - t0).count();
     samples.push_back(ns / (double(steps) * params.substeps * double(lattice->size())));
   }
+  if (finalPositions != nullptr) *finalPositions = s.positions();
   std::sort(samples.begin(), samples.end());
   return samples[samples.size() / 2];
 }
@@ -125,5 +129,18 @@ int main(int argc, char** argv) {
     }
     if (w == 4) std::printf("fast w=4 / w=1 cost ratio: %.2f\n", fast / fast1);
   }
+
+  const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
+  auto lattice = std::make_shared<const Lattice>(vox, 1000.0, 2);
+  SolverParams p;
+  p.substeps = 1;
+  std::vector<Eigen::Vector3d> one, all;
+  const double t1 = measure(lattice, p, args.steps, args.repeats, &one);
+  p.threads = static_cast<int>(hw);
+  const double tn = measure(lattice, p, args.steps, args.repeats, &all);
+  double diff = 0.0;
+  for (std::size_t i = 0; i < one.size(); ++i) diff = std::max(diff, (one[i] - all[i]).norm());
+  std::printf("w=2 threads: 1 -> %.1f ns/p-step, %u -> %.1f ns/p-step, speed-up %.2fx, max position difference %.3g m\n",
+              t1, hw, tn, t1 / tn, diff);
   return 0;
 }

@@ -11,12 +11,14 @@ namespace {
 
 /// One sliding-window pass for a compile-time channel count.
 template <int K>
-void windowPassK(const Lattice& lattice, int axis, const double* in, double* out) {
+void windowPassK(const Lattice& lattice, int axis, const double* in, double* out, int threads) {
   const auto& order = lattice.runOrder(axis);
   const auto& starts = lattice.runStarts(axis);
   const std::ptrdiff_t w = lattice.regionHalfWidth();
-  std::array<double, K> acc;
-  for (std::size_t q = 0; q + 1 < starts.size(); ++q) {
+  const std::size_t runs = starts.size() - 1;
+#pragma omp parallel for schedule(static) num_threads(threads) if (threads > 1)
+  for (std::size_t q = 0; q < runs; ++q) {
+    std::array<double, K> acc;
     const std::uint32_t* run = order.data() + starts[q];
     const std::ptrdiff_t len = static_cast<std::ptrdiff_t>(starts[q + 1] - starts[q]);
     acc.fill(0.0);
@@ -45,36 +47,36 @@ void windowPassK(const Lattice& lattice, int axis, const double* in, double* out
 
 }  // namespace
 
-void windowPass(const Lattice& lattice, int axis, const double* in, int K, double* out) {
+void windowPass(const Lattice& lattice, int axis, const double* in, int K, double* out, int threads) {
   switch (K) {
-    case 1: return windowPassK<1>(lattice, axis, in, out);
-    case 3: return windowPassK<3>(lattice, axis, in, out);
-    case 6: return windowPassK<6>(lattice, axis, in, out);
-    case 12: return windowPassK<12>(lattice, axis, in, out);
-    case 24: return windowPassK<24>(lattice, axis, in, out);
+    case 1: return windowPassK<1>(lattice, axis, in, out, threads);
+    case 3: return windowPassK<3>(lattice, axis, in, out, threads);
+    case 6: return windowPassK<6>(lattice, axis, in, out, threads);
+    case 12: return windowPassK<12>(lattice, axis, in, out, threads);
+    case 24: return windowPassK<24>(lattice, axis, in, out, threads);
     default: break;
   }
   throw std::invalid_argument("windowPass: unsupported channel count " + std::to_string(K));
 }
 
-BarSummer::BarSummer(const Lattice& lattice) : lattice_(lattice) {}
+BarSummer::BarSummer(const Lattice& lattice, int threads) : lattice_(lattice), threads_(std::max(1, threads)) {}
 
 void BarSummer::gather(const std::vector<double>& in, int K, std::vector<double>& out) {
   out.resize(in.size());
   tmpA_.resize(in.size());
   tmpB_.resize(in.size());
-  windowPass(lattice_, 0, in.data(), K, tmpA_.data());
-  windowPass(lattice_, 1, tmpA_.data(), K, tmpB_.data());
-  windowPass(lattice_, 2, tmpB_.data(), K, out.data());
+  windowPass(lattice_, 0, in.data(), K, tmpA_.data(), threads_);
+  windowPass(lattice_, 1, tmpA_.data(), K, tmpB_.data(), threads_);
+  windowPass(lattice_, 2, tmpB_.data(), K, out.data(), threads_);
 }
 
 void BarSummer::scatter(const std::vector<double>& in, int K, std::vector<double>& out) {
   out.resize(in.size());
   tmpA_.resize(in.size());
   tmpB_.resize(in.size());
-  windowPass(lattice_, 2, in.data(), K, tmpA_.data());
-  windowPass(lattice_, 1, tmpA_.data(), K, tmpB_.data());
-  windowPass(lattice_, 0, tmpB_.data(), K, out.data());
+  windowPass(lattice_, 2, in.data(), K, tmpA_.data(), threads_);
+  windowPass(lattice_, 1, tmpA_.data(), K, tmpB_.data(), threads_);
+  windowPass(lattice_, 0, tmpB_.data(), K, out.data(), threads_);
 }
 
 NaiveSummer::NaiveSummer(const Lattice& lattice) {

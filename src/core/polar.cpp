@@ -11,6 +11,10 @@ namespace deformable_flsm {
 
 namespace {
 
+/// Newton converges quadratically: after a step of length |theta| the error left is about
+/// c |theta|^2, with c of order one for a well-conditioned H. Stopping once c |theta|^2 is below
+/// the tolerance (c taken as this margin) saves the iteration that would only confirm it.
+constexpr double kQuadraticMargin = 100.0;
 /// Relative tolerance for "H is positive semi-definite" (scaled by |A|): Newton's fixed point
 /// must be a maximum of tr(R^T A), not a saddle; round-off of order 1e-12 |A| is not a saddle.
 constexpr double kSaddleTolerance = 1e-9;
@@ -49,6 +53,7 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& A, Eigen::Quaterniond& q,
   Eigen::Matrix3d R = q.toRotationMatrix();
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
   bool converged = false;
+  bool newton = false;  // the last step was a Newton step (H positive definite)
   int it = 0;
   for (; it < opts.maxIterations; ++it) {
     const Eigen::Matrix3d S = R.transpose() * A;
@@ -56,7 +61,8 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& A, Eigen::Quaterniond& q,
     const Eigen::Vector3d g(S(2, 1) - S(1, 2), S(0, 2) - S(2, 0), S(1, 0) - S(0, 1));
     H = Eigen::Matrix3d::Identity() * S.trace() - 0.5 * (S + S.transpose());
     Eigen::Vector3d theta;
-    if (!solveSymmetricPositive3(H, g, tol, theta)) {
+    newton = solveSymmetricPositive3(H, g, tol, theta);
+    if (!newton) {
       // Not a concave neighbourhood: gradient step of Mueller et al. 2016 (bounded length).
       theta = g / (std::abs(S.trace()) + scale);
     }
@@ -72,9 +78,15 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& A, Eigen::Quaterniond& q,
     const Eigen::Quaterniond dq(1.0, 0.5 * theta.x(), 0.5 * theta.y(), 0.5 * theta.z());
     q = (q * dq).normalized();
     R = q.toRotationMatrix();
+    if (newton && kQuadraticMargin * angle * angle < opts.angleTolerance) {
+      converged = true;
+      ++it;
+      break;
+    }
   }
   if (stats != nullptr) stats->iterations = it;
-  if (converged && isPositiveSemiDefinite(H, tol)) return R;
+  // A Newton step means H was positive definite there: a maximum. Otherwise check for a saddle.
+  if (converged && (newton || isPositiveSemiDefinite(H, tol))) return R;
 
   // A saddle of tr(R^T A) (e.g. A = -I from the identity) or no convergence: take the SVD answer,
   // unless it is no better than where Newton ended (A's null directions leave a choice).

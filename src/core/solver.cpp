@@ -9,6 +9,7 @@
 #include <cmath>
 #include <numeric>
 #include <stdexcept>
+#include <thread>
 
 namespace deformable_flsm {
 
@@ -47,6 +48,12 @@ Eigen::Vector3d solveInertia(const Eigen::Matrix3d& I, const Eigen::Vector3d& L)
   return V * inv.asDiagonal() * (V.transpose() * L);
 }
 
+/// Threads to use: `requested`, or every hardware thread for 0.
+int resolveThreadCount(int requested) {
+  if (requested > 0) return requested;
+  return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+}
+
 Eigen::Vector3d centroidOf(const std::vector<Eigen::Vector3d>& x,
                            const std::vector<std::uint32_t>& particles) {
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
@@ -66,8 +73,9 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
                                 std::to_string(lattice_->regionHalfWidth()));
   const Lattice& L = *lattice_;
   const std::size_t n = L.size();
+  threads_ = resolveThreadCount(params_.threads);
   if (params_.kind == SolverKind::Fast)
-    summer_ = std::make_unique<BarSummer>(L);
+    summer_ = std::make_unique<BarSummer>(L, threads_);
   else
     summer_ = std::make_unique<NaiveSummer>(L);
 
@@ -163,9 +171,11 @@ void Solver::setParams(const SolverParams& params) {
   if (params.density != params_.density)
     throw std::invalid_argument("solver: density cannot change at run time (it defines the particle "
                                 "masses); restart with the new value");
-  if (params.kind != params_.kind) {
+  const int threads = resolveThreadCount(params.threads);
+  if (params.kind != params_.kind || threads != threads_) {
+    threads_ = threads;
     if (params.kind == SolverKind::Fast)
-      summer_ = std::make_unique<BarSummer>(*lattice_);
+      summer_ = std::make_unique<BarSummer>(*lattice_, threads_);
     else
       summer_ = std::make_unique<NaiveSummer>(*lattice_);
   }
@@ -224,8 +234,9 @@ void Solver::shapeMatch() {
   xref_ /= L.totalMass();
 
   regionData_.resize(n * kShapeChannels);
-  double* d = regionData_.data();
-  for (std::size_t i = 0; i < n; ++i, d += kShapeChannels) {
+#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
+  for (std::size_t i = 0; i < n; ++i) {
+    double* d = regionData_.data() + i * kShapeChannels;
     const Eigen::Vector3d p = mt[i] * (x_[i] - xref_);
     const Eigen::Vector3d& q = restCentered_[i];
     d[0] = p.x();
@@ -236,9 +247,10 @@ void Solver::shapeMatch() {
   }
   summer_->gather(regionData_, kShapeChannels, regionSums_);
 
-  const double* s = regionSums_.data();
-  double* t = regionData_.data();
-  for (std::size_t r = 0; r < n; ++r, s += kShapeChannels, t += kTransformChannels) {
+#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
+  for (std::size_t r = 0; r < n; ++r) {
+    const double* s = regionSums_.data() + r * kShapeChannels;
+    double* t = regionData_.data() + r * kTransformChannels;
     const Eigen::Vector3d c = Eigen::Vector3d(s[0], s[1], s[2]) / regionMass_[r];
     const Eigen::Vector3d& c0 = regionRestCenter_[r];
     Eigen::Matrix3d A;
@@ -257,8 +269,9 @@ void Solver::shapeMatch() {
   }
   summer_->scatter(regionData_, kTransformChannels, regionSums_);
 
-  s = regionSums_.data();
-  for (std::size_t i = 0; i < n; ++i, s += kTransformChannels) {
+#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
+  for (std::size_t i = 0; i < n; ++i) {
+    const double* s = regionSums_.data() + i * kTransformChannels;
     const Eigen::Vector3d& q = restCentered_[i];
     Eigen::Vector3d g(s[9], s[10], s[11]);
     for (int a = 0; a < 3; ++a) g[a] += s[3 * a] * q.x() + s[3 * a + 1] * q.y() + s[3 * a + 2] * q.z();
@@ -278,8 +291,9 @@ void Solver::regionDamping(double kd) {
   const auto& mt = L.regionMassFractions();
 
   regionData_.resize(n * kDampingChannels);
-  double* d = regionData_.data();
-  for (std::size_t i = 0; i < n; ++i, d += kDampingChannels) {
+#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
+  for (std::size_t i = 0; i < n; ++i) {
+    double* d = regionData_.data() + i * kDampingChannels;
     const Eigen::Vector3d p = x_[i] - xref_;
     const Eigen::Vector3d mv = mt[i] * v_[i];
     const Eigen::Vector3d l = p.cross(mv);
@@ -292,9 +306,10 @@ void Solver::regionDamping(double kd) {
   summer_->gather(regionData_, kDampingChannels, regionSums_);
 
   regionData_.resize(n * kVelocityFieldChannels);
-  const double* s = regionSums_.data();
-  double* f = regionData_.data();
-  for (std::size_t r = 0; r < n; ++r, s += kDampingChannels, f += kVelocityFieldChannels) {
+#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
+  for (std::size_t r = 0; r < n; ++r) {
+    const double* s = regionSums_.data() + r * kDampingChannels;
+    double* f = regionData_.data() + r * kVelocityFieldChannels;
     const double M = regionMass_[r];
     const Eigen::Vector3d& c = regionCenter_[r];
     const Eigen::Vector3d vr = Eigen::Vector3d(s[0], s[1], s[2]) / M;
@@ -311,8 +326,9 @@ void Solver::regionDamping(double kd) {
   }
   summer_->scatter(regionData_, kVelocityFieldChannels, regionSums_);
 
-  s = regionSums_.data();
-  for (std::size_t i = 0; i < n; ++i, s += kVelocityFieldChannels) {
+#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
+  for (std::size_t i = 0; i < n; ++i) {
+    const double* s = regionSums_.data() + i * kVelocityFieldChannels;
     const Eigen::Vector3d p = x_[i] - xref_;
     const Eigen::Vector3d target =
         (Eigen::Vector3d(s[0], s[1], s[2]) + Eigen::Vector3d(s[3], s[4], s[5]).cross(p)) * invCount_[i];
@@ -357,12 +373,15 @@ void Solver::substep(double h) {
   shapeMatch();
   accumulateForces(h);
   const double pull = alpha_ / h;
+#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
   for (std::size_t i = 0; i < n; ++i)
     v_[i] += pull * stiffnessFactor_[i] * (goals_[i] - x_[i]) + h * (params_.gravity + forceAccel_[i]);
   regionDamping(1.0 - std::exp(-params_.damping * h));
   const double keep = std::exp(-params_.ambientDamping * h);
-  if (keep < 1.0)
-    for (auto& vi : v_) vi *= keep;
+  if (keep < 1.0) {
+#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
+    for (std::size_t i = 0; i < n; ++i) v_[i] *= keep;
+  }
 
   for (const auto& entry : drags_) {
     const Drag& drag = entry.second;
@@ -372,6 +391,7 @@ void Solver::substep(double h) {
       v_[p] = (drag.target + drag.offsets[e] - x_[p]) / h;
     }
   }
+#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
   for (std::size_t i = 0; i < n; ++i) {
     if (pinned_[i]) {
       v_[i].setZero();

@@ -14,6 +14,8 @@ constexpr int kMaxRegionHalfWidth = 10;
 /// Largest time step accepted (s); beyond it even a stiff lattice is a slideshow.
 constexpr double kMaxTimeStep = 0.1;
 constexpr int kMaxSubsteps = 1000;
+/// More threads than any machine this runs on has cores; beyond it is a typo.
+constexpr int kMaxThreads = 256;
 
 [[noreturn]] void fail(const std::string& field, const std::string& value,
                        const std::string& expected) {
@@ -77,6 +79,9 @@ void SolverParams::validate() const {
   if (substeps < 1 || substeps > kMaxSubsteps)
     fail("substeps", std::to_string(substeps),
          "expected an integer from 1 to " + std::to_string(kMaxSubsteps));
+  if (threads < 0 || threads > kMaxThreads)
+    fail("threads", std::to_string(threads),
+         "expected 0 (all hardware threads) or a count from 1 to " + std::to_string(kMaxThreads));
   if (!std::isfinite(density) || density <= 0.0)
     fail("density", str(density), "expected a finite density > 0 (kg/m^3)");
 }

@@ -14,7 +14,8 @@ namespace deformable_flsm {
 /// @param[in]  in   #P*K particle-major data
 /// @param[in]  K    channels per particle (1, 3, 6, 12 or 24)
 /// @param[out] out  #P*K window sums (must not alias `in`)
-void windowPass(const Lattice& lattice, int axis, const double* in, int K, double* out);
+/// @param[in]  threads  OpenMP threads splitting the runs (the result does not depend on it)
+void windowPass(const Lattice& lattice, int axis, const double* in, int K, double* out, int threads = 1);
 
 /// Sums K doubles per particle over regions, both ways:
 ///  - gather:  S_r = sum_{j in R_r} f_j        (region sums of particle data)
@@ -37,13 +38,14 @@ class RegionSummer {
 /// this is the transpose of gather.
 class BarSummer : public RegionSummer {
  public:
-  explicit BarSummer(const Lattice& lattice);
+  /// @param[in] threads  OpenMP threads per pass (>= 1); results are identical for any count
+  explicit BarSummer(const Lattice& lattice, int threads = 1);
   void gather(const std::vector<double>& in, int K, std::vector<double>& out) override;
   void scatter(const std::vector<double>& in, int K, std::vector<double>& out) override;
 
  private:
-  void pass(int axis, const double* in, int K, double* out) const;
   const Lattice& lattice_;
+  int threads_;
   std::vector<double> tmpA_, tmpB_;
 };
 

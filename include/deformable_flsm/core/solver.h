@@ -172,6 +172,7 @@ class Solver {
   std::vector<double> regionWeight_;     // beta_r
   std::vector<double> invWeightSum_;     // 1 / sum_{r contains i} beta_r
   std::vector<double> stiffnessFactor_;  // s_i = sum_{r contains i} beta_r / n_i
+  int threads_ = 1;
   double alphaCap_ = 1.0;
   double alpha_ = 1.0;
   double time_ = 0.0;

@@ -66,6 +66,9 @@ struct SolverParams {
   /// Mass density of the object (kg/m^3); particle mass = density * filled cell volume.
   double density = 1000.0;
   SolverKind kind = SolverKind::Fast;
+  /// Threads a step uses (OpenMP); 0 for every hardware thread. Results do not depend on it:
+  /// every sum is split by runs and regions, each computed whole by one thread in a fixed order.
+  int threads = 1;
 
   /// @throws std::invalid_argument with a message naming the field, its value and the valid range.
   void validate() const;
