@@ -3,6 +3,10 @@
 // A benchmark, not a test: it prints figures and never fails because the machine is slow.
 //
 // Then the fast solver at w = 2 with every hardware thread against one thread (same results).
+// Threads pay only on idle cores: every pass ends at a barrier, and a worker that another
+// process has descheduled stalls it for a time slice (with libgomp's default spin-wait, measured
+// here at 36x slower than one thread while a compiler held the other core). Run it on a quiet
+// machine; SolverParams::threads defaults to 1 for that reason.
 //
 //   bench_solver [--mesh PATH] [--particles N] [--steps N] [--repeats N] [--max-naive-w W]
 
