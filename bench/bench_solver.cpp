@@ -21,6 +21,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <malloc.h>
 #include <string>
 #include <thread>
 #include <vector>
@@ -53,6 +54,12 @@ Args parse(int argc, char** argv) {
     }
   }
   return a;
+}
+
+/// Bytes currently allocated from the heap (glibc).
+std::size_t heapInUse() {
+  const struct mallinfo2 info = mallinfo2();
+  return info.uordblks + info.hblkhd;
 }
 
 /// The resolution whose voxelization has the particle count closest to `target`.
@@ -112,6 +119,18 @@ int main(int argc, char** argv) {
   std::printf("mesh %s: %zu triangles; lattice %d x %d x %d cells, spacing %.4g m, %zu particles\n",
               args.mesh.c_str(), mesh.triangles.size(), vox.dims.x(), vox.dims.y(), vox.dims.z(), vox.spacing,
               vox.cells.size());
+  {
+    // Memory a step works in: the solver's per-particle state and scratch arrays, measured as the
+    // heap growth of building one (lattice and mesh excluded), divided by the particle count.
+    auto lattice = std::make_shared<const Lattice>(vox, 1000.0, 2);
+    const std::size_t before = heapInUse();
+    {
+      Solver s(lattice, SolverParams());
+      s.step();
+      std::printf("solver memory: %.0f bytes per particle (fast, w=2, after one step)\n",
+                  double(heapInUse() - before) / double(lattice->size()));
+    }
+  }
   std::printf("single thread, double precision, one sub-step per step, median of %d runs of %d steps\n",
               args.repeats, args.steps);
   std::printf("%3s %16s %16s %10s\n", "w", "fast ns/p-step", "naive ns/p-step", "naive/fast");

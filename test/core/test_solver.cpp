@@ -6,8 +6,26 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <atomic>
+#include <cstdlib>
+#include <new>
 #include <random>
 #include <sstream>
+
+// Counts every allocation of this test binary, so that a test can assert that a solver step
+// makes none (issue 7: no allocation inside a step).
+namespace {
+std::atomic<long> gAllocations{0};
+}  // namespace
+
+// Kept out of line: inlined, GCC mistakes this malloc/free pair for a new/free mismatch.
+__attribute__((noinline)) void* operator new(std::size_t size) {
+  ++gAllocations;
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+__attribute__((noinline)) void operator delete(void* p) noexcept { std::free(p); }
+__attribute__((noinline)) void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 using deformable_flsm::Lattice;
 using deformable_flsm::Solver;
@@ -409,4 +427,24 @@ TEST(Solver, ThreadsGiveIdenticalResults) {
     two.step();
   }
   for (std::size_t i = 0; i < one.positions().size(); ++i) ASSERT_EQ(one.positions()[i], two.positions()[i]);
+}
+
+// A step allocates nothing once the solver is built and has stepped once (scratch buffers reach
+// their size): drags, timed forces, pins, damping and both summers included.
+TEST(Solver, StepDoesNotAllocate) {
+  for (SolverKind kind : {SolverKind::Fast, SolverKind::Naive}) {
+    SolverParams p;
+    p.kind = kind;
+    p.youngsModulus = 5e3;
+    Solver s(bar(), p);
+    s.pinBox(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d(0.016, 1.0, 1.0), true);
+    s.grab("hard", {100}, Eigen::Vector3d(0.15, 0.0, 0.0), 0.0);
+    s.grab("spring", {120}, Eigen::Vector3d(0.15, 0.05, 0.0), 20.0);
+    s.applyForce({150, 151}, Eigen::Vector3d(0.0, 0.0, 1.0), 10.0);
+    s.step();
+    s.applyImpulse({152}, Eigen::Vector3d(0.0, 0.01, 0.0));
+    const long before = gAllocations.load();
+    for (int i = 0; i < 20; ++i) s.step();
+    EXPECT_EQ(gAllocations.load() - before, 0) << toString(kind);
+  }
 }
