@@ -53,6 +53,7 @@ void windowPass(const Lattice& lattice, int axis, const double* in, int K, doubl
     case 3: return windowPassK<3>(lattice, axis, in, out, threads);
     case 6: return windowPassK<6>(lattice, axis, in, out, threads);
     case 12: return windowPassK<12>(lattice, axis, in, out, threads);
+    case 18: return windowPassK<18>(lattice, axis, in, out, threads);
     case 24: return windowPassK<24>(lattice, axis, in, out, threads);
     default: break;
   }

@@ -19,9 +19,11 @@ namespace {
 constexpr int kShapeChannels = 12;
 /// Channels per region of the transforms scattered back: R (9, row-major) and t (3).
 constexpr int kTransformChannels = 12;
-/// Channels per particle of the damping sums: m~ v (3), m~ p x v (3), m~ p p^T (6, upper).
+/// Channels per particle of the damping sums, after the shape channels: m~ v (3), p x m~ v (3),
+/// m~ p p^T (6, upper triangle).
 constexpr int kDampingChannels = 12;
-/// Channels per region of the rigid velocity fields scattered back: u (3) and omega (3).
+/// Channels per region of the rigid velocity fields scattered back after the transforms: u (3) and
+/// omega (3), the field being u + omega x p.
 constexpr int kVelocityFieldChannels = 6;
 /// Largest region weight beta_r (physical mode). The isotropic weight restores the energy of a
 /// region clipped by the surface; a region resolved along one axis only (a rod or sheet a cell
@@ -115,7 +117,8 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
   pinPosition_ = x0;
   impulseDv_.assign(n, Eigen::Vector3d::Zero());
   forceAccel_.assign(n, Eigen::Vector3d::Zero());
-  const int maxChannels = std::max({kShapeChannels, kTransformChannels, kDampingChannels});
+  dampTarget_.assign(n, Eigen::Vector3d::Zero());
+  const int maxChannels = kShapeChannels + kDampingChannels;
   regionData_.assign(n * maxChannels, 0.0);
   regionSums_.assign(n * maxChannels, 0.0);
 }
@@ -217,122 +220,106 @@ void Solver::step() {
   for (int s = 0; s < params_.substeps; ++s) substep(h);
 }
 
-// Goal positions (Rivers & James 2007, eqs. 3-6), with every region sum taken by the summer:
+// One pass over the regions computes the goal positions and, when damping is on, the damping
+// targets: every sum shares one gather and one scatter (FastLSM's point: region sums cost O(1)
+// per particle whatever w, here with the fewest passes over the data).
+//
+// Goals (Rivers & James 2007, eqs. 3-6), every region sum taken by the summer:
 //   c_r = (1/M_r) sum m~_j x_j,   A_r = sum m~_j x_j q_j^T - M_r c_r c0_r^T,   R_r = polar(A_r),
-//   T_r x = R_r (x - c0_r) + c_r,  g_i = (1/n_i) sum_{r contains i} T_r q_i
-//        = (1/n_i) [ (sum R_r) q_i + sum (c_r - R_r c0_r) ].
+//   T_r x = R_r (x - c0_r) + c_r,  g_i = sum_{r contains i} beta_r T_r q_i / sum beta_r
+//        = [ (sum beta_r R_r) q_i + sum beta_r (c_r - R_r c0_r) ] / sum beta_r
+// (beta_r = 1 in classic mode, see computeRegionWeights()).
 // Positions enter relative to the current centre of mass xref and rest positions relative to the
 // rest centre of mass, which keeps the sums free of cancellation when the object is far away.
-void Solver::shapeMatch() {
+//
+// Momentum-conserving region damping (Rivers & James 2007, sec. 5): every region's velocities are
+// pulled towards the region's rigid motion v_r + omega_r x (x - c_r), where v_r and omega_r keep
+// the region's linear and angular momentum (omega_r = I_r^+ L_r); the pulls of all regions
+// containing a particle are averaged into dampTarget_. Summed over a region the pull has zero
+// linear and angular momentum, so the object's momenta are conserved.
+void Solver::regionPass(bool withDamping) {
   const Lattice& L = *lattice_;
   const std::size_t n = L.size();
   const auto& mt = L.regionMassFractions();
   const auto& m = L.masses();
+  const int in = withDamping ? kShapeChannels + kDampingChannels : kShapeChannels;
+  const int out = withDamping ? kTransformChannels + kVelocityFieldChannels : kTransformChannels;
 
   xref_.setZero();
   for (std::size_t i = 0; i < n; ++i) xref_ += m[i] * x_[i];
   xref_ /= L.totalMass();
 
-  regionData_.resize(n * kShapeChannels);
+  regionData_.resize(n * in);
 #pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
   for (std::size_t i = 0; i < n; ++i) {
-    double* d = regionData_.data() + i * kShapeChannels;
-    const Eigen::Vector3d p = mt[i] * (x_[i] - xref_);
+    double* d = regionData_.data() + i * in;
+    const Eigen::Vector3d p = x_[i] - xref_;
+    const Eigen::Vector3d mp = mt[i] * p;
     const Eigen::Vector3d& q = restCentered_[i];
-    d[0] = p.x();
-    d[1] = p.y();
-    d[2] = p.z();
+    d[0] = mp.x();
+    d[1] = mp.y();
+    d[2] = mp.z();
     for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) d[3 + 3 * a + b] = p[a] * q[b];
+      for (int b = 0; b < 3; ++b) d[3 + 3 * a + b] = mp[a] * q[b];
+    if (withDamping) {
+      const Eigen::Vector3d mv = mt[i] * v_[i];
+      const Eigen::Vector3d l = p.cross(mv);
+      d[12] = mv.x(); d[13] = mv.y(); d[14] = mv.z();
+      d[15] = l.x(); d[16] = l.y(); d[17] = l.z();
+      d[18] = mp.x() * p.x(); d[19] = mp.y() * p.y(); d[20] = mp.z() * p.z();
+      d[21] = mp.x() * p.y(); d[22] = mp.x() * p.z(); d[23] = mp.y() * p.z();
+    }
   }
-  summer_->gather(regionData_, kShapeChannels, regionSums_);
+  summer_->gather(regionData_, in, regionSums_);
 
+  regionData_.resize(n * out);
 #pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
   for (std::size_t r = 0; r < n; ++r) {
-    const double* s = regionSums_.data() + r * kShapeChannels;
-    double* t = regionData_.data() + r * kTransformChannels;
-    const Eigen::Vector3d c = Eigen::Vector3d(s[0], s[1], s[2]) / regionMass_[r];
+    const double* s = regionSums_.data() + r * in;
+    double* t = regionData_.data() + r * out;
+    const double M = regionMass_[r];
+    const Eigen::Vector3d c = Eigen::Vector3d(s[0], s[1], s[2]) / M;
     const Eigen::Vector3d& c0 = regionRestCenter_[r];
     Eigen::Matrix3d A;
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b) A(a, b) = s[3 + 3 * a + b];
-    A.noalias() -= regionMass_[r] * c * c0.transpose();
+    A.noalias() -= M * c * c0.transpose();
     const Eigen::Matrix3d R = extractRotation(A, rotations_[r]);
     const Eigen::Vector3d tr = c - R * c0;
-    regionCenter_[r] = c;
     const double beta = regionWeight_[r];
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b) t[3 * a + b] = beta * R(a, b);
     t[9] = beta * tr.x();
     t[10] = beta * tr.y();
     t[11] = beta * tr.z();
+    if (withDamping) {
+      const Eigen::Vector3d vr = Eigen::Vector3d(s[12], s[13], s[14]) / M;
+      const Eigen::Vector3d Lr = Eigen::Vector3d(s[15], s[16], s[17]) - M * c.cross(vr);
+      // second moment about c: sum m~ (p - c)(p - c)^T = sum m~ p p^T - M c c^T
+      Eigen::Matrix3d P;
+      P << s[18], s[21], s[22], s[21], s[19], s[23], s[22], s[23], s[20];
+      P.noalias() -= M * c * c.transpose();
+      const Eigen::Matrix3d I = Eigen::Matrix3d::Identity() * P.trace() - P;
+      const Eigen::Vector3d w = solveInertia(I, Lr);
+      const Eigen::Vector3d u = vr - w.cross(c);
+      t[12] = u.x(); t[13] = u.y(); t[14] = u.z();
+      t[15] = w.x(); t[16] = w.y(); t[17] = w.z();
+    }
   }
-  summer_->scatter(regionData_, kTransformChannels, regionSums_);
+  summer_->scatter(regionData_, out, regionSums_);
 
 #pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
   for (std::size_t i = 0; i < n; ++i) {
-    const double* s = regionSums_.data() + i * kTransformChannels;
+    const double* s = regionSums_.data() + i * out;
     const Eigen::Vector3d& q = restCentered_[i];
     Eigen::Vector3d g(s[9], s[10], s[11]);
     for (int a = 0; a < 3; ++a) g[a] += s[3 * a] * q.x() + s[3 * a + 1] * q.y() + s[3 * a + 2] * q.z();
     goals_[i] = g * invWeightSum_[i] + xref_;
-  }
-}
-
-// Momentum-conserving region damping (Rivers & James 2007, sec. 5): every region's velocities are
-// pulled towards the region's rigid motion v_r + omega_r x (x - c_r), where v_r and omega_r keep
-// the region's linear and angular momentum (omega_r = I_r^+ L_r); the pulls of all regions
-// containing a particle are averaged. Summed over a region the pull has zero linear and angular
-// momentum, so the object's momenta are conserved.
-void Solver::regionDamping(double kd) {
-  if (kd <= 0.0) return;
-  const Lattice& L = *lattice_;
-  const std::size_t n = L.size();
-  const auto& mt = L.regionMassFractions();
-
-  regionData_.resize(n * kDampingChannels);
-#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
-  for (std::size_t i = 0; i < n; ++i) {
-    double* d = regionData_.data() + i * kDampingChannels;
-    const Eigen::Vector3d p = x_[i] - xref_;
-    const Eigen::Vector3d mv = mt[i] * v_[i];
-    const Eigen::Vector3d l = p.cross(mv);
-    const Eigen::Vector3d mp = mt[i] * p;
-    d[0] = mv.x(); d[1] = mv.y(); d[2] = mv.z();
-    d[3] = l.x(); d[4] = l.y(); d[5] = l.z();
-    d[6] = mp.x() * p.x(); d[7] = mp.y() * p.y(); d[8] = mp.z() * p.z();
-    d[9] = mp.x() * p.y(); d[10] = mp.x() * p.z(); d[11] = mp.y() * p.z();
-  }
-  summer_->gather(regionData_, kDampingChannels, regionSums_);
-
-  regionData_.resize(n * kVelocityFieldChannels);
-#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
-  for (std::size_t r = 0; r < n; ++r) {
-    const double* s = regionSums_.data() + r * kDampingChannels;
-    double* f = regionData_.data() + r * kVelocityFieldChannels;
-    const double M = regionMass_[r];
-    const Eigen::Vector3d& c = regionCenter_[r];
-    const Eigen::Vector3d vr = Eigen::Vector3d(s[0], s[1], s[2]) / M;
-    const Eigen::Vector3d Lr = Eigen::Vector3d(s[3], s[4], s[5]) - M * c.cross(vr);
-    // second moment about c: sum m~ (p - c)(p - c)^T = sum m~ p p^T - M c c^T
-    Eigen::Matrix3d P;
-    P << s[6], s[9], s[10], s[9], s[7], s[11], s[10], s[11], s[8];
-    P.noalias() -= M * c * c.transpose();
-    const Eigen::Matrix3d I = Eigen::Matrix3d::Identity() * P.trace() - P;
-    const Eigen::Vector3d w = solveInertia(I, Lr);
-    const Eigen::Vector3d u = vr - w.cross(c);
-    f[0] = u.x(); f[1] = u.y(); f[2] = u.z();
-    f[3] = w.x(); f[4] = w.y(); f[5] = w.z();
-  }
-  summer_->scatter(regionData_, kVelocityFieldChannels, regionSums_);
-
-#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
-  for (std::size_t i = 0; i < n; ++i) {
-    const double* s = regionSums_.data() + i * kVelocityFieldChannels;
-    const Eigen::Vector3d p = x_[i] - xref_;
-    const Eigen::Vector3d target =
-        (Eigen::Vector3d(s[0], s[1], s[2]) + Eigen::Vector3d(s[3], s[4], s[5]).cross(p)) * invCount_[i];
-    v_[i] += kd * (target - v_[i]);
+    if (withDamping) {
+      const Eigen::Vector3d p = x_[i] - xref_;
+      dampTarget_[i] =
+          (Eigen::Vector3d(s[12], s[13], s[14]) + Eigen::Vector3d(s[15], s[16], s[17]).cross(p)) * invCount_[i];
+    }
   }
 }
 
@@ -370,13 +357,17 @@ void Solver::substep(double h) {
     std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
     impulsePending_ = false;
   }
-  shapeMatch();
+  // Shape matching and region damping both act on the state at the start of the sub-step:
+  //   v <- v + alpha s_i (g - x) / h + h f / m + kd (v_rigid(v) - v)
+  const double kd = 1.0 - std::exp(-params_.damping * h);
+  regionPass(kd > 0.0);
   accumulateForces(h);
   const double pull = alpha_ / h;
 #pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
-  for (std::size_t i = 0; i < n; ++i)
-    v_[i] += pull * stiffnessFactor_[i] * (goals_[i] - x_[i]) + h * (params_.gravity + forceAccel_[i]);
-  regionDamping(1.0 - std::exp(-params_.damping * h));
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d damp = kd > 0.0 ? Eigen::Vector3d(kd * (dampTarget_[i] - v_[i])) : Eigen::Vector3d::Zero();
+    v_[i] += pull * stiffnessFactor_[i] * (goals_[i] - x_[i]) + h * (params_.gravity + forceAccel_[i]) + damp;
+  }
   const double keep = std::exp(-params_.ambientDamping * h);
   if (keep < 1.0) {
 #pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
@@ -410,7 +401,7 @@ void Solver::substep(double h) {
 }
 
 void Solver::computeGoals(std::vector<Eigen::Vector3d>& goals) {
-  shapeMatch();
+  regionPass(false);
   goals = goals_;
 }
 

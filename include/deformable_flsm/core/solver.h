@@ -142,8 +142,7 @@ class Solver {
 
  private:
   void substep(double h);
-  void shapeMatch();
-  void regionDamping(double kd);
+  void regionPass(bool withDamping);
   void accumulateForces(double h);
   void computeRegionWeights();
 
@@ -152,6 +151,7 @@ class Solver {
   std::unique_ptr<RegionSummer> summer_;
 
   std::vector<Eigen::Vector3d> x_, v_, goals_;
+  std::vector<Eigen::Vector3d> dampTarget_;  // averaged rigid velocity of the regions of i
   std::vector<Eigen::Quaterniond> rotations_;
   std::vector<Eigen::Vector3d> restCentered_;  // q_i = x0_i - rest centre of mass
   Eigen::Vector3d restCom_ = Eigen::Vector3d::Zero();
