@@ -2,7 +2,8 @@
 // solvers at region half-widths w = 1..4, on the bunny voxelized to about --particles particles.
 // A benchmark, not a test: it prints figures and never fails because the machine is slow.
 //
-// Then the fast solver at w = 2 with every hardware thread against one thread (same results).
+// Then the fast solver at w = 2 across lattice sizes (1k to 200k particles: cost per particle
+// should stay flat), and with every hardware thread against one thread (same results).
 // Threads pay only on idle cores: every pass ends at a barrier, and a worker that another
 // process has descheduled stalls it for a time slice (with libgomp's default spin-wait, measured
 // here at 36x slower than one thread while a compiler held the other core). Run it on a quiet
@@ -70,7 +71,7 @@ Voxelization voxelizeNear(const TriMesh& mesh, std::size_t target) {
     const int mid = (lo + hi) / 2;
     VoxelizeOptions o;
     o.resolution = mid;
-    o.maxParticles = 4 * target;
+    o.maxParticles = std::max<std::size_t>(4 * target, 1000);
     Voxelization v;
     try {
       v = voxelize(mesh, o);
@@ -151,6 +152,19 @@ int main(int argc, char** argv) {
       std::printf("%3d %16.1f %16s %10s\n", w, fast, "-", "-");
     }
     if (w == 4) std::printf("fast w=4 / w=1 cost ratio: %.2f\n", fast / fast1);
+  }
+
+  std::printf("\nfast, w=2, single thread, across lattice sizes\n%10s %10s %16s %14s\n", "particles", "resolution",
+              "ns/p-step", "ms per step");
+  for (std::size_t target : {1000u, 5000u, 10000u, 50000u, 100000u, 200000u}) {
+    const Voxelization v = voxelizeNear(mesh, target);
+    auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
+    SolverParams q;
+    q.substeps = 1;
+    // about 0.2 s of stepping per size, at least 3 steps
+    const int steps = std::max(3, static_cast<int>(2e8 / (400.0 * double(lat->size()))));
+    const double ns = measure(lat, q, steps, 3);
+    std::printf("%10zu %10d %16.1f %14.2f\n", lat->size(), v.dims.maxCoeff(), ns, ns * double(lat->size()) * 1e-6);
   }
 
   const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
