@@ -1,5 +1,6 @@
-// flsm_node: reads ~parameters and the mesh, then hands everything to SimulatorNode.
+// flsm_node: reads ~parameters and the mesh, builds the scene, hands it to SimulatorNode.
 #include "deformable_flsm/ros/param_loader.h"
+#include "deformable_flsm/ros/scene.h"
 #include "deformable_flsm/ros/simulator_node.h"
 
 #include <ros/ros.h>
@@ -8,8 +9,14 @@ int main(int argc, char** argv) {
   ros::init(argc, argv, "flsm_node");
   ros::NodeHandle nh, pnh("~");
   try {
-    const deformable_flsm::NodeParams params = deformable_flsm::ParamLoader(pnh).loadNodeParams();
-    deformable_flsm::SimulatorNode node(nh, pnh, params, deformable_flsm::loadMeshParam(params));
+    using namespace deformable_flsm;
+    const NodeParams params = ParamLoader(pnh).loadNodeParams();
+    for (const std::string& name : ParamLoader(pnh).unknownParams()) {
+      ROS_WARN("flsm_node: ~%s is not a parameter of flsm_node (misspelt?); ignored", name.c_str());
+    }
+    Scene scene = buildScene(params, loadMeshParam(params));
+    ROS_INFO_STREAM("flsm_node: mesh '" << params.mesh << "'\n" << describeScene(scene.info, params));
+    SimulatorNode node(nh, pnh, params, std::move(scene));
     ros::spin();
   } catch (const std::exception& e) {
     ROS_FATAL("flsm_node cannot start: %s", e.what());

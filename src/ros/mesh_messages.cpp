@@ -2,6 +2,8 @@
 
 #include <sensor_msgs/point_cloud2_iterator.h>
 
+#include <cmath>
+
 namespace deformable_flsm {
 
 void initTriangleListMarker(const std::string& frameId, const std::string& ns,
@@ -63,6 +65,113 @@ void fillVertexCloud(const std::vector<Eigen::Vector3d>& vertices, const std::st
     ++iy;
     ++iz;
   }
+}
+
+void fillParticleCloud(const std::vector<Eigen::Vector3d>& positions,
+                       const std::vector<Eigen::Vector3d>& restPositions,
+                       const std::string& frameId, sensor_msgs::PointCloud2& cloud) {
+  cloud.header.frame_id = frameId;
+  sensor_msgs::PointCloud2Modifier modifier(cloud);
+  if (cloud.fields.size() != 4) {
+    modifier.setPointCloud2Fields(4, "x", 1, sensor_msgs::PointField::FLOAT32,  //
+                                  "y", 1, sensor_msgs::PointField::FLOAT32,  //
+                                  "z", 1, sensor_msgs::PointField::FLOAT32,  //
+                                  "displacement", 1, sensor_msgs::PointField::FLOAT32);
+  }
+  modifier.resize(positions.size());
+  cloud.is_dense = true;
+
+  sensor_msgs::PointCloud2Iterator<float> ix(cloud, "x");
+  sensor_msgs::PointCloud2Iterator<float> id(cloud, "displacement");
+  for (std::size_t i = 0; i < positions.size(); ++i, ++ix, ++id) {
+    const Eigen::Vector3d& x = positions[i];
+    ix[0] = static_cast<float>(x.x());
+    ix[1] = static_cast<float>(x.y());
+    ix[2] = static_cast<float>(x.z());
+    *id = static_cast<float>((x - restPositions[i]).norm());
+  }
+}
+
+namespace {
+
+constexpr const char kLatticeNamespace[] = "flsm_lattice";
+/// Sphere diameter as a fraction of the lattice spacing: neighbours stay apart.
+constexpr double kParticleSize = 0.35;
+/// Drag lines and targets stand out at any lattice resolution.
+constexpr double kDragLineWidth = 0.25;
+constexpr double kTargetSize = 0.8;
+
+void initListMarker(visualization_msgs::Marker& m, int id, int type, double size,
+                    const std::array<float, 4>& color, const std::string& frameId) {
+  m.header.frame_id = frameId;
+  m.ns = kLatticeNamespace;
+  m.id = id;
+  m.type = type;
+  m.pose.orientation.w = 1.0;
+  m.scale.x = m.scale.y = m.scale.z = size;
+  m.color.r = color[0];
+  m.color.g = color[1];
+  m.color.b = color[2];
+  m.color.a = color[3];
+}
+
+void setPoint(geometry_msgs::Point& p, const Eigen::Vector3d& x) {
+  p.x = x.x();
+  p.y = x.y();
+  p.z = x.z();
+}
+
+/// ADD when there is something to show, DELETE otherwise (RViz refuses empty lists).
+void setAction(visualization_msgs::Marker& m) {
+  m.action = m.points.empty() ? visualization_msgs::Marker::DELETE
+                              : visualization_msgs::Marker::ADD;
+}
+
+}  // namespace
+
+void fillLatticeMarkers(const std::vector<Eigen::Vector3d>& positions,
+                        const std::vector<char>& pinned,
+                        const std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>>& drags,
+                        double spacing, const std::string& frameId,
+                        visualization_msgs::MarkerArray& markers) {
+  using visualization_msgs::Marker;
+  markers.markers.resize(4);
+  Marker& free = markers.markers[0];
+  Marker& held = markers.markers[1];
+  Marker& lines = markers.markers[2];
+  Marker& targets = markers.markers[3];
+  initListMarker(free, 0, Marker::SPHERE_LIST, kParticleSize * spacing, {0.6f, 0.7f, 0.8f, 1.0f},
+                 frameId);
+  initListMarker(held, 1, Marker::SPHERE_LIST, kParticleSize * spacing, {0.9f, 0.15f, 0.1f, 1.0f},
+                 frameId);
+  initListMarker(lines, 2, Marker::LINE_LIST, kDragLineWidth * spacing, {1.0f, 0.85f, 0.1f, 1.0f},
+                 frameId);
+  initListMarker(targets, 3, Marker::SPHERE_LIST, kTargetSize * spacing, {1.0f, 0.85f, 0.1f, 1.0f},
+                 frameId);
+
+  std::size_t nPinned = 0;
+  for (const char p : pinned) nPinned += p ? 1 : 0;
+  free.points.resize(positions.size() - nPinned);
+  held.points.resize(nPinned);
+  std::size_t f = 0, h = 0;
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    setPoint(pinned[i] ? held.points[h++] : free.points[f++], positions[i]);
+  }
+  lines.points.resize(2 * drags.size());
+  targets.points.resize(drags.size());
+  for (std::size_t d = 0; d < drags.size(); ++d) {
+    setPoint(lines.points[2 * d], drags[d].first);
+    setPoint(lines.points[2 * d + 1], drags[d].second);
+    setPoint(targets.points[d], drags[d].second);
+  }
+  for (Marker& m : markers.markers) setAction(m);
+}
+
+bool allFinite(const visualization_msgs::Marker& marker) {
+  for (const geometry_msgs::Point& p : marker.points) {
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) return false;
+  }
+  return true;
 }
 
 }  // namespace deformable_flsm

@@ -1,8 +1,12 @@
 #include "deformable_flsm/ros/param_loader.h"
 
+#include "deformable_flsm/ros/render_mesh.h"
+
 #include <ros/package.h>
+#include <ros/param.h>
 #include <xmlrpcpp/XmlRpcValue.h>
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -28,7 +32,7 @@ std::string describe(XmlRpc::XmlRpcValue value) {
       out << (static_cast<bool&>(value) ? "true" : "false") << " (a boolean)";
       break;
     case XmlRpc::XmlRpcValue::TypeArray:
-      out << "a list";
+      out << "a list of " << value.size();
       break;
     case XmlRpc::XmlRpcValue::TypeStruct:
       out << "a dictionary";
@@ -47,6 +51,25 @@ std::string describe(XmlRpc::XmlRpcValue value) {
                    ", got " + describe(found));
 }
 
+/// A number from an XML-RPC value that is an int or a double.
+bool toNumber(XmlRpc::XmlRpcValue& v, double& out) {
+  if (v.getType() == XmlRpc::XmlRpcValue::TypeDouble) {
+    out = static_cast<double>(v);
+    return true;
+  }
+  if (v.getType() == XmlRpc::XmlRpcValue::TypeInt) {
+    out = static_cast<int>(v);
+    return true;
+  }
+  return false;
+}
+
+std::string str(const Eigen::Vector3d& v) {
+  std::ostringstream os;
+  os << "[" << v.x() << ", " << v.y() << ", " << v.z() << "]";
+  return os.str();
+}
+
 }  // namespace
 
 void NodeParams::validate() const {
@@ -57,24 +80,142 @@ void NodeParams::validate() const {
   } else if (!std::isfinite(meshScale) || meshScale <= 0.0) {
     why << "~mesh_scale is " << meshScale
         << ": it must be a finite number > 0 (the factor from file units to metres)";
+  } else if (!meshRpy.allFinite()) {
+    why << "~mesh_rpy is " << str(meshRpy) << ": it must be three finite angles (rad)";
   } else if (frameId.empty()) {
-    why << "~frame_id is empty: set it to the frame the mesh lives in (e.g. world)";
-  } else if (!std::isfinite(publishRate) || publishRate <= 0.0) {
-    why << "~publish_rate is " << publishRate << ": it must be a finite rate > 0 (Hz)";
+    why << "~frame_id is empty: set it to the frame the object lives in (e.g. world)";
+  } else if (objectFrameId.empty() || objectFrameId == frameId) {
+    why << "~object_frame_id is '" << objectFrameId
+        << "': it must be a non-empty frame name different from ~frame_id ('" << frameId << "')";
+  } else if (!std::isfinite(spacing) || spacing < 0.0) {
+    why << "~spacing is " << spacing << ": it must be a finite lattice spacing > 0 (m), or 0 "
+        << "to use ~resolution or ~particle_budget";
+  } else if (resolution < 0) {
+    why << "~resolution is " << resolution
+        << ": it must be a number of cells > 0, or 0 to use ~spacing or ~particle_budget";
+  } else if (spacing > 0.0 && resolution > 0) {
+    why << "~spacing (" << spacing << ") and ~resolution (" << resolution
+        << ") are both set: set one of them to 0 (or remove it)";
+  } else if (maxParticles < 1) {
+    why << "~max_particles is " << maxParticles << ": it must be >= 1";
+  } else if (spacing == 0.0 && resolution == 0 &&
+             (particleBudget < 1 || particleBudget > maxParticles)) {
+    why << "~particle_budget is " << particleBudget << ": it must be from 1 to ~max_particles ("
+        << maxParticles << ")";
+  } else if (!std::isfinite(regionRadius) || regionRadius < 0.0) {
+    why << "~region_radius is " << regionRadius
+        << ": it must be a finite radius > 0 (m), or 0 to use ~region_half_width";
+  } else if (regionHalfWidth < 0) {
+    why << "~region_half_width is " << regionHalfWidth
+        << ": it must be a number of cells >= 1, or 0 to use ~region_radius";
+  } else if (regionRadius > 0.0 && regionHalfWidth > 0) {
+    why << "~region_radius (" << regionRadius << " m) and ~region_half_width ("
+        << regionHalfWidth << " cells) are both set: keep one (region_radius is preferred: it "
+        << "keeps the regions' size when the lattice changes)";
+  } else if (!std::isfinite(publishRate) || publishRate <= 0.0 || publishRate > kMaxPublishRate) {
+    why << "~publish_rate is " << publishRate << ": it must be a finite rate in (0, "
+        << kMaxPublishRate << "] Hz";
+  } else if (!std::isfinite(realTimeFactor) || realTimeFactor <= 0.0 ||
+             realTimeFactor > kMaxRealTimeFactor) {
+    why << "~real_time_factor is " << realTimeFactor << ": it must be in (0, "
+        << kMaxRealTimeFactor << "] (simulated seconds per wall-clock second)";
+  } else if (renderTriangleBudget < 0) {
+    why << "~render_triangle_budget is " << renderTriangleBudget
+        << ": it must be a number of triangles >= 1, or 0 to render the mesh as loaded";
   } else {
+    for (std::size_t b = 0; b < pinned.size(); ++b) {
+      const Box& box = pinned[b];
+      if (!box.lo.allFinite() || !box.hi.allFinite() || (box.lo.array() > box.hi.array()).any()) {
+        throw ParamError("~pinned box " + std::to_string(b) + " is [" + str(box.lo) + ", " +
+                         str(box.hi) + "]: each box is [xmin, ymin, zmin, xmax, ymax, zmax] of "
+                         "finite numbers (m) with min <= max");
+      }
+    }
+    // The solver's own ranges (stiffness, damping, time step, ...); w is checked once known.
+    SolverParams s = solver;
+    s.regionHalfWidth = regionHalfWidth > 0 ? regionHalfWidth : s.regionHalfWidth;
+    try {
+      s.validate();
+    } catch (const std::invalid_argument& e) {
+      throw ParamError(std::string("~") + e.what());
+    }
     return;
   }
   throw ParamError(why.str());
+}
+
+int NodeParams::resolveRegionHalfWidth(double latticeSpacing) const {
+  if (regionHalfWidth > 0) return regionHalfWidth;
+  if (regionRadius <= 0.0) return SolverParams().regionHalfWidth;
+  try {
+    return regionHalfWidthForRadius(regionRadius, latticeSpacing);
+  } catch (const std::invalid_argument& e) {
+    throw ParamError(std::string("~") + e.what());
+  }
 }
 
 NodeParams ParamLoader::loadNodeParams() const {
   NodeParams p;
   p.mesh = getString("mesh", p.mesh);
   p.meshScale = getDouble("mesh_scale", p.meshScale);
+  p.meshRpy = getVector3("mesh_rpy", p.meshRpy);
   p.frameId = getString("frame_id", p.frameId);
+  p.objectFrameId = getString("object_frame_id", p.objectFrameId);
+
+  p.spacing = getDouble("spacing", p.spacing);
+  p.resolution = getInt("resolution", p.resolution);
+  p.particleBudget = getInt("particle_budget", p.particleBudget);
+  p.maxParticles = getInt("max_particles", p.maxParticles);
+
+  p.regionRadius = getDouble("region_radius", p.regionRadius);
+  p.regionHalfWidth = getInt("region_half_width", p.regionHalfWidth);
+  SolverParams& s = p.solver;
+  s.stiffness = getDouble("stiffness", s.stiffness);
+  s.youngsModulus = getDouble("youngs_modulus", s.youngsModulus);
+  s.damping = getDouble("damping", s.damping);
+  s.ambientDamping = getDouble("ambient_damping", s.ambientDamping);
+  s.gravity = getVector3("gravity", s.gravity);
+  s.timeStep = getDouble("time_step", s.timeStep);
+  s.substeps = getInt("substeps", s.substeps);
+  s.density = getDouble("density", s.density);
+  s.threads = getInt("threads", s.threads);
+  const std::string kind = getString("solver", toString(s.kind));
+  try {
+    s.kind = parseSolverKind(kind);
+  } catch (const std::invalid_argument&) {
+    throw ParamError("~solver is '" + kind + "': it must be 'fast' (FastLSM summation) or "
+                     "'naive' (direct summation, for comparison)");
+  }
+
   p.publishRate = getDouble("publish_rate", p.publishRate);
+  p.realTimeFactor = getDouble("real_time_factor", p.realTimeFactor);
+  p.pinned = getBoxes("pinned");
+  p.renderTriangleBudget = getInt("render_triangle_budget", p.renderTriangleBudget);
   p.validate();
   return p;
+}
+
+std::vector<std::string> ParamLoader::unknownParams() const {
+  // Read by loadNodeParams(), plus what dynamic_reconfigure keeps next to them.
+  static const char* const kKnown[] = {
+      "mesh", "mesh_scale", "mesh_rpy", "frame_id", "object_frame_id", "spacing", "resolution",
+      "particle_budget", "max_particles", "region_radius", "region_half_width", "stiffness",
+      "youngs_modulus", "damping", "ambient_damping", "gravity", "time_step", "substeps",
+      "density", "solver", "publish_rate", "real_time_factor", "pinned",
+      "render_triangle_budget", "threads", "gravity_x", "gravity_y", "gravity_z"};
+  std::vector<std::string> all, unknown;
+  ros::param::getParamNames(all);
+  const std::string prefix = pnh_.getNamespace() + "/";
+  for (const std::string& name : all) {
+    if (name.rfind(prefix, 0) != 0) continue;
+    const std::string rest = name.substr(prefix.size());
+    const std::string first = rest.substr(0, rest.find('/'));
+    if (std::find(std::begin(kKnown), std::end(kKnown), first) == std::end(kKnown) &&
+        std::find(unknown.begin(), unknown.end(), first) == unknown.end()) {
+      unknown.push_back(first);
+    }
+  }
+  return unknown;
 }
 
 double ParamLoader::getDouble(const std::string& name, double fallback) const {
@@ -88,6 +229,18 @@ double ParamLoader::getDouble(const std::string& name, double fallback) const {
   return value;
 }
 
+int ParamLoader::getInt(const std::string& name, int fallback) const {
+  if (!pnh_.hasParam(name)) {
+    return fallback;
+  }
+  XmlRpc::XmlRpcValue value;
+  pnh_.getParam(name, value);
+  if (value.getType() != XmlRpc::XmlRpcValue::TypeInt) {
+    throwWrongType(pnh_, name, "an integer");
+  }
+  return static_cast<int>(value);
+}
+
 std::string ParamLoader::getString(const std::string& name, const std::string& fallback) const {
   if (!pnh_.hasParam(name)) {
     return fallback;
@@ -97,6 +250,50 @@ std::string ParamLoader::getString(const std::string& name, const std::string& f
     throwWrongType(pnh_, name, "a string");
   }
   return value;
+}
+
+Eigen::Vector3d ParamLoader::getVector3(const std::string& name,
+                                        const Eigen::Vector3d& fallback) const {
+  if (!pnh_.hasParam(name)) {
+    return fallback;
+  }
+  XmlRpc::XmlRpcValue value;
+  pnh_.getParam(name, value);
+  Eigen::Vector3d out;
+  if (value.getType() != XmlRpc::XmlRpcValue::TypeArray || value.size() != 3 ||
+      !toNumber(value[0], out.x()) || !toNumber(value[1], out.y()) ||
+      !toNumber(value[2], out.z())) {
+    throwWrongType(pnh_, name, "a list of three numbers");
+  }
+  return out;
+}
+
+std::vector<Box> ParamLoader::getBoxes(const std::string& name) const {
+  std::vector<Box> boxes;
+  if (!pnh_.hasParam(name)) {
+    return boxes;
+  }
+  XmlRpc::XmlRpcValue value;
+  pnh_.getParam(name, value);
+  constexpr const char* kExpected =
+      "a list of boxes, each a list of six numbers [xmin, ymin, zmin, xmax, ymax, zmax] (m)";
+  if (value.getType() != XmlRpc::XmlRpcValue::TypeArray) {
+    throwWrongType(pnh_, name, kExpected);
+  }
+  for (int b = 0; b < value.size(); ++b) {
+    XmlRpc::XmlRpcValue& entry = value[b];
+    Box box;
+    bool ok = entry.getType() == XmlRpc::XmlRpcValue::TypeArray && entry.size() == 6;
+    for (int k = 0; ok && k < 3; ++k) {
+      ok = toNumber(entry[k], box.lo[k]) && toNumber(entry[k + 3], box.hi[k]);
+    }
+    if (!ok) {
+      throw ParamError("~" + name + " entry " + std::to_string(b) + " is " + describe(entry) +
+                       ": ~" + name + " must be " + kExpected);
+    }
+    boxes.push_back(box);
+  }
+  return boxes;
 }
 
 std::string resolveMeshPath(const std::string& url) {
@@ -124,7 +321,9 @@ std::string resolveMeshPath(const std::string& url) {
 TriMesh loadMeshParam(const NodeParams& params) {
   const std::string path = resolveMeshPath(params.mesh);
   try {
-    return loadMesh(path, params.meshScale);
+    TriMesh mesh = loadMesh(path, params.meshScale);
+    rotateMesh(params.meshRpy, mesh);
+    return mesh;
   } catch (const MeshError& e) {
     throw ParamError("~mesh '" + params.mesh + "' (file '" + path + "') cannot be used: " +
                      e.what() + ". Set ~mesh to a readable, closed triangle mesh.");

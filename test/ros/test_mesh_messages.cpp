@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 
+#include <cmath>
+
 namespace deformable_flsm {
 namespace {
 
@@ -83,6 +85,64 @@ TEST(VertexCloud, RefillKeepsLayoutAndFollowsVertexCount) {
   EXPECT_EQ(cloud.width, 2u);
   EXPECT_EQ(cloud.fields.size(), 3u);
   EXPECT_EQ(cloud.data.size(), 24u);
+}
+
+TEST(ParticleCloud, PackedXyzAndDisplacement) {
+  std::vector<Eigen::Vector3d> moved = kVertices;
+  moved[2] += Eigen::Vector3d(0.0, 0.0, 0.25);
+  sensor_msgs::PointCloud2 cloud;
+  fillParticleCloud(moved, kVertices, "world", cloud);
+  EXPECT_EQ(cloud.header.frame_id, "world");
+  EXPECT_EQ(cloud.width, kVertices.size());
+  ASSERT_EQ(cloud.fields.size(), 4u);
+  EXPECT_EQ(cloud.fields[3].name, "displacement");
+  EXPECT_EQ(cloud.point_step, 16u);  // packed
+  sensor_msgs::PointCloud2ConstIterator<float> it(cloud, "x");
+  sensor_msgs::PointCloud2ConstIterator<float> d(cloud, "displacement");
+  for (std::size_t i = 0; i < moved.size(); ++i, ++it, ++d) {
+    EXPECT_EQ(it[2], static_cast<float>(moved[i].z()));
+    EXPECT_FLOAT_EQ(*d, i == 2 ? 0.25f : 0.0f);
+  }
+}
+
+TEST(LatticeMarkers, PinnedAndFreeSplitDragsAsLines) {
+  const std::vector<char> pinned = {1, 0, 0, 1};
+  const std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> drags = {
+      {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 0, 1)}};
+  visualization_msgs::MarkerArray a;
+  fillLatticeMarkers(kVertices, pinned, drags, 0.01, "world", a);
+  ASSERT_EQ(a.markers.size(), 4u);
+  EXPECT_EQ(a.markers[0].points.size(), 2u);  // free
+  EXPECT_EQ(a.markers[1].points.size(), 2u);  // pinned
+  EXPECT_EQ(a.markers[1].points[1].z, 1.0);   // vertex 3
+  EXPECT_EQ(a.markers[2].type, visualization_msgs::Marker::LINE_LIST);
+  EXPECT_EQ(a.markers[2].points.size(), 2u);
+  EXPECT_EQ(a.markers[3].points.size(), 1u);
+  for (const auto& m : a.markers) {
+    EXPECT_EQ(m.action, visualization_msgs::Marker::ADD);
+    EXPECT_EQ(m.header.frame_id, "world");
+    EXPECT_EQ(m.pose.orientation.w, 1.0);
+    EXPECT_GT(m.scale.x, 0.0);
+  }
+  // Ids are distinct so that RViz keeps all four.
+  EXPECT_NE(a.markers[0].id, a.markers[1].id);
+}
+
+TEST(LatticeMarkers, NothingToShowIsDeleted) {
+  visualization_msgs::MarkerArray a;
+  fillLatticeMarkers(kVertices, std::vector<char>(4, 0), {}, 0.01, "world", a);
+  EXPECT_EQ(a.markers[0].action, visualization_msgs::Marker::ADD);
+  EXPECT_EQ(a.markers[1].action, visualization_msgs::Marker::DELETE);  // no pins
+  EXPECT_EQ(a.markers[2].action, visualization_msgs::Marker::DELETE);  // no drags
+  EXPECT_EQ(a.markers[3].action, visualization_msgs::Marker::DELETE);
+}
+
+TEST(TriangleListMarker, FinitenessCheck) {
+  visualization_msgs::Marker m;
+  setTriangleListPoints(kVertices, kTriangles, m);
+  EXPECT_TRUE(allFinite(m));
+  m.points[5].y = std::nan("");
+  EXPECT_FALSE(allFinite(m));
 }
 
 }  // namespace

@@ -1,17 +1,20 @@
 /// @file mesh_messages.h
-/// Builds the messages that show the (deforming) render mesh: a Marker TRIANGLE_LIST and a
-/// PointCloud2 of its vertices. Pure functions of their inputs: no master, no publishing.
+/// Builds the messages that show the simulation: the render mesh as a Marker TRIANGLE_LIST, its
+/// vertices and the lattice particles as PointCloud2, and the lattice (particles, pins, drags)
+/// as a MarkerArray. Pure functions of their inputs: no master, no publishing.
 #pragma once
 
 #include <sensor_msgs/PointCloud2.h>
 #include <std_msgs/ColorRGBA.h>
 #include <visualization_msgs/Marker.h>
+#include <visualization_msgs/MarkerArray.h>
 
 #include <Eigen/Core>
 
 #include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace deformable_flsm {
@@ -39,5 +42,34 @@ void setTriangleListPoints(const std::vector<Eigen::Vector3d>& vertices,
 /// @param[in,out] cloud     resized to #V points; its layout is set on the first call
 void fillVertexCloud(const std::vector<Eigen::Vector3d>& vertices, const std::string& frameId,
                      sensor_msgs::PointCloud2& cloud);
+
+/// Fills an unorganised cloud of the lattice particles: packed float32 x, y, z and
+/// `displacement` = |x - x0| (m), 16 bytes per point, for RViz's Intensity colouring.
+/// @param[in]     positions      #P current positions (m)
+/// @param[in]     restPositions  #P rest positions (m)
+/// @param[in]     frameId        header.frame_id
+/// @param[in,out] cloud          resized to #P points; its layout is set on the first call
+void fillParticleCloud(const std::vector<Eigen::Vector3d>& positions,
+                       const std::vector<Eigen::Vector3d>& restPositions,
+                       const std::string& frameId, sensor_msgs::PointCloud2& cloud);
+
+/// The lattice as four markers (ids 0-3 of namespace "flsm_lattice"): free particles (grey
+/// spheres), pinned particles (red spheres), drags (yellow lines from the grabbed particles'
+/// centroid to the target) and drag targets (yellow spheres). A marker with nothing to show is
+/// sent with action DELETE, so that RViz removes what it showed before.
+/// @param[in]     positions  #P particle positions (m)
+/// @param[in]     pinned     #P 1 for pinned particles
+/// @param[in]     drags      (centroid, target) of every drag (m)
+/// @param[in]     spacing    lattice spacing (m): sets the sphere size
+/// @param[in]     frameId    header.frame_id
+/// @param[in,out] markers    the four markers; point arrays are reused between calls
+void fillLatticeMarkers(const std::vector<Eigen::Vector3d>& positions,
+                        const std::vector<char>& pinned,
+                        const std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>>& drags,
+                        double spacing, const std::string& frameId,
+                        visualization_msgs::MarkerArray& markers);
+
+/// true when every point of the marker is finite.
+bool allFinite(const visualization_msgs::Marker& marker);
 
 }  // namespace deformable_flsm

@@ -3,37 +3,96 @@
 #pragma once
 
 #include "deformable_flsm/core/mesh.h"
+#include "deformable_flsm/core/solver_params.h"
 
 #include <ros/node_handle.h>
 
+#include <Eigen/Core>
+
+#include <cstddef>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace deformable_flsm {
 
-/// Thrown for a parameter that is missing its type or out of range; the message names the
+/// Thrown for a parameter that has the wrong type or is out of range; the message names the
 /// parameter, the value found and what would be accepted.
 class ParamError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
 
-/// What the node needs besides the solver: where the mesh comes from and how it is published.
+/// An axis-aligned box [lo, hi] (m, simulation frame, compared with rest positions).
+struct Box {
+  Eigen::Vector3d lo = Eigen::Vector3d::Zero();
+  Eigen::Vector3d hi = Eigen::Vector3d::Zero();
+};
+
+/// Everything the node reads from `~` parameters. Plain values; SolverParams is filled here and
+/// completed (region half-width from the radius) once the lattice spacing is known.
+///
+/// "Unset" for spacing, resolution, region_radius and region_half_width is 0: the lattice comes
+/// from ~spacing or ~resolution when one is set (both is an error), else from
+/// ~particle_budget; regions from ~region_radius or ~region_half_width (both is an error),
+/// else w = 2.
 struct NodeParams {
   /// Default render mesh: the Stanford bunny shipped by Debian's glmark2-data.
   static constexpr const char* kDefaultMesh = "/usr/share/glmark2/models/bunny.obj";
 
+  // --- the object -------------------------------------------------------------------------
   /// ~mesh: a file path or a package://<pkg>/<path> or file:// URL
   std::string mesh = kDefaultMesh;
-  /// ~mesh_scale: uniform scale applied to the file's coordinates to get metres (> 0)
+  /// ~mesh_scale: uniform scale from file units to metres (> 0)
   double meshScale = 0.1;
-  /// ~frame_id: frame of every published message
+  /// ~mesh_rpy: roll, pitch, yaw (rad) applied to the mesh at load, after the scale
+  Eigen::Vector3d meshRpy = Eigen::Vector3d::Zero();
+  /// ~frame_id: the simulation frame; every published message and ~pinned are in it
   std::string frameId = "world";
-  /// ~publish_rate: rate of ~mesh and ~surface (Hz, > 0)
+  /// ~object_frame_id: tf child frame of the object's best-fit rigid motion
+  std::string objectFrameId = "flsm_object";
+
+  // --- the lattice ------------------------------------------------------------------------
+  /// ~spacing: lattice cell edge (m); 0 = unset
+  double spacing = 0.0;
+  /// ~resolution: cells along the mesh's longest axis; 0 = unset
+  int resolution = 0;
+  /// ~particle_budget: when neither spacing nor resolution is set, the finest lattice with at
+  /// most this many particles
+  int particleBudget = 4000;
+  /// ~max_particles: hard limit on the particle count of any lattice (>= 1)
+  int maxParticles = 200000;
+
+  // --- regions and material ---------------------------------------------------------------
+  /// ~region_radius: region half-width in metres (preferred; rounded to whole cells); 0 = unset
+  double regionRadius = 0.0;
+  /// ~region_half_width: region half-width in cells (classic); 0 = unset
+  int regionHalfWidth = 0;
+  /// ~stiffness, ~youngs_modulus, ~damping, ~ambient_damping, ~gravity, ~time_step,
+  /// ~substeps, ~density, ~solver, ~threads; regionHalfWidth is set by
+  /// resolveRegionHalfWidth()
+  SolverParams solver;
+
+  // --- running and publishing -------------------------------------------------------------
+  /// ~publish_rate: rate of every published topic and of tf (Hz, (0, kMaxPublishRate])
   double publishRate = 30.0;
+  /// ~real_time_factor: simulated seconds per wall-clock second ((0, kMaxRealTimeFactor])
+  double realTimeFactor = 1.0;
+  /// ~pinned: boxes whose particles (by rest position) are pinned at start-up
+  std::vector<Box> pinned;
+  /// ~render_triangle_budget: simplify the render mesh to at most this many triangles at
+  /// load (0 = render the mesh as loaded); the lattice is chosen from the full mesh
+  int renderTriangleBudget = 0;
+
+  static constexpr double kMaxPublishRate = 1000.0;
+  static constexpr double kMaxRealTimeFactor = 100.0;
 
   /// @throws ParamError naming the first field that is out of range.
   void validate() const;
+
+  /// Region half-width w for a lattice of the given spacing: from regionRadius, from
+  /// regionHalfWidth, or 2. @throws ParamError when the radius is out of range.
+  int resolveRegionHalfWidth(double latticeSpacing) const;
 };
 
 /// Reads `~` parameters with their defaults. A parameter that is set with the wrong type is an
@@ -46,9 +105,16 @@ class ParamLoader {
   /// @throws ParamError on a wrongly typed or invalid parameter.
   NodeParams loadNodeParams() const;
 
+  /// Names (without "~") of the private parameters set on the server that the node does not
+  /// read: most likely misspelt.
+  std::vector<std::string> unknownParams() const;
+
  private:
   double getDouble(const std::string& name, double fallback) const;
+  int getInt(const std::string& name, int fallback) const;
   std::string getString(const std::string& name, const std::string& fallback) const;
+  Eigen::Vector3d getVector3(const std::string& name, const Eigen::Vector3d& fallback) const;
+  std::vector<Box> getBoxes(const std::string& name) const;
 
   ros::NodeHandle pnh_;
 };
@@ -58,7 +124,8 @@ class ParamLoader {
 /// @throws ParamError when the package is unknown or another URL scheme is used.
 std::string resolveMeshPath(const std::string& url);
 
-/// Loads the render mesh named by params.mesh, scaled by params.meshScale.
+/// Loads the render mesh named by params.mesh, scaled by params.meshScale, then rotated by
+/// params.meshRpy.
 /// @throws ParamError naming ~mesh, the resolved file and why it cannot be used.
 TriMesh loadMeshParam(const NodeParams& params);
 

@@ -1,0 +1,150 @@
+/// @file commands.h
+/// The commands the simulation thread accepts, as plain validated values (no ROS types), the
+/// limits they are checked against, and the thread-safe tally of accepted and rejected ones.
+#pragma once
+
+#include "deformable_flsm/core/solver_params.h"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <functional>
+#include <future>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <variant>
+
+namespace deformable_flsm {
+
+/// Limits on commands, relative to the object so that they mean the same for a 2 cm part and a
+/// 2 m one. L is Lattice::objectSize() (the diagonal of the rest bounding box, m).
+struct CommandLimits {
+  /// Points and targets farther than kMaxReach L from the object's centre of mass are refused.
+  static constexpr double kMaxReach = 2.0;
+  /// A force radius above kMaxRadius L (more than the whole object) is refused.
+  static constexpr double kMaxRadius = 1.0;
+  /// A force may accelerate the particles it acts on by at most kMaxAcceleration L per s^2
+  /// (|F| / M_selected); ~300 m/s^2 for the 30 cm bunny diagonal.
+  static constexpr double kMaxAcceleration = 1000.0;
+  /// An impulse may change the velocity of the particles it acts on by at most
+  /// kMaxSpeedChange L per s (|J| / M_selected); ~3 m/s for the bunny.
+  static constexpr double kMaxSpeedChange = 10.0;
+  /// Longest force (s of simulated time).
+  static constexpr double kMaxForceDuration = 60.0;
+  /// A spring drag may be at most kMaxSpringRate M / h^2 stiff (M the grabbed mass, h the
+  /// sub-step): explicit integration of the spring is stable below 4; 1 keeps a margin.
+  static constexpr double kMaxSpringRate = 1.0;
+  /// Particles one grab may take (nearest to a point).
+  static constexpr std::uint32_t kMaxGrabCount = 512;
+  /// Concurrent drags and timed forces.
+  static constexpr std::size_t kMaxDrags = 32;
+  static constexpr std::size_t kMaxForces = 256;
+  /// Drag ids: 1 to kMaxIdLength printable characters.
+  static constexpr std::size_t kMaxIdLength = 64;
+  /// Commands waiting for the simulation thread; more are refused ("queue_full"). The thread
+  /// drains the queue before every step, so this allows 256 commands per step (15k/s at 60 Hz).
+  static constexpr std::size_t kQueueCapacity = 256;
+};
+
+/// How a command ended, for services that wait for it.
+struct CommandOutcome {
+  bool accepted = false;
+  /// accepted: what was done; rejected: why (a sentence a user can act on)
+  std::string message;
+  /// particles affected (pin box: particles in the box)
+  std::size_t particles = 0;
+  /// pinned particles after the command
+  std::size_t pinnedTotal = 0;
+};
+
+/// Shared by a command and whoever waits for its outcome (a service call).
+using OutcomePromise = std::shared_ptr<std::promise<CommandOutcome>>;
+
+/// Grab `particle`, or the `count` particles nearest `point`, and pull their centroid to
+/// `target` (simulation frame, m). stiffness 0 = hard, > 0 = spring (N/m). Replaces a drag with
+/// the same id.
+struct GrabCommand {
+  std::string id;
+  /// particle index, or -1 to pick by `point`
+  std::int64_t particle = -1;
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  std::uint32_t count = 1;
+  Eigen::Vector3d target = Eigen::Vector3d::Zero();
+  double stiffness = 0.0;
+};
+
+/// Move the target of drag `id` (simulation frame, m).
+struct MoveCommand {
+  std::string id;
+  Eigen::Vector3d target = Eigen::Vector3d::Zero();
+};
+
+/// Let drag `id` go.
+struct ReleaseCommand {
+  std::string id;
+};
+
+/// A force (N) for `duration` s of simulated time, or an impulse (N s), on `particle` or on the
+/// particles within `radius` of `point` (radius 0: the nearest particle), spread by mass.
+struct PushCommand {
+  std::int64_t particle = -1;
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  double radius = 0.0;
+  /// force (N), or impulse (N s) when `impulse`
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();
+  double duration = 0.0;
+  bool impulse = false;
+};
+
+/// Back to rest (pins kept), drags and forces released.
+struct ResetCommand {};
+/// Release every drag.
+struct ReleaseAllCommand {};
+/// Pin (or free) the particles whose rest positions lie in [lo, hi] (m).
+struct PinBoxCommand {
+  Eigen::Vector3d lo = Eigen::Vector3d::Zero();
+  Eigen::Vector3d hi = Eigen::Vector3d::Zero();
+  bool pin = true;
+};
+/// New solver parameters (validated; regionHalfWidth and density as at start-up).
+struct ParamsCommand {
+  SolverParams params;
+};
+
+using CommandBody = std::variant<GrabCommand, MoveCommand, ReleaseCommand, PushCommand,
+                                 ResetCommand, ReleaseAllCommand, PinBoxCommand, ParamsCommand>;
+
+/// A command and, optionally, the promise its outcome is delivered to.
+struct Command {
+  CommandBody body;
+  OutcomePromise outcome;
+};
+
+/// Thread-safe tally of commands: accepted, and rejected by reason. Reasons are short keys
+/// ("non_finite", "unknown_frame", ...) reported in ~state; details go to the log hook.
+class CommandStats {
+ public:
+  struct Counts {
+    std::uint64_t accepted = 0;
+    std::uint64_t rejected = 0;
+    std::map<std::string, std::uint64_t> rejectedByReason;
+    /// detail of the last rejection ("" before the first)
+    std::string lastRejection;
+  };
+  /// Called on every rejection with (reason, detail), from whichever thread rejected.
+  using RejectHook = std::function<void(const std::string&, const std::string&)>;
+
+  void setRejectHook(RejectHook hook);
+  void accept();
+  void reject(const std::string& reason, const std::string& detail);
+  Counts counts() const;
+
+ private:
+  mutable std::mutex mutex_;
+  Counts counts_;
+  RejectHook hook_;
+};
+
+}  // namespace deformable_flsm

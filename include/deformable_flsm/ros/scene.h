@@ -1,0 +1,69 @@
+/// @file scene.h
+/// Everything the node simulates and renders, built once at start-up from the parameters and
+/// the loaded mesh: the lattice chosen from spacing, resolution or particle budget, the solver
+/// with its pins, the render mesh (simplified on request) and its embedding, and the measured
+/// cost of a step. Plain C++ (no master), so it is tested with gtest.
+#pragma once
+
+#include "deformable_flsm/core/embedding.h"
+#include "deformable_flsm/core/lattice.h"
+#include "deformable_flsm/core/mesh.h"
+#include "deformable_flsm/core/solver.h"
+#include "deformable_flsm/ros/param_loader.h"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace deformable_flsm {
+
+/// What was chosen and measured, for the start-up report.
+struct SceneInfo {
+  /// "spacing", "resolution" or "particle_budget": which parameter set the lattice
+  std::string latticeFrom;
+  int resolution = 0;  ///< cells along the longest axis (0 when set by spacing)
+  double spacing = 0.0;
+  std::size_t particles = 0;
+  int voxelizations = 0;
+  double voxelizeSeconds = 0.0;
+  int regionHalfWidth = 0;
+  double objectSize = 0.0;  ///< m, diagonal of the rest bounding box of the lattice
+  double totalMass = 0.0;   ///< kg
+  std::size_t loadedTriangles = 0, renderTriangles = 0, renderVertices = 0;
+  double simplifyError = 0.0;  ///< relative to the mesh extent
+  std::vector<std::size_t> pinnedPerBox;
+  std::size_t pinned = 0;
+  /// alpha asked for by youngs_modulus (before the cap), alpha used, and the sub-steps that
+  /// would bring the asked alpha under the cap when it is saturated (0 otherwise)
+  double requestedAlpha = 0.0, alpha = 0.0;
+  int substepsForModulus = 0;
+  /// measured: wall time of one step (s) and ns per particle per sub-step
+  double stepSeconds = 0.0, nsPerParticleSubstep = 0.0;
+  /// fraction of one core the solver needs at the configured real-time factor
+  double cpuFraction = 0.0;
+};
+
+struct Scene {
+  std::shared_ptr<const Lattice> lattice;
+  std::unique_ptr<Solver> solver;
+  /// the mesh that ~mesh and ~surface show (simplified when render_triangle_budget asks)
+  TriMesh renderMesh;
+  std::unique_ptr<Embedding> embedding;
+  SceneInfo info;
+};
+
+/// Builds the scene.
+/// @param[in] params  validated node parameters
+/// @param[in] mesh    the loaded mesh (m, oriented), already validated
+/// @param[in] measureSteps  solver steps timed at start-up (0 skips the measurement)
+/// @throws ParamError with a message naming the parameter to change (lattice too fine for
+///         ~max_particles, region radius out of range, ...).
+Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps = 10);
+
+/// A few lines for the start-up log: the lattice, the regions, the material, the cost.
+std::string describeScene(const SceneInfo& info, const NodeParams& params);
+
+/// Warning text when the time step is too long for the asked Young's modulus, else "".
+std::string saturationWarning(const SceneInfo& info, const NodeParams& params);
+
+}  // namespace deformable_flsm

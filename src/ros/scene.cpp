@@ -1,0 +1,195 @@
+#include "deformable_flsm/ros/scene.h"
+
+#include "deformable_flsm/core/resolution.h"
+#include "deformable_flsm/core/voxelizer.h"
+#include "deformable_flsm/ros/render_mesh.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+namespace deformable_flsm {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+Voxelization chooseLattice(const NodeParams& params, const TriMesh& mesh, SceneInfo& info) {
+  const Clock::time_point t0 = Clock::now();
+  Voxelization voxels;
+  try {
+    if (params.spacing > 0.0 || params.resolution > 0) {
+      VoxelizeOptions o;
+      o.spacing = params.spacing;
+      o.resolution = params.resolution;
+      o.maxParticles = static_cast<std::size_t>(params.maxParticles);
+      voxels = voxelize(mesh, o);
+      info.latticeFrom = params.spacing > 0.0 ? "spacing" : "resolution";
+      info.resolution = params.resolution;
+      info.voxelizations = 1;
+    } else {
+      ResolutionChoice c =
+          finestResolutionWithin(mesh, static_cast<std::size_t>(params.particleBudget));
+      voxels = std::move(c.voxels);
+      info.latticeFrom = "particle_budget";
+      info.resolution = c.resolution;
+      info.voxelizations = c.voxelizations;
+    }
+  } catch (const VoxelizationError& e) {
+    throw ParamError(std::string("the lattice cannot be built: ") + e.what() +
+                     ". Change ~spacing, ~resolution, ~particle_budget or ~max_particles.");
+  }
+  info.voxelizeSeconds = secondsSince(t0);
+  info.spacing = voxels.spacing;
+  info.particles = voxels.cells.size();
+  return voxels;
+}
+
+/// Sub-steps at which the solver would give the asked alpha: the asked alpha grows like h^2,
+/// i.e. like 1 / substeps^2, and the solver caps it at alpha(); 0 when not saturated.
+int substepsForModulus(const Solver& solver) {
+  if (!solver.stiffnessSaturated()) return 0;
+  const SolverParams& p = solver.params();
+  const double asked = p.requestedAlpha(solver.lattice().spacing());
+  return static_cast<int>(std::ceil(p.substeps * std::sqrt(asked / solver.alpha())));
+}
+
+}  // namespace
+
+Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps) {
+  Scene scene;
+  SceneInfo& info = scene.info;
+  const Voxelization voxels = chooseLattice(params, mesh, info);
+
+  SolverParams solverParams = params.solver;
+  solverParams.regionHalfWidth = params.resolveRegionHalfWidth(voxels.spacing);
+  info.regionHalfWidth = solverParams.regionHalfWidth;
+  try {
+    scene.lattice = std::make_shared<const Lattice>(voxels, solverParams.density,
+                                                    solverParams.regionHalfWidth);
+    scene.solver = std::make_unique<Solver>(scene.lattice, solverParams);
+  } catch (const std::invalid_argument& e) {
+    throw ParamError(std::string("the solver cannot be built: ") + e.what());
+  }
+  const Lattice& L = *scene.lattice;
+  Solver& solver = *scene.solver;
+  info.objectSize = L.objectSize();
+  info.totalMass = L.totalMass();
+  info.requestedAlpha = solverParams.requestedAlpha(L.spacing());
+  info.alpha = solver.alpha();
+  info.substepsForModulus = substepsForModulus(solver);
+
+  // The cost of a step, measured on this machine with this lattice, then back to rest.
+  if (measureSteps > 0) {
+    solver.step();  // warm-up: first touches of the scratch arrays
+    const Clock::time_point t0 = Clock::now();
+    for (int s = 0; s < measureSteps; ++s) solver.step();
+    info.stepSeconds = secondsSince(t0) / measureSteps;
+    info.nsPerParticleSubstep =
+        1e9 * info.stepSeconds / (static_cast<double>(L.size()) * solverParams.substeps);
+    info.cpuFraction = info.stepSeconds * params.realTimeFactor / solverParams.timeStep;
+    solver.reset();
+  }
+
+  for (const Box& box : params.pinned) {
+    info.pinnedPerBox.push_back(solver.pinBox(box.lo, box.hi, true));
+  }
+  info.pinned = solver.pinnedCount();
+
+  info.loadedTriangles = mesh.triangles.size();
+  if (params.renderTriangleBudget > 0) {
+    SimplifyResult simple =
+        simplifyMesh(mesh, static_cast<std::size_t>(params.renderTriangleBudget));
+    scene.renderMesh = std::move(simple.mesh);
+    info.simplifyError = simple.relativeError;
+  } else {
+    scene.renderMesh = mesh;
+  }
+  info.renderTriangles = scene.renderMesh.triangles.size();
+  info.renderVertices = scene.renderMesh.vertices.size();
+  scene.embedding = std::make_unique<Embedding>(L, scene.renderMesh.vertices);
+  return scene;
+}
+
+std::string describeScene(const SceneInfo& info, const NodeParams& params) {
+  const SolverParams& s = params.solver;
+  char buf[1024];
+  std::ostringstream out;
+  if (info.latticeFrom == "particle_budget") {
+    std::snprintf(buf, sizeof buf,
+                  "lattice: %zu particles (finest within ~particle_budget %d: resolution %d, "
+                  "spacing %.4g m, %d voxelizations in %.0f ms)",
+                  info.particles, params.particleBudget, info.resolution, info.spacing,
+                  info.voxelizations, 1e3 * info.voxelizeSeconds);
+  } else {
+    std::snprintf(buf, sizeof buf,
+                  "lattice: %zu particles from ~%s (spacing %.4g m, voxelized in %.0f ms); "
+                  "~particle_budget not used",
+                  info.particles, info.latticeFrom.c_str(), info.spacing,
+                  1e3 * info.voxelizeSeconds);
+  }
+  out << buf << "\n";
+  std::snprintf(buf, sizeof buf,
+                "regions: %zu (one per particle), half-width w = %d cells (%.4g m)%s; object "
+                "%.4g m across, %.4g kg",
+                info.particles, info.regionHalfWidth, info.regionHalfWidth * info.spacing,
+                params.regionRadius > 0.0 ? " from ~region_radius" : "", info.objectSize,
+                info.totalMass);
+  out << buf << "\n";
+  if (s.youngsModulus > 0.0) {
+    std::snprintf(buf, sizeof buf,
+                  "material: Young's modulus %.4g Pa, density %.4g kg/m^3 -> alpha %.3g per "
+                  "sub-step (%s)",
+                  s.youngsModulus, s.density, info.alpha,
+                  info.substepsForModulus > 0 ? "saturated: softer than asked, see the warning"
+                                              : "as asked");
+  } else {
+    std::snprintf(buf, sizeof buf, "material: alpha = ~stiffness = %.3g per sub-step (no "
+                  "~youngs_modulus), density %.4g kg/m^3", s.stiffness, s.density);
+  }
+  out << buf << "\n";
+  std::snprintf(buf, sizeof buf,
+                "step: %.3g s in %d sub-steps (%s solver) measured at %.2f ms = %.0f ns per "
+                "particle-substep; at real-time factor %.3g the solver takes %.0f%% of a core",
+                s.timeStep, s.substeps, toString(s.kind), 1e3 * info.stepSeconds,
+                info.nsPerParticleSubstep, params.realTimeFactor, 100.0 * info.cpuFraction);
+  out << buf << "\n";
+  std::snprintf(buf, sizeof buf, "render mesh: %zu triangles, %zu vertices", info.renderTriangles,
+                info.renderVertices);
+  out << buf;
+  if (info.renderTriangles != info.loadedTriangles) {
+    std::snprintf(buf, sizeof buf,
+                  " (simplified from %zu for ~render_triangle_budget %d, error %.2g%% of the "
+                  "extent)",
+                  info.loadedTriangles, params.renderTriangleBudget, 100.0 * info.simplifyError);
+    out << buf;
+  }
+  out << "\npinned: " << info.pinned << " particles";
+  for (std::size_t b = 0; b < info.pinnedPerBox.size(); ++b) {
+    out << (b == 0 ? " (" : ", ") << "box " << b << ": " << info.pinnedPerBox[b];
+    if (b + 1 == info.pinnedPerBox.size()) out << ")";
+  }
+  return out.str();
+}
+
+std::string saturationWarning(const SceneInfo& info, const NodeParams& params) {
+  if (info.substepsForModulus == 0) return "";
+  const SolverParams& s = params.solver;
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "~youngs_modulus %.4g Pa asks for alpha %.3g per sub-step, more than the %.3g "
+                "the solver allows under ~stiffness %.3g: the material is %.3g times softer "
+                "than asked because the sub-step (%.3g s) is too long. ~substeps %d (instead of %d) "
+                "would fix it.",
+                s.youngsModulus, info.requestedAlpha, info.alpha, s.stiffness,
+                info.requestedAlpha / info.alpha, s.substepLength(), info.substepsForModulus,
+                s.substeps);
+  return buf;
+}
+
+}  // namespace deformable_flsm

@@ -1,0 +1,203 @@
+/// @file test_scene.cpp
+/// Tests of ros/scene.h and NodeParams: the lattice comes from exactly one of spacing,
+/// resolution and particle budget; regions from radius or half-width; pins, simplified render
+/// mesh and start-up measurement; every invalid parameter is refused with a message naming it.
+#include "deformable_flsm/ros/scene.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <limits>
+
+namespace deformable_flsm {
+namespace {
+
+const char* const kBunnyPath = "/usr/share/glmark2/models/bunny.obj";
+
+/// Axis-aligned box [0, size] as 12 counter-clockwise triangles.
+TriMesh boxMesh(const Eigen::Vector3d& size) {
+  TriMesh mesh;
+  for (int v = 0; v < 8; ++v) {
+    mesh.vertices.emplace_back((v & 1) ? size.x() : 0.0, (v & 2) ? size.y() : 0.0,
+                               (v & 4) ? size.z() : 0.0);
+  }
+  const std::uint32_t quads[6][4] = {{1, 3, 7, 5}, {0, 4, 6, 2}, {0, 1, 5, 4},
+                                     {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+  for (const auto& q : quads) {
+    mesh.triangles.push_back({q[0], q[1], q[2]});
+    mesh.triangles.push_back({q[0], q[2], q[3]});
+  }
+  return mesh;
+}
+
+NodeParams cubeParams() {
+  NodeParams p;
+  p.resolution = 10;  // 1000 particles on the unit cube
+  p.solver.gravity.setZero();
+  return p;
+}
+
+TEST(BuildScene, ResolutionGivesTheExactLattice) {
+  const Scene s = buildScene(cubeParams(), boxMesh(Eigen::Vector3d::Ones()), 2);
+  EXPECT_EQ(s.info.latticeFrom, "resolution");
+  EXPECT_EQ(s.info.particles, 1000u);
+  EXPECT_DOUBLE_EQ(s.info.spacing, 0.1);
+  EXPECT_EQ(s.info.regionHalfWidth, 2);  // neither radius nor half-width: the default
+  EXPECT_EQ(s.solver->lattice().size(), 1000u);
+  EXPECT_GT(s.info.stepSeconds, 0.0);
+  EXPECT_GT(s.info.nsPerParticleSubstep, 0.0);
+  EXPECT_GT(s.info.cpuFraction, 0.0);
+  // The measurement ran the solver, then put it back to rest.
+  EXPECT_EQ(s.solver->time(), 0.0);
+  EXPECT_EQ(s.solver->maxDisplacement(), 0.0);
+}
+
+TEST(BuildScene, SpacingAndBudget) {
+  NodeParams p = cubeParams();
+  p.resolution = 0;
+  p.spacing = 0.25;
+  Scene s = buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0);
+  EXPECT_EQ(s.info.latticeFrom, "spacing");
+  EXPECT_EQ(s.info.particles, 64u);
+
+  p.spacing = 0.0;
+  p.particleBudget = 500;  // 7^3 = 343 fits, 8^3 = 512 does not
+  s = buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0);
+  EXPECT_EQ(s.info.latticeFrom, "particle_budget");
+  EXPECT_EQ(s.info.resolution, 7);
+  EXPECT_EQ(s.info.particles, 343u);
+}
+
+TEST(BuildScene, RegionRadiusInMetresBecomesWholeCells) {
+  NodeParams p = cubeParams();
+  p.regionRadius = 0.31;  // 3.1 cells of 0.1 m
+  EXPECT_EQ(buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0).info.regionHalfWidth, 3);
+  p.regionRadius = 0.0;
+  p.regionHalfWidth = 1;
+  EXPECT_EQ(buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0).info.regionHalfWidth, 1);
+  p.regionHalfWidth = 0;
+  p.regionRadius = 5.0;  // 50 cells: beyond the solver's limit
+  EXPECT_THROW(buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0), ParamError);
+}
+
+TEST(BuildScene, PinnedBoxesAreCountedPerBox) {
+  NodeParams p = cubeParams();
+  p.pinned.push_back(Box{Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(2, 2, 0.1)});  // z = 0.05
+  p.pinned.push_back(Box{Eigen::Vector3d(5, 5, 5), Eigen::Vector3d(6, 6, 6)});       // nothing
+  const Scene s = buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0);
+  ASSERT_EQ(s.info.pinnedPerBox.size(), 2u);
+  EXPECT_EQ(s.info.pinnedPerBox[0], 100u);
+  EXPECT_EQ(s.info.pinnedPerBox[1], 0u);
+  EXPECT_EQ(s.solver->pinnedCount(), 100u);
+}
+
+TEST(BuildScene, TooFineForMaxParticlesNamesTheParameters) {
+  NodeParams p = cubeParams();
+  p.resolution = 50;  // 125000 particles
+  p.maxParticles = 10000;
+  try {
+    buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0);
+    FAIL() << "no error";
+  } catch (const ParamError& e) {
+    EXPECT_NE(std::string(e.what()).find("~max_particles"), std::string::npos) << e.what();
+  }
+}
+
+TEST(BuildScene, SaturatedModulusSaysWhichSubstepsFixIt) {
+  NodeParams p = cubeParams();
+  p.solver.youngsModulus = 1e9;  // far stiffer than 4 sub-steps of 1/60 s allow
+  const Scene s = buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0);
+  EXPECT_TRUE(s.solver->stiffnessSaturated());
+  EXPECT_GT(s.info.substepsForModulus, p.solver.substeps);
+  // At that many sub-steps the solver is no longer saturated.
+  SolverParams fixed = s.solver->params();
+  fixed.substeps = s.info.substepsForModulus;
+  s.solver->setParams(fixed);
+  EXPECT_FALSE(s.solver->stiffnessSaturated());
+  const std::string w = saturationWarning(s.info, p);
+  EXPECT_NE(w.find("~substeps " + std::to_string(s.info.substepsForModulus)), std::string::npos) << w;
+  p.solver.youngsModulus = 0.0;
+  EXPECT_EQ(saturationWarning(buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0).info, p), "");
+}
+
+TEST(BuildScene, RenderBudgetSimplifiesOnlyTheRenderMesh) {
+  if (!std::filesystem::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing";
+  const TriMesh bunny = loadMesh(kBunnyPath, 0.1);
+  NodeParams p;
+  p.resolution = 12;
+  p.renderTriangleBudget = 3000;
+  const Scene simple = buildScene(p, bunny, 0);
+  EXPECT_LE(simple.info.renderTriangles, 3000u);
+  EXPECT_EQ(simple.info.loadedTriangles, bunny.triangles.size());
+  EXPECT_EQ(simple.embedding->vertexCount(), simple.renderMesh.vertices.size());
+  p.renderTriangleBudget = 0;
+  const Scene full = buildScene(p, bunny, 0);
+  EXPECT_EQ(full.info.renderTriangles, bunny.triangles.size());
+  // The lattice does not depend on the render budget.
+  EXPECT_EQ(simple.info.particles, full.info.particles);
+  const std::string text = describeScene(simple.info, p);
+  EXPECT_NE(text.find("particles"), std::string::npos);
+  EXPECT_NE(text.find("ns per particle-substep"), std::string::npos);
+}
+
+/// The message of the ParamError that validate() throws, or "" when it passes.
+std::string problem(const NodeParams& p) {
+  try {
+    p.validate();
+  } catch (const ParamError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(NodeParams, DefaultsAreValid) { EXPECT_EQ(problem(NodeParams()), ""); }
+
+TEST(NodeParams, EveryInvalidValueIsNamed) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  struct Case {
+    std::function<void(NodeParams&)> change;
+    const char* named;
+  };
+  const std::vector<Case> cases = {
+      {[](NodeParams& p) { p.mesh = ""; }, "~mesh"},
+      {[](NodeParams& p) { p.meshScale = 0.0; }, "~mesh_scale"},
+      {[&](NodeParams& p) { p.meshRpy.x() = nan; }, "~mesh_rpy"},
+      {[](NodeParams& p) { p.frameId = ""; }, "~frame_id"},
+      {[](NodeParams& p) { p.objectFrameId = p.frameId; }, "~object_frame_id"},
+      {[](NodeParams& p) { p.spacing = -0.1; }, "~spacing"},
+      {[](NodeParams& p) { p.resolution = -3; }, "~resolution"},
+      {[](NodeParams& p) { p.spacing = 0.01; p.resolution = 10; }, "both set"},
+      {[](NodeParams& p) { p.particleBudget = 0; }, "~particle_budget"},
+      {[](NodeParams& p) { p.particleBudget = 300000; }, "~particle_budget"},
+      {[](NodeParams& p) { p.maxParticles = 0; }, "~max_particles"},
+      {[](NodeParams& p) { p.regionRadius = -1.0; }, "~region_radius"},
+      {[](NodeParams& p) { p.regionHalfWidth = -1; }, "~region_half_width"},
+      {[](NodeParams& p) { p.regionRadius = 0.02; p.regionHalfWidth = 2; }, "both set"},
+      {[](NodeParams& p) { p.regionHalfWidth = 11; }, "region_half_width"},
+      {[](NodeParams& p) { p.publishRate = 0.0; }, "~publish_rate"},
+      {[&](NodeParams& p) { p.publishRate = nan; }, "~publish_rate"},
+      {[](NodeParams& p) { p.realTimeFactor = -1.0; }, "~real_time_factor"},
+      {[](NodeParams& p) { p.realTimeFactor = 1e6; }, "~real_time_factor"},
+      {[](NodeParams& p) { p.renderTriangleBudget = -5; }, "~render_triangle_budget"},
+      {[](NodeParams& p) { p.pinned.push_back(Box{Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 1)}); }, "~pinned"},
+      {[&](NodeParams& p) { p.pinned.push_back(Box{Eigen::Vector3d(nan, 0, 0), Eigen::Vector3d(1, 1, 1)}); }, "~pinned"},
+      {[](NodeParams& p) { p.solver.stiffness = 2.0; }, "stiffness"},
+      {[](NodeParams& p) { p.solver.youngsModulus = -1.0; }, "youngs_modulus"},
+      {[](NodeParams& p) { p.solver.damping = -1.0; }, "damping"},
+      {[](NodeParams& p) { p.solver.timeStep = 0.0; }, "time_step"},
+      {[](NodeParams& p) { p.solver.substeps = 0; }, "substeps"},
+      {[](NodeParams& p) { p.solver.density = 0.0; }, "density"},
+      {[&](NodeParams& p) { p.solver.gravity.z() = nan; }, "gravity"},
+      {[](NodeParams& p) { p.solver.threads = -1; }, "threads"},
+  };
+  for (const Case& c : cases) {
+    NodeParams p;
+    c.change(p);
+    const std::string why = problem(p);
+    EXPECT_NE(why.find(c.named), std::string::npos) << "expected '" << c.named << "' in: " << why;
+  }
+}
+
+}  // namespace
+}  // namespace deformable_flsm

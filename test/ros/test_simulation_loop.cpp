@@ -1,0 +1,306 @@
+/// @file test_simulation_loop.cpp
+/// Tests of ros/simulation_loop.h on small box lattices: commands reach the solver (or are
+/// rejected with a reason), the loop paces itself to the wall clock, drops debt it cannot pay
+/// instead of spiralling, rests when nothing moves and wakes on a command, and never hands out a
+/// non-finite state.
+#include "deformable_flsm/ros/simulation_loop.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <functional>
+#include <limits>
+#include <thread>
+
+namespace deformable_flsm {
+namespace {
+
+using std::chrono::duration;
+using Clock = std::chrono::steady_clock;
+
+/// nx x ny x nz full cells of `spacing` (m) from the origin.
+Voxelization box(int nx, int ny, int nz, double spacing) {
+  Voxelization v;
+  v.spacing = spacing;
+  v.dims = Eigen::Vector3i(nx, ny, nz);
+  v.closed = true;
+  for (int k = 0; k < nz; ++k)
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) {
+        v.cells.emplace_back(i, j, k);
+        v.fillFraction.push_back(1.0);
+      }
+  return v;
+}
+
+SolverParams weightless() {
+  SolverParams p;
+  p.gravity.setZero();
+  p.regionHalfWidth = 1;
+  // A free box keeps the momentum a drag gives it; strong air drag lets the rest tests finish
+  // in a second or two (these tests are about the loop, not about damping).
+  p.ambientDamping = 5.0;
+  return p;
+}
+
+struct Rig {
+  explicit Rig(LoopSettings settings = LoopSettings(), SolverParams params = weightless(),
+               int n = 6) {
+    auto lattice = std::make_shared<const Lattice>(box(n, n, n, 0.01), 1000.0, params.regionHalfWidth);
+    auto s = std::make_unique<Solver>(lattice, params);
+    solver = s.get();
+    stats = std::make_shared<CommandStats>();
+    loop = std::make_unique<SimulationLoop>(std::move(s), settings, stats);
+  }
+  /// Submits and waits for the outcome (the loop must be running).
+  CommandOutcome run(CommandBody body) {
+    Command c{std::move(body), std::make_shared<std::promise<CommandOutcome>>()};
+    auto f = c.outcome->get_future();
+    loop->submit(std::move(c));
+    EXPECT_EQ(f.wait_for(std::chrono::seconds(5)), std::future_status::ready);
+    return f.get();
+  }
+  /// Polls snapshots until `done` or `timeout` seconds; returns whether `done` held.
+  bool waitFor(const std::function<bool(const Snapshot&)>& done, double timeout = 5.0) {
+    const Clock::time_point end = Clock::now() + std::chrono::duration_cast<Clock::duration>(duration<double>(timeout));
+    while (Clock::now() < end) {
+      if (done(loop->acquire())) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    return false;
+  }
+  std::uint64_t rejected(const std::string& reason) const {
+    const auto c = stats->counts();
+    const auto it = c.rejectedByReason.find(reason);
+    return it == c.rejectedByReason.end() ? 0 : it->second;
+  }
+
+  Solver* solver = nullptr;  // owned by the loop; touched only before start()
+  std::shared_ptr<CommandStats> stats;
+  std::unique_ptr<SimulationLoop> loop;
+};
+
+LoopSettings quickIdle() {
+  LoopSettings s;
+  s.idleSpeed = 1e-4;
+  s.idleHold = 0.2;
+  return s;
+}
+
+TEST(SimulationLoop, FirstSnapshotIsTheRestState) {
+  Rig rig;
+  rig.loop->start();
+  const Snapshot& s = rig.loop->acquire();
+  EXPECT_GE(s.sequence, 1u);
+  ASSERT_EQ(s.positions.size(), rig.loop->lattice().size());
+  for (std::size_t i = 0; i < s.positions.size(); ++i)
+    EXPECT_EQ(s.positions[i], rig.loop->lattice().restPositions()[i]);
+}
+
+TEST(SimulationLoop, HardGrabHoldsTheParticleAtTheTargetAndReleaseReturnsToRest) {
+  Rig rig(quickIdle());
+  rig.loop->start();
+  const Eigen::Vector3d target = rig.loop->lattice().restPositions()[0] + Eigen::Vector3d(-0.01, 0, 0);
+  GrabCommand g;
+  g.id = "a";
+  g.particle = 0;
+  g.target = target;
+  const CommandOutcome o = rig.run(g);
+  ASSERT_TRUE(o.accepted) << o.message;
+  EXPECT_EQ(o.particles, 1u);
+  // A hard drag sets the particle's velocity so that it lands on the target every sub-step.
+  ASSERT_TRUE(rig.waitFor([&](const Snapshot& s) {
+    return s.diag.steps > 2 && s.drags.size() == 1 && (s.positions[0] - target).norm() < 1e-9;
+  }));
+  EXPECT_TRUE(rig.run(ReleaseCommand{"a"}).accepted);
+  // Back to the rest shape (it may have drifted as a whole: the drag gave it momentum).
+  EXPECT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.idle; }, 20.0));
+  EXPECT_LT(rig.loop->acquire().diag.shapeError, 1e-3 * rig.loop->lattice().objectSize());
+}
+
+TEST(SimulationLoop, RejectionsCarryTheirReason) {
+  Rig rig;
+  rig.loop->start();
+  EXPECT_FALSE(rig.run(MoveCommand{"nobody", Eigen::Vector3d::Zero()}).accepted);
+  EXPECT_FALSE(rig.run(ReleaseCommand{"nobody"}).accepted);
+  EXPECT_EQ(rig.rejected("unknown_drag"), 2u);
+
+  GrabCommand stiff;
+  stiff.id = "s";
+  stiff.particle = 0;
+  stiff.target = rig.loop->lattice().restPositions()[0];
+  stiff.stiffness = 1e12;
+  const CommandOutcome o = rig.run(stiff);
+  EXPECT_FALSE(o.accepted);
+  EXPECT_NE(o.message.find("N/m"), std::string::npos) << o.message;
+  EXPECT_EQ(rig.rejected("spring_too_stiff"), 1u);
+
+  PushCommand huge;
+  huge.particle = 3;
+  huge.force = Eigen::Vector3d(1e30, 0, 0);
+  huge.duration = 0.1;
+  EXPECT_FALSE(rig.run(huge).accepted);
+  huge.impulse = true;
+  EXPECT_FALSE(rig.run(huge).accepted);
+  EXPECT_EQ(rig.rejected("too_large"), 2u);
+
+  PushCommand nowhere;
+  nowhere.point = Eigen::Vector3d(0.5, 0.5, 0.5);  // 40 cm from a 6 cm box
+  nowhere.radius = 0.01;
+  nowhere.duration = 0.1;
+  EXPECT_FALSE(rig.run(nowhere).accepted);
+  EXPECT_EQ(rig.rejected("empty_selection"), 1u);
+
+  SolverParams heavier = weightless();
+  heavier.density = 2000.0;  // defines the masses: cannot change at run time
+  EXPECT_FALSE(rig.run(ParamsCommand{heavier}).accepted);
+  EXPECT_EQ(rig.rejected("invalid_params"), 1u);
+  EXPECT_EQ(rig.stats->counts().accepted, 0u);
+}
+
+TEST(SimulationLoop, SensibleForceAndImpulseAreApplied) {
+  Rig rig;
+  rig.loop->start();
+  PushCommand f;
+  f.point = rig.loop->lattice().restPositions()[0];
+  f.radius = 0.015;
+  f.force = Eigen::Vector3d(0.0, 0.0, 0.5);
+  f.duration = 0.5;
+  const CommandOutcome o = rig.run(f);
+  ASSERT_TRUE(o.accepted) << o.message;
+  EXPECT_GE(o.particles, 4u);  // the corner and its neighbours within 1.5 cells
+  EXPECT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.forces == 1; }));
+  EXPECT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.kineticEnergy > 0.0; }));
+  f.impulse = true;
+  f.force = Eigen::Vector3d(0.0, 1e-3, 0.0);
+  EXPECT_TRUE(rig.run(f).accepted);
+}
+
+TEST(SimulationLoop, PinBoxAnswersWithTheCount) {
+  Rig rig;
+  rig.loop->start();
+  // The bottom layer of the 6 x 6 x 6 box: cell centres at z = 0.005.
+  const CommandOutcome o =
+      rig.run(PinBoxCommand{Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1, 1, 0.006), true});
+  ASSERT_TRUE(o.accepted);
+  EXPECT_EQ(o.particles, 36u);
+  EXPECT_EQ(o.pinnedTotal, 36u);
+  EXPECT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.pinned == 36; }));
+}
+
+TEST(SimulationLoop, FullQueueRejectsAndAnswers) {
+  Rig rig;  // not started: nothing drains the queue
+  std::vector<std::future<CommandOutcome>> answers;
+  for (std::size_t i = 0; i < CommandLimits::kQueueCapacity + 10; ++i) {
+    Command c{ResetCommand{}, std::make_shared<std::promise<CommandOutcome>>()};
+    answers.push_back(c.outcome->get_future());
+    rig.loop->submit(std::move(c));
+  }
+  EXPECT_EQ(rig.rejected("queue_full"), 10u);
+  for (std::size_t i = CommandLimits::kQueueCapacity; i < answers.size(); ++i) {
+    ASSERT_EQ(answers[i].wait_for(std::chrono::seconds(0)), std::future_status::ready);
+    EXPECT_FALSE(answers[i].get().accepted);
+  }
+  // Stopping answers the queued ones too, so that no service waits forever.
+  rig.loop->stop();
+  ASSERT_EQ(answers[0].wait_for(std::chrono::seconds(0)), std::future_status::ready);
+  EXPECT_FALSE(answers[0].get().accepted);
+}
+
+TEST(SimulationLoop, RestsWhenStillAndWakesOnACommand) {
+  Rig rig(quickIdle());
+  rig.loop->start();
+  ASSERT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.idle; }, 5.0));
+  const std::uint64_t steps = rig.loop->acquire().diag.steps;
+  const std::uint64_t seq = rig.loop->acquire().sequence;
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_EQ(rig.loop->acquire().diag.steps, steps) << "stepping while idle";
+  EXPECT_EQ(rig.loop->acquire().sequence, seq) << "new snapshots while idle";
+
+  // A rejected command does not wake it...
+  EXPECT_FALSE(rig.run(ReleaseCommand{"nobody"}).accepted);
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(rig.loop->acquire().diag.steps, steps);
+  // ... an accepted one does, at once.
+  PushCommand kick;
+  kick.particle = 0;
+  kick.force = Eigen::Vector3d(0.0, 0.0, 1e-4);
+  kick.impulse = true;
+  const Clock::time_point t0 = Clock::now();
+  ASSERT_TRUE(rig.run(kick).accepted);
+  ASSERT_TRUE(rig.waitFor([&](const Snapshot& s) { return s.diag.steps > steps && !s.diag.idle; }));
+  EXPECT_LT(duration<double>(Clock::now() - t0).count(), 0.5);
+  // And it rests again once the kick has died down.
+  EXPECT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.idle; }, 20.0));
+}
+
+TEST(SimulationLoop, PacedToTheWallClock) {
+  LoopSettings settings;
+  settings.idleHold = 0.0;  // never rest: this is about pacing
+  settings.realTimeFactor = 0.5;
+  Rig rig(settings);
+  rig.loop->start();
+  const Clock::time_point t0 = Clock::now();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  const double wall = duration<double>(Clock::now() - t0).count();
+  const LoopDiagnostics d = rig.loop->acquire().diag;
+  // Steps are whole 1/60 s; a loaded machine may fall behind by a few steps but never ahead.
+  EXPECT_LE(d.simTime, 0.5 * wall + 2.0 / 60.0);
+  EXPECT_GT(d.simTime, 0.5 * wall * 0.7);
+  EXPECT_NEAR(d.achievedRealTimeFactor, 0.5, 0.15);
+  EXPECT_EQ(d.droppedSteps, 0u);
+}
+
+TEST(SimulationLoop, ASlowMachineDropsDebtInsteadOfSpiralling) {
+  // Asking for 1000 x real time: every step is late. The loop must take at most
+  // maxCatchUpSteps at a time, drop the rest, keep answering commands, and report it.
+  LoopSettings settings;
+  settings.idleHold = 0.0;
+  settings.realTimeFactor = 1000.0;
+  SolverParams p = weightless();
+  p.substeps = 20;
+  Rig rig(settings, p, 12);
+  rig.loop->start();
+  std::this_thread::sleep_for(std::chrono::milliseconds(800));
+  const Clock::time_point t0 = Clock::now();
+  const CommandOutcome o = rig.run(ResetCommand{});
+  EXPECT_TRUE(o.accepted);
+  EXPECT_LT(duration<double>(Clock::now() - t0).count(), 1.0) << "commands starve";
+  const LoopDiagnostics d = rig.loop->acquire().diag;
+  EXPECT_GT(d.droppedSteps, 0u);
+  EXPECT_LT(d.achievedRealTimeFactor, 1000.0);
+  EXPECT_GT(d.achievedRealTimeFactor, 0.0);
+}
+
+TEST(SimulationLoop, NonFiniteStateIsResetNeverPublished) {
+  LoopSettings settings;
+  settings.idleHold = 0.0;
+  Rig rig(settings);
+  std::vector<Eigen::Vector3d> x = rig.solver->positions();
+  x[7].x() = std::numeric_limits<double>::quiet_NaN();
+  rig.solver->setPositions(x);  // before start(): the loop does not own the thread yet
+  rig.loop->start();
+  const Snapshot& first = rig.loop->acquire();
+  EXPECT_EQ(first.diag.solverResets, 1u);
+  for (const Eigen::Vector3d& p : first.positions) ASSERT_TRUE(p.allFinite());
+  ASSERT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.steps >= 2; }));
+  const Snapshot& s = rig.loop->acquire();
+  EXPECT_EQ(s.diag.solverResets, 1u);
+  for (const Eigen::Vector3d& p : s.positions) ASSERT_TRUE(p.allFinite());
+}
+
+TEST(SimulationLoop, RealTimeFactorChangesAtRunTime) {
+  LoopSettings settings;
+  settings.idleHold = 0.0;
+  Rig rig(settings);
+  rig.loop->start();
+  rig.loop->setRealTimeFactor(2.0);
+  EXPECT_TRUE(rig.waitFor(
+      [](const Snapshot& s) { return s.diag.requestedRealTimeFactor == 2.0; }, 2.0));
+  EXPECT_THROW(rig.loop->setRealTimeFactor(0.0), std::invalid_argument);
+  EXPECT_THROW(rig.loop->setRealTimeFactor(std::numeric_limits<double>::quiet_NaN()),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace deformable_flsm
