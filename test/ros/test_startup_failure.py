@@ -49,7 +49,7 @@ class StartupFailureTest(unittest.TestCase):
                                  '_mesh:=package://no_such_package_flsm/bunny.obj')
 
     def test_negative_publish_rate_is_refused(self):
-        self.assert_fails_naming('flsm_negative_rate', ['~publish_rate is -1', '> 0'],
+        self.assert_fails_naming('flsm_negative_rate', ['~publish_rate is -1', '(0, 1000]'],
                                  '_publish_rate:=-1')
 
     def test_nan_publish_rate_is_refused(self):
@@ -64,6 +64,48 @@ class StartupFailureTest(unittest.TestCase):
 
     def test_zero_mesh_scale_is_refused(self):
         self.assert_fails_naming('flsm_zero_scale', ['~mesh_scale is 0', '> 0'], '_mesh_scale:=0')
+
+    def test_unknown_solver_is_refused(self):
+        self.assert_fails_naming('flsm_bad_solver', ["~solver is 'fastest'", "'fast'", "'naive'"],
+                                 '_solver:=fastest')
+
+    def test_spacing_and_resolution_together_are_refused(self):
+        self.assert_fails_naming('flsm_both_lattice', ['~spacing', '~resolution', 'both set'],
+                                 '_spacing:=0.01', '_resolution:=12')
+
+    def test_region_radius_and_half_width_together_are_refused(self):
+        self.assert_fails_naming('flsm_both_region', ['~region_radius', '~region_half_width'],
+                                 '_region_radius:=0.03', '_region_half_width:=2')
+
+    def test_fractional_resolution_is_refused(self):
+        self.assert_fails_naming('flsm_float_resolution', ['~resolution', 'an integer'],
+                                 '_resolution:=12.5')
+
+    def test_stiffness_above_one_is_refused(self):
+        self.assert_fails_naming('flsm_stiff', ['stiffness', '(0, 1]'], '_stiffness:=1.5')
+
+    def test_zero_substeps_is_refused(self):
+        self.assert_fails_naming('flsm_substeps', ['substeps', '1 to'], '_substeps:=0')
+
+    def test_malformed_gravity_is_refused(self):
+        rospy.set_param('/flsm_bad_gravity/gravity', [0.0, -9.81])
+        self.assert_fails_naming('flsm_bad_gravity', ['~gravity', 'three numbers'])
+
+    def test_malformed_pinned_box_is_refused(self):
+        rospy.set_param('/flsm_bad_pin/pinned', [[0.0, 0.0, 0.0, 1.0, 1.0]])
+        self.assert_fails_naming('flsm_bad_pin', ['~pinned', 'entry 0', 'six numbers'])
+
+    def test_inverted_pinned_box_is_refused(self):
+        rospy.set_param('/flsm_inverted_pin/pinned', [[0.1, 0.0, 0.0, 0.0, 1.0, 1.0]])
+        self.assert_fails_naming('flsm_inverted_pin', ['~pinned box 0', 'min <= max'])
+
+    def test_lattice_over_max_particles_is_refused(self):
+        self.assert_fails_naming('flsm_too_fine', ['~max_particles', 'resolution'],
+                                 '_resolution:=60', '_max_particles:=1000')
+
+    def test_region_radius_beyond_ten_cells_is_refused(self):
+        self.assert_fails_naming('flsm_big_regions', ['region_radius', 'at most 10 cells'],
+                                 '_resolution:=10', '_region_radius:=0.5', '_mesh_scale:=0.1')
 
 
 if __name__ == '__main__':

@@ -1,0 +1,153 @@
+"""Helpers shared by the rostest nodes of flsm_node: a client that sends commands the way any
+other node would (topics and services of /flsm_node) and reads the state back."""
+
+import math
+import threading
+import time
+
+import numpy as np
+import rospy
+from geometry_msgs.msg import Point, Vector3
+from sensor_msgs import point_cloud2
+from sensor_msgs.msg import PointCloud2
+from std_srvs.srv import Trigger
+
+from deformable_flsm.msg import DragCommand, ForceCommand, SimulationState
+from deformable_flsm.srv import PinBox
+
+
+class FlsmClient(object):
+    """Talks to one flsm_node. Keeps the latest ~state; reads ~particles on demand."""
+
+    def __init__(self, node='/flsm_node', timeout=60.0):
+        self.node = node
+        self._lock = threading.Lock()
+        self._state = None
+        self._state_count = 0
+        rospy.Subscriber(node + '/state', SimulationState, self._on_state, queue_size=10)
+        self.drag_pub = rospy.Publisher(node + '/drag', DragCommand, queue_size=100)
+        self.force_pub = rospy.Publisher(node + '/force', ForceCommand, queue_size=100)
+        for srv in ('reset', 'release_all', 'pin_box'):
+            rospy.wait_for_service(node + '/' + srv, timeout=timeout)
+        self._reset = rospy.ServiceProxy(node + '/reset', Trigger)
+        self._release_all = rospy.ServiceProxy(node + '/release_all', Trigger)
+        self._pin_box = rospy.ServiceProxy(node + '/pin_box', PinBox)
+        self.wait_state(lambda s: True, timeout)
+        self._wait_connected(self.drag_pub, timeout)
+        self._wait_connected(self.force_pub, timeout)
+        rest = self.particles()
+        self.rest = rest.copy()
+        lo, hi = rest.min(axis=0), rest.max(axis=0)
+        self.size = float(np.linalg.norm(hi - lo))  # like Lattice::objectSize()
+        self.frame = 'world'
+
+    @staticmethod
+    def _wait_connected(pub, timeout):
+        end = time.time() + timeout
+        while pub.get_num_connections() == 0 and time.time() < end:
+            time.sleep(0.05)
+
+    def _on_state(self, msg):
+        with self._lock:
+            self._state = msg
+            self._state_count += 1
+
+    # --- reading ---------------------------------------------------------------------------
+
+    def state(self):
+        with self._lock:
+            return self._state
+
+    def state_count(self):
+        with self._lock:
+            return self._state_count
+
+    def wait_state(self, predicate, timeout=10.0):
+        """The first ~state for which predicate holds; None after `timeout` seconds."""
+        end = time.time() + timeout
+        while time.time() < end and not rospy.is_shutdown():
+            s = self.state()
+            if s is not None and predicate(s):
+                return s
+            time.sleep(0.02)
+        return None
+
+    def particles(self, timeout=10.0, with_displacement=False):
+        """#P x 3 particle positions (or #P x 4 with the displacement field) from ~particles."""
+        cloud = rospy.wait_for_message(self.node + '/particles', PointCloud2, timeout=timeout)
+        fields = ('x', 'y', 'z', 'displacement') if with_displacement else ('x', 'y', 'z')
+        return np.array(list(point_cloud2.read_points(cloud, field_names=fields)))
+
+    def wait_particles(self, predicate, timeout=10.0):
+        """The first particle array (#P x 3) for which predicate holds, or None."""
+        end = time.time() + timeout
+        while time.time() < end and not rospy.is_shutdown():
+            x = self.particles()
+            if predicate(x):
+                return x
+        return None
+
+    def rejected(self, reason):
+        s = self.state()
+        return dict(zip(s.reject_reasons, s.reject_counts)).get(reason, 0)
+
+    # --- commands --------------------------------------------------------------------------
+
+    def drag(self, action, drag_id='test', particle=-1, point=(0, 0, 0), count=0,
+             target=(0, 0, 0), stiffness=0.0, frame=''):
+        m = DragCommand()
+        m.header.frame_id = frame
+        m.action = action
+        m.id = drag_id
+        m.particle = particle
+        m.point = Point(*point)
+        m.count = count
+        m.target = Point(*target)
+        m.stiffness = stiffness
+        self.drag_pub.publish(m)
+
+    def grab(self, particle, target, drag_id='test', stiffness=0.0, frame=''):
+        self.drag(DragCommand.GRAB, drag_id, particle=particle, target=target,
+                  stiffness=stiffness, frame=frame)
+
+    def move(self, target, drag_id='test', frame=''):
+        self.drag(DragCommand.MOVE, drag_id, target=target, frame=frame)
+
+    def release(self, drag_id='test'):
+        self.drag(DragCommand.RELEASE, drag_id)
+
+    def force(self, kind, force, particle=-1, point=(0, 0, 0), radius=0.0, duration=0.0,
+              frame=''):
+        m = ForceCommand()
+        m.header.frame_id = frame
+        m.kind = kind
+        m.particle = particle
+        m.point = Point(*point)
+        m.radius = radius
+        m.force = Vector3(*force)
+        m.duration = duration
+        self.force_pub.publish(m)
+
+    def reset(self):
+        return self._reset()
+
+    def release_all(self):
+        return self._release_all()
+
+    def pin_box(self, lo, hi, pin=True):
+        return self._pin_box(Point(*lo), Point(*hi), pin)
+
+    def settle(self, timeout=30.0):
+        """Releases everything, resets to rest and waits until the node rests (idle)."""
+        self.release_all()
+        self.reset()
+        return self.wait_state(lambda s: s.idle and s.active_drags == 0, timeout)
+
+
+def top_particle(x):
+    """Index of the highest particle (the bunny's ear)."""
+    return int(np.argmax(x[:, 2]))
+
+
+def finite(values):
+    return all(math.isfinite(v) for v in values)
