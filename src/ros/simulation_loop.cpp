@@ -130,7 +130,7 @@ Eigen::Vector3d SimulationLoop::centerOfMass() const {
 
 void SimulationLoop::run() {
   Clock::time_point last = Clock::now();
-  windowStart_ = last;
+  restartWindow(last);
   double owed = 0.0;  // simulated seconds due but not yet stepped
   std::vector<Command> batch;
   batch.reserve(CommandLimits::kQueueCapacity);
@@ -151,7 +151,11 @@ void SimulationLoop::run() {
     batch.clear();
 
     const double rtf = realTimeFactor_.load();
-    diag_.requestedRealTimeFactor = rtf;
+    if (rtf != diag_.requestedRealTimeFactor) {
+      // A new pace: measure it afresh rather than average it with the old one.
+      diag_.requestedRealTimeFactor = rtf;
+      restartWindow(Clock::now());
+    }
     if (idle_) {
       if (!acted && !woken) continue;  // only rejected commands: rest on
       // Awake: the time spent resting is not owed.
@@ -159,8 +163,7 @@ void SimulationLoop::run() {
       stillFor_ = 0.0;
       last = Clock::now();
       owed = 0.0;
-      windowStart_ = last;
-      windowSteps_ = windowStepSeconds_ = windowSimulated_ = 0.0;
+      restartWindow(last);
       diag_.idle = false;
       writeSnapshot();
     } else if (acted) {
@@ -214,16 +217,23 @@ void SimulationLoop::timedStep() {
   windowStepSeconds_ += seconds(t1 - t0);
   windowSimulated_ += dt;
   const double wall = seconds(t1 - windowStart_);
-  if (wall >= settings_.statsWindow) {
-    diag_.stepSeconds = windowStepSeconds_ / windowSteps_;
-    diag_.achievedRealTimeFactor = windowSimulated_ / wall;
-    windowStart_ = t1;
-    windowSteps_ = windowStepSeconds_ = windowSimulated_ = 0.0;
-  } else if (diag_.steps == static_cast<std::uint64_t>(windowSteps_)) {
-    // First window since start: report what there is rather than zero.
+  if (wall >= settings_.statsWindow || !windowComplete_) {
+    // Until the first full window after a (re)start, report what there is rather than a
+    // figure of the old pace.
     diag_.stepSeconds = windowStepSeconds_ / windowSteps_;
     diag_.achievedRealTimeFactor = wall > 0.0 ? windowSimulated_ / wall : 0.0;
   }
+  if (wall >= settings_.statsWindow) {
+    windowStart_ = t1;
+    windowSteps_ = windowStepSeconds_ = windowSimulated_ = 0.0;
+    windowComplete_ = true;
+  }
+}
+
+void SimulationLoop::restartWindow(Clock::time_point now) {
+  windowStart_ = now;
+  windowSteps_ = windowStepSeconds_ = windowSimulated_ = 0.0;
+  windowComplete_ = false;
 }
 
 void SimulationLoop::updateStillness(double simulated) {

@@ -140,7 +140,12 @@ class FlsmClient(object):
     def settle(self, timeout=30.0):
         """Releases everything, resets to rest and waits until the node rests (idle)."""
         self.release_all()
+        steps = self.state().steps
         self.reset()
+        # A ~state sent just before the reset took effect may still say idle: the reset wakes
+        # the simulation, which steps at least once before it can rest again.
+        if self.wait_state(lambda s: s.steps > steps, timeout) is None:
+            return None
         return self.wait_state(lambda s: s.idle and s.active_drags == 0, timeout)
 
 

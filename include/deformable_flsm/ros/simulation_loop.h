@@ -135,6 +135,8 @@ class SimulationLoop {
   /// Resets a non-finite state to rest and counts it.
   void ensureFinite();
   void timedStep();
+  /// Starts a new averaging window for the step cost and the achieved real-time factor.
+  void restartWindow(std::chrono::steady_clock::time_point now);
   void updateStillness(double simulated);
   void writeSnapshot();
 
@@ -168,6 +170,7 @@ class SimulationLoop {
   double stillFor_ = 0.0;  // simulated seconds of stillness
   double windowSteps_ = 0.0, windowStepSeconds_ = 0.0, windowSimulated_ = 0.0;
   std::chrono::steady_clock::time_point windowStart_;
+  bool windowComplete_ = false;  // a full window has passed since the last restart
 };
 
 }  // namespace deformable_flsm
