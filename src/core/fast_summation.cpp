@@ -60,27 +60,42 @@ void windowPass(const Lattice& lattice, int axis, const double* in, int K, doubl
   throw std::invalid_argument("windowPass: unsupported channel count " + std::to_string(K));
 }
 
-BarSummer::BarSummer(const Lattice& lattice, int threads) : lattice_(lattice), threads_(std::max(1, threads)) {}
-
-void BarSummer::gather(const std::vector<double>& in, int K, std::vector<double>& out) {
+void RegionSummer::gather(const std::vector<double>& in, int K, std::vector<double>& out) {
   out.resize(in.size());
-  tmpA_.resize(in.size());
-  tmpB_.resize(in.size());
-  windowPass(lattice_, 0, in.data(), K, tmpA_.data(), threads_);
-  windowPass(lattice_, 1, tmpA_.data(), K, tmpB_.data(), threads_);
-  windowPass(lattice_, 2, tmpB_.data(), K, out.data(), threads_);
+  gather(in.data(), K, out.data());
 }
 
-void BarSummer::scatter(const std::vector<double>& in, int K, std::vector<double>& out) {
+void RegionSummer::scatter(const std::vector<double>& in, int K, std::vector<double>& out) {
   out.resize(in.size());
-  tmpA_.resize(in.size());
-  tmpB_.resize(in.size());
-  windowPass(lattice_, 2, in.data(), K, tmpA_.data(), threads_);
-  windowPass(lattice_, 1, tmpA_.data(), K, tmpB_.data(), threads_);
-  windowPass(lattice_, 0, tmpB_.data(), K, out.data(), threads_);
+  scatter(in.data(), K, out.data());
 }
 
-NaiveSummer::NaiveSummer(const Lattice& lattice) {
+BarSummer::BarSummer(const Lattice& lattice, int threads)
+    : RegionSummer(lattice.size()), lattice_(lattice), threads_(std::max(1, threads)) {}
+
+void BarSummer::reserveScratch(int K) {
+  const std::size_t size = particles_ * static_cast<std::size_t>(K);
+  if (tmpA_.size() < size) {
+    tmpA_.resize(size);
+    tmpB_.resize(size);
+  }
+}
+
+void BarSummer::gather(const double* in, int K, double* out) {
+  reserveScratch(K);
+  windowPass(lattice_, 0, in, K, tmpA_.data(), threads_);
+  windowPass(lattice_, 1, tmpA_.data(), K, tmpB_.data(), threads_);
+  windowPass(lattice_, 2, tmpB_.data(), K, out, threads_);
+}
+
+void BarSummer::scatter(const double* in, int K, double* out) {
+  reserveScratch(K);
+  windowPass(lattice_, 2, in, K, tmpA_.data(), threads_);
+  windowPass(lattice_, 1, tmpA_.data(), K, tmpB_.data(), threads_);
+  windowPass(lattice_, 0, tmpB_.data(), K, out, threads_);
+}
+
+NaiveSummer::NaiveSummer(const Lattice& lattice) : RegionSummer(lattice.size()) {
   const std::size_t n = lattice.size();
   offsets_.reserve(n + 1);
   offsets_.push_back(0);
@@ -92,25 +107,23 @@ NaiveSummer::NaiveSummer(const Lattice& lattice) {
   }
 }
 
-void NaiveSummer::gather(const std::vector<double>& in, int K, std::vector<double>& out) {
-  out.assign(in.size(), 0.0);
-  const std::size_t n = offsets_.size() - 1;
-  for (std::size_t r = 0; r < n; ++r) {
-    double* dst = out.data() + r * K;
+void NaiveSummer::gather(const double* in, int K, double* out) {
+  std::fill(out, out + particles_ * static_cast<std::size_t>(K), 0.0);
+  for (std::size_t r = 0; r < particles_; ++r) {
+    double* dst = out + r * K;
     for (std::uint32_t e = offsets_[r]; e < offsets_[r + 1]; ++e) {
-      const double* src = in.data() + static_cast<std::size_t>(members_[e]) * K;
+      const double* src = in + static_cast<std::size_t>(members_[e]) * K;
       for (int c = 0; c < K; ++c) dst[c] += src[c];
     }
   }
 }
 
-void NaiveSummer::scatter(const std::vector<double>& in, int K, std::vector<double>& out) {
-  out.assign(in.size(), 0.0);
-  const std::size_t n = offsets_.size() - 1;
-  for (std::size_t r = 0; r < n; ++r) {
-    const double* src = in.data() + r * K;
+void NaiveSummer::scatter(const double* in, int K, double* out) {
+  std::fill(out, out + particles_ * static_cast<std::size_t>(K), 0.0);
+  for (std::size_t r = 0; r < particles_; ++r) {
+    const double* src = in + r * K;
     for (std::uint32_t e = offsets_[r]; e < offsets_[r + 1]; ++e) {
-      double* dst = out.data() + static_cast<std::size_t>(members_[e]) * K;
+      double* dst = out + static_cast<std::size_t>(members_[e]) * K;
       for (int c = 0; c < K; ++c) dst[c] += src[c];
     }
   }

@@ -249,7 +249,6 @@ void Solver::regionPass(bool withDamping) {
   for (std::size_t i = 0; i < n; ++i) xref_ += m[i] * x_[i];
   xref_ /= L.totalMass();
 
-  regionData_.resize(n * in);
 #pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
   for (std::size_t i = 0; i < n; ++i) {
     double* d = regionData_.data() + i * in;
@@ -270,9 +269,8 @@ void Solver::regionPass(bool withDamping) {
       d[21] = mp.x() * p.y(); d[22] = mp.x() * p.z(); d[23] = mp.y() * p.z();
     }
   }
-  summer_->gather(regionData_, in, regionSums_);
+  summer_->gather(regionData_.data(), in, regionSums_.data());
 
-  regionData_.resize(n * out);
 #pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
   for (std::size_t r = 0; r < n; ++r) {
     const double* s = regionSums_.data() + r * in;
@@ -306,7 +304,7 @@ void Solver::regionPass(bool withDamping) {
       t[15] = w.x(); t[16] = w.y(); t[17] = w.z();
     }
   }
-  summer_->scatter(regionData_, out, regionSums_);
+  summer_->scatter(regionData_.data(), out, regionSums_.data());
 
 #pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
   for (std::size_t i = 0; i < n; ++i) {
@@ -324,7 +322,10 @@ void Solver::regionPass(bool withDamping) {
 }
 
 void Solver::accumulateForces(double h) {
-  std::fill(forceAccel_.begin(), forceAccel_.end(), Eigen::Vector3d::Zero());
+  // Clear only what the last sub-step wrote: with no force and no spring drag (the usual case)
+  // this costs nothing.
+  for (std::uint32_t p : forcedParticles_) forceAccel_[p].setZero();
+  forcedParticles_.clear();
   const auto& m = lattice_->masses();
   for (const TimedForce& f : forces_) {
     double M = 0.0;
@@ -333,6 +334,7 @@ void Solver::accumulateForces(double h) {
     // impulse is exactly force * duration.
     const Eigen::Vector3d a = f.force / M * std::min(1.0, f.remaining / h);
     for (std::uint32_t p : f.particles) forceAccel_[p] += a;
+    forcedParticles_.insert(forcedParticles_.end(), f.particles.begin(), f.particles.end());
   }
   for (const auto& entry : drags_) {
     const Drag& drag = entry.second;
@@ -345,6 +347,7 @@ void Solver::accumulateForces(double h) {
       const std::uint32_t p = drag.particles[e];
       forceAccel_[p] += k * (drag.target + drag.offsets[e] - x_[p]);
     }
+    forcedParticles_.insert(forcedParticles_.end(), drag.particles.begin(), drag.particles.end());
   }
 }
 
@@ -445,6 +448,16 @@ void Solver::grab(const std::string& id, const std::vector<std::uint32_t>& parti
   drag.target = target;
   drag.stiffness = stiffness;
   drags_[id] = std::move(drag);
+  reserveForcedParticles();
+}
+
+// accumulateForces() lists the particles it touches; reserving here, when a command arrives,
+// keeps the step itself free of allocation.
+void Solver::reserveForcedParticles() {
+  std::size_t total = 0;
+  for (const TimedForce& f : forces_) total += f.particles.size();
+  for (const auto& entry : drags_) total += entry.second.particles.size();
+  forcedParticles_.reserve(total);
 }
 
 bool Solver::moveDrag(const std::string& id, const Eigen::Vector3d& target) {
@@ -481,6 +494,7 @@ void Solver::applyForce(const std::vector<std::uint32_t>& particles, const Eigen
   for (std::uint32_t p : particles)
     if (p >= x_.size()) throw std::out_of_range("solver: particle index out of range");
   forces_.push_back(TimedForce{particles, force, duration});
+  reserveForcedParticles();
 }
 
 std::vector<std::uint32_t> Solver::nearestParticles(const Eigen::Vector3d& point, std::size_t count) const {

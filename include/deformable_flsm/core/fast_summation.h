@@ -23,13 +23,22 @@ void windowPass(const Lattice& lattice, int axis, const double* in, int K, doubl
 /// Data is laid out particle-major: element (p, c) at data[p * K + c].
 class RegionSummer {
  public:
+  /// @param[in] particles  #P, the lattice's particle count
+  explicit RegionSummer(std::size_t particles) : particles_(particles) {}
   virtual ~RegionSummer() = default;
   /// @param[in]  in   #P*K particle data
-  /// @param[out] out  #P*K region sums (resized)
-  virtual void gather(const std::vector<double>& in, int K, std::vector<double>& out) = 0;
+  /// @param[out] out  #P*K region sums (must not alias `in`)
+  virtual void gather(const double* in, int K, double* out) = 0;
   /// @param[in]  in   #P*K region data
-  /// @param[out] out  #P*K particle sums (resized)
-  virtual void scatter(const std::vector<double>& in, int K, std::vector<double>& out) = 0;
+  /// @param[out] out  #P*K particle sums (must not alias `in`)
+  virtual void scatter(const double* in, int K, double* out) = 0;
+
+  /// Conveniences on vectors of #P*K values; `out` is resized.
+  void gather(const std::vector<double>& in, int K, std::vector<double>& out);
+  void scatter(const std::vector<double>& in, int K, std::vector<double>& out);
+
+ protected:
+  std::size_t particles_;
 };
 
 /// FastLSM (Rivers & James 2007, sec. 4): sums along x-runs, then y-runs, then z-runs, each a
@@ -40,10 +49,14 @@ class BarSummer : public RegionSummer {
  public:
   /// @param[in] threads  OpenMP threads per pass (>= 1); results are identical for any count
   explicit BarSummer(const Lattice& lattice, int threads = 1);
-  void gather(const std::vector<double>& in, int K, std::vector<double>& out) override;
-  void scatter(const std::vector<double>& in, int K, std::vector<double>& out) override;
+  using RegionSummer::gather;
+  using RegionSummer::scatter;
+  void gather(const double* in, int K, double* out) override;
+  void scatter(const double* in, int K, double* out) override;
 
  private:
+  /// Grows the two scratch buffers to #P*K; never shrinks them (no refill between passes).
+  void reserveScratch(int K);
   const Lattice& lattice_;
   int threads_;
   std::vector<double> tmpA_, tmpB_;
@@ -53,8 +66,10 @@ class BarSummer : public RegionSummer {
 class NaiveSummer : public RegionSummer {
  public:
   explicit NaiveSummer(const Lattice& lattice);
-  void gather(const std::vector<double>& in, int K, std::vector<double>& out) override;
-  void scatter(const std::vector<double>& in, int K, std::vector<double>& out) override;
+  using RegionSummer::gather;
+  using RegionSummer::scatter;
+  void gather(const double* in, int K, double* out) override;
+  void scatter(const double* in, int K, double* out) override;
   /// Total number of (region, member) pairs.
   std::size_t memberCount() const { return members_.size(); }
 

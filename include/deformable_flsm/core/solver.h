@@ -145,6 +145,7 @@ class Solver {
   void regionPass(bool withDamping);
   void accumulateForces(double h);
   void computeRegionWeights();
+  void reserveForcedParticles();
 
   std::shared_ptr<const Lattice> lattice_;
   SolverParams params_;
@@ -168,6 +169,7 @@ class Solver {
   std::map<std::string, Drag> drags_;
   std::vector<TimedForce> forces_;
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
+  std::vector<std::uint32_t> forcedParticles_;  // where forceAccel_ is non-zero
   std::vector<double> regionData_, regionSums_;  // scratch, K doubles per particle
   std::vector<double> regionWeight_;     // beta_r
   std::vector<double> invWeightSum_;     // 1 / sum_{r contains i} beta_r
