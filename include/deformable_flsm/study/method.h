@@ -1,0 +1,90 @@
+/// @file method.h
+/// The interface every simulation method of the study is driven through, and its FastLSM
+/// implementation (fast or naive summation).
+#pragma once
+
+#include "deformable_flsm/core/lattice.h"
+#include "deformable_flsm/core/solver.h"
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace deformable_flsm {
+namespace study {
+
+/// A deformable-object simulator on the particles of a Lattice (one particle per occupied cell),
+/// advanced frame by frame. Scenarios drive every method through this interface only, so that
+/// all methods see the same pins, drags and initial states.
+class Method {
+ public:
+  virtual ~Method() = default;
+  /// Short name used in the CSV files ("fastlsm", "naive-lsm", "mass-spring", "bullet").
+  virtual std::string name() const = 0;
+  /// Sub-steps per frame (for the cost per particle-step).
+  virtual int substeps() const = 0;
+  /// Advances one frame.
+  virtual void step() = 0;
+  /// #P particle positions (m), in the order of the lattice.
+  virtual const std::vector<Eigen::Vector3d>& positions() const = 0;
+  /// Overwrites the positions (m) and sets every velocity to zero.
+  virtual void setPositions(const std::vector<Eigen::Vector3d>& x) = 0;
+  /// Pins or unpins particles: a pinned particle stays where it is.
+  virtual void setPinned(const std::vector<std::uint32_t>& particles, bool pinned) = 0;
+  /// Grabs particles: from the next frame on their centroid follows `target` (m) exactly,
+  /// keeping their arrangement at the time of the grab. Replaces an earlier grab.
+  virtual void grab(const std::vector<std::uint32_t>& particles, const Eigen::Vector3d& target) = 0;
+  /// Moves the grab target (m).
+  virtual void moveGrab(const Eigen::Vector3d& target) = 0;
+  /// Lets the grabbed particles go.
+  virtual void release() = 0;
+  /// Kinetic energy sum 1/2 m |v|^2 (J).
+  virtual double kineticEnergy() const = 0;
+  /// #P rotations used for the embedding's ghost nodes (see Embedding).
+  virtual void rotations(std::vector<Eigen::Quaterniond>& out) const = 0;
+};
+
+/// FastLSM (Rivers & James 2007) through the package's Solver, with SolverKind::Fast or Naive.
+class FlsmMethod : public Method {
+ public:
+  /// @param[in] lattice  particles and regions (its w must equal params.regionHalfWidth)
+  /// @param[in] params   solver parameters (study::flsmParams())
+  FlsmMethod(std::shared_ptr<const Lattice> lattice, const SolverParams& params)
+      : solver_(std::move(lattice), params) {}
+
+  std::string name() const override {
+    return solver_.params().kind == SolverKind::Fast ? "fastlsm" : "naive-lsm";
+  }
+  int substeps() const override { return solver_.params().substeps; }
+  void step() override { solver_.step(); }
+  const std::vector<Eigen::Vector3d>& positions() const override { return solver_.positions(); }
+  void setPositions(const std::vector<Eigen::Vector3d>& x) override {
+    solver_.setPositions(x);
+    solver_.setVelocities(std::vector<Eigen::Vector3d>(x.size(), Eigen::Vector3d::Zero()));
+  }
+  void setPinned(const std::vector<std::uint32_t>& particles, bool pinned) override {
+    for (std::uint32_t p : particles) solver_.setPinned(p, pinned);
+  }
+  void grab(const std::vector<std::uint32_t>& particles, const Eigen::Vector3d& target) override {
+    solver_.grab(kGrabId, particles, target, 0.0);
+  }
+  void moveGrab(const Eigen::Vector3d& target) override { solver_.moveDrag(kGrabId, target); }
+  void release() override { solver_.release(kGrabId); }
+  double kineticEnergy() const override { return solver_.kineticEnergy(); }
+  void rotations(std::vector<Eigen::Quaterniond>& out) const override {
+    out = solver_.regionRotations();
+  }
+
+  const Solver& solver() const { return solver_; }
+
+ private:
+  static constexpr const char* kGrabId = "study";
+  Solver solver_;
+};
+
+}  // namespace study
+}  // namespace deformable_flsm
