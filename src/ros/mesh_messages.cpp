@@ -94,17 +94,16 @@ void fillParticleCloud(const std::vector<Eigen::Vector3d>& positions,
 
 namespace {
 
-constexpr const char kLatticeNamespace[] = "flsm_lattice";
 /// Sphere diameter as a fraction of the lattice spacing: neighbours stay apart.
 constexpr double kParticleSize = 0.35;
 /// Drag lines and targets stand out at any lattice resolution.
 constexpr double kDragLineWidth = 0.25;
-constexpr double kTargetSize = 0.8;
+constexpr double kTargetSize = 1.5;
 
-void initListMarker(visualization_msgs::Marker& m, int id, int type, double size,
+void initListMarker(visualization_msgs::Marker& m, const char* ns, int id, int type, double size,
                     const std::array<float, 4>& color, const std::string& frameId) {
   m.header.frame_id = frameId;
-  m.ns = kLatticeNamespace;
+  m.ns = ns;
   m.id = id;
   m.type = type;
   m.pose.orientation.w = 1.0;
@@ -140,13 +139,13 @@ void fillLatticeMarkers(const std::vector<Eigen::Vector3d>& positions,
   Marker& held = markers.markers[1];
   Marker& lines = markers.markers[2];
   Marker& targets = markers.markers[3];
-  initListMarker(free, 0, Marker::SPHERE_LIST, kParticleSize * spacing, {0.6f, 0.7f, 0.8f, 1.0f},
+  initListMarker(free, "particles", 0, Marker::SPHERE_LIST, kParticleSize * spacing, {0.6f, 0.7f, 0.8f, 1.0f},
                  frameId);
-  initListMarker(held, 1, Marker::SPHERE_LIST, kParticleSize * spacing, {0.9f, 0.15f, 0.1f, 1.0f},
+  initListMarker(held, "pinned", 1, Marker::SPHERE_LIST, kParticleSize * spacing, {0.9f, 0.15f, 0.1f, 1.0f},
                  frameId);
-  initListMarker(lines, 2, Marker::LINE_LIST, kDragLineWidth * spacing, {1.0f, 0.85f, 0.1f, 1.0f},
+  initListMarker(lines, "drags", 2, Marker::LINE_LIST, kDragLineWidth * spacing, {1.0f, 0.85f, 0.1f, 1.0f},
                  frameId);
-  initListMarker(targets, 3, Marker::SPHERE_LIST, kTargetSize * spacing, {1.0f, 0.85f, 0.1f, 1.0f},
+  initListMarker(targets, "drag_targets", 3, Marker::SPHERE_LIST, kTargetSize * spacing, {1.0f, 0.85f, 0.1f, 1.0f},
                  frameId);
 
   std::size_t nPinned = 0;

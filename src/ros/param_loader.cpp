@@ -47,8 +47,15 @@ std::string describe(XmlRpc::XmlRpcValue value) {
                                  const char* expected) {
   XmlRpc::XmlRpcValue found;
   pnh.getParam(name, found);
+  std::string hint;
+  if (found.getType() == XmlRpc::XmlRpcValue::TypeString &&
+      static_cast<std::string&>(found).find('[') != std::string::npos) {
+    // rosrun's _name:=[...] arrives as a string: roscpp does not parse lists there.
+    hint = " (a list given as _" + name + ":=[...] on the command line arrives as a string: "
+           "set it in a YAML file, or with rosparam set " + pnh.resolveName(name) + " \"[...]\")";
+  }
   throw ParamError("~" + name + " (" + pnh.resolveName(name) + ") must be " + expected +
-                   ", got " + describe(found));
+                   ", got " + describe(found) + hint);
 }
 
 /// A number from an XML-RPC value that is an int or a double.

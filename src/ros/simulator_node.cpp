@@ -29,10 +29,15 @@ constexpr std::uint32_t kStateQueue = 1;
 constexpr std::uint32_t kCommandQueue = 100;
 /// How long a service waits for the simulation thread to apply its command (s).
 constexpr double kServiceTimeout = 2.0;
-/// How long a stamped command waits for its transform (s); stamp 0 takes the latest one.
+/// How long a command waits for its transform (s). The tf listener is started by the first
+/// command in a frame other than ~frame_id (so that a node nobody commands in other frames
+/// does not receive its own tf 30 times a second); that first lookup waits longer, for the
+/// listener to hear the frame.
 constexpr double kTransformTimeout = 0.1;
-/// The simulation rests when every particle is slower than this many object sizes per second.
-constexpr double kIdleSpeedPerSize = 1e-3;
+constexpr double kFirstTransformTimeout = 1.0;
+/// The simulation rests when every particle is slower than this many object sizes per second
+/// (1 mm/s for the 30 cm bunny: a 2 Hz wobble of 0.08 mm, invisible) ...
+constexpr double kIdleSpeedPerSize = 3e-3;
 /// ... for this long (s of simulated time) with nothing acting on it.
 constexpr double kIdleHold = 1.0;
 /// Warn when the achieved real-time factor falls below this fraction of the requested one.
@@ -41,8 +46,10 @@ constexpr double kWarnPeriod = 5.0;    // s between two warnings of the same kin
 constexpr double kRejectPeriod = 1.0;  // s between two rejection warnings
 /// The RViz mouse drag: its id, how many particles it grabs, and the invisible handle that
 /// RViz picks (a simplified copy of the render mesh, following the object's rigid frame).
+/// The mouse takes the particle under the cursor and its 6 nearest neighbours: one particle
+/// pulled alone by centimetres drags out a spike one cell wide.
 constexpr const char kMouseDragId[] = "rviz";
-constexpr std::uint32_t kMouseGrabCount = 1;
+constexpr std::uint32_t kMouseGrabCount = 7;
 constexpr std::size_t kHandleTriangles = 1500;
 constexpr float kHandleAlpha = 0.0f;
 /// The handle follows the object when it moved by more than these (fraction of the size, rad).
@@ -77,7 +84,8 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
                              const NodeParams& params, Scene scene)
     : nh_(nh), pnh_(pnh), commandNh_(pnh), params_(params), info_(scene.info),
       lattice_(scene.lattice), renderMesh_(std::move(scene.renderMesh)),
-      embedding_(std::move(scene.embedding)), stats_(std::make_shared<CommandStats>()) {
+      embedding_(std::move(scene.embedding)), objectSize_(lattice_->objectSize()),
+      stats_(std::make_shared<CommandStats>()) {
   stats_->setRejectHook([](const std::string& reason, const std::string& detail) {
     ROS_WARN_THROTTLE(kRejectPeriod, "flsm_node: command rejected (%s): %s", reason.c_str(),
                       detail.c_str());
@@ -85,13 +93,12 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
 
   LoopSettings settings;
   settings.realTimeFactor = params_.realTimeFactor;
-  settings.idleSpeed = kIdleSpeedPerSize * lattice_->objectSize();
+  settings.idleSpeed = kIdleSpeedPerSize * objectSize_;
   settings.idleHold = kIdleHold;
   loop_ = std::make_unique<SimulationLoop>(std::move(scene.solver), settings, stats_);
 
-  tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_);
   validator_ = std::make_unique<CommandValidator>(
-      lattice_->size(), lattice_->objectSize(), params_.frameId,
+      lattice_->size(), objectSize_, params_.frameId,
       [this](const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
              std::string& why) { return lookupTransform(frame, stamp, T, why); },
       [this] { return loop_->centerOfMass(); });
@@ -189,7 +196,7 @@ void SimulatorNode::setUpInteractiveMarker() {
   im.header.frame_id = params_.frameId;
   im.name = "object";
   im.description = "";
-  im.scale = static_cast<float>(lattice_->objectSize());
+  im.scale = static_cast<float>(objectSize_);
   im.pose = tf2::toMsg(handlePose_);
 
   // What RViz picks: a coarse copy of the object, invisible, in the object's frame.
@@ -381,7 +388,7 @@ void SimulatorNode::updateHandlePose(const Snapshot& s) {
   if (mouseDragging_) return;  // RViz owns the handle while the mouse holds it
   const double moved = (s.objectFrame.translation() - handlePose_.translation()).norm();
   const Eigen::AngleAxisd turned(s.objectFrame.linear().transpose() * handlePose_.linear());
-  if (moved < kHandleMoveFraction * lattice_->objectSize() && std::abs(turned.angle()) < kHandleTurn)
+  if (moved < kHandleMoveFraction * objectSize_ && std::abs(turned.angle()) < kHandleTurn)
     return;
   handlePose_ = s.objectFrame;
   markerServer_->setPose("object", tf2::toMsg(handlePose_));
@@ -411,10 +418,18 @@ CommandOutcome SimulatorNode::send(CommandBody body, bool wait) {
 }
 
 bool SimulatorNode::lookupTransform(const std::string& frame, const ros::Time& stamp,
-                                    Eigen::Isometry3d& T, std::string& why) const {
+                                    Eigen::Isometry3d& T, std::string& why) {
+  double timeout = kTransformTimeout;
+  {
+    std::lock_guard<std::mutex> lock(tfListenerMutex_);
+    if (!tfListener_) {
+      tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_);
+      timeout = kFirstTransformTimeout;
+    }
+  }
   try {
     const geometry_msgs::TransformStamped t = tfBuffer_.lookupTransform(
-        params_.frameId, frame, stamp, ros::Duration(kTransformTimeout));
+        params_.frameId, frame, stamp, ros::Duration(timeout));
     T = tf2::transformToEigen(t);
     return true;
   } catch (const tf2::TransformException& e) {

@@ -53,10 +53,11 @@ void fillParticleCloud(const std::vector<Eigen::Vector3d>& positions,
                        const std::vector<Eigen::Vector3d>& restPositions,
                        const std::string& frameId, sensor_msgs::PointCloud2& cloud);
 
-/// The lattice as four markers (ids 0-3 of namespace "flsm_lattice"): free particles (grey
-/// spheres), pinned particles (red spheres), drags (yellow lines from the grabbed particles'
-/// centroid to the target) and drag targets (yellow spheres). A marker with nothing to show is
-/// sent with action DELETE, so that RViz removes what it showed before.
+/// The lattice as four markers, one namespace each so that RViz can show them separately:
+/// "particles" (id 0, free particles, grey spheres), "pinned" (1, red spheres), "drags" (2,
+/// yellow lines from the grabbed particles' centroid to the target) and "drag_targets" (3,
+/// yellow spheres). A marker with nothing to show is sent with action DELETE, so that RViz
+/// removes what it showed before.
 /// @param[in]     positions  #P particle positions (m)
 /// @param[in]     pinned     #P 1 for pinned particles
 /// @param[in]     drags      (centroid, target) of every drag (m)

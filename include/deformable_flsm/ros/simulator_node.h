@@ -38,6 +38,7 @@
 #include <atomic>
 #include <boost/thread/recursive_mutex.hpp>
 #include <memory>
+#include <mutex>
 #include <vector>
 
 namespace deformable_flsm {
@@ -93,8 +94,9 @@ class SimulatorNode {
   /// Sends a command to the simulation thread; waits for its outcome when `wait`.
   CommandOutcome send(CommandBody body, bool wait);
   void rejected(const Rejection& why);
+  /// Starts the tf listener on first use (see kFirstTransformTimeout).
   bool lookupTransform(const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
-                       std::string& why) const;
+                       std::string& why);
 
   ros::NodeHandle nh_, pnh_;
   ros::NodeHandle commandNh_;  ///< private namespace, served by commandSpinner_
@@ -104,12 +106,14 @@ class SimulatorNode {
   std::shared_ptr<const Lattice> lattice_;
   TriMesh renderMesh_;
   std::unique_ptr<Embedding> embedding_;
+  double objectSize_;  ///< Lattice::objectSize(), which is O(#P): read once
   std::shared_ptr<CommandStats> stats_;
   std::unique_ptr<SimulationLoop> loop_;
   std::unique_ptr<CommandValidator> validator_;
 
   tf2_ros::Buffer tfBuffer_;
-  std::unique_ptr<tf2_ros::TransformListener> tfListener_;
+  std::mutex tfListenerMutex_;
+  std::unique_ptr<tf2_ros::TransformListener> tfListener_;  ///< started by the first lookup
   tf2_ros::TransformBroadcaster tfBroadcaster_;
 
   LazyTopic mesh_, surface_, particles_, lattice_markers_;
