@@ -36,6 +36,11 @@ Lattice::Lattice(const Voxelization& voxels, double density, int regionHalfWidth
     totalMass_ += masses_[p];
     index_.emplace(key(cells_[p]), static_cast<std::int32_t>(p));
   }
+  restMin_ = restMax_ = restPositions_.front();
+  for (const auto& x : restPositions_) {
+    restMin_ = restMin_.cwiseMin(x);
+    restMax_ = restMax_.cwiseMax(x);
+  }
 
   neighbors_.resize(n);
   for (std::size_t p = 0; p < n; ++p) {
@@ -108,22 +113,6 @@ void Lattice::regionMembers(std::size_t r, std::vector<std::uint32_t>& members) 
     appendRun(a, 1, w_, nb, yRun);
     for (std::uint32_t b : yRun) appendRun(b, 0, w_, nb, members);
   }
-}
-
-Eigen::Vector3d Lattice::restMin() const {
-  Eigen::Vector3d lo = restPositions_.front();
-  for (const auto& x : restPositions_) lo = lo.cwiseMin(x);
-  return lo;
-}
-
-Eigen::Vector3d Lattice::restMax() const {
-  Eigen::Vector3d hi = restPositions_.front();
-  for (const auto& x : restPositions_) hi = hi.cwiseMax(x);
-  return hi;
-}
-
-double Lattice::objectSize() const {
-  return (restMax() - restMin() + Eigen::Vector3d::Constant(spacing_)).norm();
 }
 
 }  // namespace deformable_flsm

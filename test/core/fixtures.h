@@ -2,11 +2,13 @@
 /// Small lattices built directly, without meshes, for the core tests.
 #pragma once
 
+#include "deformable_flsm/core/mesh.h"
 #include "deformable_flsm/core/voxelizer.h"
 
 #include <Eigen/Core>
 
 #include <algorithm>
+#include <cstdint>
 #include <functional>
 #include <tuple>
 #include <vector>
@@ -37,6 +39,24 @@ inline Voxelization makeVoxels(const Eigen::Vector3i& dims, double spacing,
 inline Voxelization makeBox(int nx, int ny, int nz, double spacing) {
   return makeVoxels(Eigen::Vector3i(nx, ny, nz), spacing, [](int, int, int) { return true; });
 }
+
+/// Axis-aligned box [lo, hi] as 12 counter-clockwise (outward-facing) triangles on 8 vertices;
+/// the first two triangles form the x = hi.x face (tests remove them to open the mesh).
+inline TriMesh boxMesh(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
+  TriMesh mesh;
+  for (int v = 0; v < 8; ++v)
+    mesh.vertices.emplace_back((v & 1) ? hi.x() : lo.x(), (v & 2) ? hi.y() : lo.y(), (v & 4) ? hi.z() : lo.z());
+  const std::uint32_t quads[6][4] = {{1, 3, 7, 5}, {0, 4, 6, 2}, {0, 1, 5, 4},
+                                     {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+  for (const auto& q : quads) {
+    mesh.triangles.push_back({q[0], q[1], q[2]});
+    mesh.triangles.push_back({q[0], q[2], q[3]});
+  }
+  return mesh;
+}
+
+/// Axis-aligned box [0, size].
+inline TriMesh boxMesh(const Eigen::Vector3d& size) { return boxMesh(Eigen::Vector3d::Zero(), size); }
 
 }  // namespace test
 }  // namespace deformable_flsm

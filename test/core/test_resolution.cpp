@@ -3,6 +3,8 @@
 /// not, on a box (exact counts), a sphere and the Stanford bunny.
 #include "deformable_flsm/core/resolution.h"
 
+#include "fixtures.h"
+
 #include <gtest/gtest.h>
 
 #include <cstdint>
@@ -14,21 +16,6 @@ namespace {
 
 const char* const kBunnyPath = "/usr/share/glmark2/models/bunny.obj";
 
-/// Axis-aligned box [0, size] as 12 counter-clockwise triangles.
-TriMesh box(const Eigen::Vector3d& size) {
-  TriMesh mesh;
-  for (int v = 0; v < 8; ++v) {
-    mesh.vertices.emplace_back((v & 1) ? size.x() : 0.0, (v & 2) ? size.y() : 0.0,
-                               (v & 4) ? size.z() : 0.0);
-  }
-  const std::uint32_t quads[6][4] = {{1, 3, 7, 5}, {0, 4, 6, 2}, {0, 1, 5, 4},
-                                     {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
-  for (const auto& q : quads) {
-    mesh.triangles.push_back({q[0], q[1], q[2]});
-    mesh.triangles.push_back({q[0], q[2], q[3]});
-  }
-  return mesh;
-}
 
 std::size_t countAt(const TriMesh& mesh, int resolution) {
   VoxelizeOptions o;
@@ -48,7 +35,7 @@ void expectBoundary(const TriMesh& mesh, std::size_t budget) {
 
 TEST(FinestResolutionWithin, CubeCountsAreExactCubes) {
   // A cube voxelized at resolution r occupies exactly r^3 cells.
-  const TriMesh cube = box(Eigen::Vector3d::Ones());
+  const TriMesh cube = test::boxMesh(Eigen::Vector3d::Ones());
   for (const std::size_t budget : {1u, 7u, 8u, 26u, 27u, 999u, 1000u, 1001u, 4000u}) {
     const ResolutionChoice c = finestResolutionWithin(cube, budget);
     const std::size_t r = static_cast<std::size_t>(c.resolution);
@@ -60,7 +47,7 @@ TEST(FinestResolutionWithin, CubeCountsAreExactCubes) {
 
 TEST(FinestResolutionWithin, FlatBoxUsesItsLongestAxis) {
   // 4 x 2 x 1: resolution r gives r x r/2 x r/4 cells (r a multiple of 4).
-  const TriMesh slab = box(Eigen::Vector3d(4.0, 2.0, 1.0));
+  const TriMesh slab = test::boxMesh(Eigen::Vector3d(4.0, 2.0, 1.0));
   const ResolutionChoice c = finestResolutionWithin(slab, 8 * 4 * 2);
   EXPECT_EQ(c.resolution, 8);
   EXPECT_EQ(c.voxels.cells.size(), 64u);
@@ -70,19 +57,19 @@ TEST(FinestResolutionWithin, FlatBoxUsesItsLongestAxis) {
 TEST(FinestResolutionWithin, FewVoxelizations) {
   // Calibration, prediction, one step to the boundary, sometimes one more: the node's start-up
   // cost is a handful of voxelizations, not a scan over resolutions.
-  const ResolutionChoice c = finestResolutionWithin(box(Eigen::Vector3d::Ones()), 20000);
+  const ResolutionChoice c = finestResolutionWithin(test::boxMesh(Eigen::Vector3d::Ones()), 20000);
   EXPECT_EQ(c.resolution, 27);  // 27^3 = 19683 <= 20000 < 28^3
   EXPECT_LE(c.voxelizations, 5);
 }
 
 TEST(FinestResolutionWithin, MaxResolutionCapsTheChoice) {
-  const ResolutionChoice c = finestResolutionWithin(box(Eigen::Vector3d::Ones()), 100000, 10);
+  const ResolutionChoice c = finestResolutionWithin(test::boxMesh(Eigen::Vector3d::Ones()), 100000, 10);
   EXPECT_EQ(c.resolution, 10);
   EXPECT_EQ(c.voxels.cells.size(), 1000u);
 }
 
 TEST(FinestResolutionWithin, RefusesZeroBudgetAndBadCap) {
-  const TriMesh cube = box(Eigen::Vector3d::Ones());
+  const TriMesh cube = test::boxMesh(Eigen::Vector3d::Ones());
   EXPECT_THROW(finestResolutionWithin(cube, 0), VoxelizationError);
   EXPECT_THROW(finestResolutionWithin(cube, 10, 0), VoxelizationError);
   EXPECT_THROW(finestResolutionWithin(TriMesh(), 10), MeshError);

@@ -11,6 +11,7 @@
 #include <new>
 #include <random>
 #include <sstream>
+#include <utility>
 
 // Counts every allocation of this test binary, so that a test can assert that a solver step
 // makes none (issue 7: no allocation inside a step).
@@ -57,6 +58,16 @@ bool allFinite(const std::vector<Eigen::Vector3d>& x) {
   for (const auto& v : x)
     if (!v.allFinite()) return false;
   return true;
+}
+
+/// Scales against which momentum round-off is measured: sum m|v| and sum m|x||v|.
+std::pair<double, double> momentumScales(const Solver& s) {
+  double p = 0.0, l = 0.0;
+  for (std::size_t i = 0; i < s.positions().size(); ++i) {
+    p += s.lattice().masses()[i] * s.velocities()[i].norm();
+    l += s.lattice().masses()[i] * s.positions()[i].norm() * s.velocities()[i].norm();
+  }
+  return {p, l};
 }
 
 Eigen::Isometry3d someRigidMotion() {
@@ -112,12 +123,7 @@ TEST(Solver, ConservesLinearAndAngularMomentum) {
   s.setPositions(x);
   s.setVelocities(v);
   const Eigen::Vector3d P0 = s.linearMomentum(), L0 = s.angularMomentum();
-  // Momentum scales: sum m|v| and sum m|x||v|, against which round-off is measured.
-  double pScale = 0.0, lScale = 0.0;
-  for (std::size_t i = 0; i < x.size(); ++i) {
-    pScale += s.lattice().masses()[i] * v[i].norm();
-    lScale += s.lattice().masses()[i] * x[i].norm() * v[i].norm();
-  }
+  const auto [pScale, lScale] = momentumScales(s);
   const double error0 = s.shapeError();
   for (int i = 0; i < 300; ++i) s.step();
   // Linear momentum: exact algebra; round-off of eps ~1e-16 in sums of ~100 terms accumulates
@@ -402,11 +408,7 @@ TEST(PhysicalMaterial, ConservesMomentumWithRegionWeights) {
   }
   s.setPositions(x);
   s.setVelocities(v);
-  double pScale = 0.0, lScale = 0.0;
-  for (std::size_t i = 0; i < x.size(); ++i) {
-    pScale += s.lattice().masses()[i] * v[i].norm();
-    lScale += s.lattice().masses()[i] * x[i].norm() * v[i].norm();
-  }
+  const auto [pScale, lScale] = momentumScales(s);
   const Eigen::Vector3d P0 = s.linearMomentum(), L0 = s.angularMomentum();
   for (int i = 0; i < 200; ++i) s.step();
   // same round-off bounds as in Solver.ConservesLinearAndAngularMomentum (800 sub-steps here)

@@ -4,6 +4,8 @@
 /// the triangle/box overlap test and the Stanford bunny.
 #include "deformable_flsm/core/voxelizer.h"
 
+#include "fixtures.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -26,24 +28,8 @@ namespace {
 
 const char* const kBunnyPath = "/usr/share/glmark2/models/bunny.obj";
 
-/// Axis-aligned box [lo, hi] as 12 counter-clockwise triangles; the first two triangles form the
-/// x = hi.x face.
-TriMesh box(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
-  TriMesh mesh;
-  for (int v = 0; v < 8; ++v) {
-    mesh.vertices.emplace_back((v & 1) ? hi.x() : lo.x(), (v & 2) ? hi.y() : lo.y(),
-                               (v & 4) ? hi.z() : lo.z());
-  }
-  const std::uint32_t quads[6][4] = {{1, 3, 7, 5}, {0, 4, 6, 2}, {0, 1, 5, 4},
-                                     {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
-  for (const auto& q : quads) {
-    mesh.triangles.push_back({q[0], q[1], q[2]});
-    mesh.triangles.push_back({q[0], q[2], q[3]});
-  }
-  return mesh;
-}
 
-TriMesh unitCube() { return box(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones()); }
+TriMesh unitCube() { return test::boxMesh(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones()); }
 
 /// Icosahedron subdivided `levels` times, vertices projected onto the sphere of `radius` at the
 /// origin; counter-clockwise seen from outside.
@@ -224,7 +210,7 @@ TEST(Voxelize, LatticeIsCentredOnTheBoundingBox) {
   // 0.2 of slack along z is split evenly below and above the box.
   const Eigen::Vector3d lo(-2.0, 3.0, 0.5);
   const Eigen::Vector3d hi = lo + Eigen::Vector3d(1.0, 0.75, 0.3);
-  const Voxelization v = voxelize(box(lo, hi), withResolution(4));
+  const Voxelization v = voxelize(test::boxMesh(lo, hi), withResolution(4));
   expectWellFormed(v);
   EXPECT_EQ(v.dims, Eigen::Vector3i(4, 3, 2));
   EXPECT_DOUBLE_EQ(v.spacing, 0.25);
@@ -236,7 +222,7 @@ TEST(Voxelize, LatticeIsCentredOnTheBoundingBox) {
   ASSERT_EQ(v.cells.size(), 24u);
   for (const double f : v.fillFraction) EXPECT_EQ(f, 0.5);
   // A long mesh: the resolution counts cells along the longest axis.
-  const Voxelization rod = voxelize(box(Eigen::Vector3d::Zero(), {10.0, 1.0, 0.5}),
+  const Voxelization rod = voxelize(test::boxMesh(Eigen::Vector3d::Zero(), {10.0, 1.0, 0.5}),
                                     withResolution(10));
   EXPECT_EQ(rod.dims, Eigen::Vector3i(10, 1, 1));
   EXPECT_EQ(rod.cells.size(), 10u);

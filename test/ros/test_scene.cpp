@@ -4,6 +4,8 @@
 /// mesh and start-up measurement; every invalid parameter is refused with a message naming it.
 #include "deformable_flsm/ros/scene.h"
 
+#include "../core/fixtures.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -15,21 +17,6 @@ namespace {
 
 const char* const kBunnyPath = "/usr/share/glmark2/models/bunny.obj";
 
-/// Axis-aligned box [0, size] as 12 counter-clockwise triangles.
-TriMesh boxMesh(const Eigen::Vector3d& size) {
-  TriMesh mesh;
-  for (int v = 0; v < 8; ++v) {
-    mesh.vertices.emplace_back((v & 1) ? size.x() : 0.0, (v & 2) ? size.y() : 0.0,
-                               (v & 4) ? size.z() : 0.0);
-  }
-  const std::uint32_t quads[6][4] = {{1, 3, 7, 5}, {0, 4, 6, 2}, {0, 1, 5, 4},
-                                     {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
-  for (const auto& q : quads) {
-    mesh.triangles.push_back({q[0], q[1], q[2]});
-    mesh.triangles.push_back({q[0], q[2], q[3]});
-  }
-  return mesh;
-}
 
 NodeParams cubeParams() {
   NodeParams p;
@@ -39,7 +26,7 @@ NodeParams cubeParams() {
 }
 
 TEST(BuildScene, ResolutionGivesTheExactLattice) {
-  const Scene s = buildScene(cubeParams(), boxMesh(Eigen::Vector3d::Ones()), 2);
+  const Scene s = buildScene(cubeParams(), test::boxMesh(Eigen::Vector3d::Ones()), 2);
   EXPECT_EQ(s.info.latticeFrom, "resolution");
   EXPECT_EQ(s.info.particles, 1000u);
   EXPECT_DOUBLE_EQ(s.info.spacing, 0.1);
@@ -57,13 +44,13 @@ TEST(BuildScene, SpacingAndBudget) {
   NodeParams p = cubeParams();
   p.resolution = 0;
   p.spacing = 0.25;
-  Scene s = buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0);
+  Scene s = buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0);
   EXPECT_EQ(s.info.latticeFrom, "spacing");
   EXPECT_EQ(s.info.particles, 64u);
 
   p.spacing = 0.0;
   p.particleBudget = 500;  // 7^3 = 343 fits, 8^3 = 512 does not
-  s = buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0);
+  s = buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0);
   EXPECT_EQ(s.info.latticeFrom, "particle_budget");
   EXPECT_EQ(s.info.resolution, 7);
   EXPECT_EQ(s.info.particles, 343u);
@@ -72,20 +59,20 @@ TEST(BuildScene, SpacingAndBudget) {
 TEST(BuildScene, RegionRadiusInMetresBecomesWholeCells) {
   NodeParams p = cubeParams();
   p.regionRadius = 0.31;  // 3.1 cells of 0.1 m
-  EXPECT_EQ(buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0).info.regionHalfWidth, 3);
+  EXPECT_EQ(buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0).info.regionHalfWidth, 3);
   p.regionRadius = 0.0;
   p.regionHalfWidth = 1;
-  EXPECT_EQ(buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0).info.regionHalfWidth, 1);
+  EXPECT_EQ(buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0).info.regionHalfWidth, 1);
   p.regionHalfWidth = 0;
   p.regionRadius = 5.0;  // 50 cells: beyond the solver's limit
-  EXPECT_THROW(buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0), ParamError);
+  EXPECT_THROW(buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0), ParamError);
 }
 
 TEST(BuildScene, PinnedBoxesAreCountedPerBox) {
   NodeParams p = cubeParams();
   p.pinned.push_back(Box{Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(2, 2, 0.1)});  // z = 0.05
   p.pinned.push_back(Box{Eigen::Vector3d(5, 5, 5), Eigen::Vector3d(6, 6, 6)});       // nothing
-  const Scene s = buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0);
+  const Scene s = buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0);
   ASSERT_EQ(s.info.pinnedPerBox.size(), 2u);
   EXPECT_EQ(s.info.pinnedPerBox[0], 100u);
   EXPECT_EQ(s.info.pinnedPerBox[1], 0u);
@@ -97,7 +84,7 @@ TEST(BuildScene, TooFineForMaxParticlesNamesTheParameters) {
   p.resolution = 50;  // 125000 particles
   p.maxParticles = 10000;
   try {
-    buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0);
+    buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0);
     FAIL() << "no error";
   } catch (const ParamError& e) {
     EXPECT_NE(std::string(e.what()).find("~max_particles"), std::string::npos) << e.what();
@@ -107,7 +94,7 @@ TEST(BuildScene, TooFineForMaxParticlesNamesTheParameters) {
 TEST(BuildScene, SaturatedModulusSaysWhichSubstepsFixIt) {
   NodeParams p = cubeParams();
   p.solver.youngsModulus = 1e9;  // far stiffer than 4 sub-steps of 1/60 s allow
-  const Scene s = buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0);
+  const Scene s = buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0);
   EXPECT_TRUE(s.solver->stiffnessSaturated());
   EXPECT_GT(s.info.substepsForModulus, p.solver.substeps);
   // At that many sub-steps the solver is no longer saturated.
@@ -118,7 +105,7 @@ TEST(BuildScene, SaturatedModulusSaysWhichSubstepsFixIt) {
   const std::string w = saturationWarning(s.info, p);
   EXPECT_NE(w.find("~substeps " + std::to_string(s.info.substepsForModulus)), std::string::npos) << w;
   p.solver.youngsModulus = 0.0;
-  EXPECT_EQ(saturationWarning(buildScene(p, boxMesh(Eigen::Vector3d::Ones()), 0).info, p), "");
+  EXPECT_EQ(saturationWarning(buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0).info, p), "");
 }
 
 TEST(BuildScene, RenderBudgetSimplifiesOnlyTheRenderMesh) {

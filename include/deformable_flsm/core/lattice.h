@@ -70,11 +70,11 @@ class Lattice {
   void regionMembers(std::size_t r, std::vector<std::uint32_t>& members) const;
 
   /// Axis-aligned bounds of the rest positions (cell centres) (m).
-  Eigen::Vector3d restMin() const;
-  Eigen::Vector3d restMax() const;
+  const Eigen::Vector3d& restMin() const { return restMin_; }
+  const Eigen::Vector3d& restMax() const { return restMax_; }
   /// Length of the diagonal of the rest bounding box of the occupied cells (m); the object size
   /// that tolerances are expressed in.
-  double objectSize() const;
+  double objectSize() const { return (restMax_ - restMin_ + Eigen::Vector3d::Constant(spacing_)).norm(); }
 
  private:
   static std::int64_t key(const Eigen::Vector3i& c);
@@ -84,6 +84,7 @@ class Lattice {
   Eigen::Vector3d origin_;
   std::vector<Eigen::Vector3i> cells_;
   std::vector<Eigen::Vector3d> restPositions_;
+  Eigen::Vector3d restMin_, restMax_;
   std::vector<double> masses_;
   std::vector<int> regionCounts_;
   std::vector<double> massFractions_;

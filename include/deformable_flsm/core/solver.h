@@ -132,7 +132,8 @@ class Solver {
   /// Largest |x_i - x0_i| (m).
   double maxDisplacement() const;
   /// Best rigid fit of the whole object: the transform T with T x0 ~ x in the least-squares
-  /// sense (mass-weighted), i.e. the object's frame relative to its rest pose.
+  /// sense (mass-weighted), i.e. the object's frame relative to its rest pose. Updates the fit's
+  /// warm start: like step(), call it from the thread that owns the solver.
   Eigen::Isometry3d rigidFrame() const;
   /// RMS distance (m) between x and the best rigid fit of the rest shape: 0 at the rest shape
   /// up to rigid motion.
