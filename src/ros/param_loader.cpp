@@ -195,6 +195,7 @@ NodeParams ParamLoader::loadNodeParams() const {
   }
 
   p.publishRate = getDouble("publish_rate", p.publishRate);
+  p.republishAtRest = getBool("republish_at_rest", p.republishAtRest);
   p.realTimeFactor = getDouble("real_time_factor", p.realTimeFactor);
   p.pinned = getBoxes("pinned");
   p.renderTriangleBudget = getInt("render_triangle_budget", p.renderTriangleBudget);
@@ -208,7 +209,7 @@ std::vector<std::string> ParamLoader::unknownParams() const {
       "mesh", "mesh_scale", "mesh_rpy", "frame_id", "object_frame_id", "spacing", "resolution",
       "particle_budget", "max_particles", "region_radius", "region_half_width", "stiffness",
       "youngs_modulus", "damping", "ambient_damping", "gravity", "time_step", "substeps",
-      "density", "solver", "publish_rate", "real_time_factor", "pinned",
+      "density", "solver", "publish_rate", "republish_at_rest", "real_time_factor", "pinned",
       "render_triangle_budget", "threads", "gravity_x", "gravity_y", "gravity_z"};
   std::vector<std::string> all, unknown;
   ros::param::getParamNames(all);
@@ -246,6 +247,18 @@ int ParamLoader::getInt(const std::string& name, int fallback) const {
     throwWrongType(pnh_, name, "an integer");
   }
   return static_cast<int>(value);
+}
+
+bool ParamLoader::getBool(const std::string& name, bool fallback) const {
+  if (!pnh_.hasParam(name)) {
+    return fallback;
+  }
+  XmlRpc::XmlRpcValue value;
+  pnh_.getParam(name, value);
+  if (value.getType() != XmlRpc::XmlRpcValue::TypeBoolean) {
+    throwWrongType(pnh_, name, "true or false");
+  }
+  return static_cast<bool>(value);
 }
 
 std::string ParamLoader::getString(const std::string& name, const std::string& fallback) const {

@@ -301,8 +301,10 @@ bool SimulatorNode::due(LazyTopic& topic, const Snapshot& s) const {
   if (topic.pub.getNumSubscribers() == 0) return false;
   const bool newSubscriber = topic.newSubscriber.exchange(false);
   // While the simulation runs: every tick. At rest: the final state once, then only to new
-  // subscribers (what they missed); the others already show it.
-  return !s.diag.idle || topic.publishedSequence != s.sequence || newSubscriber;
+  // subscribers (what they missed); the others already show it. ~republish_at_rest keeps the
+  // stream steady instead (the cached message goes out again with a new stamp).
+  return !s.diag.idle || params_.republishAtRest || topic.publishedSequence != s.sequence ||
+         newSubscriber;
 }
 
 void SimulatorNode::publishTf(const Snapshot& s, const ros::Time& stamp) {

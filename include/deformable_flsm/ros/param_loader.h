@@ -76,6 +76,10 @@ struct NodeParams {
   // --- running and publishing -------------------------------------------------------------
   /// ~publish_rate: rate of every published topic and of tf (Hz, (0, kMaxPublishRate])
   double publishRate = 30.0;
+  /// ~republish_at_rest: at rest, keep sending ~mesh, ~surface, ~particles and ~lattice at
+  /// ~publish_rate (copies of the last state) instead of once; for consumers that expect a
+  /// steady stream (rate monitors, bag recording). Costs ~7 % of a core for the bunny's 5 MB mesh.
+  bool republishAtRest = false;
   /// ~real_time_factor: simulated seconds per wall-clock second ((0, kMaxRealTimeFactor])
   double realTimeFactor = 1.0;
   /// ~pinned: boxes whose particles (by rest position) are pinned at start-up
@@ -112,6 +116,7 @@ class ParamLoader {
  private:
   double getDouble(const std::string& name, double fallback) const;
   int getInt(const std::string& name, int fallback) const;
+  bool getBool(const std::string& name, bool fallback) const;
   std::string getString(const std::string& name, const std::string& fallback) const;
   Eigen::Vector3d getVector3(const std::string& name, const Eigen::Vector3d& fallback) const;
   std::vector<Box> getBoxes(const std::string& name) const;
