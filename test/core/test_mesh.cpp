@@ -103,8 +103,10 @@ std::string cubeObj() {
   return s;
 }
 
-std::string cubeOff() {
-  std::string s = "OFF\n8 6 0\n";
+/// The cube's vertex lines ("x y z") and quad lines ("4 a b c d"), as OFF and ASCII PLY both
+/// write them after their headers.
+std::string cubeVertexAndFaceLines() {
+  std::string s;
   for (const auto& c : cubeCorners()) {
     s += std::to_string(c.x()) + " " + std::to_string(c.y()) + " " + std::to_string(c.z()) + "\n";
   }
@@ -115,18 +117,13 @@ std::string cubeOff() {
   return s;
 }
 
+std::string cubeOff() { return "OFF\n8 6 0\n" + cubeVertexAndFaceLines(); }
+
 std::string cubePly() {
   std::string s =
       "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\n"
       "property float z\nelement face 6\nproperty list uchar int vertex_indices\nend_header\n";
-  for (const auto& c : cubeCorners()) {
-    s += std::to_string(c.x()) + " " + std::to_string(c.y()) + " " + std::to_string(c.z()) + "\n";
-  }
-  for (const auto& q : kCubeQuads) {
-    s += "4 " + std::to_string(q[0]) + " " + std::to_string(q[1]) + " " + std::to_string(q[2]) +
-         " " + std::to_string(q[3]) + "\n";
-  }
-  return s;
+  return s + cubeVertexAndFaceLines();
 }
 
 /// STL stores each facet's three corners separately, so this is a 36-corner triangle soup.

@@ -16,6 +16,20 @@ from deformable_flsm.msg import DragCommand, ForceCommand, SimulationState
 from deformable_flsm.srv import PinBox
 
 
+class Counter(object):
+    """Counts the messages of one topic."""
+
+    def __init__(self, topic, msg_type):
+        self.count = 0
+        self.sub = rospy.Subscriber(topic, msg_type, self.on_msg, queue_size=50)
+
+    def on_msg(self, msg):
+        self.count += 1
+
+    def close(self):
+        self.sub.unregister()
+
+
 class FlsmClient(object):
     """Talks to one flsm_node. Keeps the latest ~state; reads ~particles on demand."""
 

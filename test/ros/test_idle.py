@@ -15,25 +15,10 @@ from sensor_msgs.msg import PointCloud2
 from visualization_msgs.msg import Marker, MarkerArray
 
 from deformable_flsm.msg import ForceCommand
-from flsm_testing import FlsmClient, top_particle
+from flsm_testing import Counter, FlsmClient, top_particle
 
 PKG = 'deformable_flsm'
 RATE = 30.0
-
-
-class Counter(object):
-    """Counts the messages of one topic."""
-
-    def __init__(self, topic, msg_type):
-        self.count = 0
-        self.stamps = []
-        self.sub = rospy.Subscriber(topic, msg_type, self.on_msg, queue_size=50)
-
-    def on_msg(self, msg):
-        self.count += 1
-
-    def close(self):
-        self.sub.unregister()
 
 
 class IdleTest(unittest.TestCase):
