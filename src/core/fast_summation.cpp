@@ -1,15 +1,125 @@
 #include "deformable_flsm/core/fast_summation.h"
 
+#include <omp.h>
+
 #include <algorithm>
-#include <array>
+#include <cstring>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 namespace deformable_flsm {
 
 namespace {
 
-/// One sliding-window pass for a compile-time channel count.
+/// Calls f(std::integral_constant<int, K>) for the supported channel counts.
+template <typename F>
+void withChannels(int K, F&& f) {
+  switch (K) {
+    case 1: return f(std::integral_constant<int, 1>{});
+    case 3: return f(std::integral_constant<int, 3>{});
+    case 6: return f(std::integral_constant<int, 6>{});
+    case 12: return f(std::integral_constant<int, 12>{});
+    case 18: return f(std::integral_constant<int, 18>{});
+    case 24: return f(std::integral_constant<int, 24>{});
+    default: break;
+  }
+  throw std::invalid_argument("region summation: unsupported channel count " + std::to_string(K));
+}
+
+/// K running sums held in SIMD registers: K / kWide vectors of kWide doubles (4 where the target
+/// has AVX, else 2: GCC/Clang vector types wider than the target's registers are lowered
+/// poorly), then a two-wide vector and a scalar for the rest. Rows are loaded and stored
+/// unaligned.
+template <int K>
+struct Accumulator {
+#ifdef __AVX__
+  static constexpr int kWide = 4;
+#else
+  static constexpr int kWide = 2;
+#endif
+  typedef double VW __attribute__((vector_size(kWide * sizeof(double))));
+  typedef double V2 __attribute__((vector_size(2 * sizeof(double))));
+  static constexpr int kFull = K / kWide;
+  static constexpr bool kTwo = (K % kWide) >= 2;
+  static constexpr bool kOne = (K % 2) == 1;
+  static constexpr int kTwoAt = kWide * kFull;
+  static constexpr int kOneAt = kTwoAt + (kTwo ? 2 : 0);
+  VW full[kFull > 0 ? kFull : 1];
+  V2 two;
+  double one;
+
+  void zero() {
+    for (int i = 0; i < kFull; ++i) full[i] = VW{} + 0.0;
+    two = V2{0.0, 0.0};
+    one = 0.0;
+  }
+  void set(const double* p) {
+    for (int i = 0; i < kFull; ++i) std::memcpy(&full[i], p + kWide * i, sizeof(VW));
+    if constexpr (kTwo) std::memcpy(&two, p + kTwoAt, sizeof(V2));
+    if constexpr (kOne) one = p[kOneAt];
+  }
+  void add(const double* p) {
+    for (int i = 0; i < kFull; ++i) {
+      VW v;
+      std::memcpy(&v, p + kWide * i, sizeof(VW));
+      full[i] += v;
+    }
+    if constexpr (kTwo) {
+      V2 v;
+      std::memcpy(&v, p + kTwoAt, sizeof(V2));
+      two += v;
+    }
+    if constexpr (kOne) one += p[kOneAt];
+  }
+  void sub(const double* p) {
+    for (int i = 0; i < kFull; ++i) {
+      VW v;
+      std::memcpy(&v, p + kWide * i, sizeof(VW));
+      full[i] -= v;
+    }
+    if constexpr (kTwo) {
+      V2 v;
+      std::memcpy(&v, p + kTwoAt, sizeof(V2));
+      two -= v;
+    }
+    if constexpr (kOne) one -= p[kOneAt];
+  }
+  void store(double* p) const {
+    for (int i = 0; i < kFull; ++i) std::memcpy(p + kWide * i, &full[i], sizeof(VW));
+    if constexpr (kTwo) std::memcpy(p + kTwoAt, &two, sizeof(V2));
+    if constexpr (kOne) p[kOneAt] = one;
+  }
+};
+
+/// Sliding window of half-width w over one run of `len` elements, element u of the run at
+/// in/out + idx(u) * K: out_t = sum of in_u over |u - t| <= w. O(1) per element and channel: the
+/// window of element t is that of t - 1 plus element t + w, minus element t - w - 1.
+template <int K, typename Index>
+inline void slideRun(const double* in, double* out, std::ptrdiff_t len, std::ptrdiff_t w, Index idx) {
+  Accumulator<K> acc;
+  acc.zero();
+  // window of element 0: [0, min(w, len-1)]
+  const std::ptrdiff_t first = std::min(w, len - 1);
+  for (std::ptrdiff_t u = 0; u <= first; ++u) acc.add(in + idx(u) * K);
+  acc.store(out + idx(0) * K);
+  std::ptrdiff_t t = 1;
+  for (; t < len && t <= w; ++t) {  // nothing leaves yet
+    if (t + w < len) acc.add(in + idx(t + w) * K);
+    acc.store(out + idx(t) * K);
+  }
+  for (; t + w < len; ++t) {  // one enters, one leaves
+    acc.add(in + idx(t + w) * K);
+    acc.sub(in + idx(t - w - 1) * K);
+    acc.store(out + idx(t) * K);
+  }
+  for (; t < len; ++t) {  // nothing enters any more
+    acc.sub(in + idx(t - w - 1) * K);
+    acc.store(out + idx(t) * K);
+  }
+}
+
+/// One sliding-window pass over every run along `axis`, for a compile-time channel count.
 template <int K>
 void windowPassK(const Lattice& lattice, int axis, const double* in, double* out, int threads) {
   const auto& order = lattice.runOrder(axis);
@@ -18,46 +128,16 @@ void windowPassK(const Lattice& lattice, int axis, const double* in, double* out
   const std::size_t runs = starts.size() - 1;
 #pragma omp parallel for schedule(static) num_threads(threads) if (threads > 1)
   for (std::size_t q = 0; q < runs; ++q) {
-    std::array<double, K> acc;
     const std::uint32_t* run = order.data() + starts[q];
     const std::ptrdiff_t len = static_cast<std::ptrdiff_t>(starts[q + 1] - starts[q]);
-    acc.fill(0.0);
-    // window of element 0: [0, min(w, len-1)]
-    const std::ptrdiff_t first = std::min(w, len - 1);
-    for (std::ptrdiff_t u = 0; u <= first; ++u) {
-      const double* src = in + static_cast<std::size_t>(run[u]) * K;
-      for (int c = 0; c < K; ++c) acc[c] += src[c];
-    }
-    for (std::ptrdiff_t t = 0; t < len; ++t) {
-      if (t > 0) {
-        if (t + w < len) {
-          const double* src = in + static_cast<std::size_t>(run[t + w]) * K;
-          for (int c = 0; c < K; ++c) acc[c] += src[c];
-        }
-        if (t - w - 1 >= 0) {
-          const double* src = in + static_cast<std::size_t>(run[t - w - 1]) * K;
-          for (int c = 0; c < K; ++c) acc[c] -= src[c];
-        }
-      }
-      double* dst = out + static_cast<std::size_t>(run[t]) * K;
-      for (int c = 0; c < K; ++c) dst[c] = acc[c];
-    }
+    slideRun<K>(in, out, len, w, [run](std::ptrdiff_t u) { return static_cast<std::ptrdiff_t>(run[u]); });
   }
 }
 
 }  // namespace
 
 void windowPass(const Lattice& lattice, int axis, const double* in, int K, double* out, int threads) {
-  switch (K) {
-    case 1: return windowPassK<1>(lattice, axis, in, out, threads);
-    case 3: return windowPassK<3>(lattice, axis, in, out, threads);
-    case 6: return windowPassK<6>(lattice, axis, in, out, threads);
-    case 12: return windowPassK<12>(lattice, axis, in, out, threads);
-    case 18: return windowPassK<18>(lattice, axis, in, out, threads);
-    case 24: return windowPassK<24>(lattice, axis, in, out, threads);
-    default: break;
-  }
-  throw std::invalid_argument("windowPass: unsupported channel count " + std::to_string(K));
+  withChannels(K, [&](auto k) { windowPassK<decltype(k)::value>(lattice, axis, in, out, threads); });
 }
 
 void RegionSummer::gather(const std::vector<double>& in, int K, std::vector<double>& out) {
@@ -71,7 +151,239 @@ void RegionSummer::scatter(const std::vector<double>& in, int K, std::vector<dou
 }
 
 BarSummer::BarSummer(const Lattice& lattice, int threads)
-    : RegionSummer(lattice.size()), lattice_(lattice), threads_(std::max(1, threads)) {}
+    : RegionSummer(lattice.size()), lattice_(lattice), threads_(std::max(1, threads)) {
+  const auto& cells = lattice.cells();
+  const std::size_t n = cells.size();
+  auto before = [](const Eigen::Vector3i& a, const Eigen::Vector3i& b) {
+    return a.z() != b.z() ? a.z() < b.z() : a.y() != b.y() ? a.y() < b.y() : a.x() < b.x();
+  };
+  for (std::size_t p = 1; p < n; ++p)
+    if (!before(cells[p - 1], cells[p]))
+      throw std::invalid_argument("BarSummer: the lattice's particles must be sorted by (k, j, i)");
+
+  // slices: one per z from the lowest to the highest occupied layer (empty ones allowed)
+  const int zmin = cells.front().z();
+  const std::size_t slices = static_cast<std::size_t>(cells.back().z() - zmin) + 1;
+  sliceStart_.assign(slices + 1, 0);
+  for (std::size_t p = 0; p < n; ++p) ++sliceStart_[static_cast<std::size_t>(cells[p].z() - zmin) + 1];
+  for (std::size_t k = 0; k < slices; ++k) {
+    maxSlice_ = std::max<std::size_t>(maxSlice_, sliceStart_[k + 1]);
+    sliceStart_[k + 1] += sliceStart_[k];
+  }
+  // x- and y-runs lie in one slice and are listed in the order of their first particle
+  for (int axis = 0; axis < 2; ++axis) {
+    auto& sliceRun = axis == 0 ? sliceXRun_ : sliceYRun_;
+    const auto& order = lattice.runOrder(axis);
+    const auto& starts = lattice.runStarts(axis);
+    sliceRun.assign(slices + 1, static_cast<std::uint32_t>(starts.size() - 1));
+    for (std::size_t q = starts.size() - 1; q-- > 0;)
+      sliceRun[static_cast<std::size_t>(cells[order[starts[q]]].z() - zmin)] = static_cast<std::uint32_t>(q);
+    for (std::size_t k = slices; k-- > 0;) sliceRun[k] = std::min(sliceRun[k], sliceRun[k + 1]);
+  }
+  {
+    const auto& starts = lattice.runStarts(2);
+    zPos_.resize(n);
+    zLen_.resize(n);
+    zBase_.resize(n);
+    const auto& order = lattice.runOrder(2);
+    for (std::size_t q = 0; q + 1 < starts.size(); ++q)
+      for (std::uint32_t e = starts[q]; e < starts[q + 1]; ++e) {
+        zPos_[order[e]] = e - starts[q];
+        zLen_[order[e]] = starts[q + 1] - starts[q];
+        zBase_[order[e]] = starts[q];
+      }
+  }
+  // threads take whole blocks, about the same number of particles each
+  chunkStart_.assign(static_cast<std::size_t>(threads_) + 1, slices);
+  chunkStart_[0] = 0;
+  for (int t = 1; t < threads_; ++t) {
+    const std::size_t target = n * static_cast<std::size_t>(t) / static_cast<std::size_t>(threads_);
+    std::size_t k = chunkStart_[t - 1];
+    while (k < slices && sliceStart_[k] < target) k += kBlock;
+    chunkStart_[t] = std::min(k, slices);
+  }
+  sliceScratch_.resize(static_cast<std::size_t>(threads_));
+}
+
+void BarSummer::reserveSliceScratch(int Kg, int Ks) {
+  if (Kg <= scratchKg_ && Ks <= scratchKs_) return;
+  scratchKg_ = std::max(scratchKg_, Kg);
+  scratchKs_ = std::max(scratchKs_, Ks);
+  const std::size_t g = maxSlice_ * static_cast<std::size_t>(scratchKg_);
+  const std::size_t s = maxSlice_ * static_cast<std::size_t>(scratchKs_);
+  const std::size_t ring = 2 * static_cast<std::size_t>(lattice_.regionHalfWidth()) + 2;
+  for (SliceScratch& t : sliceScratch_) {
+    t.data.resize(g);
+    t.rowSum.resize(g);
+    t.ring.resize(ring * g);
+    t.sumPrev.resize(g);
+    t.sumCur.resize(g);
+    t.zPrev.resize(s);
+    t.zCur.resize(s);
+    t.colSum.resize(s);
+    t.result.resize(s);
+  }
+  regionOut_.resize(particles_ * static_cast<std::size_t>(scratchKs_));
+}
+
+namespace {
+
+/// The sliding z-window for the particles of slice s, element (p, slice k) of the source at
+/// src(p, k): out row of p = sum over p's z-run within |dz| <= w. A restart (or a run's first
+/// element) sums the window directly; otherwise the row of p's lower neighbour in `prev` (slice
+/// s - 1) is updated by the element entering and the one leaving, as in slideRun().
+template <int K, typename Source>
+inline void zWindowSlice(std::size_t s, bool restart, std::ptrdiff_t w, const std::uint32_t* sliceStart,
+                         const std::uint32_t* order, const std::uint32_t* zPos, const std::uint32_t* zLen,
+                         const std::uint32_t* zBase, Source src, const double* prev, double* out) {
+  const std::uint32_t s0 = sliceStart[s], s1 = sliceStart[s + 1];
+  const std::ptrdiff_t k = static_cast<std::ptrdiff_t>(s);
+  for (std::uint32_t p = s0; p < s1; ++p) {
+    const std::ptrdiff_t t = zPos[p], len = zLen[p];
+    const std::uint32_t* run = order + zBase[p];
+    Accumulator<K> acc;
+    if (restart || t == 0) {
+      acc.zero();
+      const std::ptrdiff_t lo = std::max(-w, -t), hi = std::min(w, len - 1 - t);
+      for (std::ptrdiff_t d = lo; d <= hi; ++d) acc.add(src(run[t + d], k + d));
+    } else {
+      acc.set(prev + static_cast<std::size_t>(run[t - 1] - sliceStart[s - 1]) * K);
+      if (t + w < len) acc.add(src(run[t + w], k + w));
+      if (t - w - 1 >= 0) acc.sub(src(run[t - w - 1], k - w - 1));
+    }
+    acc.store(out + static_cast<std::size_t>(p - s0) * K);
+  }
+}
+
+}  // namespace
+
+template <typename Barrier>
+void BarSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0, std::size_t k1,
+                           SliceScratch& t, Barrier barrier) {
+  const std::ptrdiff_t w = lattice_.regionHalfWidth();
+  const std::ptrdiff_t slices = static_cast<std::ptrdiff_t>(sliceStart_.size()) - 1;
+  const std::ptrdiff_t lo = static_cast<std::ptrdiff_t>(k0), hi = static_cast<std::ptrdiff_t>(k1);
+  const std::size_t ringSize = 2 * static_cast<std::size_t>(w) + 2;
+  const std::uint32_t* sliceStart = sliceStart_.data();
+  const auto& xStarts = lattice_.runStarts(0);
+  const auto& yStarts = lattice_.runStarts(1);
+  const auto& xOrder = lattice_.runOrder(0);
+  const auto& yOrder = lattice_.runOrder(1);
+  const std::uint32_t* zOrder = lattice_.runOrder(2).data();
+
+  // x-runs of slice k (consecutive particles), then y-runs, in slice-local rows
+  auto rowPasses = [&](std::size_t k, int K, const double* in, double* mid, double* out, bool xFirst) {
+    const std::uint32_t s0 = sliceStart[k];
+    withChannels(K, [&](auto kc) {
+      constexpr int KK = decltype(kc)::value;
+      auto xPass = [&](const double* a, double* b) {
+        for (std::uint32_t q = sliceXRun_[k]; q < sliceXRun_[k + 1]; ++q) {
+          const std::ptrdiff_t first = static_cast<std::ptrdiff_t>(xOrder[xStarts[q]] - s0);
+          slideRun<KK>(a, b, static_cast<std::ptrdiff_t>(xStarts[q + 1] - xStarts[q]), w,
+                       [first](std::ptrdiff_t u) { return first + u; });
+        }
+      };
+      auto yPass = [&](const double* a, double* b) {
+        for (std::uint32_t q = sliceYRun_[k]; q < sliceYRun_[k + 1]; ++q) {
+          const std::uint32_t* run = yOrder.data() + yStarts[q];
+          slideRun<KK>(a, b, static_cast<std::ptrdiff_t>(yStarts[q + 1] - yStarts[q]), w,
+                       [run, s0](std::ptrdiff_t u) { return static_cast<std::ptrdiff_t>(run[u] - s0); });
+        }
+      };
+      if (xFirst) {
+        xPass(in, mid);
+        yPass(mid, out);
+      } else {
+        yPass(in, mid);
+        xPass(mid, out);
+      }
+    });
+  };
+  auto ringRow = [&](std::ptrdiff_t k) {
+    return t.ring.data() + (static_cast<std::size_t>(k) % ringSize) * maxSlice_ * static_cast<std::size_t>(Kg);
+  };
+  // gather: data of slice a, summed along x and y into the ring
+  auto dataSlice = [&](std::ptrdiff_t a) {
+    const std::size_t k = static_cast<std::size_t>(a);
+    kernel.particleData(sliceStart[k], sliceStart[k + 1], t.data.data());
+    rowPasses(k, Kg, t.data.data(), t.rowSum.data(), ringRow(a), true);
+  };
+  // gather's z-window, then the kernel's region data for slice b
+  auto regionSlice = [&](std::ptrdiff_t b) {
+    const std::size_t k = static_cast<std::size_t>(b);
+    withChannels(Kg, [&](auto kc) {
+      constexpr int KK = decltype(kc)::value;
+      const std::size_t stride = maxSlice_ * static_cast<std::size_t>(Kg);
+      double* ring = t.ring.data();
+      auto src = [&](std::uint32_t p, std::ptrdiff_t z) {
+        const std::size_t slot = static_cast<std::size_t>(z) % ringSize;
+        return ring + slot * stride + static_cast<std::size_t>(p - sliceStart[z]) * KK;
+      };
+      zWindowSlice<KK>(k, b % kBlock == 0, w, sliceStart, zOrder, zPos_.data(), zLen_.data(), zBase_.data(),
+                       src, t.sumPrev.data(), t.sumCur.data());
+    });
+    kernel.regionData(sliceStart[k], sliceStart[k + 1], t.sumCur.data(),
+                      regionOut_.data() + static_cast<std::size_t>(sliceStart[k]) * Ks);
+    std::swap(t.sumPrev, t.sumCur);
+  };
+  // scatter's z-window over the region data, then y and x, then the kernel's particle result
+  auto particleSlice = [&](std::ptrdiff_t c) {
+    const std::size_t k = static_cast<std::size_t>(c);
+    withChannels(Ks, [&](auto kc) {
+      constexpr int KK = decltype(kc)::value;
+      const double* region = regionOut_.data();
+      auto src = [region](std::uint32_t p, std::ptrdiff_t) { return region + static_cast<std::size_t>(p) * KK; };
+      zWindowSlice<KK>(k, c % kBlock == 0, w, sliceStart, zOrder, zPos_.data(), zLen_.data(), zBase_.data(), src,
+                       t.zPrev.data(), t.zCur.data());
+    });
+    rowPasses(k, Ks, t.zCur.data(), t.colSum.data(), t.result.data(), false);
+    kernel.particleResult(sliceStart[k], sliceStart[k + 1], t.result.data());
+    std::swap(t.zPrev, t.zCur);
+  };
+  // A block of particle slices [c, c + kBlock) reads region slices [c - w, c + kBlock - 1 + w]:
+  // when some belong to another thread it waits for the barrier.
+  auto ownBlock = [&](std::ptrdiff_t c) {
+    const std::ptrdiff_t first = c - c % kBlock, last = std::min(first + kBlock, hi) - 1;
+    return (lo == 0 || first - w >= lo) && (hi == slices || last + w < hi);
+  };
+
+  for (std::ptrdiff_t a = lo - w; a < hi + 2 * w; ++a) {
+    if (a >= 0 && a < slices && a < hi + w) dataSlice(a);
+    const std::ptrdiff_t b = a - w;
+    if (b >= lo && b < hi) regionSlice(b);
+    const std::ptrdiff_t c = b - w;
+    if (c >= lo && c < hi && ownBlock(c)) particleSlice(c);
+  }
+  barrier();
+  for (std::ptrdiff_t c = lo; c < hi; ++c)
+    if (!ownBlock(c)) particleSlice(c);
+}
+
+void BarSummer::apply(RegionKernel& kernel) {
+  const int Kg = kernel.gatherChannels(), Ks = kernel.scatterChannels();
+  withChannels(Kg, [](auto) {});
+  withChannels(Ks, [](auto) {});
+  reserveSliceScratch(Kg, Ks);
+  const std::size_t slices = sliceStart_.size() - 1;
+  if (threads_ == 1) {
+    applyChunk(kernel, Kg, Ks, 0, slices, sliceScratch_[0], [] {});
+    return;
+  }
+#pragma omp parallel num_threads(threads_)
+  {
+    // A smaller team than asked for (nested parallelism, thread limits): one thread does all,
+    // with the same sums.
+    const int th = omp_get_thread_num();
+    if (omp_get_num_threads() != threads_) {
+      if (th == 0) applyChunk(kernel, Kg, Ks, 0, slices, sliceScratch_[0], [] {});
+    } else {
+      applyChunk(kernel, Kg, Ks, chunkStart_[th], chunkStart_[th + 1], sliceScratch_[static_cast<std::size_t>(th)],
+                 [] {
+#pragma omp barrier
+                 });
+    }
+  }
+}
 
 void BarSummer::reserveScratch(int K) {
   const std::size_t size = particles_ * static_cast<std::size_t>(K);
@@ -105,6 +417,20 @@ NaiveSummer::NaiveSummer(const Lattice& lattice) : RegionSummer(lattice.size()) 
     members_.insert(members_.end(), m.begin(), m.end());
     offsets_.push_back(static_cast<std::uint32_t>(members_.size()));
   }
+}
+
+void NaiveSummer::apply(RegionKernel& kernel) {
+  const std::size_t Kg = static_cast<std::size_t>(kernel.gatherChannels());
+  const std::size_t Ks = static_cast<std::size_t>(kernel.scatterChannels());
+  data_.resize(particles_ * Kg);
+  sums_.resize(particles_ * Kg);
+  regionOut_.resize(particles_ * Ks);
+  result_.resize(particles_ * Ks);
+  kernel.particleData(0, particles_, data_.data());
+  gather(data_.data(), static_cast<int>(Kg), sums_.data());
+  kernel.regionData(0, particles_, sums_.data(), regionOut_.data());
+  scatter(regionOut_.data(), static_cast<int>(Ks), result_.data());
+  kernel.particleResult(0, particles_, result_.data());
 }
 
 void NaiveSummer::gather(const double* in, int K, double* out) {

@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 
 namespace deformable_flsm {
 
@@ -97,6 +99,190 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& A, Eigen::Quaterniond& q,
     q.normalize();
   }
   return q.toRotationMatrix();
+}
+
+namespace {
+
+/// Newton steps the fast path takes before handing over to the general routine.
+constexpr int kFastIterations = 8;
+
+/// Row-major rotation matrix of the unit quaternion (w, x, y, z).
+inline void quaternionToMatrix(double w, double x, double y, double z, double* r) {
+  const double xx = x * x, yy = y * y, zz = z * z, xy = x * y, xz = x * z, yz = y * z;
+  const double wx = w * x, wy = w * y, wz = w * z;
+  r[0] = 1.0 - 2.0 * (yy + zz);
+  r[1] = 2.0 * (xy - wz);
+  r[2] = 2.0 * (xz + wy);
+  r[3] = 2.0 * (xy + wz);
+  r[4] = 1.0 - 2.0 * (xx + zz);
+  r[5] = 2.0 * (yz - wx);
+  r[6] = 2.0 * (xz - wy);
+  r[7] = 2.0 * (yz + wx);
+  r[8] = 1.0 - 2.0 * (xx + yy);
+}
+
+}  // namespace
+
+void extractRotation(const double* a, Eigen::Quaterniond& quat, double* r) {
+  // largest |a_k| as a tree (a short dependency chain); NaN or infinity in A fails a pivot below
+  double m[4];
+  for (int k = 0; k < 4; ++k) m[k] = std::max(std::abs(a[2 * k]), std::abs(a[2 * k + 1]));
+  const double scale = std::max(std::max(std::max(m[0], m[1]), std::max(m[2], m[3])), std::abs(a[8]));
+  double qw = quat.w(), qx = quat.x(), qy = quat.y(), qz = quat.z();
+  const double qn = qw * qw + qx * qx + qy * qy + qz * qz;
+  const double angleTolerance = PolarOptions().angleTolerance;
+  if (scale > 0.0 && scale <= std::numeric_limits<double>::max() && std::abs(qn - 1.0) < 1e-12) {
+    const double tol = kSaddleTolerance * scale;
+    for (int it = 0; it < kFastIterations; ++it) {
+      quaternionToMatrix(qw, qx, qy, qz, r);
+      // S = R^T A
+      double S[9];
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) S[3 * i + j] = r[i] * a[j] + r[3 + i] * a[3 + j] + r[6 + i] * a[6 + j];
+      const Eigen::Vector3d g(S[7] - S[5], S[2] - S[6], S[3] - S[1]);
+      const double tr = S[0] + S[4] + S[8];
+      Eigen::Matrix3d H;
+      H(0, 0) = tr - S[0];
+      H(1, 1) = tr - S[4];
+      H(2, 2) = tr - S[8];
+      H(0, 1) = H(1, 0) = -0.5 * (S[1] + S[3]);
+      H(0, 2) = H(2, 0) = -0.5 * (S[2] + S[6]);
+      H(1, 2) = H(2, 1) = -0.5 * (S[5] + S[7]);
+      Eigen::Vector3d theta;
+      if (!solveSymmetricPositive3(H, g, tol, theta)) break;  // not clearly a maximum: general routine
+      const double angle2 = theta.squaredNorm();
+      if (angle2 < angleTolerance * angleTolerance) {
+        quat = Eigen::Quaterniond(qw, qx, qy, qz);
+        return;
+      }
+      // q <- q * (1, theta / 2), normalised (as in the general routine)
+      const double hx = 0.5 * theta.x(), hy = 0.5 * theta.y(), hz = 0.5 * theta.z();
+      const double nw = qw - (qx * hx + qy * hy + qz * hz);
+      const double nx = qx + qw * hx + (qy * hz - qz * hy);
+      const double ny = qy + qw * hy + (qz * hx - qx * hz);
+      const double nz = qz + qw * hz + (qx * hy - qy * hx);
+      const double inv = 1.0 / std::sqrt(nw * nw + nx * nx + ny * ny + nz * nz);
+      qw = nw * inv;
+      qx = nx * inv;
+      qy = ny * inv;
+      qz = nz * inv;
+      if (kQuadraticMargin * angle2 < angleTolerance) {
+        quaternionToMatrix(qw, qx, qy, qz, r);
+        quat = Eigen::Quaterniond(qw, qx, qy, qz);
+        return;
+      }
+    }
+  }
+  const Eigen::Matrix3d A = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(a);
+  const Eigen::Matrix3d R = extractRotation(A, quat);
+  Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> out(r);
+  out = R;
+}
+
+// GCC/Clang vector types: one lane per matrix (lowered to whatever SIMD width the target has).
+typedef double Lanes __attribute__((vector_size(kRotationBatch * sizeof(double))));
+typedef std::int64_t LaneMask __attribute__((vector_size(kRotationBatch * sizeof(std::int64_t))));
+
+void extractRotationBatch(int count, const double* a, Eigen::Quaterniond* quat, double* r) {
+  constexpr int L = kRotationBatch;
+  const Lanes zero = {};
+  const Lanes one = zero + 1.0;
+  // structure of arrays, lane l = matrix l; unused lanes hold the identity (converged at once)
+  Lanes A[9], qw = one, qx = zero, qy = zero, qz = zero, tol = zero;
+  LaneMask fallback = {}, done = {};
+  for (int k = 0; k < 9; ++k) A[k] = k % 4 == 0 ? one : zero;
+  for (int l = 0; l < count; ++l) {
+    double m = 0.0;
+    for (int k = 0; k < 9; ++k) {
+      A[k][l] = a[9 * l + k];
+      m = std::max(m, std::abs(a[9 * l + k]));
+    }
+    qw[l] = quat[l].w();
+    qx[l] = quat[l].x();
+    qy[l] = quat[l].y();
+    qz[l] = quat[l].z();
+    tol[l] = kSaddleTolerance * m;
+    const double qn = qw[l] * qw[l] + qx[l] * qx[l] + qy[l] * qy[l] + qz[l] * qz[l];
+    // NaN or infinity in A fails the pivot test below
+    if (!(m > 0.0 && m <= std::numeric_limits<double>::max() && std::abs(qn - 1.0) < 1e-12))
+      fallback[l] = done[l] = -1;
+  }
+  const double angleTolerance = PolarOptions().angleTolerance;
+  const Lanes tol2 = zero + angleTolerance * angleTolerance;
+  const Lanes tolQ = zero + angleTolerance / kQuadraticMargin;
+  for (int it = 0; it < kFastIterations; ++it) {
+    bool all = true;
+    for (int l = 0; l < L; ++l) all = all && done[l] != 0;
+    if (all) break;
+    const Lanes w = qw, x = qx, y = qy, z = qz;
+    const Lanes xx = x * x, yy = y * y, zz = z * z, xy = x * y, xz = x * z, yz = y * z;
+    const Lanes wx = w * x, wy = w * y, wz = w * z;
+    const Lanes r0 = 1.0 - 2.0 * (yy + zz), r1 = 2.0 * (xy - wz), r2 = 2.0 * (xz + wy);
+    const Lanes r3 = 2.0 * (xy + wz), r4 = 1.0 - 2.0 * (xx + zz), r5 = 2.0 * (yz - wx);
+    const Lanes r6 = 2.0 * (xz - wy), r7 = 2.0 * (yz + wx), r8 = 1.0 - 2.0 * (xx + yy);
+    // S = R^T A
+    const Lanes s0 = r0 * A[0] + r3 * A[3] + r6 * A[6];
+    const Lanes s1 = r0 * A[1] + r3 * A[4] + r6 * A[7];
+    const Lanes s2 = r0 * A[2] + r3 * A[5] + r6 * A[8];
+    const Lanes s3 = r1 * A[0] + r4 * A[3] + r7 * A[6];
+    const Lanes s4 = r1 * A[1] + r4 * A[4] + r7 * A[7];
+    const Lanes s5 = r1 * A[2] + r4 * A[5] + r7 * A[8];
+    const Lanes s6 = r2 * A[0] + r5 * A[3] + r8 * A[6];
+    const Lanes s7 = r2 * A[1] + r5 * A[4] + r8 * A[7];
+    const Lanes s8 = r2 * A[2] + r5 * A[5] + r8 * A[8];
+    const Lanes gx = s7 - s5, gy = s2 - s6, gz = s3 - s1;
+    const Lanes tr = s0 + s4 + s8;
+    const Lanes h00 = tr - s0, h11 = tr - s4, h22 = tr - s8;
+    const Lanes h01 = -0.5 * (s1 + s3), h02 = -0.5 * (s2 + s6), h12 = -0.5 * (s5 + s7);
+    // H theta = g by cofactors, as solveSymmetricPositive3()
+    const Lanes d1 = h00;
+    const Lanes d2 = h00 * h11 - h01 * h01;
+    const Lanes c00 = h11 * h22 - h12 * h12;
+    const Lanes c01 = h02 * h12 - h01 * h22;
+    const Lanes c02 = h01 * h12 - h02 * h11;
+    const Lanes d3 = h00 * c00 + h01 * c01 + h02 * c02;
+    const Lanes c11 = h00 * h22 - h02 * h02;
+    const Lanes c12 = h01 * h02 - h00 * h12;
+    const LaneMask positive = (d1 > tol) & (d2 > tol * d1) & (d3 > tol * d2);
+    const Lanes inv = one / (positive ? d3 : one);
+    const Lanes tx = (c00 * gx + c01 * gy + c02 * gz) * inv;
+    const Lanes ty = (c01 * gx + c11 * gy + c12 * gz) * inv;
+    const Lanes tz = (c02 * gx + c12 * gy + d2 * gz) * inv;
+    const Lanes angle2 = tx * tx + ty * ty + tz * tz;
+    // q <- q * (1, theta / 2), normalised
+    const Lanes hx = 0.5 * tx, hy = 0.5 * ty, hz = 0.5 * tz;
+    const Lanes nw = w - (x * hx + y * hy + z * hz);
+    const Lanes nx = x + w * hx + (y * hz - z * hy);
+    const Lanes ny = y + w * hy + (z * hx - x * hz);
+    const Lanes nz = z + w * hz + (x * hy - y * hx);
+    const Lanes norm2 = nw * nw + nx * nx + ny * ny + nz * nz;
+    Lanes ninv;
+    for (int l = 0; l < L; ++l) ninv[l] = 1.0 / std::sqrt(norm2[l]);
+    const LaneMask active = done == 0;
+    const LaneMask fail = active & ~positive;
+    const LaneMask still = active & positive & ~(angle2 < tol2);
+    fallback |= fail;
+    qw = still ? nw * ninv : w;
+    qx = still ? nx * ninv : x;
+    qy = still ? ny * ninv : y;
+    qz = still ? nz * ninv : z;
+    done |= fail | ~still | (angle2 < tolQ);
+  }
+  const Lanes w = qw, x = qx, y = qy, z = qz;
+  const Lanes xx = x * x, yy = y * y, zz = z * z, xy = x * y, xz = x * z, yz = y * z;
+  const Lanes wx = w * x, wy = w * y, wz = w * z;
+  const Lanes R[9] = {1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz),       2.0 * (xz + wy),
+                      2.0 * (xy + wz),       1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx),
+                      2.0 * (xz - wy),       2.0 * (yz + wx),       1.0 - 2.0 * (xx + yy)};
+  for (int l = 0; l < count; ++l) {
+    if (fallback[l] != 0 || done[l] == 0) {
+      // from the unchanged warm start: quat[l] has not been written yet
+      extractRotation(a + 9 * l, quat[l], r + 9 * l);
+      continue;
+    }
+    quat[l] = Eigen::Quaterniond(qw[l], qx[l], qy[l], qz[l]);
+    for (int k = 0; k < 9; ++k) r[9 * l + k] = R[k][l];
+  }
 }
 
 Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& A) {

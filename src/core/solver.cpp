@@ -33,13 +33,8 @@ constexpr double kMaxRegionWeight = 4.0;
 /// region cannot spin about its own line), so that omega = I^+ L stays finite and exact.
 constexpr double kInertiaRankTolerance = 1e-10;
 
-/// omega = I^+ L for a symmetric positive semi-definite inertia tensor.
-Eigen::Vector3d solveInertia(const Eigen::Matrix3d& I, const Eigen::Vector3d& L) {
-  const double trace = I.trace();
-  if (!(trace > 0.0)) return Eigen::Vector3d::Zero();
-  // Fast path: well conditioned (every pivot clearly positive).
-  Eigen::Vector3d w;
-  if (solveSymmetricPositive3(I, L, kInertiaRankTolerance * trace, w)) return w;
+/// omega = I^+ L through the eigen-decomposition: the general case of solveInertia().
+[[gnu::noinline]] Eigen::Vector3d solveInertiaByEigen(const Eigen::Matrix3d& I, const Eigen::Vector3d& L) {
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
   eig.computeDirect(I);
   const Eigen::Vector3d& lambda = eig.eigenvalues();
@@ -48,6 +43,16 @@ Eigen::Vector3d solveInertia(const Eigen::Matrix3d& I, const Eigen::Vector3d& L)
   for (int k = 0; k < 3; ++k) inv[k] = lambda[k] > cutoff ? 1.0 / lambda[k] : 0.0;
   const Eigen::Matrix3d& V = eig.eigenvectors();
   return V * inv.asDiagonal() * (V.transpose() * L);
+}
+
+/// omega = I^+ L for a symmetric positive semi-definite inertia tensor.
+inline Eigen::Vector3d solveInertia(const Eigen::Matrix3d& I, const Eigen::Vector3d& L) {
+  const double trace = I.trace();
+  if (!(trace > 0.0)) return Eigen::Vector3d::Zero();
+  // Fast path: well conditioned (every pivot clearly positive).
+  Eigen::Vector3d w;
+  if (solveSymmetricPositive3(I, L, kInertiaRankTolerance * trace, w)) return w;
+  return solveInertiaByEigen(I, L);
 }
 
 /// Threads to use: `requested`, or every hardware thread for 0.
@@ -112,15 +117,11 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
   v_.assign(n, Eigen::Vector3d::Zero());
   goals_ = x0;
   rotations_.assign(n, Eigen::Quaterniond::Identity());
-  regionCenter_.assign(n, Eigen::Vector3d::Zero());
   pinned_.assign(n, 0);
   pinPosition_ = x0;
   impulseDv_.assign(n, Eigen::Vector3d::Zero());
   forceAccel_.assign(n, Eigen::Vector3d::Zero());
   dampTarget_.assign(n, Eigen::Vector3d::Zero());
-  const int maxChannels = kShapeChannels + kDampingChannels;
-  regionData_.assign(n * maxChannels, 0.0);
-  regionSums_.assign(n * maxChannels, 0.0);
 }
 
 // Region weights (physical mode only; classic FastLSM has beta_r = 1). Under a uniform strain eps
@@ -240,18 +241,25 @@ void Solver::step() {
 void Solver::regionPass(bool withDamping) {
   const Lattice& L = *lattice_;
   const std::size_t n = L.size();
-  const auto& mt = L.regionMassFractions();
   const auto& m = L.masses();
-  const int in = withDamping ? kShapeChannels + kDampingChannels : kShapeChannels;
-  const int out = withDamping ? kTransformChannels + kVelocityFieldChannels : kTransformChannels;
-
+  passDamping_ = withDamping;
   xref_.setZero();
   for (std::size_t i = 0; i < n; ++i) xref_ += m[i] * x_[i];
   xref_ /= L.totalMass();
+  summer_->apply(*this);
+}
 
-#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
-  for (std::size_t i = 0; i < n; ++i) {
-    double* d = regionData_.data() + i * in;
+int Solver::gatherChannels() const { return passDamping_ ? kShapeChannels + kDampingChannels : kShapeChannels; }
+
+int Solver::scatterChannels() const {
+  return passDamping_ ? kTransformChannels + kVelocityFieldChannels : kTransformChannels;
+}
+
+void Solver::particleData(std::size_t begin, std::size_t end, double* out) {
+  const auto& mt = lattice_->regionMassFractions();
+  const int in = gatherChannels();
+  for (std::size_t i = begin; i < end; ++i) {
+    double* d = out + (i - begin) * in;
     const Eigen::Vector3d p = x_[i] - xref_;
     const Eigen::Vector3d mp = mt[i] * p;
     const Eigen::Vector3d& q = restCentered_[i];
@@ -260,7 +268,7 @@ void Solver::regionPass(bool withDamping) {
     d[2] = mp.z();
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b) d[3 + 3 * a + b] = mp[a] * q[b];
-    if (withDamping) {
+    if (passDamping_) {
       const Eigen::Vector3d mv = mt[i] * v_[i];
       const Eigen::Vector3d l = p.cross(mv);
       d[12] = mv.x(); d[13] = mv.y(); d[14] = mv.z();
@@ -269,51 +277,69 @@ void Solver::regionPass(bool withDamping) {
       d[21] = mp.x() * p.y(); d[22] = mp.x() * p.z(); d[23] = mp.y() * p.z();
     }
   }
-  summer_->gather(regionData_.data(), in, regionSums_.data());
+}
 
-#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
-  for (std::size_t r = 0; r < n; ++r) {
-    const double* s = regionSums_.data() + r * in;
-    double* t = regionData_.data() + r * out;
-    const double M = regionMass_[r];
-    const Eigen::Vector3d c = Eigen::Vector3d(s[0], s[1], s[2]) / M;
-    const Eigen::Vector3d& c0 = regionRestCenter_[r];
-    Eigen::Matrix3d A;
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) A(a, b) = s[3 + 3 * a + b];
-    A.noalias() -= M * c * c0.transpose();
-    const Eigen::Matrix3d R = extractRotation(A, rotations_[r]);
-    const Eigen::Vector3d tr = c - R * c0;
-    const double beta = regionWeight_[r];
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) t[3 * a + b] = beta * R(a, b);
-    t[9] = beta * tr.x();
-    t[10] = beta * tr.y();
-    t[11] = beta * tr.z();
-    if (withDamping) {
-      const Eigen::Vector3d vr = Eigen::Vector3d(s[12], s[13], s[14]) / M;
-      const Eigen::Vector3d Lr = Eigen::Vector3d(s[15], s[16], s[17]) - M * c.cross(vr);
-      // second moment about c: sum m~ (p - c)(p - c)^T = sum m~ p p^T - M c c^T
-      Eigen::Matrix3d P;
-      P << s[18], s[21], s[22], s[21], s[19], s[23], s[22], s[23], s[20];
-      P.noalias() -= M * c * c.transpose();
-      const Eigen::Matrix3d I = Eigen::Matrix3d::Identity() * P.trace() - P;
-      const Eigen::Vector3d w = solveInertia(I, Lr);
-      const Eigen::Vector3d u = vr - w.cross(c);
-      t[12] = u.x(); t[13] = u.y(); t[14] = u.z();
-      t[15] = w.x(); t[16] = w.y(); t[17] = w.z();
+void Solver::regionData(std::size_t begin, std::size_t end, const double* sums, double* out) {
+  const int in = gatherChannels(), outK = scatterChannels();
+  // regions in batches: the rotations of a batch are extracted together (one SIMD lane each)
+  for (std::size_t r0 = begin; r0 < end; r0 += kRotationBatch) {
+    const int count = static_cast<int>(std::min<std::size_t>(kRotationBatch, end - r0));
+    double A[kRotationBatch * 9], R[kRotationBatch * 9], C[kRotationBatch * 3];
+    for (int l = 0; l < count; ++l) {
+      const std::size_t r = r0 + static_cast<std::size_t>(l);
+      const double* s = sums + (r - begin) * in;
+      const double M = regionMass_[r];
+      const double invM = 1.0 / M;
+      double* c = C + 3 * l;
+      for (int i = 0; i < 3; ++i) c[i] = s[i] * invM;
+      // A = sum m~ p q^T - M c c0^T (row-major)
+      const Eigen::Vector3d& c0 = regionRestCenter_[r];
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) A[9 * l + 3 * i + j] = s[3 + 3 * i + j] - M * c[i] * c0[j];
+    }
+    extractRotationBatch(count, A, rotations_.data() + r0, R);
+    for (int l = 0; l < count; ++l) {
+      const std::size_t r = r0 + static_cast<std::size_t>(l);
+      const double* s = sums + (r - begin) * in;
+      double* t = out + (r - begin) * outK;
+      const double* Rl = R + 9 * l;
+      const double* c = C + 3 * l;
+      const Eigen::Vector3d& c0 = regionRestCenter_[r];
+      const double beta = regionWeight_[r];
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) t[3 * i + j] = beta * Rl[3 * i + j];
+        t[9 + i] = beta * (c[i] - (Rl[3 * i] * c0.x() + Rl[3 * i + 1] * c0.y() + Rl[3 * i + 2] * c0.z()));
+      }
+      if (passDamping_) {
+        const double M = regionMass_[r];
+        // v_r = sum m~ v / M; L_r = sum p x m~ v - c x sum m~ v (angular momentum about c)
+        const Eigen::Vector3d mv(s[12], s[13], s[14]);
+        const Eigen::Vector3d cv(c[0], c[1], c[2]);
+        const Eigen::Vector3d vr = mv / M;
+        const Eigen::Vector3d Lr = Eigen::Vector3d(s[15], s[16], s[17]) - cv.cross(mv);
+        // second moment about c: P = sum m~ p p^T - M c c^T; inertia I = tr(P) 1 - P
+        const double p00 = s[18] - M * c[0] * c[0], p11 = s[19] - M * c[1] * c[1], p22 = s[20] - M * c[2] * c[2];
+        const double p01 = s[21] - M * c[0] * c[1], p02 = s[22] - M * c[0] * c[2], p12 = s[23] - M * c[1] * c[2];
+        Eigen::Matrix3d I;
+        I << p11 + p22, -p01, -p02, -p01, p00 + p22, -p12, -p02, -p12, p00 + p11;
+        const Eigen::Vector3d w = solveInertia(I, Lr);
+        const Eigen::Vector3d u = vr - w.cross(cv);
+        t[12] = u.x(); t[13] = u.y(); t[14] = u.z();
+        t[15] = w.x(); t[16] = w.y(); t[17] = w.z();
+      }
     }
   }
-  summer_->scatter(regionData_.data(), out, regionSums_.data());
+}
 
-#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
-  for (std::size_t i = 0; i < n; ++i) {
-    const double* s = regionSums_.data() + i * out;
+void Solver::particleResult(std::size_t begin, std::size_t end, const double* sums) {
+  const int outK = scatterChannels();
+  for (std::size_t i = begin; i < end; ++i) {
+    const double* s = sums + (i - begin) * outK;
     const Eigen::Vector3d& q = restCentered_[i];
     Eigen::Vector3d g(s[9], s[10], s[11]);
     for (int a = 0; a < 3; ++a) g[a] += s[3 * a] * q.x() + s[3 * a + 1] * q.y() + s[3 * a + 2] * q.z();
     goals_[i] = g * invWeightSum_[i] + xref_;
-    if (withDamping) {
+    if (passDamping_) {
       const Eigen::Vector3d p = x_[i] - xref_;
       dampTarget_[i] =
           (Eigen::Vector3d(s[12], s[13], s[14]) + Eigen::Vector3d(s[15], s[16], s[17]).cross(p)) * invCount_[i];

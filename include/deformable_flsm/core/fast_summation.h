@@ -17,6 +17,30 @@ namespace deformable_flsm {
 /// @param[in]  threads  OpenMP threads splitting the runs (the result does not depend on it)
 void windowPass(const Lattice& lattice, int axis, const double* in, int K, double* out, int threads = 1);
 
+/// What one region pass computes, in the three steps FastLSM's summation interleaves:
+///  1. particleData:   K_g doubles per particle, summed over every region (gather);
+///  2. regionData:     from region r's sums, K_s doubles per region, summed over the regions that
+///                     contain each particle (scatter);
+///  3. particleResult: what each particle does with its scatter sums.
+/// Every range is a contiguous range of particle (= region) indices; data for index p sits at
+/// (p - begin) * K in the buffer passed. Each index is visited exactly once per step of a pass.
+/// Calls for disjoint ranges may run concurrently (RegionSummer threads), so an implementation
+/// must only write what belongs to the indices of its range.
+class RegionKernel {
+ public:
+  virtual ~RegionKernel() = default;
+  /// K_g and K_s: 1, 3, 6, 12, 18 or 24
+  virtual int gatherChannels() const = 0;
+  virtual int scatterChannels() const = 0;
+  /// @param[out] out  (end - begin) * K_g doubles, particle p's at (p - begin) * K_g
+  virtual void particleData(std::size_t begin, std::size_t end, double* out) = 0;
+  /// @param[in]  sums  region r's gathered sums at (r - begin) * K_g
+  /// @param[out] out   region r's K_s doubles at (r - begin) * K_s
+  virtual void regionData(std::size_t begin, std::size_t end, const double* sums, double* out) = 0;
+  /// @param[in] sums  particle i's scatter sums at (i - begin) * K_s
+  virtual void particleResult(std::size_t begin, std::size_t end, const double* sums) = 0;
+};
+
 /// Sums K doubles per particle over regions, both ways:
 ///  - gather:  S_r = sum_{j in R_r} f_j        (region sums of particle data)
 ///  - scatter: G_i = sum_{r : i in R_r} h_r    (per-particle sums of region data)
@@ -33,6 +57,10 @@ class RegionSummer {
   /// @param[out] out  #P*K particle sums (must not alias `in`)
   virtual void scatter(const double* in, int K, double* out) = 0;
 
+  /// One region pass: gather of kernel.particleData, kernel.regionData on the sums, scatter of
+  /// its output, kernel.particleResult on those. Allocates only the first time (scratch grows).
+  virtual void apply(RegionKernel& kernel) = 0;
+
   /// Conveniences on vectors of #P*K values; `out` is resized.
   void gather(const std::vector<double>& in, int K, std::vector<double>& out);
   void scatter(const std::vector<double>& in, int K, std::vector<double>& out);
@@ -45,21 +73,54 @@ class RegionSummer {
 /// sliding window of half-width w over the run, O(1) per particle and channel whatever w.
 /// Scatter applies the same windows in reverse order (z, y, x): the windows are symmetric, so
 /// this is the transpose of gather.
+///
+/// apply() streams the lattice one z-slice at a time (the particles are sorted by (k, j, i), so a
+/// slice is a contiguous index range holding whole x- and y-runs): a slice's data is generated and
+/// summed along x and y in slice-sized buffers, kept in a ring of 2w + 2 such planes for the
+/// sliding z-window, and each region slice is computed as soon as its z-window is complete; the
+/// scatter follows w slices behind. The working set is a few slices, not a few copies of the
+/// whole lattice, so the cost per particle does not grow with the lattice (see bench_solver).
+/// The z-windows restart (a direct sum over the window) every kBlock slices, and threads take
+/// whole blocks: every sum is the same sequence of additions for any thread count.
 class BarSummer : public RegionSummer {
  public:
-  /// @param[in] threads  OpenMP threads per pass (>= 1); results are identical for any count
+  /// Slices per block: z-windows restart at block starts, threads split the lattice at them.
+  static constexpr int kBlock = 4;
+  /// @param[in] threads  OpenMP threads (>= 1); results are identical for any count
+  /// @throws std::invalid_argument if the lattice's particles are not sorted by (k, j, i)
   explicit BarSummer(const Lattice& lattice, int threads = 1);
   using RegionSummer::gather;
   using RegionSummer::scatter;
   void gather(const double* in, int K, double* out) override;
   void scatter(const double* in, int K, double* out) override;
+  void apply(RegionKernel& kernel) override;
 
  private:
+  /// Per-thread slice buffers of apply().
+  struct SliceScratch {
+    std::vector<double> data, rowSum, ring, sumPrev, sumCur, zPrev, zCur, colSum, result;
+  };
   /// Grows the two scratch buffers to #P*K; never shrinks them (no refill between passes).
   void reserveScratch(int K);
+  void reserveSliceScratch(int Kg, int Ks);
+  /// apply() for the slices [k0, k1) (whole blocks), `t` the thread's scratch; the particle slices
+  /// whose windows reach other threads' regions wait for `barrier` (called once, by every thread).
+  template <typename Barrier>
+  void applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0, std::size_t k1, SliceScratch& t,
+                  Barrier barrier);
   const Lattice& lattice_;
   int threads_;
   std::vector<double> tmpA_, tmpB_;
+  // slices: slice k holds particles [sliceStart_[k], sliceStart_[k+1]) and the x-runs (y-runs)
+  // [sliceXRun_[k], sliceXRun_[k+1]) ([sliceYRun_[k], ...)) of the lattice's run lists
+  std::vector<std::uint32_t> sliceStart_, sliceXRun_, sliceYRun_;
+  std::size_t maxSlice_ = 0;
+  // per particle: position in its z-run, the run's length and its start in runOrder(2)
+  std::vector<std::uint32_t> zPos_, zLen_, zBase_;
+  std::vector<std::size_t> chunkStart_;  // threads_ + 1 slice indices, multiples of kBlock
+  std::vector<SliceScratch> sliceScratch_;
+  std::vector<double> regionOut_;  // #P * K_s region data of the pass
+  int scratchKg_ = 0, scratchKs_ = 0;
 };
 
 /// Direct summation over explicit member lists: O(w^3) per particle. The oracle.
@@ -70,12 +131,14 @@ class NaiveSummer : public RegionSummer {
   using RegionSummer::scatter;
   void gather(const double* in, int K, double* out) override;
   void scatter(const double* in, int K, double* out) override;
+  void apply(RegionKernel& kernel) override;
   /// Total number of (region, member) pairs.
   std::size_t memberCount() const { return members_.size(); }
 
  private:
   std::vector<std::uint32_t> offsets_;  // CSR: region r's members in [offsets_[r], offsets_[r+1])
   std::vector<std::uint32_t> members_;
+  std::vector<double> data_, sums_, regionOut_, result_;  // apply() scratch
 };
 
 }  // namespace deformable_flsm

@@ -42,7 +42,9 @@ struct TimedForce {
   double remaining = 0.0;
 };
 
-class Solver {
+/// The region pass is a RegionKernel (privately): the summer calls back for the particle data, the
+/// per-region shape match and damping field, and the per-particle goals, slice by slice.
+class Solver : private RegionKernel {
  public:
   /// @throws std::invalid_argument if params.validate() fails or params.regionHalfWidth differs
   ///         from the lattice's.
@@ -143,7 +145,14 @@ class Solver {
 
  private:
   void substep(double h);
+  /// goals_ (and dampTarget_ when withDamping) for the current state
   void regionPass(bool withDamping);
+  // RegionKernel
+  int gatherChannels() const override;
+  int scatterChannels() const override;
+  void particleData(std::size_t begin, std::size_t end, double* out) override;
+  void regionData(std::size_t begin, std::size_t end, const double* sums, double* out) override;
+  void particleResult(std::size_t begin, std::size_t end, const double* sums) override;
   void accumulateForces(double h);
   void computeRegionWeights();
   void reserveForcedParticles();
@@ -160,7 +169,6 @@ class Solver {
   std::vector<double> invCount_;               // 1 / n_i
   std::vector<double> regionMass_;             // M_r = sum of m~ over region r
   std::vector<Eigen::Vector3d> regionRestCenter_;  // c0_r (rest-centred frame)
-  std::vector<Eigen::Vector3d> regionCenter_;  // c_r of the last shape match (frame of xref_)
   Eigen::Vector3d xref_ = Eigen::Vector3d::Zero();  // current centre of mass, subtracted in sums
   std::vector<char> pinned_;
   std::vector<Eigen::Vector3d> pinPosition_;
@@ -171,7 +179,7 @@ class Solver {
   std::vector<TimedForce> forces_;
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
   std::vector<std::uint32_t> forcedParticles_;  // where forceAccel_ is non-zero
-  std::vector<double> regionData_, regionSums_;  // scratch, K doubles per particle
+  bool passDamping_ = false;  // the current region pass computes the damping field too
   std::vector<double> regionWeight_;     // beta_r
   std::vector<double> invWeightSum_;     // 1 / sum_{r contains i} beta_r
   std::vector<double> stiffnessFactor_;  // s_i = sum_{r contains i} beta_r / n_i
