@@ -104,7 +104,8 @@ TEST(Solver, RigidlyMovedObjectHasGoalsEqualToPositions) {
     EXPECT_LT(err, 1e-12 * s.lattice().objectSize() * 10) << toString(kind);
     // and the rigid frame recovers T
     const Eigen::Isometry3d F = s.rigidFrame();
-    EXPECT_LT((F.matrix() - T.matrix()).norm(), 1e-10);
+    // (largest entry: GCC 12 warns falsely inside Eigen's AVX-512 norm of a 4x4 difference)
+    EXPECT_LT((F.matrix() - T.matrix()).cwiseAbs().maxCoeff(), 1e-10);
   }
 }
 
