@@ -199,10 +199,15 @@ BarSummer::BarSummer(const Lattice& lattice, int threads)
   for (int t = 1; t < threads_; ++t) {
     const std::size_t target = n * static_cast<std::size_t>(t) / static_cast<std::size_t>(threads_);
     std::size_t k = chunkStart_[t - 1];
-    while (k < slices && sliceStart_[k] < target) k += kBlock;
+    while (k + kBlock < slices && sliceStart_[k + kBlock] < target) k += kBlock;
+    // the block boundary nearest to the target: k or k + kBlock
+    const std::size_t next = std::min(k + kBlock, slices);
+    if (k < slices && target - sliceStart_[k] > sliceStart_[next] - target) k = next;
     chunkStart_[t] = std::min(k, slices);
   }
   sliceScratch_.resize(static_cast<std::size_t>(threads_));
+  busySeconds_.assign(static_cast<std::size_t>(threads_), 0.0);
+  secondsPerParticle_.assign(static_cast<std::size_t>(threads_), 0.0);
 }
 
 void BarSummer::reserveSliceScratch(int Kg, int Ks) {
@@ -377,11 +382,49 @@ void BarSummer::apply(RegionKernel& kernel) {
     if (omp_get_num_threads() != threads_) {
       if (th == 0) applyChunk(kernel, Kg, Ks, 0, slices, sliceScratch_[0], [] {});
     } else {
+      const double start = omp_get_wtime();
+      double waited = 0.0;
       applyChunk(kernel, Kg, Ks, chunkStart_[th], chunkStart_[th + 1], sliceScratch_[static_cast<std::size_t>(th)],
-                 [] {
+                 [&waited] {
+                   const double t0 = omp_get_wtime();
 #pragma omp barrier
+                   waited = omp_get_wtime() - t0;
                  });
+      busySeconds_[static_cast<std::size_t>(th)] = omp_get_wtime() - start - waited;
     }
+  }
+  rebalance();
+}
+
+// Chunks of equal particle counts need not take equal times (slices of short, broken runs cost
+// more per particle; another process may share a core): each boundary moves to where the two
+// chunks' smoothed cost per particle predicts equal times, at whole blocks. The sums do not
+// depend on where the boundaries are.
+void BarSummer::rebalance() {
+  const std::size_t T = static_cast<std::size_t>(threads_);
+  for (std::size_t t = 0; t < T; ++t) {
+    const double particles = double(sliceStart_[chunkStart_[t + 1]] - sliceStart_[chunkStart_[t]]);
+    if (!(particles > 0.0) || !(busySeconds_[t] > 0.0)) continue;
+    const double rate = busySeconds_[t] / particles;
+    secondsPerParticle_[t] = secondsPerParticle_[t] > 0.0 ? 0.8 * secondsPerParticle_[t] + 0.2 * rate : rate;
+  }
+  for (std::size_t t = 1; t < T; ++t) {
+    const double r0 = secondsPerParticle_[t - 1], r1 = secondsPerParticle_[t];
+    if (!(r0 > 0.0) || !(r1 > 0.0)) continue;
+    const std::size_t lo = chunkStart_[t - 1], hi = chunkStart_[t + 1];
+    if (hi - lo <= static_cast<std::size_t>(kBlock)) continue;
+    // r0 P0 = r1 P1, P0 + P1 = the particles of both chunks
+    const double target = double(sliceStart_[lo]) + double(sliceStart_[hi] - sliceStart_[lo]) * r1 / (r0 + r1);
+    std::size_t best = chunkStart_[t];
+    double bestMiss = std::abs(double(sliceStart_[best]) - target);
+    for (std::size_t k = lo + kBlock; k < hi; k += kBlock) {
+      const double miss = std::abs(double(sliceStart_[k]) - target);
+      if (miss < bestMiss) {
+        best = k;
+        bestMiss = miss;
+      }
+    }
+    chunkStart_[t] = best;
   }
 }
 

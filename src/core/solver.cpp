@@ -118,10 +118,11 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
   goals_ = x0;
   rotations_.assign(n, Eigen::Quaterniond::Identity());
   pinned_.assign(n, 0);
+  hardDragged_.assign(n, 0);
+  pinnedList_.reserve(n);
   pinPosition_ = x0;
   impulseDv_.assign(n, Eigen::Vector3d::Zero());
   forceAccel_.assign(n, Eigen::Vector3d::Zero());
-  dampTarget_.assign(n, Eigen::Vector3d::Zero());
 }
 
 // Region weights (physical mode only; classic FastLSM has beta_r = 1). Under a uniform strain eps
@@ -198,6 +199,7 @@ void Solver::reset() {
   std::fill(rotations_.begin(), rotations_.end(), Eigen::Quaterniond::Identity());
   pinPosition_ = x_;
   drags_.clear();
+  markHardDrags();
   forces_.clear();
   std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
   impulsePending_ = false;
@@ -333,17 +335,26 @@ void Solver::regionData(std::size_t begin, std::size_t end, const double* sums, 
 
 void Solver::particleResult(std::size_t begin, std::size_t end, const double* sums) {
   const int outK = scatterChannels();
+  const StepConstants& k = step_;
   for (std::size_t i = begin; i < end; ++i) {
     const double* s = sums + (i - begin) * outK;
     const Eigen::Vector3d& q = restCentered_[i];
     Eigen::Vector3d g(s[9], s[10], s[11]);
     for (int a = 0; a < 3; ++a) g[a] += s[3 * a] * q.x() + s[3 * a + 1] * q.y() + s[3 * a + 2] * q.z();
     goals_[i] = g * invWeightSum_[i] + xref_;
+    if (!k.integrate) continue;
+    // v <- (v + alpha s_i (g - x) / h + h (gravity + f / m) + kd (v_rigid - v)) keep;  x <- x + h v
+    // (a pinned or hard-dragged particle is left to finishSubstep())
+    if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
+    Eigen::Vector3d dv = k.pull * stiffnessFactor_[i] * (goals_[i] - x_[i]) + k.h * (k.gravity + forceAccel_[i]);
     if (passDamping_) {
       const Eigen::Vector3d p = x_[i] - xref_;
-      dampTarget_[i] =
+      const Eigen::Vector3d target =
           (Eigen::Vector3d(s[12], s[13], s[14]) + Eigen::Vector3d(s[15], s[16], s[17]).cross(p)) * invCount_[i];
+      dv += k.kd * (target - v_[i]);
     }
+    v_[i] = (v_[i] + dv) * k.keep;
+    x_[i] += k.h * v_[i];
   }
 }
 
@@ -379,6 +390,10 @@ void Solver::accumulateForces(double h) {
 
 // One sub-step of FastLSM dynamics (Rivers & James 2007, eq. 7):
 //   v <- v + alpha (g - x) / h + h f / m,   damping,   x <- x + h v.
+// Shape matching and region damping both act on the state at the start of the sub-step:
+//   v <- (v + alpha s_i (g - x) / h + h f / m + kd (v_rigid(v) - v)) keep
+// The update of each particle is the last step of the region pass (particleResult()), done as
+// soon as its goal is known: the state is read and written in one sweep over the lattice.
 void Solver::substep(double h) {
   const std::size_t n = x_.size();
   if (impulsePending_) {
@@ -386,47 +401,47 @@ void Solver::substep(double h) {
     std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
     impulsePending_ = false;
   }
-  // Shape matching and region damping both act on the state at the start of the sub-step:
-  //   v <- v + alpha s_i (g - x) / h + h f / m + kd (v_rigid(v) - v)
-  const double kd = 1.0 - std::exp(-params_.damping * h);
-  regionPass(kd > 0.0);
   accumulateForces(h);
-  const double pull = alpha_ / h;
-#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d damp = kd > 0.0 ? Eigen::Vector3d(kd * (dampTarget_[i] - v_[i])) : Eigen::Vector3d::Zero();
-    v_[i] += pull * stiffnessFactor_[i] * (goals_[i] - x_[i]) + h * (params_.gravity + forceAccel_[i]) + damp;
-  }
-  const double keep = std::exp(-params_.ambientDamping * h);
-  if (keep < 1.0) {
-#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
-    for (std::size_t i = 0; i < n; ++i) v_[i] *= keep;
-  }
-
-  for (const auto& entry : drags_) {
-    const Drag& drag = entry.second;
-    if (drag.stiffness > 0.0) continue;
-    for (std::size_t e = 0; e < drag.particles.size(); ++e) {
-      const std::uint32_t p = drag.particles[e];
-      v_[p] = (drag.target + drag.offsets[e] - x_[p]) / h;
-    }
-  }
-#pragma omp parallel for schedule(static) num_threads(threads_) if (threads_ > 1)
-  for (std::size_t i = 0; i < n; ++i) {
-    if (pinned_[i]) {
-      v_[i].setZero();
-      x_[i] = pinPosition_[i];
-    } else {
-      x_[i] += h * v_[i];
-    }
-  }
-
+  step_.integrate = true;
+  step_.h = h;
+  step_.kd = 1.0 - std::exp(-params_.damping * h);
+  step_.pull = alpha_ / h;
+  step_.keep = std::exp(-params_.ambientDamping * h);
+  step_.gravity = params_.gravity;
+  regionPass(step_.kd > 0.0);
+  step_.integrate = false;
+  finishSubstep(h);
   for (TimedForce& f : forces_) f.remaining -= h;
   forces_.erase(std::remove_if(forces_.begin(), forces_.end(),
                                [](const TimedForce& f) { return f.remaining <= 0.0; }),
                 forces_.end());
   time_ += h;
   ++substeps_;
+}
+
+// The particles particleResult() leaves alone: hard-dragged ones follow their target (the
+// velocity that reaches it in one sub-step), pinned ones stay.
+void Solver::finishSubstep(double h) {
+  for (const auto& entry : drags_) {
+    const Drag& drag = entry.second;
+    if (drag.stiffness > 0.0) continue;
+    for (std::size_t e = 0; e < drag.particles.size(); ++e) {
+      const std::uint32_t p = drag.particles[e];
+      if (pinned_[p] != 0) continue;
+      v_[p] = (drag.target + drag.offsets[e] - x_[p]) / h;
+      x_[p] += h * v_[p];
+    }
+  }
+  if (pinnedListStale_) {  // capacity #P, reserved at construction: no allocation here
+    pinnedList_.clear();
+    for (std::size_t i = 0; i < pinned_.size(); ++i)
+      if (pinned_[i] != 0) pinnedList_.push_back(static_cast<std::uint32_t>(i));
+    pinnedListStale_ = false;
+  }
+  for (std::uint32_t p : pinnedList_) {
+    v_[p].setZero();
+    x_[p] = pinPosition_[p];
+  }
 }
 
 void Solver::computeGoals(std::vector<Eigen::Vector3d>& goals) {
@@ -453,6 +468,7 @@ void Solver::setPinned(std::uint32_t particle, bool pinned) {
     v_[particle].setZero();
   }
   pinned_[particle] = pinned ? 1 : 0;
+  pinnedListStale_ = true;
 }
 
 std::size_t Solver::pinnedCount() const {
@@ -474,6 +490,7 @@ void Solver::grab(const std::string& id, const std::vector<std::uint32_t>& parti
   drag.target = target;
   drag.stiffness = stiffness;
   drags_[id] = std::move(drag);
+  markHardDrags();
   reserveForcedParticles();
 }
 
@@ -494,9 +511,23 @@ bool Solver::moveDrag(const std::string& id, const Eigen::Vector3d& target) {
   return true;
 }
 
-bool Solver::release(const std::string& id) { return drags_.erase(id) > 0; }
+bool Solver::release(const std::string& id) {
+  const bool found = drags_.erase(id) > 0;
+  markHardDrags();
+  return found;
+}
 
-void Solver::releaseAll() { drags_.clear(); }
+void Solver::releaseAll() {
+  drags_.clear();
+  markHardDrags();
+}
+
+void Solver::markHardDrags() {
+  std::fill(hardDragged_.begin(), hardDragged_.end(), 0);
+  for (const auto& entry : drags_)
+    if (entry.second.stiffness <= 0.0)
+      for (std::uint32_t p : entry.second.particles) hardDragged_[p] = 1;
+}
 
 void Solver::applyImpulse(const std::vector<std::uint32_t>& particles, const Eigen::Vector3d& impulse) {
   if (particles.empty()) throw std::invalid_argument("solver: an impulse needs at least one particle");

@@ -81,11 +81,12 @@ class RegionSummer {
 /// scatter follows w slices behind. The working set is a few slices, not a few copies of the
 /// whole lattice, so the cost per particle does not grow with the lattice (see bench_solver).
 /// The z-windows restart (a direct sum over the window) every kBlock slices, and threads take
-/// whole blocks: every sum is the same sequence of additions for any thread count.
+/// whole blocks: every sum is the same sequence of additions for any thread count, and the
+/// blocks can move between threads (they do, towards equal busy times) without changing a bit.
 class BarSummer : public RegionSummer {
  public:
   /// Slices per block: z-windows restart at block starts, threads split the lattice at them.
-  static constexpr int kBlock = 4;
+  static constexpr int kBlock = 2;
   /// @param[in] threads  OpenMP threads (>= 1); results are identical for any count
   /// @throws std::invalid_argument if the lattice's particles are not sorted by (k, j, i)
   explicit BarSummer(const Lattice& lattice, int threads = 1);
@@ -97,7 +98,7 @@ class BarSummer : public RegionSummer {
 
  private:
   /// Per-thread slice buffers of apply().
-  struct SliceScratch {
+  struct alignas(64) SliceScratch {
     std::vector<double> data, rowSum, ring, sumPrev, sumCur, zPrev, zCur, colSum, result;
   };
   /// Grows the two scratch buffers to #P*K; never shrinks them (no refill between passes).
@@ -117,7 +118,11 @@ class BarSummer : public RegionSummer {
   std::size_t maxSlice_ = 0;
   // per particle: position in its z-run, the run's length and its start in runOrder(2)
   std::vector<std::uint32_t> zPos_, zLen_, zBase_;
+  /// Moves the chunk boundaries towards equal busy times (see the definition).
+  void rebalance();
   std::vector<std::size_t> chunkStart_;  // threads_ + 1 slice indices, multiples of kBlock
+  std::vector<double> busySeconds_;         // per thread: time in its chunk in the last apply()
+  std::vector<double> secondsPerParticle_;  // per chunk: smoothed busy time per particle
   std::vector<SliceScratch> sliceScratch_;
   std::vector<double> regionOut_;  // #P * K_s region data of the pass
   int scratchKg_ = 0, scratchKs_ = 0;

@@ -145,8 +145,13 @@ class Solver : private RegionKernel {
 
  private:
   void substep(double h);
-  /// goals_ (and dampTarget_ when withDamping) for the current state
+  /// goals_ for the current state, with region damping when withDamping; when
+  /// step_.integrate, also the sub-step's update of every free particle (see particleResult())
   void regionPass(bool withDamping);
+  /// the sub-step's update of the pinned and hard-dragged particles
+  void finishSubstep(double h);
+  /// hardDragged_ from drags_
+  void markHardDrags();
   // RegionKernel
   int gatherChannels() const override;
   int scatterChannels() const override;
@@ -162,7 +167,6 @@ class Solver : private RegionKernel {
   std::unique_ptr<RegionSummer> summer_;
 
   std::vector<Eigen::Vector3d> x_, v_, goals_;
-  std::vector<Eigen::Vector3d> dampTarget_;  // averaged rigid velocity of the regions of i
   std::vector<Eigen::Quaterniond> rotations_;
   std::vector<Eigen::Vector3d> restCentered_;  // q_i = x0_i - rest centre of mass
   Eigen::Vector3d restCom_ = Eigen::Vector3d::Zero();
@@ -171,6 +175,9 @@ class Solver : private RegionKernel {
   std::vector<Eigen::Vector3d> regionRestCenter_;  // c0_r (rest-centred frame)
   Eigen::Vector3d xref_ = Eigen::Vector3d::Zero();  // current centre of mass, subtracted in sums
   std::vector<char> pinned_;
+  std::vector<std::uint32_t> pinnedList_;  // the indices where pinned_ is set
+  bool pinnedListStale_ = false;           // pinned_ changed since pinnedList_ was listed
+  std::vector<char> hardDragged_;          // 1 where a hard drag (stiffness 0) holds the particle
   std::vector<Eigen::Vector3d> pinPosition_;
   mutable Eigen::Quaterniond frameRotation_ = Eigen::Quaterniond::Identity();  // rigidFrame warm start
   std::vector<Eigen::Vector3d> impulseDv_;  // velocity change pending from impulses
@@ -180,6 +187,15 @@ class Solver : private RegionKernel {
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
   std::vector<std::uint32_t> forcedParticles_;  // where forceAccel_ is non-zero
   bool passDamping_ = false;  // the current region pass computes the damping field too
+  /// What the region pass of a sub-step needs to update the particles (particleResult()).
+  struct StepConstants {
+    bool integrate = false;  // false: goals only (computeGoals())
+    double h = 0.0;          // sub-step (s)
+    double kd = 0.0;         // region damping fraction per sub-step
+    double pull = 0.0;       // alpha / h
+    double keep = 1.0;       // ambient damping factor per sub-step
+    Eigen::Vector3d gravity = Eigen::Vector3d::Zero();
+  } step_;
   std::vector<double> regionWeight_;     // beta_r
   std::vector<double> invWeightSum_;     // 1 / sum_{r contains i} beta_r
   std::vector<double> stiffnessFactor_;  // s_i = sum_{r contains i} beta_r / n_i
