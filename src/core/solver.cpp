@@ -106,6 +106,8 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
     for (int a = 0; a < 3; ++a) moment[3 * i + a] = mass[i] * restCentered_[i][a];
   summer_->gather(moment, 3, momentSum);
   regionMass_ = massSum;
+  regionInvMass_.resize(n);
+  for (std::size_t r = 0; r < n; ++r) regionInvMass_[r] = 1.0 / regionMass_[r];
   regionRestCenter_.resize(n);
   for (std::size_t r = 0; r < n; ++r)
     regionRestCenter_[r] = Eigen::Vector3d(momentSum[3 * r], momentSum[3 * r + 1], momentSum[3 * r + 2]) /
@@ -281,53 +283,98 @@ void Solver::particleData(std::size_t begin, std::size_t end, double* out) {
   }
 }
 
+namespace {
+// GCC/Clang vector types, one lane per region of a batch (as in extractRotationBatch()).
+typedef double Lanes __attribute__((vector_size(kRotationBatch * sizeof(double))));
+typedef std::int64_t LaneMask __attribute__((vector_size(kRotationBatch * sizeof(std::int64_t))));
+}  // namespace
+
 void Solver::regionData(std::size_t begin, std::size_t end, const double* sums, double* out) {
   const int in = gatherChannels(), outK = scatterChannels();
-  // regions in batches: the rotations of a batch are extracted together (one SIMD lane each)
+  // Regions in batches of kRotationBatch, one SIMD lane each: the rotations are extracted
+  // together, and the damping field's inertia solve runs in the lanes too.
   for (std::size_t r0 = begin; r0 < end; r0 += kRotationBatch) {
     const int count = static_cast<int>(std::min<std::size_t>(kRotationBatch, end - r0));
-    double A[kRotationBatch * 9], R[kRotationBatch * 9], C[kRotationBatch * 3];
+    double A[kRotationBatch * 9], R[kRotationBatch * 9];
+    Lanes c[3] = {}, c0[3] = {}, beta = {}, M = {}, iM = {};
     for (int l = 0; l < count; ++l) {
       const std::size_t r = r0 + static_cast<std::size_t>(l);
       const double* s = sums + (r - begin) * in;
-      const double M = regionMass_[r];
-      const double invM = 1.0 / M;
-      double* c = C + 3 * l;
-      for (int i = 0; i < 3; ++i) c[i] = s[i] * invM;
+      M[l] = regionMass_[r];
+      iM[l] = regionInvMass_[r];
+      beta[l] = regionWeight_[r];
+      for (int i = 0; i < 3; ++i) {
+        c[i][l] = s[i] * iM[l];
+        c0[i][l] = regionRestCenter_[r][i];
+      }
       // A = sum m~ p q^T - M c c0^T (row-major)
-      const Eigen::Vector3d& c0 = regionRestCenter_[r];
       for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) A[9 * l + 3 * i + j] = s[3 + 3 * i + j] - M * c[i] * c0[j];
+        for (int j = 0; j < 3; ++j) A[9 * l + 3 * i + j] = s[3 + 3 * i + j] - M[l] * c[i][l] * c0[j][l];
     }
     extractRotationBatch(count, A, rotations_.data() + r0, R);
     for (int l = 0; l < count; ++l) {
-      const std::size_t r = r0 + static_cast<std::size_t>(l);
-      const double* s = sums + (r - begin) * in;
-      double* t = out + (r - begin) * outK;
+      double* t = out + (r0 + static_cast<std::size_t>(l) - begin) * outK;
       const double* Rl = R + 9 * l;
-      const double* c = C + 3 * l;
-      const Eigen::Vector3d& c0 = regionRestCenter_[r];
-      const double beta = regionWeight_[r];
       for (int i = 0; i < 3; ++i) {
-        for (int j = 0; j < 3; ++j) t[3 * i + j] = beta * Rl[3 * i + j];
-        t[9 + i] = beta * (c[i] - (Rl[3 * i] * c0.x() + Rl[3 * i + 1] * c0.y() + Rl[3 * i + 2] * c0.z()));
+        for (int j = 0; j < 3; ++j) t[3 * i + j] = beta[l] * Rl[3 * i + j];
+        t[9 + i] = beta[l] * (c[i][l] - (Rl[3 * i] * c0[0][l] + Rl[3 * i + 1] * c0[1][l] + Rl[3 * i + 2] * c0[2][l]));
       }
-      if (passDamping_) {
-        const double M = regionMass_[r];
-        // v_r = sum m~ v / M; L_r = sum p x m~ v - c x sum m~ v (angular momentum about c)
-        const Eigen::Vector3d mv(s[12], s[13], s[14]);
-        const Eigen::Vector3d cv(c[0], c[1], c[2]);
-        const Eigen::Vector3d vr = mv / M;
-        const Eigen::Vector3d Lr = Eigen::Vector3d(s[15], s[16], s[17]) - cv.cross(mv);
-        // second moment about c: P = sum m~ p p^T - M c c^T; inertia I = tr(P) 1 - P
-        const double p00 = s[18] - M * c[0] * c[0], p11 = s[19] - M * c[1] * c[1], p22 = s[20] - M * c[2] * c[2];
-        const double p01 = s[21] - M * c[0] * c[1], p02 = s[22] - M * c[0] * c[2], p12 = s[23] - M * c[1] * c[2];
-        Eigen::Matrix3d I;
-        I << p11 + p22, -p01, -p02, -p01, p00 + p22, -p12, -p02, -p12, p00 + p11;
-        const Eigen::Vector3d w = solveInertia(I, Lr);
-        const Eigen::Vector3d u = vr - w.cross(cv);
-        t[12] = u.x(); t[13] = u.y(); t[14] = u.z();
-        t[15] = w.x(); t[16] = w.y(); t[17] = w.z();
+    }
+    if (!passDamping_) continue;
+    // Rigid velocity field u + w x p of each region: v_r = sum m~ v / M, angular momentum about c
+    // L_r = sum p x m~ v - c x sum m~ v, second moment about c P = sum m~ p p^T - M c c^T,
+    // inertia I = tr(P) 1 - P, w = I^+ L_r (solveInertia(): the cofactor solve here, lanes that
+    // are not clearly positive definite go to the general routine), u = v_r - w x c.
+    Lanes mv[3] = {}, l[3] = {}, pp[6] = {};
+    for (int k = 0; k < count; ++k) {
+      const double* s = sums + (r0 + static_cast<std::size_t>(k) - begin) * in;
+      for (int i = 0; i < 3; ++i) {
+        mv[i][k] = s[12 + i];
+        l[i][k] = s[15 + i];
+      }
+      for (int i = 0; i < 6; ++i) pp[i][k] = s[18 + i];
+    }
+    Lanes vr[3], L[3];
+    for (int i = 0; i < 3; ++i) vr[i] = mv[i] * iM;
+    L[0] = l[0] - (c[1] * mv[2] - c[2] * mv[1]);
+    L[1] = l[1] - (c[2] * mv[0] - c[0] * mv[2]);
+    L[2] = l[2] - (c[0] * mv[1] - c[1] * mv[0]);
+    const Lanes p00 = pp[0] - M * c[0] * c[0], p11 = pp[1] - M * c[1] * c[1], p22 = pp[2] - M * c[2] * c[2];
+    const Lanes p01 = pp[3] - M * c[0] * c[1], p02 = pp[4] - M * c[0] * c[2], p12 = pp[5] - M * c[1] * c[2];
+    const Lanes h00 = p11 + p22, h11 = p00 + p22, h22 = p00 + p11, h01 = -p01, h02 = -p02, h12 = -p12;
+    const Lanes trace = h00 + h11 + h22;
+    const Lanes tol = kInertiaRankTolerance * trace;
+    // as solveSymmetricPositive3()
+    const Lanes d2 = h00 * h11 - h01 * h01;
+    const Lanes c00 = h11 * h22 - h12 * h12;
+    const Lanes c01 = h02 * h12 - h01 * h22;
+    const Lanes c02 = h01 * h12 - h02 * h11;
+    const Lanes d3 = h00 * c00 + h01 * c01 + h02 * c02;
+    const Lanes c11 = h00 * h22 - h02 * h02;
+    const Lanes c12 = h01 * h02 - h00 * h12;
+    const Lanes zero = {};
+    const LaneMask fast = (trace > zero) & (h00 > tol) & (d2 > tol * h00) & (d3 > tol * d2);
+    const Lanes inv = 1.0 / (fast ? d3 : zero + 1.0);
+    Lanes w[3];
+    w[0] = (c00 * L[0] + c01 * L[1] + c02 * L[2]) * inv;
+    w[1] = (c01 * L[0] + c11 * L[1] + c12 * L[2]) * inv;
+    w[2] = (c02 * L[0] + c12 * L[1] + d2 * L[2]) * inv;
+    for (int k = 0; k < count; ++k) {
+      if (fast[k] != 0) continue;
+      Eigen::Matrix3d I;
+      I << h00[k], h01[k], h02[k], h01[k], h11[k], h12[k], h02[k], h12[k], h22[k];
+      const Eigen::Vector3d wk = solveInertia(I, Eigen::Vector3d(L[0][k], L[1][k], L[2][k]));
+      for (int i = 0; i < 3; ++i) w[i][k] = wk[i];
+    }
+    Lanes u[3];
+    u[0] = vr[0] - (w[1] * c[2] - w[2] * c[1]);
+    u[1] = vr[1] - (w[2] * c[0] - w[0] * c[2]);
+    u[2] = vr[2] - (w[0] * c[1] - w[1] * c[0]);
+    for (int k = 0; k < count; ++k) {
+      double* t = out + (r0 + static_cast<std::size_t>(k) - begin) * outK;
+      for (int i = 0; i < 3; ++i) {
+        t[12 + i] = u[i][k];
+        t[15 + i] = w[i][k];
       }
     }
   }

@@ -172,6 +172,7 @@ class Solver : private RegionKernel {
   Eigen::Vector3d restCom_ = Eigen::Vector3d::Zero();
   std::vector<double> invCount_;               // 1 / n_i
   std::vector<double> regionMass_;             // M_r = sum of m~ over region r
+  std::vector<double> regionInvMass_;          // 1 / M_r
   std::vector<Eigen::Vector3d> regionRestCenter_;  // c0_r (rest-centred frame)
   Eigen::Vector3d xref_ = Eigen::Vector3d::Zero();  // current centre of mass, subtracted in sums
   std::vector<char> pinned_;
