@@ -35,7 +35,7 @@ struct Args {
   std::string mesh = "/usr/share/glmark2/models/bunny.obj";
   std::size_t particles = 10000;
   int steps = 40;
-  int repeats = 5;
+  int repeats = 11;
   int maxNaiveW = 4;
 };
 
