@@ -1,6 +1,7 @@
 #include "deformable_flsm/core/polar.h"
 
 #include "deformable_flsm/core/small_matrix.h"
+#include "lanes.h"
 
 #include <Eigen/SVD>
 
@@ -179,9 +180,7 @@ void extractRotation(const double* a, Eigen::Quaterniond& quat, double* r) {
   out = R;
 }
 
-// GCC/Clang vector types: one lane per matrix (lowered to whatever SIMD width the target has).
-typedef double Lanes __attribute__((vector_size(kRotationBatch * sizeof(double))));
-typedef std::int64_t LaneMask __attribute__((vector_size(kRotationBatch * sizeof(std::int64_t))));
+static_assert(kRotationBatch == kLanes, "one matrix per SIMD lane");
 
 void extractRotationBatch(int count, const double* a, Eigen::Quaterniond* quat, double* r) {
   constexpr int L = kRotationBatch;
@@ -234,20 +233,12 @@ void extractRotationBatch(int count, const double* a, Eigen::Quaterniond* quat, 
     const Lanes tr = s0 + s4 + s8;
     const Lanes h00 = tr - s0, h11 = tr - s4, h22 = tr - s8;
     const Lanes h01 = -0.5 * (s1 + s3), h02 = -0.5 * (s2 + s6), h12 = -0.5 * (s5 + s7);
-    // H theta = g by cofactors, as solveSymmetricPositive3()
-    const Lanes d1 = h00;
-    const Lanes d2 = h00 * h11 - h01 * h01;
-    const Lanes c00 = h11 * h22 - h12 * h12;
-    const Lanes c01 = h02 * h12 - h01 * h22;
-    const Lanes c02 = h01 * h12 - h02 * h11;
-    const Lanes d3 = h00 * c00 + h01 * c01 + h02 * c02;
-    const Lanes c11 = h00 * h22 - h02 * h02;
-    const Lanes c12 = h01 * h02 - h00 * h12;
-    const LaneMask positive = (d1 > tol) & (d2 > tol * d1) & (d3 > tol * d2);
-    const Lanes inv = one / (positive ? d3 : one);
-    const Lanes tx = (c00 * gx + c01 * gy + c02 * gz) * inv;
-    const Lanes ty = (c01 * gx + c11 * gy + c12 * gz) * inv;
-    const Lanes tz = (c02 * gx + c12 * gy + d2 * gz) * inv;
+    // H theta = g, in the lanes where H is clearly positive definite (a maximum)
+    const Lanes g[3] = {gx, gy, gz};
+    Lanes theta[3];
+    LaneMask positive;
+    solveSymmetricPositive3(h00, h11, h22, h01, h02, h12, g, tol, theta, positive);
+    const Lanes tx = theta[0], ty = theta[1], tz = theta[2];
     const Lanes angle2 = tx * tx + ty * ty + tz * tz;
     // q <- q * (1, theta / 2), normalised
     const Lanes hx = 0.5 * tx, hy = 0.5 * ty, hz = 0.5 * tz;

@@ -2,6 +2,7 @@
 
 #include "deformable_flsm/core/polar.h"
 #include "deformable_flsm/core/small_matrix.h"
+#include "lanes.h"
 
 #include <Eigen/Eigenvalues>
 
@@ -283,11 +284,7 @@ void Solver::particleData(std::size_t begin, std::size_t end, double* out) {
   }
 }
 
-namespace {
-// GCC/Clang vector types, one lane per region of a batch (as in extractRotationBatch()).
-typedef double Lanes __attribute__((vector_size(kRotationBatch * sizeof(double))));
-typedef std::int64_t LaneMask __attribute__((vector_size(kRotationBatch * sizeof(std::int64_t))));
-}  // namespace
+static_assert(kRotationBatch == kLanes, "one region per SIMD lane");
 
 void Solver::regionData(std::size_t begin, std::size_t end, const double* sums, double* out) {
   const int in = gatherChannels(), outK = scatterChannels();
@@ -344,21 +341,11 @@ void Solver::regionData(std::size_t begin, std::size_t end, const double* sums, 
     const Lanes h00 = p11 + p22, h11 = p00 + p22, h22 = p00 + p11, h01 = -p01, h02 = -p02, h12 = -p12;
     const Lanes trace = h00 + h11 + h22;
     const Lanes tol = kInertiaRankTolerance * trace;
-    // as solveSymmetricPositive3()
-    const Lanes d2 = h00 * h11 - h01 * h01;
-    const Lanes c00 = h11 * h22 - h12 * h12;
-    const Lanes c01 = h02 * h12 - h01 * h22;
-    const Lanes c02 = h01 * h12 - h02 * h11;
-    const Lanes d3 = h00 * c00 + h01 * c01 + h02 * c02;
-    const Lanes c11 = h00 * h22 - h02 * h02;
-    const Lanes c12 = h01 * h02 - h00 * h12;
     const Lanes zero = {};
-    const LaneMask fast = (trace > zero) & (h00 > tol) & (d2 > tol * h00) & (d3 > tol * d2);
-    const Lanes inv = 1.0 / (fast ? d3 : zero + 1.0);
     Lanes w[3];
-    w[0] = (c00 * L[0] + c01 * L[1] + c02 * L[2]) * inv;
-    w[1] = (c01 * L[0] + c11 * L[1] + c12 * L[2]) * inv;
-    w[2] = (c02 * L[0] + c12 * L[1] + d2 * L[2]) * inv;
+    LaneMask positive;
+    solveSymmetricPositive3(h00, h11, h22, h01, h02, h12, L, tol, w, positive);
+    const LaneMask fast = (trace > zero) & positive;
     for (int k = 0; k < count; ++k) {
       if (fast[k] != 0) continue;
       Eigen::Matrix3d I;

@@ -4,7 +4,9 @@
 
 #include <Eigen/SVD>
 
+#include <limits>
 #include <random>
+#include <vector>
 
 using deformable_flsm::extractRotation;
 using deformable_flsm::PolarStats;
@@ -113,4 +115,57 @@ TEST(Polar, NonFiniteInputLeavesWarmStartAndNeverReturnsNaN) {
   A(1, 2) = std::numeric_limits<double>::quiet_NaN();
   Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
   expectProperRotation(extractRotation(A, q));
+}
+
+// The batch (one SIMD lane per matrix) gives what the general routine gives, lane by lane, in
+// batches that mix the usual case (a deformed rotation, warm start near it) with the cases the
+// lanes hand over (zero, planar, inverted, non-finite A; a warm start far away), in every lane
+// position and for every batch size; and a lane's result does not depend on its batch mates.
+TEST(Polar, BatchEqualsTheGeneralRoutineLaneByLane) {
+  using deformable_flsm::extractRotationBatch;
+  using deformable_flsm::kRotationBatch;
+  std::mt19937 rng(17);
+  std::normal_distribution<double> n(0.0, 1.0);
+  std::vector<Eigen::Matrix3d> cases;
+  std::vector<Eigen::Quaterniond> starts;
+  for (int i = 0; i < 40; ++i) {
+    const Eigen::Matrix3d R = randomRotation(rng);
+    Eigen::Matrix3d S = Eigen::Matrix3d::Identity();
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) S(a, b) += 0.1 * n(rng);
+    cases.push_back(1e-6 * R * S);  // region-sized entries
+    const Eigen::Quaterniond near = Eigen::Quaterniond(R) * Eigen::Quaterniond(1.0, 0.02 * n(rng), 0.02 * n(rng), 0.02 * n(rng)).normalized();
+    starts.push_back(i % 5 == 4 ? Eigen::Quaterniond(randomRotation(rng)) : near);
+  }
+  cases[3].setZero();
+  cases[7] = Eigen::Vector3d(1, 2, 3) * Eigen::Vector3d(0, 1, 1).transpose() + Eigen::Vector3d(2, -1, 0) * Eigen::Vector3d(1, 0, 0).transpose();
+  cases[11] = -Eigen::Matrix3d::Identity();
+  cases[13](1, 2) = std::numeric_limits<double>::quiet_NaN();
+  cases[17](0, 0) = std::numeric_limits<double>::infinity();
+
+  std::vector<Eigen::Matrix3d> expected(cases.size());
+  std::vector<Eigen::Quaterniond> expectedQ(cases.size());
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    expectedQ[i] = starts[i];
+    expected[i] = extractRotation(cases[i], expectedQ[i]);
+  }
+  for (int count = 1; count <= kRotationBatch; ++count) {
+    for (std::size_t first = 0; first + count <= cases.size(); first += count) {
+      std::vector<double> a(9 * count), r(9 * count);
+      std::vector<Eigen::Quaterniond> q(starts.begin() + first, starts.begin() + first + count);
+      for (int l = 0; l < count; ++l)
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) a[9 * l + 3 * i + j] = cases[first + l](i, j);
+      extractRotationBatch(count, a.data(), q.data(), r.data());
+      for (int l = 0; l < count; ++l) {
+        const std::size_t c = first + l;
+        Eigen::Matrix3d R;
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) R(i, j) = r[9 * l + 3 * i + j];
+        expectProperRotation(R);
+        EXPECT_LT((R - expected[c]).cwiseAbs().maxCoeff(), 1e-12) << "case " << c << ", batch of " << count;
+        EXPECT_LT((q[l].toRotationMatrix() - R).cwiseAbs().maxCoeff(), 1e-12) << "case " << c;
+      }
+    }
+  }
 }
