@@ -23,9 +23,12 @@ void windowPass(const Lattice& lattice, int axis, const double* in, int K, doubl
 ///                     contain each particle (scatter);
 ///  3. particleResult: what each particle does with its scatter sums.
 /// Every range is a contiguous range of particle (= region) indices; data for index p sits at
-/// (p - begin) * K in the buffer passed. Each index is visited exactly once per step of a pass.
-/// Calls for disjoint ranges may run concurrently (RegionSummer threads), so an implementation
-/// must only write what belongs to the indices of its range.
+/// (p - begin) * K in the buffer passed. regionData and particleResult visit each index exactly
+/// once per pass; particleData may visit an index more than once, concurrently, when threads
+/// share a halo of slices (BarSummer), so it must only read. Calls for disjoint ranges may run
+/// concurrently, so an implementation must only write what belongs to the indices of its range;
+/// BarSummer never runs particleData on particles whose particleResult of the same pass has run
+/// or is running.
 class RegionKernel {
  public:
   virtual ~RegionKernel() = default;
