@@ -52,8 +52,6 @@ using namespace deformable_flsm::study;
 
 namespace {
 
-/// Bunny scale of the study (flsm_study's kBunnyScale).
-constexpr double kBunnyScale = 0.1;
 /// Bullet's kLST = ratio E h^2 / (rho dx^2), capped at 1: the ratio that flsm_study's calibration
 /// found (docs/study/calibration.csv, bullet_ratio), so that Bullet's cantilever bends as far as
 /// FastLSM's. At ~10k bunny particles and 1/60 s the cap is reached, and kLST is 1 whatever the
@@ -191,7 +189,7 @@ struct Entry {
 int main(int argc, char** argv) {
   const Args args = parse(argc, argv);
   try {
-    const StudyObject bunny = makeBunny(args.mesh, kBunnyScale);
+    const StudyObject bunny = makeBunny(args.mesh, kStudyBunnyScale);
     const int resolution = resolutionNear(bunny.mesh, args.particles);
     VoxelizeOptions vo;
     vo.resolution = resolution;
@@ -211,7 +209,7 @@ int main(int argc, char** argv) {
 
     std::printf("bench_peer: mesh %s x %.2g, size %.4f m; resolution %d, lattice %d x %d x %d, spacing %.4g m, "
                 "%zu particles, w = %d (the study's region radius would give w = %d here)\n",
-                args.mesh.c_str(), kBunnyScale, bunny.size, resolution, voxels.dims.x(), voxels.dims.y(),
+                args.mesh.c_str(), kStudyBunnyScale, bunny.size, resolution, voxels.dims.x(), voxels.dims.y(),
                 voxels.dims.z(), dx, P, args.halfWidth, static_cast<int>(std::lround(bunny.regionRadius / dx)));
     std::printf("scenario %s (study::runScenario): %d frames of %.4g s, %d sub-step(s) of %.4g s, E = %.3g Pa, "
                 "ambient damping %.2g/s, %zu base particles pinned, %zu ear particles dragged\n",

@@ -45,7 +45,6 @@ namespace {
 
 /// Cantilever bar length (m); section L / 10.
 constexpr double kBarLength = 1.0;
-constexpr double kBunnyScale = 0.1;
 
 /// Resolutions of the accuracy runs and of the reference (finest) run. Multiples of the coarsest
 /// resolution, so that the region radius is a whole number of cells at every one of them.
@@ -367,11 +366,11 @@ int main(int argc, char** argv) {
   withBullet = args.bullet;
 #endif
   const StudyObject bar = makeBar(kBarLength);
-  const StudyObject bunny = makeBunny(args.mesh, kBunnyScale);
+  const StudyObject bunny = makeBunny(args.mesh, kStudyBunnyScale);
   std::printf("flsm_study: bar %.3g x %.3g x %.3g m (%zu render vertices); bunny %s x %.2g, size %.4f m (%zu vertices, "
               "%zu sampled)\n",
               kBarLength, kBarLength / kBarAspect, kBarLength / kBarAspect, bar.mesh.vertices.size(), args.mesh.c_str(),
-              kBunnyScale, bunny.size, bunny.mesh.vertices.size(), bunny.sampleVertices.size());
+              kStudyBunnyScale, bunny.size, bunny.mesh.vertices.size(), bunny.sampleVertices.size());
   std::printf("single thread; times are medians over the frames of a run%s\n",
               args.repeats > 1 ? ", then over up to --repeats runs (runs under 2 s)" : "");
   if (!withBullet) std::printf("Bullet's soft body: not built in (no Bullet found, or --no-bullet)\n");

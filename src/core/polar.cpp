@@ -107,10 +107,12 @@ namespace {
 /// Newton steps the fast path takes before handing over to the general routine.
 constexpr int kFastIterations = 8;
 
-/// Row-major rotation matrix of the unit quaternion (w, x, y, z).
-inline void quaternionToMatrix(double w, double x, double y, double z, double* r) {
-  const double xx = x * x, yy = y * y, zz = z * z, xy = x * y, xz = x * z, yz = y * z;
-  const double wx = w * x, wy = w * y, wz = w * z;
+/// Row-major rotation matrix of the unit quaternion (w, x, y, z): T is double, or Lanes for one
+/// quaternion per SIMD lane.
+template <typename T>
+inline void quaternionToMatrix(const T& w, const T& x, const T& y, const T& z, T* r) {
+  const T xx = x * x, yy = y * y, zz = z * z, xy = x * y, xz = x * z, yz = y * z;
+  const T wx = w * x, wy = w * y, wz = w * z;
   r[0] = 1.0 - 2.0 * (yy + zz);
   r[1] = 2.0 * (xy - wz);
   r[2] = 2.0 * (xz + wy);
@@ -214,11 +216,9 @@ void extractRotationBatch(int count, const double* a, Eigen::Quaterniond* quat, 
     for (int l = 0; l < L; ++l) all = all && done[l] != 0;
     if (all) break;
     const Lanes w = qw, x = qx, y = qy, z = qz;
-    const Lanes xx = x * x, yy = y * y, zz = z * z, xy = x * y, xz = x * z, yz = y * z;
-    const Lanes wx = w * x, wy = w * y, wz = w * z;
-    const Lanes r0 = 1.0 - 2.0 * (yy + zz), r1 = 2.0 * (xy - wz), r2 = 2.0 * (xz + wy);
-    const Lanes r3 = 2.0 * (xy + wz), r4 = 1.0 - 2.0 * (xx + zz), r5 = 2.0 * (yz - wx);
-    const Lanes r6 = 2.0 * (xz - wy), r7 = 2.0 * (yz + wx), r8 = 1.0 - 2.0 * (xx + yy);
+    Lanes rm[9];
+    quaternionToMatrix(w, x, y, z, rm);
+    const Lanes r0 = rm[0], r1 = rm[1], r2 = rm[2], r3 = rm[3], r4 = rm[4], r5 = rm[5], r6 = rm[6], r7 = rm[7], r8 = rm[8];
     // S = R^T A
     const Lanes s0 = r0 * A[0] + r3 * A[3] + r6 * A[6];
     const Lanes s1 = r0 * A[1] + r3 * A[4] + r6 * A[7];
@@ -259,12 +259,8 @@ void extractRotationBatch(int count, const double* a, Eigen::Quaterniond* quat, 
     qz = still ? nz * ninv : z;
     done |= fail | ~still | (angle2 < tolQ);
   }
-  const Lanes w = qw, x = qx, y = qy, z = qz;
-  const Lanes xx = x * x, yy = y * y, zz = z * z, xy = x * y, xz = x * z, yz = y * z;
-  const Lanes wx = w * x, wy = w * y, wz = w * z;
-  const Lanes R[9] = {1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz),       2.0 * (xz + wy),
-                      2.0 * (xy + wz),       1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx),
-                      2.0 * (xz - wy),       2.0 * (yz + wx),       1.0 - 2.0 * (xx + yy)};
+  Lanes R[9];
+  quaternionToMatrix(qw, qx, qy, qz, R);
   for (int l = 0; l < count; ++l) {
     if (fallback[l] != 0 || done[l] == 0) {
       // from the unchanged warm start: quat[l] has not been written yet

@@ -16,13 +16,16 @@ using deformable_flsm::test::makeVoxels;
 namespace {
 
 /// A ragged lattice with holes, overhangs and a separate island: every kind of run boundary.
-deformable_flsm::Voxelization raggedVoxels(unsigned seed) {
+/// `layers` cells along z; `emptyLayer` >= 0 empties that whole z-layer (two pieces, an empty
+/// slice between them).
+deformable_flsm::Voxelization raggedVoxels(unsigned seed, int layers = 9, int emptyLayer = -1) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
-  std::vector<char> keep(12 * 10 * 9);
+  std::vector<char> keep(12 * 10 * static_cast<std::size_t>(layers));
   for (auto& k : keep) k = u(rng) < 0.7;
-  return makeVoxels(Eigen::Vector3i(12, 10, 9), 0.01,
-                    [&](int i, int j, int k) { return keep[(k * 10 + j) * 12 + i] != 0; });
+  return makeVoxels(Eigen::Vector3i(12, 10, layers), 0.01, [&](int i, int j, int k) {
+    return k != emptyLayer && keep[(static_cast<std::size_t>(k) * 10 + j) * 12 + i] != 0;
+  });
 }
 
 std::vector<double> randomData(std::size_t n, int K, unsigned seed) {
@@ -111,16 +114,6 @@ class RecordingKernel : public deformable_flsm::RegionKernel {
   std::vector<int> visits_;
 };
 
-/// raggedVoxels() with one whole z-layer emptied: two separate pieces and an empty slice.
-deformable_flsm::Voxelization splitRaggedVoxels(unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  std::vector<char> keep(12 * 10 * 14);
-  for (auto& k : keep) k = u(rng) < 0.7;
-  return makeVoxels(Eigen::Vector3i(12, 10, 14), 0.01,
-                    [&](int i, int j, int k) { return k != 6 && keep[(k * 10 + j) * 12 + i] != 0; });
-}
-
 }  // namespace
 
 // The streamed pass (slices, ring, z-window restarts, threads taking blocks and waiting for the
@@ -128,7 +121,7 @@ deformable_flsm::Voxelization splitRaggedVoxels(unsigned seed) {
 // result once per pass, and gives bit-identical results for 1, 2 and 3 threads, also after the
 // chunk boundaries have moved.
 TEST_P(SummationByWidth, StreamedPassEqualsNaiveAndIsThreadIndependent) {
-  const Lattice lattice(splitRaggedVoxels(3), 1000.0, GetParam());
+  const Lattice lattice(raggedVoxels(3, 14, 6), 1000.0, GetParam());
   const std::size_t n = lattice.size();
   NaiveSummer naive(lattice);
   for (auto [Kg, Ks] : {std::pair<int, int>{24, 18}, {12, 12}, {3, 6}, {1, 1}}) {

@@ -16,6 +16,8 @@ namespace study {
 
 /// Mass density of every study object (kg/m^3).
 constexpr double kStudyDensity = 1000.0;
+/// The bunny file's units to metres in the study's programs (the ~2-unit bunny becomes ~30 cm).
+constexpr double kStudyBunnyScale = 0.1;
 
 /// One point of the study's grid: how finely space and time are cut, the material, the loads.
 struct Setting {
