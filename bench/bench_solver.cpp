@@ -13,6 +13,7 @@
 
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/mesh.h"
+#include "deformable_flsm/core/resolution.h"
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/voxelizer.h"
 
@@ -63,31 +64,8 @@ std::size_t heapInUse() {
   return info.uordblks + info.hblkhd;
 }
 
-/// The resolution whose voxelization has the particle count closest to `target`.
-Voxelization voxelizeNear(const TriMesh& mesh, std::size_t target) {
-  int lo = 4, hi = 400;
-  Voxelization best;
-  while (lo <= hi) {
-    const int mid = (lo + hi) / 2;
-    VoxelizeOptions o;
-    o.resolution = mid;
-    o.maxParticles = std::max<std::size_t>(4 * target, 1000);
-    Voxelization v;
-    try {
-      v = voxelize(mesh, o);
-    } catch (const VoxelizationError&) {  // far over the target: search lower
-      hi = mid - 1;
-      continue;
-    }
-    const bool under = v.cells.size() < target;
-    if (best.cells.empty() ||
-        std::abs(double(v.cells.size()) - double(target)) < std::abs(double(best.cells.size()) - double(target)))
-      best = std::move(v);
-    if (under) lo = mid + 1;
-    else hi = mid - 1;
-  }
-  return best;
-}
+/// The voxelization whose particle count is nearest to `target`.
+Voxelization voxelizeNear(const TriMesh& mesh, std::size_t target) { return nearestResolution(mesh, target).voxels; }
 
 /// Median ns per particle-step over `repeats` runs of `steps` steps, after one warm-up step.
 double measure(const std::shared_ptr<const Lattice>& lattice, const SolverParams& params, int steps,

@@ -25,8 +25,10 @@
 
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/mesh.h"
+#include "deformable_flsm/core/resolution.h"
 #include "deformable_flsm/core/voxelizer.h"
 #include "deformable_flsm/study/mass_spring.h"
+#include "deformable_flsm/study/metrics.h"
 #include "deformable_flsm/study/method.h"
 #include "deformable_flsm/study/scenarios.h"
 #include "deformable_flsm/study/setting.h"
@@ -45,6 +47,7 @@
 #include <numeric>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 using namespace deformable_flsm;
@@ -123,13 +126,6 @@ Args parse(int argc, char** argv) {
   return a;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 /// A fraction as a percentage with two decimals; "-" when it is not finite (a blown-up run
 /// has no volume or shape to report).
 std::string percent(double fraction) {
@@ -137,41 +133,6 @@ std::string percent(double fraction) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.2f", 100.0 * fraction);
   return buf;
-}
-
-/// Occupied cells of `mesh` at `resolution`; 0 when the voxelizer refuses (more than `cap`).
-std::size_t particlesAt(const TriMesh& mesh, int resolution, std::size_t cap) {
-  VoxelizeOptions o;
-  o.resolution = resolution;
-  o.maxParticles = cap;
-  try {
-    return voxelize(mesh, o).cells.size();
-  } catch (const VoxelizationError&) {
-    return 0;
-  }
-}
-
-/// The resolution whose voxelization of `mesh` has the particle count closest to `target`:
-/// bisection for the lowest resolution reaching the target (the count grows with the resolution,
-/// about as its cube), then that one or the one below.
-int resolutionNear(const TriMesh& mesh, std::size_t target) {
-  const std::size_t cap = std::max<std::size_t>(4 * target, 1000);
-  auto reaches = [&](int r) {
-    const std::size_t n = particlesAt(mesh, r, cap);
-    return n == 0 || n >= target;  // refused: far over the target
-  };
-  int lo = 2, hi = 400;
-  while (lo < hi) {
-    const int mid = (lo + hi) / 2;
-    if (reaches(mid)) hi = mid;
-    else lo = mid + 1;
-  }
-  if (lo <= 2) return lo;
-  const auto dist = [&](int r) {
-    const std::size_t n = particlesAt(mesh, r, cap);
-    return n == 0 ? std::numeric_limits<double>::infinity() : std::abs(double(n) - double(target));
-  };
-  return dist(lo - 1) <= dist(lo) ? lo - 1 : lo;
 }
 
 /// One row of the table: a method configuration, how to build it, what it measured.
@@ -190,11 +151,9 @@ int main(int argc, char** argv) {
   const Args args = parse(argc, argv);
   try {
     const StudyObject bunny = makeBunny(args.mesh, kStudyBunnyScale);
-    const int resolution = resolutionNear(bunny.mesh, args.particles);
-    VoxelizeOptions vo;
-    vo.resolution = resolution;
-    vo.maxParticles = std::max<std::size_t>(4 * args.particles, 1000);
-    const Voxelization voxels = voxelize(bunny.mesh, vo);
+    ResolutionChoice near = nearestResolution(bunny.mesh, args.particles);
+    const int resolution = near.resolution;
+    const Voxelization voxels = std::move(near.voxels);
     const auto lattice = std::make_shared<const Lattice>(voxels, kStudyDensity, args.halfWidth);
     const std::size_t P = lattice->size();
     const double dx = lattice->spacing();

@@ -73,4 +73,17 @@ ResolutionChoice finestResolutionWithin(const TriMesh& mesh, std::size_t budget,
   return choice;
 }
 
+ResolutionChoice nearestResolution(const TriMesh& mesh, std::size_t target, int maxResolution) {
+  ResolutionChoice within = finestResolutionWithin(mesh, target, maxResolution);
+  if (within.resolution >= maxResolution) return within;
+  Voxelization above = voxelizeAt(mesh, within.resolution + 1);
+  ++within.voxelizations;
+  const double below = static_cast<double>(target - within.voxels.cells.size());
+  if (static_cast<double>(above.cells.size() - target) < below) {
+    within.resolution += 1;
+    within.voxels = std::move(above);
+  }
+  return within;
+}
+
 }  // namespace deformable_flsm

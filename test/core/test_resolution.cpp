@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <limits>
+#include <utility>
 
 namespace deformable_flsm {
 namespace {
@@ -82,6 +83,25 @@ TEST(FinestResolutionWithin, Bunny) {
     SCOPED_TRACE(budget);
     expectBoundary(bunny, budget);
   }
+}
+
+}  // namespace
+}  // namespace deformable_flsm
+
+namespace deformable_flsm {
+namespace {
+
+// A cube at resolution r has r^3 cells: the nearest count to a target is the nearer of the two
+// cubes around it, and the voxels returned are that resolution's.
+TEST(NearestResolution, CubePicksTheNearerCube) {
+  const TriMesh cube = test::boxMesh(Eigen::Vector3d::Ones());
+  const std::pair<std::size_t, int> cases[] = {{8, 2}, {9, 2}, {17, 2}, {18, 3}, {27, 3}, {600, 8}, {700, 9}, {1000, 10}};
+  for (const auto& [target, expected] : cases) {
+    const ResolutionChoice c = nearestResolution(cube, target);
+    EXPECT_EQ(c.resolution, expected) << "target " << target;
+    EXPECT_EQ(c.voxels.cells.size(), static_cast<std::size_t>(expected * expected * expected));
+  }
+  EXPECT_EQ(nearestResolution(cube, 100000, 10).resolution, 10);  // capped: 1000 cells
 }
 
 }  // namespace

@@ -37,4 +37,10 @@ struct ResolutionChoice {
 ResolutionChoice finestResolutionWithin(const TriMesh& mesh, std::size_t budget,
                                         int maxResolution = 1000);
 
+/// The lattice whose particle count is nearest to `target` (for comparisons at a given count):
+/// of finestResolutionWithin(mesh, target) and the resolution above it, the one nearer to the
+/// target (the one within on a tie).
+/// @throws as finestResolutionWithin().
+ResolutionChoice nearestResolution(const TriMesh& mesh, std::size_t target, int maxResolution = 1000);
+
 }  // namespace deformable_flsm

@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -18,6 +19,14 @@
 
 namespace deformable_flsm {
 namespace study {
+
+/// Median of v (mean of the middle two for an even count); NaN when v is empty.
+inline double median(std::vector<double> v) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
 
 /// true when every coordinate is finite.
 inline bool allFinite(const std::vector<Eigen::Vector3d>& x) {
