@@ -104,15 +104,13 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& A, Eigen::Quaterniond& q,
 
 namespace {
 
-/// Newton steps the fast path takes before handing over to the general routine.
+/// Newton steps a lane takes before handing over to the general routine.
 constexpr int kFastIterations = 8;
 
-/// Row-major rotation matrix of the unit quaternion (w, x, y, z): T is double, or Lanes for one
-/// quaternion per SIMD lane.
-template <typename T>
-inline void quaternionToMatrix(const T& w, const T& x, const T& y, const T& z, T* r) {
-  const T xx = x * x, yy = y * y, zz = z * z, xy = x * y, xz = x * z, yz = y * z;
-  const T wx = w * x, wy = w * y, wz = w * z;
+/// Row-major rotation matrices of unit quaternions (w, x, y, z), one per SIMD lane.
+inline void quaternionToMatrix(const Lanes& w, const Lanes& x, const Lanes& y, const Lanes& z, Lanes* r) {
+  const Lanes xx = x * x, yy = y * y, zz = z * z, xy = x * y, xz = x * z, yz = y * z;
+  const Lanes wx = w * x, wy = w * y, wz = w * z;
   r[0] = 1.0 - 2.0 * (yy + zz);
   r[1] = 2.0 * (xy - wz);
   r[2] = 2.0 * (xz + wy);
@@ -125,62 +123,6 @@ inline void quaternionToMatrix(const T& w, const T& x, const T& y, const T& z, T
 }
 
 }  // namespace
-
-void extractRotation(const double* a, Eigen::Quaterniond& quat, double* r) {
-  // largest |a_k| as a tree (a short dependency chain); NaN or infinity in A fails a pivot below
-  double m[4];
-  for (int k = 0; k < 4; ++k) m[k] = std::max(std::abs(a[2 * k]), std::abs(a[2 * k + 1]));
-  const double scale = std::max(std::max(std::max(m[0], m[1]), std::max(m[2], m[3])), std::abs(a[8]));
-  double qw = quat.w(), qx = quat.x(), qy = quat.y(), qz = quat.z();
-  const double qn = qw * qw + qx * qx + qy * qy + qz * qz;
-  const double angleTolerance = PolarOptions().angleTolerance;
-  if (scale > 0.0 && scale <= std::numeric_limits<double>::max() && std::abs(qn - 1.0) < 1e-12) {
-    const double tol = kSaddleTolerance * scale;
-    for (int it = 0; it < kFastIterations; ++it) {
-      quaternionToMatrix(qw, qx, qy, qz, r);
-      // S = R^T A
-      double S[9];
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) S[3 * i + j] = r[i] * a[j] + r[3 + i] * a[3 + j] + r[6 + i] * a[6 + j];
-      const Eigen::Vector3d g(S[7] - S[5], S[2] - S[6], S[3] - S[1]);
-      const double tr = S[0] + S[4] + S[8];
-      Eigen::Matrix3d H;
-      H(0, 0) = tr - S[0];
-      H(1, 1) = tr - S[4];
-      H(2, 2) = tr - S[8];
-      H(0, 1) = H(1, 0) = -0.5 * (S[1] + S[3]);
-      H(0, 2) = H(2, 0) = -0.5 * (S[2] + S[6]);
-      H(1, 2) = H(2, 1) = -0.5 * (S[5] + S[7]);
-      Eigen::Vector3d theta;
-      if (!solveSymmetricPositive3(H, g, tol, theta)) break;  // not clearly a maximum: general routine
-      const double angle2 = theta.squaredNorm();
-      if (angle2 < angleTolerance * angleTolerance) {
-        quat = Eigen::Quaterniond(qw, qx, qy, qz);
-        return;
-      }
-      // q <- q * (1, theta / 2), normalised (as in the general routine)
-      const double hx = 0.5 * theta.x(), hy = 0.5 * theta.y(), hz = 0.5 * theta.z();
-      const double nw = qw - (qx * hx + qy * hy + qz * hz);
-      const double nx = qx + qw * hx + (qy * hz - qz * hy);
-      const double ny = qy + qw * hy + (qz * hx - qx * hz);
-      const double nz = qz + qw * hz + (qx * hy - qy * hx);
-      const double inv = 1.0 / std::sqrt(nw * nw + nx * nx + ny * ny + nz * nz);
-      qw = nw * inv;
-      qx = nx * inv;
-      qy = ny * inv;
-      qz = nz * inv;
-      if (kQuadraticMargin * angle2 < angleTolerance) {
-        quaternionToMatrix(qw, qx, qy, qz, r);
-        quat = Eigen::Quaterniond(qw, qx, qy, qz);
-        return;
-      }
-    }
-  }
-  const Eigen::Matrix3d A = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(a);
-  const Eigen::Matrix3d R = extractRotation(A, quat);
-  Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> out(r);
-  out = R;
-}
 
 static_assert(kRotationBatch == kLanes, "one matrix per SIMD lane");
 
@@ -263,8 +205,10 @@ void extractRotationBatch(int count, const double* a, Eigen::Quaterniond* quat, 
   quaternionToMatrix(qw, qx, qy, qz, R);
   for (int l = 0; l < count; ++l) {
     if (fallback[l] != 0 || done[l] == 0) {
-      // from the unchanged warm start: quat[l] has not been written yet
-      extractRotation(a + 9 * l, quat[l], r + 9 * l);
+      // the general routine, from the unchanged warm start (quat[l] has not been written yet)
+      const Eigen::Matrix3d A = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(a + 9 * l);
+      Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> out(r + 9 * l);
+      out = extractRotation(A, quat[l]);
       continue;
     }
     quat[l] = Eigen::Quaterniond(qw[l], qx[l], qy[l], qz[l]);

@@ -380,7 +380,7 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
     // v <- (v + alpha s_i (g - x) / h + h (gravity + f / m) + kd (v_rigid - v)) keep;  x <- x + h v
     // (a pinned or hard-dragged particle is left to finishSubstep())
     if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
-    Eigen::Vector3d dv = k.pull * stiffnessFactor_[i] * (goals_[i] - x_[i]) + k.h * (k.gravity + forceAccel_[i]);
+    Eigen::Vector3d dv = k.pull * stiffnessFactor_[i] * (goals_[i] - x_[i]) + k.h * (params_.gravity + forceAccel_[i]);
     if (passDamping_) {
       const Eigen::Vector3d p = x_[i] - xref_;
       const Eigen::Vector3d target =
@@ -441,7 +441,6 @@ void Solver::substep(double h) {
   step_.kd = 1.0 - std::exp(-params_.damping * h);
   step_.pull = alpha_ / h;
   step_.keep = std::exp(-params_.ambientDamping * h);
-  step_.gravity = params_.gravity;
   regionPass(step_.kd > 0.0);
   step_.integrate = false;
   finishSubstep(h);

@@ -42,23 +42,15 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& A, Eigen::Quaterniond& q,
                                 const PolarOptions& opts = PolarOptions(),
                                 PolarStats* stats = nullptr);
 
-/// extractRotation() for the solver's per-region loop: A row-major in a[9], the rotation written
-/// row-major to r[9]. The usual case (finite A, a unit warm start, H clearly positive definite at
-/// every Newton step, converged within a few steps) runs the same Newton iteration and stopping
-/// rule on plain doubles, several times faster than the general routine; anything else is handed
-/// to extractRotation() from the unchanged warm start.
-/// @param[in]     a  3x3 matrix, row-major
-/// @param[in,out] q  unit quaternion: warm start in, the rotation out
-/// @param[out]    r  the rotation, row-major
-void extractRotation(const double* a, Eigen::Quaterniond& q, double* r);
-
 /// Regions per call of extractRotationBatch().
 constexpr int kRotationBatch = 8;
 
-/// extractRotation(a, q, r) for `count` <= kRotationBatch matrices at once, each lane's Newton
-/// iteration in its own SIMD lane: a lane's result depends only on its own A and q (a lane that
-/// has converged is left as it is while the others go on), and equals what extractRotation()
-/// gives up to round-off. Lanes outside the fast path's usual case go to extractRotation().
+/// extractRotation() for `count` <= kRotationBatch matrices at once (the solver's per-region
+/// loop), each one's Newton iteration in its own SIMD lane: a lane's result depends only on its
+/// own A and q (a lane that has converged is left as it is while the others go on), and equals
+/// what extractRotation() gives up to round-off. The usual case (finite A, a unit warm start, H
+/// clearly positive definite at every Newton step, converged within a few steps) stays in the
+/// lanes; any other matrix goes to extractRotation() from its unchanged warm start.
 /// @param[in]     a  count x 9 doubles, matrix i row-major at a + 9 i
 /// @param[in,out] q  count unit quaternions
 /// @param[out]    r  count x 9 doubles, rotation i row-major at r + 9 i

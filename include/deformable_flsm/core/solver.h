@@ -195,7 +195,6 @@ class Solver : private RegionKernel {
     double kd = 0.0;         // region damping fraction per sub-step
     double pull = 0.0;       // alpha / h
     double keep = 1.0;       // ambient damping factor per sub-step
-    Eigen::Vector3d gravity = Eigen::Vector3d::Zero();
   } step_;
   std::vector<double> regionWeight_;     // beta_r
   std::vector<double> invWeightSum_;     // 1 / sum_{r contains i} beta_r
