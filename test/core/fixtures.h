@@ -58,5 +58,16 @@ inline TriMesh boxMesh(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
 /// Axis-aligned box [0, size].
 inline TriMesh boxMesh(const Eigen::Vector3d& size) { return boxMesh(Eigen::Vector3d::Zero(), size); }
 
+/// Signed volume by the divergence theorem, sum over triangles of a . (b x c) / 6: the exact
+/// enclosed volume of a closed mesh, positive when the triangles are counter-clockwise seen from
+/// outside.
+inline double signedVolume(const TriMesh& mesh) {
+  double volume = 0.0;
+  for (const auto& t : mesh.triangles) {
+    volume += mesh.vertices[t[0]].dot(mesh.vertices[t[1]].cross(mesh.vertices[t[2]])) / 6.0;
+  }
+  return volume;
+}
+
 }  // namespace test
 }  // namespace deformable_flsm

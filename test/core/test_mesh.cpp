@@ -3,6 +3,8 @@
 /// vertex normals. Mesh files are written into a fresh temporary directory per test.
 #include "deformable_flsm/core/mesh.h"
 
+#include "fixtures.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -19,6 +21,8 @@
 
 namespace deformable_flsm {
 namespace {
+
+using test::signedVolume;
 
 namespace fs = std::filesystem;
 
@@ -54,15 +58,6 @@ TriMesh unitCube() {
   return mesh;
 }
 
-/// Signed volume by the divergence theorem, sum over triangles of a . (b x c) / 6: positive
-/// when the triangles are counter-clockwise seen from outside.
-double signedVolume(const TriMesh& mesh) {
-  double volume = 0.0;
-  for (const auto& t : mesh.triangles) {
-    volume += mesh.vertices[t[0]].dot(mesh.vertices[t[1]].cross(mesh.vertices[t[2]])) / 6.0;
-  }
-  return volume;
-}
 
 /// A fresh directory under the system temp dir, removed after each test.
 class MeshFileTest : public ::testing::Test {

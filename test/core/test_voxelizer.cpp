@@ -26,6 +26,8 @@
 namespace deformable_flsm {
 namespace {
 
+using test::signedVolume;
+
 const char* const kBunnyPath = "/usr/share/glmark2/models/bunny.obj";
 
 
@@ -68,14 +70,6 @@ TriMesh icosphere(int levels, double radius) {
   return mesh;
 }
 
-/// Exact volume enclosed by a closed, outward-oriented mesh (divergence theorem).
-double signedVolume(const TriMesh& mesh) {
-  double volume = 0.0;
-  for (const auto& t : mesh.triangles) {
-    volume += mesh.vertices[t[0]].dot(mesh.vertices[t[1]].cross(mesh.vertices[t[2]])) / 6.0;
-  }
-  return volume;
-}
 
 double filledVolume(const Voxelization& v) {
   double sum = 0.0;
