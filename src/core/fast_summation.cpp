@@ -170,6 +170,10 @@ BarSummer::BarSummer(const Lattice& lattice, int threads)
     maxSlice_ = std::max<std::size_t>(maxSlice_, sliceStart_[k + 1]);
     sliceStart_[k + 1] += sliceStart_[k];
   }
+  {
+    const auto& starts = lattice.runStarts(0);
+    for (std::size_t q = 0; q + 1 < starts.size(); ++q) maxRun_ = std::max<std::size_t>(maxRun_, starts[q + 1] - starts[q]);
+  }
   // x- and y-runs lie in one slice and are listed in the order of their first particle
   for (int axis = 0; axis < 2; ++axis) {
     auto& sliceRun = axis == 0 ? sliceXRun_ : sliceYRun_;
@@ -218,7 +222,7 @@ void BarSummer::reserveSliceScratch(int Kg, int Ks) {
   const std::size_t s = maxSlice_ * static_cast<std::size_t>(scratchKs_);
   const std::size_t ring = 2 * static_cast<std::size_t>(lattice_.regionHalfWidth()) + 2;
   for (SliceScratch& t : sliceScratch_) {
-    t.data.resize(g);
+    t.run.resize(maxRun_ * static_cast<std::size_t>(std::max(scratchKg_, scratchKs_)));
     t.rowSum.resize(g);
     t.ring.resize(ring * g);
     t.sumPrev.resize(g);
@@ -226,9 +230,10 @@ void BarSummer::reserveSliceScratch(int Kg, int Ks) {
     t.zPrev.resize(s);
     t.zCur.resize(s);
     t.colSum.resize(s);
-    t.result.resize(s);
+    t.regionRing.resize(ring * s);
   }
-  regionOut_.resize(particles_ * static_cast<std::size_t>(scratchKs_));
+  // With one thread every region slice lives in the ring only.
+  if (threads_ > 1) regionOut_.resize(particles_ * static_cast<std::size_t>(scratchKs_));
 }
 
 namespace {
@@ -276,42 +281,66 @@ void BarSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0,
   const auto& yOrder = lattice_.runOrder(1);
   const std::uint32_t* zOrder = lattice_.runOrder(2).data();
 
-  // x-runs of slice k (consecutive particles), then y-runs, in slice-local rows
-  auto rowPasses = [&](std::size_t k, int K, const double* in, double* mid, double* out, bool xFirst) {
+  // The y-runs of slice k, a sliding window over each, from and to slice-local rows.
+  auto yPass = [&](std::size_t k, int K, const double* in, double* out) {
     const std::uint32_t s0 = sliceStart[k];
     withChannels(K, [&](auto kc) {
       constexpr int KK = decltype(kc)::value;
-      auto xPass = [&](const double* a, double* b) {
-        for (std::uint32_t q = sliceXRun_[k]; q < sliceXRun_[k + 1]; ++q) {
-          const std::ptrdiff_t first = static_cast<std::ptrdiff_t>(xOrder[xStarts[q]] - s0);
-          slideRun<KK>(a, b, static_cast<std::ptrdiff_t>(xStarts[q + 1] - xStarts[q]), w,
-                       [first](std::ptrdiff_t u) { return first + u; });
-        }
-      };
-      auto yPass = [&](const double* a, double* b) {
-        for (std::uint32_t q = sliceYRun_[k]; q < sliceYRun_[k + 1]; ++q) {
-          const std::uint32_t* run = yOrder.data() + yStarts[q];
-          slideRun<KK>(a, b, static_cast<std::ptrdiff_t>(yStarts[q + 1] - yStarts[q]), w,
-                       [run, s0](std::ptrdiff_t u) { return static_cast<std::ptrdiff_t>(run[u] - s0); });
-        }
-      };
-      if (xFirst) {
-        xPass(in, mid);
-        yPass(mid, out);
-      } else {
-        yPass(in, mid);
-        xPass(mid, out);
+      for (std::uint32_t q = sliceYRun_[k]; q < sliceYRun_[k + 1]; ++q) {
+        const std::uint32_t* run = yOrder.data() + yStarts[q];
+        slideRun<KK>(in, out, static_cast<std::ptrdiff_t>(yStarts[q + 1] - yStarts[q]), w,
+                     [run, s0](std::ptrdiff_t u) { return static_cast<std::ptrdiff_t>(run[u] - s0); });
+      }
+    });
+  };
+  // The x-runs of slice k (each a range of consecutive particles), one at a time through the
+  // run-sized buffer t.run: the gather's data is generated run by run and summed along x into
+  // the slice-local rows of `out`; the scatter's rows of `in` are summed along x and handed to
+  // the kernel's particle result run by run. No slice-sized buffer between the kernel and the
+  // window passes.
+  auto xGather = [&](std::size_t k, double* out) {
+    const std::uint32_t s0 = sliceStart[k];
+    withChannels(Kg, [&](auto kc) {
+      constexpr int KK = decltype(kc)::value;
+      for (std::uint32_t q = sliceXRun_[k]; q < sliceXRun_[k + 1]; ++q) {
+        const std::uint32_t first = xOrder[xStarts[q]];
+        const std::ptrdiff_t len = static_cast<std::ptrdiff_t>(xStarts[q + 1] - xStarts[q]);
+        kernel.particleData(first, first + static_cast<std::size_t>(len), t.run.data());
+        slideRun<KK>(t.run.data(), out + static_cast<std::size_t>(first - s0) * KK, len, w,
+                     [](std::ptrdiff_t u) { return u; });
+      }
+    });
+  };
+  auto xScatter = [&](std::size_t k, const double* in) {
+    const std::uint32_t s0 = sliceStart[k];
+    withChannels(Ks, [&](auto kc) {
+      constexpr int KK = decltype(kc)::value;
+      for (std::uint32_t q = sliceXRun_[k]; q < sliceXRun_[k + 1]; ++q) {
+        const std::uint32_t first = xOrder[xStarts[q]];
+        const std::ptrdiff_t len = static_cast<std::ptrdiff_t>(xStarts[q + 1] - xStarts[q]);
+        slideRun<KK>(in + static_cast<std::size_t>(first - s0) * KK, t.run.data(), len, w,
+                     [](std::ptrdiff_t u) { return u; });
+        kernel.particleResult(first, first + static_cast<std::size_t>(len), t.run.data());
       }
     });
   };
   auto ringRow = [&](std::ptrdiff_t k) {
     return t.ring.data() + (static_cast<std::size_t>(k) % ringSize) * maxSlice_ * static_cast<std::size_t>(Kg);
   };
+  // Region data of slice k: in the thread's ring of 2w + 2 slices (a particle slice's z-window
+  // reads w slices either side and, when it slides, the one leaving), or for the slices that a
+  // block finished after the barrier may read, in the shared regionOut_ (indexed by particle).
+  auto regionRow = [&](std::ptrdiff_t k) {
+    const std::size_t z = static_cast<std::size_t>(k);
+    if (sharedSlice_.empty() || sharedSlice_[z] == 0)
+      return t.regionRing.data() + (z % ringSize) * maxSlice_ * static_cast<std::size_t>(Ks);
+    return regionOut_.data() + static_cast<std::size_t>(sliceStart[z]) * Ks;
+  };
   // gather: data of slice a, summed along x and y into the ring
   auto dataSlice = [&](std::ptrdiff_t a) {
     const std::size_t k = static_cast<std::size_t>(a);
-    kernel.particleData(sliceStart[k], sliceStart[k + 1], t.data.data());
-    rowPasses(k, Kg, t.data.data(), t.rowSum.data(), ringRow(a), true);
+    xGather(k, t.rowSum.data());
+    yPass(k, Kg, t.rowSum.data(), ringRow(a));
   };
   // gather's z-window, then the kernel's region data for slice b
   auto regionSlice = [&](std::ptrdiff_t b) {
@@ -327,8 +356,7 @@ void BarSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0,
       zWindowSlice<KK>(k, b % kBlock == 0, w, sliceStart, zOrder, zPos_.data(), zLen_.data(), zBase_.data(),
                        src, t.sumPrev.data(), t.sumCur.data());
     });
-    kernel.regionData(sliceStart[k], sliceStart[k + 1], t.sumCur.data(),
-                      regionOut_.data() + static_cast<std::size_t>(sliceStart[k]) * Ks);
+    kernel.regionData(sliceStart[k], sliceStart[k + 1], t.sumCur.data(), regionRow(b));
     std::swap(t.sumPrev, t.sumCur);
   };
   // scatter's z-window over the region data, then y and x, then the kernel's particle result
@@ -336,13 +364,14 @@ void BarSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0,
     const std::size_t k = static_cast<std::size_t>(c);
     withChannels(Ks, [&](auto kc) {
       constexpr int KK = decltype(kc)::value;
-      const double* region = regionOut_.data();
-      auto src = [region](std::uint32_t p, std::ptrdiff_t) { return region + static_cast<std::size_t>(p) * KK; };
+      auto src = [&](std::uint32_t p, std::ptrdiff_t z) {
+        return regionRow(z) + static_cast<std::size_t>(p - sliceStart[z]) * KK;
+      };
       zWindowSlice<KK>(k, c % kBlock == 0, w, sliceStart, zOrder, zPos_.data(), zLen_.data(), zBase_.data(), src,
                        t.zPrev.data(), t.zCur.data());
     });
-    rowPasses(k, Ks, t.zCur.data(), t.colSum.data(), t.result.data(), false);
-    kernel.particleResult(sliceStart[k], sliceStart[k + 1], t.result.data());
+    yPass(k, Ks, t.zCur.data(), t.colSum.data());
+    xScatter(k, t.colSum.data());
     std::swap(t.zPrev, t.zCur);
   };
   // A block of particle slices [c, c + kBlock) reads region slices [c - w, c + kBlock - 1 + w]:
@@ -374,6 +403,7 @@ void BarSummer::apply(RegionKernel& kernel) {
     applyChunk(kernel, Kg, Ks, 0, slices, sliceScratch_[0], [] {});
     return;
   }
+  markSharedSlices();
 #pragma omp parallel num_threads(threads_)
   {
     // A smaller team than asked for (nested parallelism, thread limits): one thread does all,
@@ -394,6 +424,21 @@ void BarSummer::apply(RegionKernel& kernel) {
     }
   }
   rebalance();
+}
+
+// A block finished after the barrier reads region slices up to w beyond its own and lies within
+// w + kBlock of its chunk's edge: the region slices within 2w + kBlock of an inner chunk boundary
+// go to regionOut_, where they outlast the rings.
+void BarSummer::markSharedSlices() {
+  const std::size_t slices = sliceStart_.size() - 1;
+  const std::ptrdiff_t reach = 2 * static_cast<std::ptrdiff_t>(lattice_.regionHalfWidth()) + kBlock;
+  sharedSlice_.assign(slices, 0);
+  for (int t = 1; t < threads_; ++t) {
+    const std::ptrdiff_t B = static_cast<std::ptrdiff_t>(chunkStart_[static_cast<std::size_t>(t)]);
+    const std::ptrdiff_t from = std::max<std::ptrdiff_t>(0, B - reach);
+    const std::ptrdiff_t to = std::min<std::ptrdiff_t>(static_cast<std::ptrdiff_t>(slices), B + reach);
+    for (std::ptrdiff_t z = from; z < to; ++z) sharedSlice_[static_cast<std::size_t>(z)] = 1;
+  }
 }
 
 // Chunks of equal particle counts need not take equal times (slices of short, broken runs cost

@@ -78,10 +78,11 @@ class RegionSummer {
 /// this is the transpose of gather.
 ///
 /// apply() streams the lattice one z-slice at a time (the particles are sorted by (k, j, i), so a
-/// slice is a contiguous index range holding whole x- and y-runs): a slice's data is generated and
-/// summed along x and y in slice-sized buffers, kept in a ring of 2w + 2 such planes for the
-/// sliding z-window, and each region slice is computed as soon as its z-window is complete; the
-/// scatter follows w slices behind. The working set is a few slices, not a few copies of the
+/// slice is a contiguous index range holding whole x- and y-runs): a slice's data is generated x-run
+/// by x-run and summed along x, then along y, into a ring of 2w + 2 planes for the sliding
+/// z-window, and each region slice is computed as soon as its z-window is complete; the scatter
+/// follows w slices behind, its region data in a second ring, its x-sums handed to the kernel
+/// run by run. The working set is a few slices, not a few copies of the
 /// whole lattice, so the cost per particle does not grow with the lattice (see bench_solver).
 /// The z-windows restart (a direct sum over the window) every kBlock slices, and threads take
 /// whole blocks: every sum is the same sequence of additions for any thread count, and the
@@ -102,7 +103,7 @@ class BarSummer : public RegionSummer {
  private:
   /// Per-thread slice buffers of apply().
   struct alignas(64) SliceScratch {
-    std::vector<double> data, rowSum, ring, sumPrev, sumCur, zPrev, zCur, colSum, result;
+    std::vector<double> run, rowSum, ring, sumPrev, sumCur, zPrev, zCur, colSum, regionRing;
   };
   /// Grows the two scratch buffers to #P*K; never shrinks them (no refill between passes).
   void reserveScratch(int K);
@@ -119,6 +120,7 @@ class BarSummer : public RegionSummer {
   // [sliceXRun_[k], sliceXRun_[k+1]) ([sliceYRun_[k], ...)) of the lattice's run lists
   std::vector<std::uint32_t> sliceStart_, sliceXRun_, sliceYRun_;
   std::size_t maxSlice_ = 0;
+  std::size_t maxRun_ = 0;  // the longest x-run
   // per particle: position in its z-run, the run's length and its start in runOrder(2)
   std::vector<std::uint32_t> zPos_, zLen_, zBase_;
   /// Moves the chunk boundaries towards equal busy times (see the definition).
@@ -126,8 +128,11 @@ class BarSummer : public RegionSummer {
   std::vector<std::size_t> chunkStart_;  // threads_ + 1 slice indices, multiples of kBlock
   std::vector<double> busySeconds_;         // per thread: time in its chunk in the last apply()
   std::vector<double> secondsPerParticle_;  // per chunk: smoothed busy time per particle
+  /// sharedSlice_ from the chunk boundaries (see the definition).
+  void markSharedSlices();
   std::vector<SliceScratch> sliceScratch_;
-  std::vector<double> regionOut_;  // #P * K_s region data of the pass
+  std::vector<double> regionOut_;    // #P * K_s region data of the slices near chunk boundaries
+  std::vector<char> sharedSlice_;    // per slice: its region data goes to regionOut_ (threads > 1)
   int scratchKg_ = 0, scratchKs_ = 0;
 };
 
