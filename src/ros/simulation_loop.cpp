@@ -181,6 +181,13 @@ void SimulationLoop::run() {
       steps = settings_.maxCatchUpSteps;
       owed = steps * dt;  // drop the debt: only what is stepped now is still owed
     }
+    if (steps == 0 && acted) {
+      // A command took effect between steps (0 <= owed < dt): step now rather than at the next
+      // step's time, up to a whole step later, borrowing that step. The next one then comes a
+      // step later than it would have: simulated time leads the clock by at most one step (until
+      // it is paid back, owed < 0 and steps < 0: no second early step), and the pace is kept.
+      steps = 1;
+    }
     for (std::int64_t s = 0; s < steps; ++s) {
       timedStep();
       owed -= dt;

@@ -251,6 +251,41 @@ TEST(SimulationLoop, PacedToTheWallClock) {
   EXPECT_EQ(d.droppedSteps, 0u);
 }
 
+TEST(SimulationLoop, ACommandIsSteppedAtOnceAndThePaceKept) {
+  // Steps of 0.1 s at a fifth of real time, 0.5 s apart: a command that had to wait for the next
+  // step would show up to 0.5 s late.
+  LoopSettings settings;
+  settings.idleHold = 0.0;
+  settings.realTimeFactor = 0.2;
+  SolverParams p = weightless();
+  p.timeStep = 0.1;
+  Rig rig(settings, p);
+  rig.loop->start();
+  const Clock::time_point t0 = Clock::now();
+  ASSERT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.steps >= 1; }));  // just stepped
+  const Eigen::Vector3d target = rig.loop->lattice().restPositions()[0] + Eigen::Vector3d(-0.01, 0, 0);
+  GrabCommand g;
+  g.id = "a";
+  g.particle = 0;
+  g.target = target;
+  const Clock::time_point sent = Clock::now();
+  ASSERT_TRUE(rig.run(g).accepted);
+  ASSERT_TRUE(rig.waitFor([&](const Snapshot& s) { return (s.positions[0] - target).norm() < 1e-9; }, 2.0));
+  EXPECT_LT(duration<double>(Clock::now() - sent).count(), 0.25);
+  // The borrowed step is paid back: simulated time never leads the clock by more than a step.
+  for (int i = 0; i < 6; ++i) {
+    MoveCommand m;
+    m.id = "a";
+    m.target = target + Eigen::Vector3d(0, 0.001 * i, 0);
+    ASSERT_TRUE(rig.run(m).accepted);
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    const double wall = duration<double>(Clock::now() - t0).count();
+    EXPECT_LE(rig.loop->acquire().diag.simTime, 0.2 * wall + 0.1 + 1e-9);
+  }
+  const double wall = duration<double>(Clock::now() - t0).count();
+  EXPECT_GT(rig.loop->acquire().diag.simTime, 0.2 * wall - 0.2);
+}
+
 TEST(SimulationLoop, ASlowMachineDropsDebtInsteadOfSpiralling) {
   // Asking for 1000 x real time: every step is late. The loop must take at most
   // maxCatchUpSteps at a time, drop the rest, keep answering commands, and report it.
