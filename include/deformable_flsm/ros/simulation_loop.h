@@ -105,7 +105,8 @@ class SimulationLoop {
   /// Stops the thread; idempotent. Queued commands are dropped, waiting services get an answer.
   void stop();
 
-  /// Queues a command for the next step and wakes an idle loop. When the queue is full the
+  /// Queues a command and wakes the loop, which applies it and, if no step is due yet, steps at
+  /// once (borrowing the next step's time; see run()). When the queue is full the
   /// command is rejected ("queue_full"), its outcome delivered, and false returned.
   bool submit(Command command);
   /// Changes the pace (simulated seconds per wall second, > 0) and wakes an idle loop.
