@@ -11,7 +11,9 @@ Starts a master on its own port and flsm.launch (the default scene unless --para
   3. while flsm_demo drags the ear and pokes the body: the same CPU figure, the rates of every
      topic (mean, and the longest gap), the achieved real-time factor and step time (~state);
   4. drag latency: a hard drag's target is moved; the time until a ~particles message shows the
-     particle at the new target (command -> simulation thread -> step -> publish -> receipt);
+     particle at the new target (command -> simulation thread -> step -> publish -> receipt),
+     and until the stamp of that message (the publish tick, which sends ~mesh first); ~mesh and
+     ~surface are read meanwhile by a second process (or RViz);
   5. time to rest: from releasing a drag until ~state says idle.
 Everything it starts is stopped by process id at the end.
 """
@@ -35,6 +37,13 @@ from sensor_msgs.msg import PointCloud2
 
 from deformable_flsm.msg import DragCommand, SimulationState
 
+# A reader of ~mesh and ~surface in a process of its own (bytes received, not decoded).
+SINK = ('import rospy\n'
+        'rospy.init_node("measure_sink", anonymous=True)\n'
+        'subs = [rospy.Subscriber(t, rospy.AnyMsg, lambda m: None, queue_size=1)\n'
+        '        for t in ("/flsm_node/mesh", "/flsm_node/surface")]\n'
+        'rospy.spin()\n')
+LATENCY_SAMPLES = 40
 PORT = 11397
 XVFB_DISPLAY = ':97'
 TICK = os.sysconf('SC_CLK_TCK')
@@ -192,6 +201,14 @@ def main():
         procs.remove(demo)
 
         # -- drag latency ----------------------------------------------------------------
+        # ~mesh and ~surface keep a reader (the node builds and sends them as before), but in
+        # a process of their own: receiving 5 MB messages 30 times a second in this one would
+        # delay the probe's callback behind Python's lock and count that as latency.
+        if meters:
+            for m in meters[:2]:
+                m.sub.unregister()
+            procs.append(start(['/usr/bin/python3', '-c', SINK], subprocess.DEVNULL, env))
+            time.sleep(3.0)
         pub = rospy.Publisher('/flsm_node/drag', DragCommand, queue_size=10)
         while pub.get_num_connections() == 0:
             time.sleep(0.05)
@@ -230,7 +247,8 @@ def main():
         drag(DragCommand.GRAB, x[p])
         time.sleep(1.0)
         latencies, stamped = [], []
-        for k in range(20):
+        rng = np.random.default_rng(7)
+        for k in range(LATENCY_SAMPLES):
             goal = x[p] + size * 0.05 * np.array([np.cos(k), np.sin(k), 0.3])
             with lock:
                 seen['t'] = None
@@ -247,11 +265,13 @@ def main():
                 if seen['t'] is not None:
                     latencies.append(seen['t'] - t_sent)
                     stamped.append(seen['stamp'] - t_sent)
-            time.sleep(0.3 + 0.05 * (k % 3))  # decorrelate from the step and publish clocks
+            # Commands at phases spread evenly over the publish and step periods: a fixed pause
+            # (a multiple of either period) would sample one or two phases only.
+            time.sleep(0.3 + rng.uniform(0.0, 0.1))
         lat = np.array(latencies) * 1e3
         pub_lat = np.array(stamped) * 1e3
-        print('\n== drag latency (MOVE published -> ~particles shows the particle there), %d of 20'
-              % len(lat))
+        print('\n== drag latency (MOVE published -> ~particles shows the particle there), %d of %d'
+              % (len(lat), LATENCY_SAMPLES))
         if len(lat):
             print('   received: median %.0f ms, min %.0f ms, max %.0f ms (step %.1f ms of simulated '
                   'time, publish period %.1f ms)' % (np.median(lat), lat.min(), lat.max(),
