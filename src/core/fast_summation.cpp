@@ -298,30 +298,28 @@ void BarSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0,
   // the slice-local rows of `out`; the scatter's rows of `in` are summed along x and handed to
   // the kernel's particle result run by run. No slice-sized buffer between the kernel and the
   // window passes.
+  auto forXRuns = [&](std::size_t k, int K, auto&& body) {
+    withChannels(K, [&](auto kc) {
+      for (std::uint32_t q = sliceXRun_[k]; q < sliceXRun_[k + 1]; ++q)
+        body(kc, xOrder[xStarts[q]], static_cast<std::ptrdiff_t>(xStarts[q + 1] - xStarts[q]));
+    });
+  };
   auto xGather = [&](std::size_t k, double* out) {
     const std::uint32_t s0 = sliceStart[k];
-    withChannels(Kg, [&](auto kc) {
+    forXRuns(k, Kg, [&](auto kc, std::uint32_t first, std::ptrdiff_t len) {
       constexpr int KK = decltype(kc)::value;
-      for (std::uint32_t q = sliceXRun_[k]; q < sliceXRun_[k + 1]; ++q) {
-        const std::uint32_t first = xOrder[xStarts[q]];
-        const std::ptrdiff_t len = static_cast<std::ptrdiff_t>(xStarts[q + 1] - xStarts[q]);
-        kernel.particleData(first, first + static_cast<std::size_t>(len), t.run.data());
-        slideRun<KK>(t.run.data(), out + static_cast<std::size_t>(first - s0) * KK, len, w,
-                     [](std::ptrdiff_t u) { return u; });
-      }
+      kernel.particleData(first, first + static_cast<std::size_t>(len), t.run.data());
+      slideRun<KK>(t.run.data(), out + static_cast<std::size_t>(first - s0) * KK, len, w,
+                   [](std::ptrdiff_t u) { return u; });
     });
   };
   auto xScatter = [&](std::size_t k, const double* in) {
     const std::uint32_t s0 = sliceStart[k];
-    withChannels(Ks, [&](auto kc) {
+    forXRuns(k, Ks, [&](auto kc, std::uint32_t first, std::ptrdiff_t len) {
       constexpr int KK = decltype(kc)::value;
-      for (std::uint32_t q = sliceXRun_[k]; q < sliceXRun_[k + 1]; ++q) {
-        const std::uint32_t first = xOrder[xStarts[q]];
-        const std::ptrdiff_t len = static_cast<std::ptrdiff_t>(xStarts[q + 1] - xStarts[q]);
-        slideRun<KK>(in + static_cast<std::size_t>(first - s0) * KK, t.run.data(), len, w,
-                     [](std::ptrdiff_t u) { return u; });
-        kernel.particleResult(first, first + static_cast<std::size_t>(len), t.run.data());
-      }
+      slideRun<KK>(in + static_cast<std::size_t>(first - s0) * KK, t.run.data(), len, w,
+                   [](std::ptrdiff_t u) { return u; });
+      kernel.particleResult(first, first + static_cast<std::size_t>(len), t.run.data());
     });
   };
   auto ringRow = [&](std::ptrdiff_t k) {
