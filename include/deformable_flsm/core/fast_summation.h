@@ -83,8 +83,8 @@ class RegionSummer {
 /// z-window, and each region slice is computed as soon as its z-window is complete; the scatter
 /// follows w slices behind, its region data in a second ring, its x-sums handed to the kernel
 /// run by run. The working set is a few slices, not a few copies of the whole lattice: the cost
-/// per particle is flat while the rings stay in L2 (to ~10k particles here) and grows 1.25-1.6x
-/// to 200k as they move out to L3 (see bench_solver and README, "Performance").
+/// per particle is flat while the rings stay in L2 (to ~10k particles here), then grows as they
+/// move out to L3: 1.25x at 50k, 1.65x at 200k (see bench_solver and README, "Performance").
 /// The z-windows restart (a direct sum over the window) every kBlock slices, and threads take
 /// whole blocks: every sum is the same sequence of additions for any thread count, and the
 /// blocks can move between threads (they do, towards equal busy times) without changing a bit.
