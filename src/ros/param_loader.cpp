@@ -237,28 +237,28 @@ double ParamLoader::getDouble(const std::string& name, double fallback) const {
   return value;
 }
 
-int ParamLoader::getInt(const std::string& name, int fallback) const {
+bool ParamLoader::getOfType(const std::string& name, XmlRpc::XmlRpcValue::Type type, const char* expected,
+                            XmlRpc::XmlRpcValue& value) const {
   if (!pnh_.hasParam(name)) {
-    return fallback;
+    return false;
   }
-  XmlRpc::XmlRpcValue value;
   pnh_.getParam(name, value);
-  if (value.getType() != XmlRpc::XmlRpcValue::TypeInt) {
-    throwWrongType(pnh_, name, "an integer");
+  if (value.getType() != type) {
+    throwWrongType(pnh_, name, expected);
   }
-  return static_cast<int>(value);
+  return true;
+}
+
+int ParamLoader::getInt(const std::string& name, int fallback) const {
+  // Checked on the XML-RPC type: roscpp's getParam(int) would round a double.
+  XmlRpc::XmlRpcValue value;
+  return getOfType(name, XmlRpc::XmlRpcValue::TypeInt, "an integer", value) ? static_cast<int>(value) : fallback;
 }
 
 bool ParamLoader::getBool(const std::string& name, bool fallback) const {
-  if (!pnh_.hasParam(name)) {
-    return fallback;
-  }
   XmlRpc::XmlRpcValue value;
-  pnh_.getParam(name, value);
-  if (value.getType() != XmlRpc::XmlRpcValue::TypeBoolean) {
-    throwWrongType(pnh_, name, "true or false");
-  }
-  return static_cast<bool>(value);
+  return getOfType(name, XmlRpc::XmlRpcValue::TypeBoolean, "true or false", value) ? static_cast<bool>(value)
+                                                                                     : fallback;
 }
 
 std::string ParamLoader::getString(const std::string& name, const std::string& fallback) const {

@@ -81,6 +81,10 @@ class StartupFailureTest(unittest.TestCase):
         self.assert_fails_naming('flsm_float_resolution', ['~resolution', 'an integer'],
                                  '_resolution:=12.5')
 
+    def test_number_for_a_flag_is_refused(self):
+        self.assert_fails_naming('flsm_int_flag', ['~republish_at_rest', 'true or false'],
+                                 '_republish_at_rest:=1')
+
     def test_stiffness_above_one_is_refused(self):
         self.assert_fails_naming('flsm_stiff', ['stiffness', '(0, 1]'], '_stiffness:=1.5')
 

@@ -6,6 +6,7 @@
 #include "deformable_flsm/core/solver_params.h"
 
 #include <ros/node_handle.h>
+#include <xmlrpcpp/XmlRpcValue.h>
 
 #include <Eigen/Core>
 
@@ -114,6 +115,10 @@ class ParamLoader {
   std::vector<std::string> unknownParams() const;
 
  private:
+  /// true with ~name in `value` when it is set, false when unset.
+  /// @throws ParamError when it is set with another XML-RPC type (`expected` names the right one).
+  bool getOfType(const std::string& name, XmlRpc::XmlRpcValue::Type type, const char* expected,
+                 XmlRpc::XmlRpcValue& value) const;
   double getDouble(const std::string& name, double fallback) const;
   int getInt(const std::string& name, int fallback) const;
   bool getBool(const std::string& name, bool fallback) const;
