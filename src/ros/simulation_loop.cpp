@@ -46,7 +46,6 @@ SimulationLoop::SimulationLoop(std::unique_ptr<Solver> solver, const LoopSetting
   if (!(settings_.realTimeFactor > 0.0) || settings_.maxCatchUpSteps < 1)
     throw std::invalid_argument("SimulationLoop: real-time factor must be > 0 and catch-up >= 1");
   lattice_ = &solver_->lattice();  // immutable, owned through the solver
-  objectSize_ = lattice_->objectSize();
   const Lattice& L = solver_->lattice();
   for (std::size_t i = 0; i < L.size(); ++i)
     restCenterOfMass_ += L.masses()[i] * L.restPositions()[i];
@@ -411,7 +410,7 @@ CommandOutcome SimulationLoop::force(const PushCommand& c) {
     return reject("empty_selection", "force: no particle within " + num(c.radius) +
                                          " m of the point; aim at the object or widen the radius");
   const double mass = massOf(particles);
-  const double size = objectSize_;
+  const double size = lattice_->objectSize();
   const double magnitude = c.force.norm();
   if (c.impulse) {
     const double limit = CommandLimits::kMaxSpeedChange * size * mass;

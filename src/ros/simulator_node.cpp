@@ -84,8 +84,7 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
                              const NodeParams& params, Scene scene)
     : nh_(nh), pnh_(pnh), commandNh_(pnh), params_(params), info_(scene.info),
       lattice_(scene.lattice), renderMesh_(std::move(scene.renderMesh)),
-      embedding_(std::move(scene.embedding)), objectSize_(lattice_->objectSize()),
-      stats_(std::make_shared<CommandStats>()) {
+      embedding_(std::move(scene.embedding)), stats_(std::make_shared<CommandStats>()) {
   stats_->setRejectHook([](const std::string& reason, const std::string& detail) {
     ROS_WARN_THROTTLE(kRejectPeriod, "flsm_node: command rejected (%s): %s", reason.c_str(),
                       detail.c_str());
@@ -93,12 +92,12 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
 
   LoopSettings settings;
   settings.realTimeFactor = params_.realTimeFactor;
-  settings.idleSpeed = kIdleSpeedPerSize * objectSize_;
+  settings.idleSpeed = kIdleSpeedPerSize * lattice_->objectSize();
   settings.idleHold = kIdleHold;
   loop_ = std::make_unique<SimulationLoop>(std::move(scene.solver), settings, stats_);
 
   validator_ = std::make_unique<CommandValidator>(
-      lattice_->size(), objectSize_, params_.frameId,
+      lattice_->size(), lattice_->objectSize(), params_.frameId,
       [this](const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
              std::string& why) { return lookupTransform(frame, stamp, T, why); },
       [this] { return loop_->centerOfMass(); });
@@ -196,7 +195,7 @@ void SimulatorNode::setUpInteractiveMarker() {
   im.header.frame_id = params_.frameId;
   im.name = "object";
   im.description = "";
-  im.scale = static_cast<float>(objectSize_);
+  im.scale = static_cast<float>(lattice_->objectSize());
   im.pose = tf2::toMsg(handlePose_);
 
   // What RViz picks: a coarse copy of the object, invisible, in the object's frame.
@@ -390,7 +389,7 @@ void SimulatorNode::updateHandlePose(const Snapshot& s) {
   if (mouseDragging_) return;  // RViz owns the handle while the mouse holds it
   const double moved = (s.objectFrame.translation() - handlePose_.translation()).norm();
   const Eigen::AngleAxisd turned(s.objectFrame.linear().transpose() * handlePose_.linear());
-  if (moved < kHandleMoveFraction * objectSize_ && std::abs(turned.angle()) < kHandleTurn)
+  if (moved < kHandleMoveFraction * lattice_->objectSize() && std::abs(turned.angle()) < kHandleTurn)
     return;
   handlePose_ = s.objectFrame;
   markerServer_->setPose("object", tf2::toMsg(handlePose_));

@@ -143,7 +143,6 @@ class SimulationLoop {
 
   std::unique_ptr<Solver> solver_;
   const Lattice* lattice_ = nullptr;  // the solver's; immutable, so any thread may read it
-  double objectSize_ = 0.0;           // Lattice::objectSize(), O(#P): computed once
   LoopSettings settings_;
   std::shared_ptr<CommandStats> stats_;
   Eigen::Vector3d restCenterOfMass_ = Eigen::Vector3d::Zero();

@@ -106,7 +106,6 @@ class SimulatorNode {
   std::shared_ptr<const Lattice> lattice_;
   TriMesh renderMesh_;
   std::unique_ptr<Embedding> embedding_;
-  double objectSize_;  ///< Lattice::objectSize(), which is O(#P): read once
   std::shared_ptr<CommandStats> stats_;
   std::unique_ptr<SimulationLoop> loop_;
   std::unique_ptr<CommandValidator> validator_;
