@@ -150,7 +150,7 @@ void RegionSummer::scatter(const std::vector<double>& in, int K, std::vector<dou
   scatter(in.data(), K, out.data());
 }
 
-BarSummer::BarSummer(const Lattice& lattice, int threads)
+BarSummer::BarSummer(const Lattice& lattice, int threads, std::size_t bandParticles)
     : RegionSummer(lattice.size()), lattice_(lattice), threads_(std::max(1, threads)) {
   const auto& cells = lattice.cells();
   const std::size_t n = cells.size();
@@ -166,10 +166,7 @@ BarSummer::BarSummer(const Lattice& lattice, int threads)
   const std::size_t slices = static_cast<std::size_t>(cells.back().z() - zmin) + 1;
   sliceStart_.assign(slices + 1, 0);
   for (std::size_t p = 0; p < n; ++p) ++sliceStart_[static_cast<std::size_t>(cells[p].z() - zmin) + 1];
-  for (std::size_t k = 0; k < slices; ++k) {
-    maxSlice_ = std::max<std::size_t>(maxSlice_, sliceStart_[k + 1]);
-    sliceStart_[k + 1] += sliceStart_[k];
-  }
+  for (std::size_t k = 0; k < slices; ++k) sliceStart_[k + 1] += sliceStart_[k];
   {
     const auto& starts = lattice.runStarts(0);
     for (std::size_t q = 0; q + 1 < starts.size(); ++q) maxRun_ = std::max<std::size_t>(maxRun_, starts[q + 1] - starts[q]);
@@ -197,6 +194,24 @@ BarSummer::BarSummer(const Lattice& lattice, int threads)
         zBase_[order[e]] = starts[q];
       }
   }
+  // rows: the particles of slice k in row j are [rowStart(k, j), rowStart(k, j + 1))
+  {
+    int ymin = cells.front().y(), ymax = ymin;
+    for (const auto& c : cells) {
+      ymin = std::min(ymin, c.y());
+      ymax = std::max(ymax, c.y());
+    }
+    rows_ = ymax - ymin + 1;
+    const std::size_t R = static_cast<std::size_t>(rows_) + 1;
+    rowStart_.assign(slices * R, 0);
+    for (std::size_t p = 0; p < n; ++p)
+      ++rowStart_[static_cast<std::size_t>(cells[p].z() - zmin) * R + static_cast<std::size_t>(cells[p].y() - ymin) + 1];
+    for (std::size_t k = 0; k < slices; ++k) {
+      rowStart_[k * R] = sliceStart_[k];
+      for (std::size_t j = 1; j < R; ++j) rowStart_[k * R + j] += rowStart_[k * R + j - 1];
+    }
+  }
+  makeBands(bandParticles);
   // threads take whole blocks, about the same number of particles each
   chunkStart_.assign(static_cast<std::size_t>(threads_) + 1, slices);
   chunkStart_[0] = 0;
@@ -214,41 +229,86 @@ BarSummer::BarSummer(const Lattice& lattice, int threads)
   secondsPerParticle_.assign(static_cast<std::size_t>(threads_), 0.0);
 }
 
+// Bands as high as the target allows (the widest slice of a band's data rows, halo included, at
+// most `target` particles) and at least 2w rows, so that the region rows a band leaves to the
+// next one are its own. One band when the whole slices fit.
+void BarSummer::makeBands(std::size_t target) {
+  const int w = lattice_.regionHalfWidth();
+  const std::size_t slices = sliceStart_.size() - 1;
+  auto widest = [&](int y0, int y1) {  // the largest slice of rows [y0, y1), clipped to the lattice
+    y0 = std::max(y0, 0);
+    y1 = std::min(y1, rows_);
+    std::size_t most = 0;
+    for (std::size_t k = 0; k < slices && y0 < y1; ++k) most = std::max<std::size_t>(most, rowStart(k, y1) - rowStart(k, y0));
+    return most;
+  };
+  bandY_.assign(1, 0);
+  if (widest(0, rows_) <= target) {
+    bandY_.push_back(rows_);
+  } else {
+    for (int y0 = 0; y0 < rows_;) {
+      int y1 = std::min(y0 + 2 * w, rows_);
+      while (y1 < rows_ && widest(y0 - w, y1 + 1 + w) <= target) ++y1;
+      bandY_.push_back(y1);
+      y0 = y1;
+    }
+  }
+  const std::size_t bands = bandCount();
+  maxData_ = maxRegion_ = maxScatter_ = 0;
+  for (std::size_t b = 0; b < bands; ++b) {
+    const int y0 = bandY_[b], y1 = bandY_[b + 1];
+    maxData_ = std::max(maxData_, widest(y0 - w, y1 + w));
+    maxRegion_ = std::max(maxRegion_, widest(y0, y1));
+    maxScatter_ = std::max(maxScatter_, widest(y0 - 2 * w, y1));
+  }
+  boundaryBase_.assign((bands - 1) * slices + 1, 0);
+  std::size_t total = 0;
+  for (std::size_t b = 1; b < bands; ++b)
+    for (std::size_t k = 0; k < slices; ++k) {
+      boundaryBase_[(b - 1) * slices + k] = total;
+      total += rowStart(k, bandY_[b]) - rowStart(k, bandY_[b] - 2 * w);
+    }
+  boundaryBase_.back() = total;
+}
+
 void BarSummer::reserveSliceScratch(int Kg, int Ks) {
   if (Kg <= scratchKg_ && Ks <= scratchKs_) return;
   scratchKg_ = std::max(scratchKg_, Kg);
   scratchKs_ = std::max(scratchKs_, Ks);
-  const std::size_t g = maxSlice_ * static_cast<std::size_t>(scratchKg_);
-  const std::size_t s = maxSlice_ * static_cast<std::size_t>(scratchKs_);
+  const std::size_t g = maxData_ * static_cast<std::size_t>(scratchKg_);
+  const std::size_t r = maxRegion_ * static_cast<std::size_t>(scratchKg_);
+  const std::size_t s = maxScatter_ * static_cast<std::size_t>(scratchKs_);
   const std::size_t ring = 2 * static_cast<std::size_t>(lattice_.regionHalfWidth()) + 2;
   for (SliceScratch& t : sliceScratch_) {
     t.run.resize(maxRun_ * static_cast<std::size_t>(std::max(scratchKg_, scratchKs_)));
     t.rowSum.resize(g);
     t.ring.resize(ring * g);
-    t.sumPrev.resize(g);
-    t.sumCur.resize(g);
+    t.sumPrev.resize(r);
+    t.sumCur.resize(r);
     t.zPrev.resize(s);
     t.zCur.resize(s);
     t.colSum.resize(s);
     t.regionRing.resize(ring * s);
   }
-  // With one thread every region slice lives in the ring only.
+  boundaryStore_.resize(boundaryBase_.back() * static_cast<std::size_t>(scratchKs_));
+  // With one thread every region slice lives in the ring (and the boundary store) only.
   if (threads_ > 1) regionOut_.resize(particles_ * static_cast<std::size_t>(scratchKs_));
 }
 
 namespace {
 
-/// The sliding z-window for the particles of slice s, element (p, slice k) of the source at
-/// src(p, k): out row of p = sum over p's z-run within |dz| <= w. A restart (or a run's first
-/// element) sums the window directly; otherwise the row of p's lower neighbour in `prev` (slice
-/// s - 1) is updated by the element entering and the one leaving, as in slideRun().
+/// The sliding z-window for the particles [p0, p1) of slice s (some rows of it), element (p,
+/// slice k) of the source at src(p, k): out row of p = sum over p's z-run within |dz| <= w, at
+/// out + (p - p0) * K. A restart (or a run's first element) sums the window directly; otherwise
+/// the row of p's lower neighbour q in `prev` (the same rows of slice s - 1, q at prev + (q -
+/// prevBase) * K) is updated by the element entering and the one leaving, as in slideRun().
 template <int K, typename Source>
-inline void zWindowSlice(std::size_t s, bool restart, std::ptrdiff_t w, const std::uint32_t* sliceStart,
-                         const std::uint32_t* order, const std::uint32_t* zPos, const std::uint32_t* zLen,
-                         const std::uint32_t* zBase, Source src, const double* prev, double* out) {
-  const std::uint32_t s0 = sliceStart[s], s1 = sliceStart[s + 1];
+inline void zWindowRows(std::size_t s, std::uint32_t p0, std::uint32_t p1, std::uint32_t prevBase, bool restart,
+                        std::ptrdiff_t w, const std::uint32_t* order, const std::uint32_t* zPos,
+                        const std::uint32_t* zLen, const std::uint32_t* zBase, Source src, const double* prev,
+                        double* out) {
   const std::ptrdiff_t k = static_cast<std::ptrdiff_t>(s);
-  for (std::uint32_t p = s0; p < s1; ++p) {
+  for (std::uint32_t p = p0; p < p1; ++p) {
     const std::ptrdiff_t t = zPos[p], len = zLen[p];
     const std::uint32_t* run = order + zBase[p];
     Accumulator<K> acc;
@@ -257,11 +317,11 @@ inline void zWindowSlice(std::size_t s, bool restart, std::ptrdiff_t w, const st
       const std::ptrdiff_t lo = std::max(-w, -t), hi = std::min(w, len - 1 - t);
       for (std::ptrdiff_t d = lo; d <= hi; ++d) acc.add(src(run[t + d], k + d));
     } else {
-      acc.set(prev + static_cast<std::size_t>(run[t - 1] - sliceStart[s - 1]) * K);
+      acc.set(prev + static_cast<std::size_t>(run[t - 1] - prevBase) * K);
       if (t + w < len) acc.add(src(run[t + w], k + w));
       if (t - w - 1 >= 0) acc.sub(src(run[t - w - 1], k - w - 1));
     }
-    acc.store(out + static_cast<std::size_t>(p - s0) * K);
+    acc.store(out + static_cast<std::size_t>(p - p0) * K);
   }
 }
 
@@ -271,9 +331,11 @@ template <typename Barrier>
 void BarSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0, std::size_t k1,
                            SliceScratch& t, Barrier barrier) {
   const std::ptrdiff_t w = lattice_.regionHalfWidth();
+  const int wr = static_cast<int>(w);
   const std::ptrdiff_t slices = static_cast<std::ptrdiff_t>(sliceStart_.size()) - 1;
   const std::ptrdiff_t lo = static_cast<std::ptrdiff_t>(k0), hi = static_cast<std::ptrdiff_t>(k1);
   const std::size_t ringSize = 2 * static_cast<std::size_t>(w) + 2;
+  const std::size_t bands = bandCount();
   const std::uint32_t* sliceStart = sliceStart_.data();
   const auto& xStarts = lattice_.runStarts(0);
   const auto& yStarts = lattice_.runStarts(1);
@@ -281,94 +343,148 @@ void BarSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0,
   const auto& yOrder = lattice_.runOrder(1);
   const std::uint32_t* zOrder = lattice_.runOrder(2).data();
 
-  // The y-runs of slice k, a sliding window over each, from and to slice-local rows.
-  auto yPass = [&](std::size_t k, int K, const double* in, double* out) {
-    const std::uint32_t s0 = sliceStart[k];
+  // The current band's rows (see the class comment): regions [yR0, yR1), their data [yD0, yD1),
+  // the regions the scatter reads [yN0, yR1), the particle results [yP0, yP1).
+  std::size_t band = 0;
+  int yR0 = 0, yR1 = 0, yD0 = 0, yD1 = 0, yN0 = 0, yP0 = 0, yP1 = 0;
+  auto setBand = [&](std::size_t b) {
+    band = b;
+    yR0 = bandY_[b];
+    yR1 = bandY_[b + 1];
+    yD0 = std::max(0, yR0 - wr);
+    yD1 = std::min(rows_, yR1 + wr);
+    yN0 = std::max(0, yR0 - 2 * wr);
+    yP0 = b == 0 ? 0 : yR0 - wr;
+    yP1 = b + 1 == bands ? rows_ : yR1 - wr;
+  };
+
+  // Sliding windows over the y-runs of slice k within the particles [i0, i1) (whole rows), from
+  // and to rows at (p - i0) * K. A run cut by the range gives the right sums for the rows at least
+  // w inside it, which are the rows the caller reads.
+  auto yPass = [&](std::size_t k, std::uint32_t i0, std::uint32_t i1, int K, const double* in, double* out) {
+    const bool whole = i0 == sliceStart[k] && i1 == sliceStart[k + 1];
     withChannels(K, [&](auto kc) {
       constexpr int KK = decltype(kc)::value;
       for (std::uint32_t q = sliceYRun_[k]; q < sliceYRun_[k + 1]; ++q) {
         const std::uint32_t* run = yOrder.data() + yStarts[q];
-        slideRun<KK>(in, out, static_cast<std::ptrdiff_t>(yStarts[q + 1] - yStarts[q]), w,
-                     [run, s0](std::ptrdiff_t u) { return static_cast<std::ptrdiff_t>(run[u] - s0); });
+        const std::uint32_t* end = yOrder.data() + yStarts[q + 1];
+        if (!whole) {
+          if (run[0] >= i1) break;  // the runs are listed in the order of their first particle
+          if (end[-1] < i0) continue;
+          run = std::lower_bound(run, end, i0);
+          end = std::lower_bound(run, end, i1);
+          if (end == run) continue;
+        }
+        slideRun<KK>(in, out, end - run, w,
+                     [run, i0](std::ptrdiff_t u) { return static_cast<std::ptrdiff_t>(run[u] - i0); });
       }
     });
   };
-  // The x-runs of slice k (each a range of consecutive particles), one at a time through the
-  // run-sized buffer t.run: the gather's data is generated run by run and summed along x into
-  // the slice-local rows of `out`; the scatter's rows of `in` are summed along x and handed to
+  // The x-runs of slice k within the particles [i0, i1) (each a range of consecutive particles),
+  // one at a time through the run-sized buffer t.run: the gather's data is generated run by run
+  // and summed along x into `out`; the scatter's rows of `in` are summed along x and handed to
   // the kernel's particle result run by run. No slice-sized buffer between the kernel and the
   // window passes.
-  auto forXRuns = [&](std::size_t k, int K, auto&& body) {
+  auto forXRuns = [&](std::size_t k, std::uint32_t i0, std::uint32_t i1, int K, auto&& body) {
+    std::uint32_t q0 = sliceXRun_[k], q1 = sliceXRun_[k + 1];
+    if (i0 != sliceStart[k] || i1 != sliceStart[k + 1]) {
+      auto firstAt = [&](std::uint32_t a, std::uint32_t b, std::uint32_t i) {  // first run from i on
+        while (a < b) {
+          const std::uint32_t mid = a + (b - a) / 2;
+          if (xOrder[xStarts[mid]] < i) a = mid + 1;
+          else b = mid;
+        }
+        return a;
+      };
+      q0 = firstAt(q0, q1, i0);
+      q1 = firstAt(q0, q1, i1);
+    }
     withChannels(K, [&](auto kc) {
-      for (std::uint32_t q = sliceXRun_[k]; q < sliceXRun_[k + 1]; ++q)
+      for (std::uint32_t q = q0; q < q1; ++q)
         body(kc, xOrder[xStarts[q]], static_cast<std::ptrdiff_t>(xStarts[q + 1] - xStarts[q]));
     });
   };
   auto xGather = [&](std::size_t k, double* out) {
-    const std::uint32_t s0 = sliceStart[k];
-    forXRuns(k, Kg, [&](auto kc, std::uint32_t first, std::ptrdiff_t len) {
+    const std::uint32_t i0 = rowStart(k, yD0);
+    forXRuns(k, i0, rowStart(k, yD1), Kg, [&](auto kc, std::uint32_t first, std::ptrdiff_t len) {
       constexpr int KK = decltype(kc)::value;
       kernel.particleData(first, first + static_cast<std::size_t>(len), t.run.data());
-      slideRun<KK>(t.run.data(), out + static_cast<std::size_t>(first - s0) * KK, len, w,
+      slideRun<KK>(t.run.data(), out + static_cast<std::size_t>(first - i0) * KK, len, w,
                    [](std::ptrdiff_t u) { return u; });
     });
   };
   auto xScatter = [&](std::size_t k, const double* in) {
-    const std::uint32_t s0 = sliceStart[k];
-    forXRuns(k, Ks, [&](auto kc, std::uint32_t first, std::ptrdiff_t len) {
+    const std::uint32_t n0 = rowStart(k, yN0);
+    forXRuns(k, rowStart(k, yP0), rowStart(k, yP1), Ks, [&](auto kc, std::uint32_t first, std::ptrdiff_t len) {
       constexpr int KK = decltype(kc)::value;
-      slideRun<KK>(in + static_cast<std::size_t>(first - s0) * KK, t.run.data(), len, w,
+      slideRun<KK>(in + static_cast<std::size_t>(first - n0) * KK, t.run.data(), len, w,
                    [](std::ptrdiff_t u) { return u; });
       kernel.particleResult(first, first + static_cast<std::size_t>(len), t.run.data());
     });
   };
-  auto ringRow = [&](std::ptrdiff_t k) {
-    return t.ring.data() + (static_cast<std::size_t>(k) % ringSize) * maxSlice_ * static_cast<std::size_t>(Kg);
-  };
-  // Region data of slice k: in the thread's ring of 2w + 2 slices (a particle slice's z-window
-  // reads w slices either side and, when it slides, the one leaving), or for the slices that a
-  // block finished after the barrier may read, in the shared regionOut_ (indexed by particle).
+  const std::size_t dataStride = maxData_ * static_cast<std::size_t>(Kg);
+  auto ringRow = [&](std::ptrdiff_t k) { return t.ring.data() + (static_cast<std::size_t>(k) % ringSize) * dataStride; };
+  // Region data of slice k, from row yN0 on: in the thread's ring of 2w + 2 slices (a particle
+  // slice's z-window reads w slices either side and, when it slides, the one leaving), or for
+  // the slices that a block finished after the barrier may read, in the shared regionOut_
+  // (indexed by particle).
+  auto shared = [&](std::size_t z) { return !sharedSlice_.empty() && sharedSlice_[z] != 0; };
   auto regionRow = [&](std::ptrdiff_t k) {
     const std::size_t z = static_cast<std::size_t>(k);
-    if (sharedSlice_.empty() || sharedSlice_[z] == 0)
-      return t.regionRing.data() + (z % ringSize) * maxSlice_ * static_cast<std::size_t>(Ks);
-    return regionOut_.data() + static_cast<std::size_t>(sliceStart[z]) * Ks;
+    if (!shared(z)) return t.regionRing.data() + (z % ringSize) * maxScatter_ * static_cast<std::size_t>(Ks);
+    return regionOut_.data() + static_cast<std::size_t>(rowStart(z, yN0)) * Ks;
   };
   // gather: data of slice a, summed along x and y into the ring
   auto dataSlice = [&](std::ptrdiff_t a) {
     const std::size_t k = static_cast<std::size_t>(a);
     xGather(k, t.rowSum.data());
-    yPass(k, Kg, t.rowSum.data(), ringRow(a));
+    yPass(k, rowStart(k, yD0), rowStart(k, yD1), Kg, t.rowSum.data(), ringRow(a));
   };
-  // gather's z-window, then the kernel's region data for slice b
+  // gather's z-window, then the kernel's region data for slice b; the region rows below the
+  // band (left by the band below) and those the band above will need go between the ring and
+  // the boundary store
   auto regionSlice = [&](std::ptrdiff_t b) {
     const std::size_t k = static_cast<std::size_t>(b);
+    const std::uint32_t r0 = rowStart(k, yR0), r1 = rowStart(k, yR1);
     withChannels(Kg, [&](auto kc) {
       constexpr int KK = decltype(kc)::value;
-      const std::size_t stride = maxSlice_ * static_cast<std::size_t>(Kg);
-      double* ring = t.ring.data();
+      const double* ring = t.ring.data();
       auto src = [&](std::uint32_t p, std::ptrdiff_t z) {
         const std::size_t slot = static_cast<std::size_t>(z) % ringSize;
-        return ring + slot * stride + static_cast<std::size_t>(p - sliceStart[z]) * KK;
+        return ring + slot * dataStride + static_cast<std::size_t>(p - rowStart(static_cast<std::size_t>(z), yD0)) * KK;
       };
-      zWindowSlice<KK>(k, b % kBlock == 0, w, sliceStart, zOrder, zPos_.data(), zLen_.data(), zBase_.data(),
-                       src, t.sumPrev.data(), t.sumCur.data());
+      zWindowRows<KK>(k, r0, r1, k > 0 ? rowStart(k - 1, yR0) : 0, b % kBlock == 0, w, zOrder, zPos_.data(),
+                      zLen_.data(), zBase_.data(), src, t.sumPrev.data(), t.sumCur.data());
     });
-    kernel.regionData(sliceStart[k], sliceStart[k + 1], t.sumCur.data(), regionRow(b));
+    double* regions = regionRow(b);
+    const std::uint32_t n0 = rowStart(k, yN0);
+    kernel.regionData(r0, r1, t.sumCur.data(), regions + static_cast<std::size_t>(r0 - n0) * Ks);
+    if (!shared(k)) {
+      const std::size_t perBand = static_cast<std::size_t>(slices);
+      if (band > 0)  // rows [yR0 - 2w, yR0) = [yN0, yR0)
+        std::memcpy(regions, boundaryStore_.data() + boundaryBase_[(band - 1) * perBand + k] * Ks,
+                    sizeof(double) * (r0 - n0) * static_cast<std::size_t>(Ks));
+      if (band + 1 < bands) {  // rows [yR1 - 2w, yR1)
+        const std::uint32_t top = rowStart(k, yR1 - 2 * wr);
+        std::memcpy(boundaryStore_.data() + boundaryBase_[band * perBand + k] * Ks,
+                    regions + static_cast<std::size_t>(top - n0) * Ks, sizeof(double) * (r1 - top) * static_cast<std::size_t>(Ks));
+      }
+    }
     std::swap(t.sumPrev, t.sumCur);
   };
   // scatter's z-window over the region data, then y and x, then the kernel's particle result
   auto particleSlice = [&](std::ptrdiff_t c) {
     const std::size_t k = static_cast<std::size_t>(c);
+    const std::uint32_t n0 = rowStart(k, yN0), n1 = rowStart(k, yR1);
     withChannels(Ks, [&](auto kc) {
       constexpr int KK = decltype(kc)::value;
       auto src = [&](std::uint32_t p, std::ptrdiff_t z) {
-        return regionRow(z) + static_cast<std::size_t>(p - sliceStart[z]) * KK;
+        return regionRow(z) + static_cast<std::size_t>(p - rowStart(static_cast<std::size_t>(z), yN0)) * KK;
       };
-      zWindowSlice<KK>(k, c % kBlock == 0, w, sliceStart, zOrder, zPos_.data(), zLen_.data(), zBase_.data(), src,
-                       t.zPrev.data(), t.zCur.data());
+      zWindowRows<KK>(k, n0, n1, k > 0 ? rowStart(k - 1, yN0) : 0, c % kBlock == 0, w, zOrder, zPos_.data(),
+                      zLen_.data(), zBase_.data(), src, t.zPrev.data(), t.zCur.data());
     });
-    yPass(k, Ks, t.zCur.data(), t.colSum.data());
+    yPass(k, n0, n1, Ks, t.zCur.data(), t.colSum.data());
     xScatter(k, t.colSum.data());
     std::swap(t.zPrev, t.zCur);
   };
@@ -379,16 +495,22 @@ void BarSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0,
     return (lo == 0 || first - w >= lo) && (hi == slices || last + w < hi);
   };
 
-  for (std::ptrdiff_t a = lo - w; a < hi + 2 * w; ++a) {
-    if (a >= 0 && a < slices && a < hi + w) dataSlice(a);
-    const std::ptrdiff_t b = a - w;
-    if (b >= lo && b < hi) regionSlice(b);
-    const std::ptrdiff_t c = b - w;
-    if (c >= lo && c < hi && ownBlock(c)) particleSlice(c);
+  for (std::size_t b = 0; b < bands; ++b) {
+    setBand(b);
+    for (std::ptrdiff_t a = lo - w; a < hi + 2 * w; ++a) {
+      if (a >= 0 && a < slices && a < hi + w) dataSlice(a);
+      const std::ptrdiff_t r = a - w;
+      if (r >= lo && r < hi) regionSlice(r);
+      const std::ptrdiff_t c = r - w;
+      if (c >= lo && c < hi && ownBlock(c)) particleSlice(c);
+    }
   }
   barrier();
-  for (std::ptrdiff_t c = lo; c < hi; ++c)
-    if (!ownBlock(c)) particleSlice(c);
+  for (std::size_t b = 0; b < bands; ++b) {
+    setBand(b);
+    for (std::ptrdiff_t c = lo; c < hi; ++c)
+      if (!ownBlock(c)) particleSlice(c);
+  }
 }
 
 void BarSummer::apply(RegionKernel& kernel) {

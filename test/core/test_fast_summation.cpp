@@ -119,30 +119,52 @@ class RecordingKernel : public deformable_flsm::RegionKernel {
 // The streamed pass (slices, ring, z-window restarts, threads taking blocks and waiting for the
 // regions of their neighbours) gives the naive summer's answer, visits every region and particle
 // result once per pass, and gives bit-identical results for 1, 2 and 3 threads, also after the
-// chunk boundaries have moved.
+// chunk boundaries have moved. The same with the slices swept in bands of rows (a band target
+// far below the slices' ~85 particles forces bands of the minimum height, 2w rows, and a target
+// of 60 taller ones).
 TEST_P(SummationByWidth, StreamedPassEqualsNaiveAndIsThreadIndependent) {
-  const Lattice lattice(raggedVoxels(3, 14, 6), 1000.0, GetParam());
+  const int w = GetParam();
+  const Lattice lattice(raggedVoxels(3, 14, 6), 1000.0, w);
   const std::size_t n = lattice.size();
   NaiveSummer naive(lattice);
-  for (auto [Kg, Ks] : {std::pair<int, int>{24, 18}, {12, 12}, {3, 6}, {1, 1}}) {
-    RecordingKernel reference(n, Kg, Ks, 5);
-    naive.apply(reference);
-    std::vector<double> single;
-    for (int threads : {1, 2, 3}) {
-      BarSummer fast(lattice, threads);
-      RecordingKernel k(n, Kg, Ks, 5);
-      for (int pass = 0; pass < 3; ++pass) fast.apply(k);  // boundaries move between passes
-      // regions and results exactly once per pass; particle data once with one thread, and again
-      // for the w slices beyond a thread's own where its neighbour's begin (its halo)
-      for (std::size_t e = 0; e < 3 * n; ++e) {
-        if (e % 3 == 0 && threads > 1) ASSERT_GE(k.visits()[e], 3) << "particle " << e / 3 << ", threads " << threads;
-        else ASSERT_EQ(k.visits()[e], 3) << "index " << e / 3 << ", step " << e % 3 << ", threads " << threads;
+  for (std::size_t band : {BarSummer::kBandParticles, std::size_t{60}, std::size_t{1}}) {
+    const std::size_t bands = BarSummer(lattice, 1, band).bandCount();
+    if (band == BarSummer::kBandParticles) {
+      ASSERT_EQ(bands, 1u);
+    } else {
+      ASSERT_GE(bands, 2u) << "band target " << band;  // 10 rows: at least 2 bands for w <= 4
+    }
+    if (band == 1) {
+      ASSERT_EQ(bands, static_cast<std::size_t>((10 + 2 * w - 1) / (2 * w)));
+    }
+    for (auto [Kg, Ks] : {std::pair<int, int>{24, 18}, {12, 12}, {3, 6}, {1, 1}}) {
+      RecordingKernel reference(n, Kg, Ks, 5);
+      naive.apply(reference);
+      std::vector<double> single;
+      for (int threads : {1, 2, 3}) {
+        BarSummer fast(lattice, threads, band);
+        RecordingKernel k(n, Kg, Ks, 5);
+        for (int pass = 0; pass < 3; ++pass) fast.apply(k);  // boundaries move between passes
+        // regions and results exactly once per pass; particle data once with one thread and one
+        // band, and again for the w slices beyond a thread's own where its neighbour's begin and
+        // the w rows beyond a band's own (the halos)
+        for (std::size_t e = 0; e < 3 * n; ++e) {
+          if (e % 3 == 0 && (threads > 1 || bands > 1))
+            ASSERT_GE(k.visits()[e], 3) << "particle " << e / 3 << ", threads " << threads << ", bands " << bands;
+          else
+            ASSERT_EQ(k.visits()[e], 3) << "index " << e / 3 << ", step " << e % 3 << ", threads " << threads
+                                        << ", bands " << bands;
+        }
+        for (std::size_t e = 0; e < k.result().size(); ++e)
+          ASSERT_NEAR(k.result()[e], reference.result()[e], 1e-10)
+              << "K " << Kg << "/" << Ks << ", threads " << threads << ", bands " << bands;
+        if (threads == 1) {
+          single = k.result();
+        } else {
+          for (std::size_t e = 0; e < single.size(); ++e)
+            ASSERT_EQ(k.result()[e], single[e]) << "threads " << threads << ", bands " << bands;
+        }
       }
-      for (std::size_t e = 0; e < k.result().size(); ++e)
-        ASSERT_NEAR(k.result()[e], reference.result()[e], 1e-10) << "K " << Kg << "/" << Ks << ", threads " << threads;
-      if (threads == 1) single = k.result();
-      else
-        for (std::size_t e = 0; e < single.size(); ++e) ASSERT_EQ(k.result()[e], single[e]) << "threads " << threads;
     }
   }
 }

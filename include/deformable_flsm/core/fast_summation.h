@@ -82,24 +82,40 @@ class RegionSummer {
 /// by x-run and summed along x, then along y, into a ring of 2w + 2 planes for the sliding
 /// z-window, and each region slice is computed as soon as its z-window is complete; the scatter
 /// follows w slices behind, its region data in a second ring, its x-sums handed to the kernel
-/// run by run. The working set is a few slices, not a few copies of the whole lattice: the cost
-/// per particle is flat while the rings stay in L2 (to ~10k particles here), then grows as they
-/// move out to L3: 1.25x at 50k, 1.65x at 200k (see bench_solver and README, "Performance").
+/// run by run. The working set is a few slices, not a few copies of the whole lattice.
+///
+/// Slices wider than `bandParticles` are swept in bands of rows (y), one band after the other,
+/// so that the rings stay small whatever the lattice's cross-section (a slice of the
+/// 200k-particle bunny holds up to 5,252 particles, whose two rings at w = 2 take 10.6 MB). A
+/// flat 100 x 100 x 20 box costs 120 instead of 159 ns per particle-step with bands of 4096,
+/// the bunny at 200k 2-5 % less; bands much smaller cost more in halo than they save. A band computes
+/// the regions of its rows [y0, y1) from the data of rows [y0 - w, y1 + w) (the halo, generated
+/// twice), and the particle results of rows [y0 - w, y1 - w), which need the regions of rows
+/// [y0 - 2w, y1): the band below leaves its top 2w region rows in a boundary store. Regions and
+/// particle results are computed once; only the halo's data and the boundary rows' z-windows
+/// are redone (2w of every band's rows; bands are at least 2w rows high).
+///
 /// The z-windows restart (a direct sum over the window) every kBlock slices, and threads take
 /// whole blocks: every sum is the same sequence of additions for any thread count, and the
 /// blocks can move between threads (they do, towards equal busy times) without changing a bit.
+/// The bands depend on the lattice only, never on the thread count.
 class BarSummer : public RegionSummer {
  public:
   /// Slices per block: z-windows restart at block starts, threads split the lattice at them.
   static constexpr int kBlock = 2;
+  /// Largest band-slice apply() aims for (particles in a band's rows of one slice, halo included).
+  static constexpr std::size_t kBandParticles = 4096;
   /// @param[in] threads  OpenMP threads (>= 1); results are identical for any count
+  /// @param[in] bandParticles  slices with more particles are swept in bands of rows (see above)
   /// @throws std::invalid_argument if the lattice's particles are not sorted by (k, j, i)
-  explicit BarSummer(const Lattice& lattice, int threads = 1);
+  explicit BarSummer(const Lattice& lattice, int threads = 1, std::size_t bandParticles = kBandParticles);
   using RegionSummer::gather;
   using RegionSummer::scatter;
   void gather(const double* in, int K, double* out) override;
   void scatter(const double* in, int K, double* out) override;
   void apply(RegionKernel& kernel) override;
+  /// Bands of rows apply() sweeps one after the other (1: whole slices).
+  std::size_t bandCount() const { return bandY_.size() - 1; }
 
  private:
   /// Per-thread slice buffers of apply().
@@ -114,14 +130,30 @@ class BarSummer : public RegionSummer {
   template <typename Barrier>
   void applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0, std::size_t k1, SliceScratch& t,
                   Barrier barrier);
+  /// The rows of the lattice (y) in bands: band b holds region rows [bandY_[b], bandY_[b + 1]).
+  void makeBands(std::size_t bandParticles);
+  /// First particle of slice k in row j or above (rows counted from the lowest occupied row;
+  /// j = rows_ gives the slice's end).
+  std::uint32_t rowStart(std::size_t k, int j) const {
+    return rowStart_[k * static_cast<std::size_t>(rows_ + 1) + static_cast<std::size_t>(j)];
+  }
   const Lattice& lattice_;
   int threads_;
   std::vector<double> tmpA_, tmpB_;
   // slices: slice k holds particles [sliceStart_[k], sliceStart_[k+1]) and the x-runs (y-runs)
   // [sliceXRun_[k], sliceXRun_[k+1]) ([sliceYRun_[k], ...)) of the lattice's run lists
   std::vector<std::uint32_t> sliceStart_, sliceXRun_, sliceYRun_;
-  std::size_t maxSlice_ = 0;
   std::size_t maxRun_ = 0;  // the longest x-run
+  int rows_ = 0;                         // rows (y) from the lowest to the highest occupied one
+  std::vector<std::uint32_t> rowStart_;  // slices x (rows_ + 1), see rowStart()
+  std::vector<int> bandY_;               // band boundaries in rows: 0 = bandY_[0] < ... = rows_
+  // the largest band-slice of the three row ranges a band works on: data (its rows and the halo),
+  // regions (its rows), scatter (the rows whose regions reach its particle results)
+  std::size_t maxData_ = 0, maxRegion_ = 0, maxScatter_ = 0;
+  // region data of the 2w rows below each inner band boundary b (1 <= b < bands), per slice k at
+  // boundaryBase_[(b - 1) * slices + k] (in regions)
+  std::vector<std::size_t> boundaryBase_;
+  std::vector<double> boundaryStore_;
   // per particle: position in its z-run, the run's length and its start in runOrder(2)
   std::vector<std::uint32_t> zPos_, zLen_, zBase_;
   /// Moves the chunk boundaries towards equal busy times (see the definition).
