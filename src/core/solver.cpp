@@ -118,7 +118,8 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
 
   x_ = x0;
   v_.assign(n, Eigen::Vector3d::Zero());
-  goals_ = x0;
+  for (std::size_t i = 1; i < n; ++i)
+    if ((x0[i] - restCom_).squaredNorm() < (x0[anchor_] - restCom_).squaredNorm()) anchor_ = static_cast<std::uint32_t>(i);
   rotations_.assign(n, Eigen::Quaterniond::Identity());
   pinned_.assign(n, 0);
   hardDragged_.assign(n, 0);
@@ -198,7 +199,6 @@ bool Solver::stiffnessSaturated() const {
 void Solver::reset() {
   x_ = lattice_->restPositions();
   std::fill(v_.begin(), v_.end(), Eigen::Vector3d::Zero());
-  goals_ = x_;
   std::fill(rotations_.begin(), rotations_.end(), Eigen::Quaterniond::Identity());
   pinPosition_ = x_;
   drags_.clear();
@@ -235,8 +235,8 @@ void Solver::step() {
 //   T_r x = R_r (x - c0_r) + c_r,  g_i = sum_{r contains i} beta_r T_r q_i / sum beta_r
 //        = [ (sum beta_r R_r) q_i + sum beta_r (c_r - R_r c0_r) ] / sum beta_r
 // (beta_r = 1 in classic mode, see computeRegionWeights()).
-// Positions enter relative to the current centre of mass xref and rest positions relative to the
-// rest centre of mass, which keeps the sums free of cancellation when the object is far away.
+// Positions enter relative to the anchor particle's position xref and rest positions relative to
+// the rest centre of mass, which keeps the sums free of cancellation when the object is far away.
 //
 // Momentum-conserving region damping (Rivers & James 2007, sec. 5): every region's velocities are
 // pulled towards the region's rigid motion v_r + omega_r x (x - c_r), where v_r and omega_r keep
@@ -244,13 +244,10 @@ void Solver::step() {
 // containing a particle are averaged into dampTarget_. Summed over a region the pull has zero
 // linear and angular momentum, so the object's momenta are conserved.
 void Solver::regionPass(bool withDamping) {
-  const Lattice& L = *lattice_;
-  const std::size_t n = L.size();
-  const auto& m = L.masses();
   passDamping_ = withDamping;
-  xref_.setZero();
-  for (std::size_t i = 0; i < n; ++i) xref_ += m[i] * x_[i];
-  xref_ /= L.totalMass();
+  // Any point of the object keeps the sums O(object size) and gives the same goals up to
+  // round-off: the anchor costs nothing, where the centre of mass was a sweep per sub-step.
+  xref_ = x_[anchor_];
   summer_->apply(*this);
 }
 
@@ -375,12 +372,17 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
     const Eigen::Vector3d& q = restCentered_[i];
     Eigen::Vector3d g(s[9], s[10], s[11]);
     for (int a = 0; a < 3; ++a) g[a] += s[3 * a] * q.x() + s[3 * a + 1] * q.y() + s[3 * a + 2] * q.z();
-    goals_[i] = g * invWeightSum_[i] + xref_;
-    if (!k.integrate) continue;
+    g = g * invWeightSum_[i] + xref_;
+    if (!k.integrate) {
+      (*goalsOut_)[i] = g;
+      continue;
+    }
     // v <- (v + alpha s_i (g - x) / h + h (gravity + f / m) + kd (v_rigid - v)) keep;  x <- x + h v
     // (a pinned or hard-dragged particle is left to finishSubstep())
     if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
-    Eigen::Vector3d dv = k.pull * stiffnessFactor_[i] * (goals_[i] - x_[i]) + k.h * (params_.gravity + forceAccel_[i]);
+    Eigen::Vector3d a = params_.gravity;
+    if (k.forced) a += forceAccel_[i];
+    Eigen::Vector3d dv = k.pull * stiffnessFactor_[i] * (g - x_[i]) + k.h * a;
     if (passDamping_) {
       const Eigen::Vector3d p = x_[i] - xref_;
       const Eigen::Vector3d target =
@@ -441,6 +443,7 @@ void Solver::substep(double h) {
   step_.kd = 1.0 - std::exp(-params_.damping * h);
   step_.pull = alpha_ / h;
   step_.keep = std::exp(-params_.ambientDamping * h);
+  step_.forced = !forcedParticles_.empty();
   regionPass(step_.kd > 0.0);
   step_.integrate = false;
   finishSubstep(h);
@@ -478,8 +481,10 @@ void Solver::finishSubstep(double h) {
 }
 
 void Solver::computeGoals(std::vector<Eigen::Vector3d>& goals) {
+  goals.resize(x_.size());
+  goalsOut_ = &goals;
   regionPass(false);
-  goals = goals_;
+  goalsOut_ = nullptr;
 }
 
 std::size_t Solver::pinBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, bool pinned) {

@@ -85,8 +85,6 @@ class Solver : private RegionKernel {
   void setVelocities(const std::vector<Eigen::Vector3d>& v);
   /// #P rotations of the regions (region r is centred on particle r) from the last sub-step.
   const std::vector<Eigen::Quaterniond>& regionRotations() const { return rotations_; }
-  /// Goal positions g of the last sub-step (m).
-  const std::vector<Eigen::Vector3d>& goals() const { return goals_; }
   /// Recomputes goal positions for the current positions without stepping (m).
   void computeGoals(std::vector<Eigen::Vector3d>& goals);
 
@@ -145,8 +143,9 @@ class Solver : private RegionKernel {
 
  private:
   void substep(double h);
-  /// goals_ for the current state, with region damping when withDamping; when
-  /// step_.integrate, also the sub-step's update of every free particle (see particleResult())
+  /// The goals for the current state, with region damping when withDamping; when
+  /// step_.integrate, the sub-step's update of every free particle (see particleResult()),
+  /// else the goals into *goalsOut_ (computeGoals()).
   void regionPass(bool withDamping);
   /// the sub-step's update of the pinned and hard-dragged particles
   void finishSubstep(double h);
@@ -166,7 +165,8 @@ class Solver : private RegionKernel {
   SolverParams params_;
   std::unique_ptr<RegionSummer> summer_;
 
-  std::vector<Eigen::Vector3d> x_, v_, goals_;
+  std::vector<Eigen::Vector3d> x_, v_;
+  std::vector<Eigen::Vector3d>* goalsOut_ = nullptr;  // where computeGoals() wants the goals
   std::vector<Eigen::Quaterniond> rotations_;
   std::vector<Eigen::Vector3d> restCentered_;  // q_i = x0_i - rest centre of mass
   Eigen::Vector3d restCom_ = Eigen::Vector3d::Zero();
@@ -174,7 +174,8 @@ class Solver : private RegionKernel {
   std::vector<double> regionMass_;             // M_r = sum of m~ over region r
   std::vector<double> regionInvMass_;          // 1 / M_r
   std::vector<Eigen::Vector3d> regionRestCenter_;  // c0_r (rest-centred frame)
-  Eigen::Vector3d xref_ = Eigen::Vector3d::Zero();  // current centre of mass, subtracted in sums
+  Eigen::Vector3d xref_ = Eigen::Vector3d::Zero();  // the anchor's position, subtracted in sums
+  std::uint32_t anchor_ = 0;  // the particle nearest the rest centre of mass
   std::vector<char> pinned_;
   std::vector<std::uint32_t> pinnedList_;  // the indices where pinned_ is set
   bool pinnedListStale_ = false;           // pinned_ changed since pinnedList_ was listed
@@ -195,6 +196,7 @@ class Solver : private RegionKernel {
     double kd = 0.0;         // region damping fraction per sub-step
     double pull = 0.0;       // alpha / h
     double keep = 1.0;       // ambient damping factor per sub-step
+    bool forced = false;     // some particle has a force or spring acceleration (forceAccel_)
   } step_;
   std::vector<double> regionWeight_;     // beta_r
   std::vector<double> invWeightSum_;     // 1 / sum_{r contains i} beta_r
