@@ -1,6 +1,9 @@
 // Prints the cost of a FastLSM solver step, in ns per particle-step, for the fast and naive
 // solvers at region half-widths w = 1..4, on the bunny voxelized to about --particles particles.
 // A benchmark, not a test: it prints figures and never fails because the machine is slow.
+// Each table's entries run in turns, one run each per round: on a shared machine whose speed
+// drifts by tens of percent within a minute, a busy spell then hits every entry alike, and the
+// ratios (naive/fast, w = 4 / w = 1, each size against 10k, threads) are taken within a round.
 //
 // Then the fast solver at w = 2 across lattice sizes (1k to 200k particles: cost per particle
 // should stay flat), and with every hardware thread against one thread (same results) at the
@@ -67,28 +70,50 @@ std::size_t heapInUse() {
 /// The voxelization whose particle count is nearest to `target`.
 Voxelization voxelizeNear(const TriMesh& mesh, std::size_t target) { return nearestResolution(mesh, target).voxels; }
 
-/// Median ns per particle-step over `repeats` runs of `steps` steps, after one warm-up step;
-/// the fastest run in `best` if given (what the step costs when the machine leaves it alone).
-double measure(const std::shared_ptr<const Lattice>& lattice, const SolverParams& params, int steps,
-               int repeats, std::vector<Eigen::Vector3d>* finalPositions = nullptr, double* best = nullptr) {
-  Solver s(lattice, params);
-  // a deformed, moving state so that the rotation extraction does real work
-  std::vector<Eigen::Vector3d> x = s.positions();
-  for (std::size_t i = 0; i < x.size(); ++i) x[i] += 0.05 * lattice->spacing() * Eigen::Vector3d(std::sin(7.0 * i), std::cos(3.0 * i), std::sin(5.0 * i));
-  s.setPositions(x);
-  s.step();
-  std::vector<double> samples;
-  for (int r = 0; r < repeats; ++r) {
-    const auto t0 = std::chrono::steady_clock::now();
-    for (int i = 0; i < steps; ++i) s.step();
-    const auto t1 = std::chrono::steady_clock::now();
-    const double ns = std::chrono::duration<double, std::nano>(t1 - t0).count();
-    samples.push_back(ns / (double(steps) * params.substeps * double(lattice->size())));
+/// A solver in a deformed, moving state (so that the rotation extraction does real work), stepped
+/// once, and how many steps make one timed run of it.
+struct Timed {
+  std::shared_ptr<const Lattice> lattice;
+  std::unique_ptr<Solver> solver;
+  int steps = 1;
+  std::vector<double> samples;  // ns per particle-step of each run
+
+  Timed(std::shared_ptr<const Lattice> l, const SolverParams& params, int runSteps)
+      : lattice(std::move(l)), solver(std::make_unique<Solver>(lattice, params)), steps(runSteps) {
+    std::vector<Eigen::Vector3d> x = solver->positions();
+    for (std::size_t i = 0; i < x.size(); ++i) x[i] += 0.05 * lattice->spacing() * Eigen::Vector3d(std::sin(7.0 * i), std::cos(3.0 * i), std::sin(5.0 * i));
+    solver->setPositions(x);
+    solver->step();
   }
-  if (finalPositions != nullptr) *finalPositions = s.positions();
-  std::sort(samples.begin(), samples.end());
-  if (best != nullptr) *best = samples.front();
-  return samples[samples.size() / 2];
+  /// One timed run; returns and records its ns per particle-step.
+  double run() {
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int i = 0; i < steps; ++i) solver->step();
+    const double ns = std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count();
+    samples.push_back(ns / (double(steps) * solver->params().substeps * double(lattice->size())));
+    return samples.back();
+  }
+};
+
+double median(std::vector<double> x) {
+  std::sort(x.begin(), x.end());
+  return x[x.size() / 2];
+}
+
+double fastest(const std::vector<double>& x) { return *std::min_element(x.begin(), x.end()); }
+
+/// Runs every entry once per round, `rounds` times, so that a busy spell of the machine hits all
+/// entries alike; ratios between entries are taken within a round (see ratioMedian()).
+void interleave(std::vector<Timed*> entries, int rounds) {
+  for (int r = 0; r < rounds; ++r)
+    for (Timed* e : entries) e->run();
+}
+
+/// The median over rounds of a's time / b's time in the same round.
+double ratioMedian(const Timed& a, const Timed& b) {
+  std::vector<double> r;
+  for (std::size_t i = 0; i < a.samples.size() && i < b.samples.size(); ++i) r.push_back(a.samples[i] / b.samples[i]);
+  return median(r);
 }
 
 }  // namespace
@@ -112,43 +137,69 @@ int main(int argc, char** argv) {
                   double(heapInUse() - before) / double(lattice->size()));
     }
   }
-  std::printf("single thread, double precision, one sub-step per step, median of %d runs of %d steps\n",
-              args.repeats, args.steps);
+  // Every table's entries run in turns (one run each per round, `repeats` rounds): the figures are
+  // medians over the rounds, and ratios between entries are medians of the ratios within a round.
+  std::printf("single thread, double precision, one sub-step per step, median of %d rounds (entries in turns)\n",
+              args.repeats);
   std::printf("%3s %16s %16s %10s\n", "w", "fast ns/p-step", "naive ns/p-step", "naive/fast");
-  double fast1 = 0.0;
-  for (int w = 1; w <= 4; ++w) {
-    auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
-    SolverParams p;
-    p.regionHalfWidth = w;
-    p.substeps = 1;
-    p.kind = SolverKind::Fast;
-    const double fast = measure(lattice, p, args.steps, args.repeats);
-    if (w == 1) fast1 = fast;
-    if (w <= args.maxNaiveW) {
-      p.kind = SolverKind::Naive;
-      const double naive = measure(lattice, p, std::max(1, args.steps / (w * w)), args.repeats);
-      std::printf("%3d %16.1f %16.1f %10.1f\n", w, fast, naive, naive / fast);
-    } else {
-      std::printf("%3d %16.1f %16s %10s\n", w, fast, "-", "-");
+  {
+    std::vector<std::unique_ptr<Timed>> fast, naive;
+    std::vector<Timed*> all;
+    for (int w = 1; w <= 4; ++w) {
+      auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
+      SolverParams p;
+      p.regionHalfWidth = w;
+      p.substeps = 1;
+      p.kind = SolverKind::Fast;
+      fast.push_back(std::make_unique<Timed>(lattice, p, args.steps));
+      all.push_back(fast.back().get());
+      if (w <= args.maxNaiveW) {
+        p.kind = SolverKind::Naive;
+        naive.push_back(std::make_unique<Timed>(lattice, p, std::max(1, args.steps / (w * w))));
+        all.push_back(naive.back().get());
+      }
     }
-    if (w == 4) std::printf("fast w=4 / w=1 cost ratio: %.2f\n", fast / fast1);
+    interleave(all, args.repeats);
+    for (int w = 1; w <= 4; ++w) {
+      const Timed& f = *fast[static_cast<std::size_t>(w - 1)];
+      if (w <= static_cast<int>(naive.size())) {
+        const Timed& n = *naive[static_cast<std::size_t>(w - 1)];
+        std::printf("%3d %16.1f %16.1f %10.1f\n", w, median(f.samples), median(n.samples), ratioMedian(n, f));
+      } else {
+        std::printf("%3d %16.1f %16s %10s\n", w, median(f.samples), "-", "-");
+      }
+    }
+    std::printf("fast w=4 / w=1 cost ratio: %.2f\n", ratioMedian(*fast[3], *fast[0]));
   }
 
-  std::printf("\nfast, w=2, single thread, across lattice sizes (median and fastest of %d runs)\n%10s %10s %16s %10s %14s\n",
-              args.repeats, "particles", "resolution", "ns/p-step", "fastest", "ms per step");
-  for (std::size_t target : {1000u, 5000u, 10000u, 50000u, 100000u, 200000u}) {
-    const Voxelization v = voxelizeNear(mesh, target);
-    auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
-    SolverParams q;
-    q.substeps = 1;
-    // about 0.1 s of stepping per run, at least 2 steps
-    const int steps = std::max(2, static_cast<int>(1e8 / (400.0 * double(lat->size()))));
-    double fastest = 0.0;
-    const double ns = measure(lat, q, steps, args.repeats, nullptr, &fastest);
-    std::printf("%10zu %10d %16.1f %10.1f %14.2f\n", lat->size(), v.dims.maxCoeff(), ns, fastest,
-                ns * double(lat->size()) * 1e-6);
+  std::printf("\nfast, w=2, single thread, across lattice sizes (median and fastest of %d rounds; x 10k: the\n"
+              "median of the ratios to the 10k lattice's run in the same round)\n%10s %10s %16s %10s %8s %14s\n",
+              args.repeats, "particles", "resolution", "ns/p-step", "fastest", "x 10k", "ms per step");
+  {
+    std::vector<std::unique_ptr<Timed>> sizes;
+    std::vector<int> resolution;
+    std::size_t reference = 0;
+    for (std::size_t target : {1000u, 5000u, 10000u, 50000u, 100000u, 200000u}) {
+      const Voxelization v = voxelizeNear(mesh, target);
+      auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
+      SolverParams q;
+      q.substeps = 1;
+      // about 50 ms of stepping per run, at least 2 steps
+      const int steps = std::max(2, static_cast<int>(5e5 / double(lat->size())));
+      if (target == 10000u) reference = sizes.size();
+      sizes.push_back(std::make_unique<Timed>(lat, q, steps));
+      resolution.push_back(v.dims.maxCoeff());
+    }
+    std::vector<Timed*> all;
+    for (auto& t : sizes) all.push_back(t.get());
+    interleave(all, args.repeats);
+    for (std::size_t i = 0; i < sizes.size(); ++i) {
+      const Timed& t = *sizes[i];
+      const double ns = median(t.samples);
+      std::printf("%10zu %10d %16.1f %10.1f %8.2f %14.2f\n", t.lattice->size(), resolution[i], ns, fastest(t.samples),
+                  ratioMedian(t, *sizes[reference]), ns * double(t.lattice->size()) * 1e-6);
+    }
   }
-
   // Threads: every hardware thread against one, at the benchmark's size and at 50k particles.
   const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
   std::printf("\nfast, w=2: %u threads against 1 (same results required)\n%10s %14s %14s %9s %22s\n", hw,
@@ -159,36 +210,15 @@ int main(int argc, char** argv) {
     SolverParams p;
     p.substeps = 1;
     const int steps = std::max(5, static_cast<int>(1e8 / (400.0 * double(lat->size()))));
-    // the two solvers step in turns, so that a busy spell of the machine hits both alike; the
-    // speed-up is the median of the turns' ratios
-    Solver one(lat, p);
+    Timed one(lat, p, steps);
     p.threads = static_cast<int>(hw);
-    Solver all(lat, p);
-    for (Solver* s : {&one, &all}) {
-      std::vector<Eigen::Vector3d> x = s->positions();
-      for (std::size_t i = 0; i < x.size(); ++i) x[i] += 0.05 * lat->spacing() * Eigen::Vector3d(std::sin(7.0 * i), std::cos(3.0 * i), std::sin(5.0 * i));
-      s->setPositions(x);
-      s->step();
-    }
-    auto time = [&](Solver& s) {
-      const auto t0 = std::chrono::steady_clock::now();
-      for (int i = 0; i < steps; ++i) s.step();
-      return std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count() /
-             (double(steps) * double(lat->size()));
-    };
-    std::vector<double> t1, tn, ratio;
-    for (int r = 0; r < 3 * args.repeats; ++r) {
-      t1.push_back(time(one));
-      tn.push_back(time(all));
-      ratio.push_back(t1.back() / tn.back());
-    }
+    Timed all(lat, p, steps);
+    interleave({&one, &all}, 3 * args.repeats);
     double diff = 0.0;
-    for (std::size_t i = 0; i < lat->size(); ++i) diff = std::max(diff, (one.positions()[i] - all.positions()[i]).norm());
-    auto median = [](std::vector<double> x) {
-      std::sort(x.begin(), x.end());
-      return x[x.size() / 2];
-    };
-    std::printf("%10zu %14.1f %14.1f %8.2fx %22.3g\n", lat->size(), median(t1), median(tn), median(ratio), diff);
+    for (std::size_t i = 0; i < lat->size(); ++i)
+      diff = std::max(diff, (one.solver->positions()[i] - all.solver->positions()[i]).norm());
+    std::printf("%10zu %14.1f %14.1f %8.2fx %22.3g\n", lat->size(), median(one.samples), median(all.samples),
+                ratioMedian(one, all), diff);
   }
   return 0;
 }
