@@ -24,8 +24,8 @@ void windowPass(const Lattice& lattice, int axis, const double* in, int K, doubl
 ///  3. particleResult: what each particle does with its scatter sums.
 /// Every range is a contiguous range of particle (= region) indices; data for index p sits at
 /// (p - begin) * K in the buffer passed. regionData and particleResult visit each index exactly
-/// once per pass; particleData may visit an index more than once, concurrently, when threads
-/// share a halo of slices (BarSummer), so it must only read. Calls for disjoint ranges may run
+/// once per pass; particleData may visit an index more than once (BarSummer: the halo slices of
+/// threads, concurrently, and the halo rows of bands), so it must only read. Calls for disjoint ranges may run
 /// concurrently, so an implementation must only write what belongs to the indices of its range;
 /// BarSummer never runs particleData on particles whose particleResult of the same pass has run
 /// or is running.
@@ -88,9 +88,9 @@ class RegionSummer {
 /// so that the rings stay small whatever the lattice's cross-section (a slice of the
 /// 200k-particle bunny holds up to 5,252 particles, whose two rings at w = 2 take 10.6 MB). A
 /// flat 100 x 100 x 20 box costs 120 instead of 159 ns per particle-step with bands of 4096,
-/// the bunny at 200k 2-5 % less; bands much smaller cost more in halo than they save. A band computes
-/// the regions of its rows [y0, y1) from the data of rows [y0 - w, y1 + w) (the halo, generated
-/// twice), and the particle results of rows [y0 - w, y1 - w), which need the regions of rows
+/// the bunny at 200k 2-5 % less; bands much smaller cost more in halo than they save. A band
+/// computes the regions of its rows [y0, y1) from the data of rows [y0 - w, y1 + w) (the halo,
+/// generated twice), and the particle results of rows [y0 - w, y1 - w), which need the regions of rows
 /// [y0 - 2w, y1): the band below leaves its top 2w region rows in a boundary store. Regions and
 /// particle results are computed once; only the halo's data and the boundary rows' z-windows
 /// are redone (2w of every band's rows; bands are at least 2w rows high).
