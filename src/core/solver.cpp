@@ -118,8 +118,14 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
 
   x_ = x0;
   v_.assign(n, Eigen::Vector3d::Zero());
-  for (std::size_t i = 1; i < n; ++i)
-    if ((x0[i] - restCom_).squaredNorm() < (x0[anchor_] - restCom_).squaredNorm()) anchor_ = static_cast<std::uint32_t>(i);
+  double anchorDistance = (x0[0] - restCom_).squaredNorm();
+  for (std::size_t i = 1; i < n; ++i) {
+    const double d = (x0[i] - restCom_).squaredNorm();
+    if (d < anchorDistance) {
+      anchorDistance = d;
+      anchor_ = static_cast<std::uint32_t>(i);
+    }
+  }
   rotations_.assign(n, Eigen::Quaterniond::Identity());
   pinned_.assign(n, 0);
   hardDragged_.assign(n, 0);
