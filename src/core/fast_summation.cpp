@@ -6,6 +6,7 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <type_traits>
 
 namespace deformable_flsm {
@@ -225,6 +226,14 @@ BarSummer::BarSummer(const Lattice& lattice, int threads, std::size_t bandPartic
     chunkStart_[t] = std::min(k, slices);
   }
   sliceScratch_.resize(static_cast<std::size_t>(threads_));
+  if (threads_ > 1) {  // whole capacity now: apply() only clears and refills
+    const std::size_t T = static_cast<std::size_t>(threads_);
+    const std::size_t blocks = bandCount() * (slices / kBlock + T + 1);
+    deferred_.reserve(blocks);
+    deps_.reserve(blocks * T);
+    claimed_ = std::vector<std::atomic<std::uint8_t>>(blocks);
+    progress_ = std::vector<Progress>(T);
+  }
   busySeconds_.assign(static_cast<std::size_t>(threads_), 0.0);
   secondsPerParticle_.assign(static_cast<std::size_t>(threads_), 0.0);
 }
@@ -327,9 +336,9 @@ inline void zWindowRows(std::size_t s, std::uint32_t p0, std::uint32_t p1, std::
 
 }  // namespace
 
-template <typename Barrier>
+template <typename Published, typename Drain>
 void BarSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0, std::size_t k1,
-                           SliceScratch& t, Barrier barrier) {
+                           SliceScratch& t, Published published, Drain drain) {
   const std::ptrdiff_t w = lattice_.regionHalfWidth();
   const int wr = static_cast<int>(w);
   const std::ptrdiff_t slices = static_cast<std::ptrdiff_t>(sliceStart_.size()) - 1;
@@ -489,10 +498,10 @@ void BarSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0,
     std::swap(t.zPrev, t.zCur);
   };
   // A block of particle slices [c, c + kBlock) reads region slices [c - w, c + kBlock - 1 + w]:
-  // when some belong to another thread it waits for the barrier.
+  // near another chunk it is left to drain() (ownsBlock(); listDeferred() lists the same blocks).
   auto ownBlock = [&](std::ptrdiff_t c) {
-    const std::ptrdiff_t first = c - c % kBlock, last = std::min(first + kBlock, hi) - 1;
-    return (lo == 0 || first - w >= lo) && (hi == slices || last + w < hi);
+    const std::ptrdiff_t first = c - c % kBlock;
+    return ownsBlock(first, std::min(first + kBlock, hi) - 1, lo, hi);
   };
 
   for (std::size_t b = 0; b < bands; ++b) {
@@ -500,17 +509,19 @@ void BarSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0,
     for (std::ptrdiff_t a = lo - w; a < hi + 2 * w; ++a) {
       if (a >= 0 && a < slices && a < hi + w) dataSlice(a);
       const std::ptrdiff_t r = a - w;
-      if (r >= lo && r < hi) regionSlice(r);
+      if (r >= lo && r < hi) {
+        regionSlice(r);
+        published(b, static_cast<std::size_t>(r));
+      }
       const std::ptrdiff_t c = r - w;
       if (c >= lo && c < hi && ownBlock(c)) particleSlice(c);
     }
+    published(b, static_cast<std::size_t>(slices));
   }
-  barrier();
-  for (std::size_t b = 0; b < bands; ++b) {
+  drain([&](std::size_t b, std::size_t c0, std::size_t c1) {
     setBand(b);
-    for (std::ptrdiff_t c = lo; c < hi; ++c)
-      if (!ownBlock(c)) particleSlice(c);
-  }
+    for (std::size_t c = c0; c < c1; ++c) particleSlice(static_cast<std::ptrdiff_t>(c));
+  });
 }
 
 void BarSummer::apply(RegionKernel& kernel) {
@@ -519,39 +530,121 @@ void BarSummer::apply(RegionKernel& kernel) {
   withChannels(Ks, [](auto) {});
   reserveSliceScratch(Kg, Ks);
   const std::size_t slices = sliceStart_.size() - 1;
+  auto unpublished = [](std::size_t, std::size_t) {};
+  auto nothingLeft = [](auto&&) {};
   if (threads_ == 1) {
-    applyChunk(kernel, Kg, Ks, 0, slices, sliceScratch_[0], [] {});
+    applyChunk(kernel, Kg, Ks, 0, slices, sliceScratch_[0], unpublished, nothingLeft);
     return;
   }
   markSharedSlices();
+  listDeferred();
+  for (Progress& p : progress_) p.value.store(0, std::memory_order_relaxed);
+  for (std::size_t i = 0; i < deferred_.size(); ++i) claimed_[i].store(0, std::memory_order_relaxed);
 #pragma omp parallel num_threads(threads_)
   {
     // A smaller team than asked for (nested parallelism, thread limits): one thread does all,
     // with the same sums.
     const int th = omp_get_thread_num();
     if (omp_get_num_threads() != threads_) {
-      if (th == 0) applyChunk(kernel, Kg, Ks, 0, slices, sliceScratch_[0], [] {});
+      if (th == 0) applyChunk(kernel, Kg, Ks, 0, slices, sliceScratch_[0], unpublished, nothingLeft);
     } else {
+      const std::size_t me = static_cast<std::size_t>(th);
       const double start = omp_get_wtime();
-      double waited = 0.0;
-      applyChunk(kernel, Kg, Ks, chunkStart_[th], chunkStart_[th + 1], sliceScratch_[static_cast<std::size_t>(th)],
-                 [&waited] {
-                   const double t0 = omp_get_wtime();
-#pragma omp barrier
-                   waited = omp_get_wtime() - t0;
-                 });
-      busySeconds_[static_cast<std::size_t>(th)] = omp_get_wtime() - start - waited;
+      auto publish = [this, me](std::size_t b, std::size_t r) {
+        progress_[me].value.store(progress(b, r), std::memory_order_release);
+      };
+      // The deferred blocks, of any chunk, go to whichever thread finds them ready first: a thread
+      // that finishes its sweep early does its neighbour's instead of waiting for it.
+      auto drain = [this, me, start](auto&& finish) {
+        busySeconds_[me] = omp_get_wtime() - start;  // the sweep: what rebalance() evens out
+        int idle = 0;
+        for (;;) {
+          bool left = false, ran = false;
+          for (std::size_t i = 0; i < deferred_.size(); ++i) {
+            if (claimed_[i].load(std::memory_order_relaxed) != 0) continue;
+            left = true;
+            const Deferred& d = deferred_[i];
+            bool ready = true;
+            for (std::uint32_t e = d.depBegin; e < d.depEnd && ready; ++e)
+              ready = progress_[deps_[e].chunk].value.load(std::memory_order_acquire) >= deps_[e].need;
+            if (!ready || claimed_[i].exchange(1, std::memory_order_acq_rel) != 0) continue;
+            finish(d.band, d.c0, d.c1);
+            ran = true;
+          }
+          if (!left) return;
+          if (ran) {
+            idle = 0;
+          } else if (++idle < 64) {
+#if defined(__x86_64__) || defined(__i386__)
+            __builtin_ia32_pause();
+#endif
+          } else {
+            std::this_thread::yield();  // more threads than free cores: let the others run
+          }
+        }
+      };
+      applyChunk(kernel, Kg, Ks, chunkStart_[me], chunkStart_[me + 1], sliceScratch_[me], publish, drain);
     }
   }
   rebalance();
 }
 
-// A block finished after the barrier reads region slices up to w beyond its own and lies within
-// w + kBlock of its chunk's edge: the region slices within 2w + kBlock of an inner chunk boundary
-// go to regionOut_, where they outlast the rings.
+// The particle blocks each chunk's sweep leaves, and what must be published before any thread
+// may do one (block [c0, c1) of chunk t, band b):
+//  - every chunk u holding some of the region slices it reads, [c0 - w, c1 - 1 + w]: progress up
+//    to the highest of them;
+//  - every other chunk u whose halo holds some of its particles (u reads their data in band b,
+//    and the block overwrites them): the data below u's chunk is read before u's first region
+//    slice, the data above it before u's last. For a chunk with slices of its own the regions
+//    the block reads already ask as much; a chunk left without any (more threads than blocks)
+//    still reads its halo, and publishes only at the end of each band.
+// Particles of band b's results lie in no other band's data rows but band b - 1's, which every
+// chunk finishes before any band-b progress. Within a band, the block is finished after the
+// regions it reads, as in a single sweep.
+void BarSummer::listDeferred() {
+  const std::ptrdiff_t w = lattice_.regionHalfWidth();
+  const std::ptrdiff_t slices = static_cast<std::ptrdiff_t>(sliceStart_.size()) - 1;
+  const std::size_t T = static_cast<std::size_t>(threads_);
+  deferred_.clear();
+  deps_.clear();
+  for (std::size_t t = 0; t < T; ++t) {
+    const std::ptrdiff_t lo = static_cast<std::ptrdiff_t>(chunkStart_[t]), hi = static_cast<std::ptrdiff_t>(chunkStart_[t + 1]);
+    for (std::size_t b = 0; b < bandCount(); ++b) {
+      for (std::ptrdiff_t first = lo; first < hi; first += kBlock) {
+        const std::ptrdiff_t last = std::min(first + kBlock, hi) - 1;
+        if (ownsBlock(first, last, lo, hi)) continue;
+        Deferred d{static_cast<std::uint32_t>(b), static_cast<std::uint32_t>(first), static_cast<std::uint32_t>(last + 1),
+                   static_cast<std::uint32_t>(deps_.size()), 0};
+        const std::ptrdiff_t readLo = std::max<std::ptrdiff_t>(first - w, 0);
+        const std::ptrdiff_t readHi = std::min<std::ptrdiff_t>(last + w, slices - 1);
+        for (std::size_t u = 0; u < T; ++u) {
+          const std::ptrdiff_t ulo = static_cast<std::ptrdiff_t>(chunkStart_[u]);
+          const std::ptrdiff_t uhi = static_cast<std::ptrdiff_t>(chunkStart_[u + 1]);
+          std::uint64_t need = 0;
+          const std::ptrdiff_t top = std::min(readHi, uhi - 1);
+          if (std::max(readLo, ulo) <= top) need = progress(b, static_cast<std::size_t>(top));
+          if (u != t) {
+            if (first < ulo && last >= ulo - w) need = std::max(need, progress(b, static_cast<std::size_t>(ulo)));
+            if (last >= uhi && first < uhi + w)
+              need = std::max(need, uhi > ulo ? progress(b, static_cast<std::size_t>(uhi - 1))
+                                              : progress(b, static_cast<std::size_t>(slices)));
+          }
+          if (need > 0) deps_.push_back(Dependency{static_cast<std::uint32_t>(u), need});
+        }
+        d.depEnd = static_cast<std::uint32_t>(deps_.size());
+        deferred_.push_back(d);
+      }
+    }
+  }
+}
+
+// A block left to drain() reads region slices up to w beyond its own, and its first slice lies
+// within deferMargin() + kBlock - 1 of its chunk's edge: the region slices within deferMargin() +
+// w + kBlock of an inner chunk boundary go to regionOut_, where any thread can read them after the
+// sweeps have moved on.
 void BarSummer::markSharedSlices() {
   const std::size_t slices = sliceStart_.size() - 1;
-  const std::ptrdiff_t reach = 2 * static_cast<std::ptrdiff_t>(lattice_.regionHalfWidth()) + kBlock;
+  const std::ptrdiff_t reach = deferMargin() + lattice_.regionHalfWidth() + kBlock;
   sharedSlice_.assign(slices, 0);
   for (int t = 1; t < threads_; ++t) {
     const std::ptrdiff_t B = static_cast<std::ptrdiff_t>(chunkStart_[static_cast<std::size_t>(t)]);
@@ -563,8 +656,8 @@ void BarSummer::markSharedSlices() {
 
 // Chunks of equal particle counts need not take equal times (slices of short, broken runs cost
 // more per particle; another process may share a core): each boundary moves to where the two
-// chunks' smoothed cost per particle predicts equal times, at whole blocks. The sums do not
-// depend on where the boundaries are.
+// chunks' smoothed cost per particle (of their sweeps) predicts equal times, at whole blocks; the
+// blocks left to drain() even out the rest. The sums do not depend on where the boundaries are.
 void BarSummer::rebalance() {
   const std::size_t T = static_cast<std::size_t>(threads_);
   for (std::size_t t = 0; t < T; ++t) {

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <random>
 #include <utility>
@@ -163,6 +165,96 @@ TEST_P(SummationByWidth, StreamedPassEqualsNaiveAndIsThreadIndependent) {
         } else {
           for (std::size_t e = 0; e < single.size(); ++e)
             ASSERT_EQ(k.result()[e], single[e]) << "threads " << threads << ", bands " << bands;
+        }
+      }
+    }
+  }
+}
+
+namespace {
+
+/// A kernel for the order of the threads' work: its particle data changes every pass (a region or
+/// particle block run too early reads the last pass's values), its regions in one part of the
+/// lattice are slow (so that one thread finishes its sweep long before the other), and it counts
+/// breaches of RegionKernel's contract: a particle's data read after its result of the same pass.
+class PassKernel : public deformable_flsm::RegionKernel {
+ public:
+  PassKernel(std::size_t n, unsigned seed, std::size_t slowFrom, std::size_t slowTo)
+      : data_(randomData(n, 3, seed)), result_(n * 3, 0.0), resultsDone_(n), slowFrom_(slowFrom), slowTo_(slowTo) {}
+  int gatherChannels() const override { return 3; }
+  int scatterChannels() const override { return 3; }
+  void beginPass(int pass) { pass_ = pass; }
+  void particleData(std::size_t begin, std::size_t end, double* out) override {
+    for (std::size_t p = begin; p < end; ++p) {
+      if (resultsDone_[p].load() != pass_) ++breaches_;
+      for (int c = 0; c < 3; ++c) out[(p - begin) * 3 + c] = data_[p * 3 + c] + 0.25 * pass_;
+    }
+  }
+  void regionData(std::size_t begin, std::size_t end, const double* sums, double* out) override {
+    for (std::size_t r = begin; r < end; ++r) {
+      if (r >= slowFrom_ && r < slowTo_) {
+        const auto until = std::chrono::steady_clock::now() + std::chrono::microseconds(3);
+        while (std::chrono::steady_clock::now() < until) {
+        }
+      }
+      const double* s = sums + (r - begin) * 3;
+      for (int c = 0; c < 3; ++c) out[(r - begin) * 3 + c] = std::sin(s[c]) + 0.5 * s[(c + 1) % 3];
+    }
+  }
+  void particleResult(std::size_t begin, std::size_t end, const double* sums) override {
+    for (std::size_t p = begin; p < end; ++p) {
+      for (int c = 0; c < 3; ++c) result_[p * 3 + c] = sums[(p - begin) * 3 + c];
+      resultsDone_[p].fetch_add(1);
+    }
+  }
+  const std::vector<double>& result() const { return result_; }
+  int breaches() const { return breaches_.load(); }
+
+ private:
+  std::vector<double> data_, result_;
+  std::vector<std::atomic<int>> resultsDone_;
+  std::atomic<int> breaches_{0};
+  int pass_ = 0;
+  std::size_t slowFrom_, slowTo_;
+};
+
+}  // namespace
+
+// With more than one thread, the particle blocks near the chunk edges go to whichever thread is
+// free first: a block must wait for the regions it reads, in its own chunk and its neighbours',
+// and for the neighbours' halo reads of its particles. The slow third of the lattice (bottom,
+// middle or top) makes the other threads finish early and take those blocks; every pass must
+// still equal one thread's, bit for bit, with and without bands, and no particle's data may be
+// read after its result.
+TEST_P(SummationByWidth, DeferredBlocksWaitForWhatTheyRead) {
+  const int w = GetParam();
+  const Lattice lattice(raggedVoxels(4, 30), 1000.0, w);
+  const std::size_t n = lattice.size();
+  for (std::size_t band : {BarSummer::kBandParticles, std::size_t{60}}) {
+    for (int slow = 0; slow < 3; ++slow) {
+      const std::size_t slowFrom = n * static_cast<std::size_t>(slow) / 3, slowTo = n * static_cast<std::size_t>(slow + 1) / 3;
+      constexpr int kPasses = 4;
+      std::vector<std::vector<double>> single;
+      {
+        BarSummer one(lattice, 1, band);
+        PassKernel k(n, 9, n, n);
+        for (int pass = 0; pass < kPasses; ++pass) {
+          k.beginPass(pass);
+          one.apply(k);
+          single.push_back(k.result());
+        }
+      }
+      for (int threads : {2, 3}) {
+        BarSummer many(lattice, threads, band);
+        PassKernel k(n, 9, slowFrom, slowTo);
+        for (int pass = 0; pass < kPasses; ++pass) {
+          k.beginPass(pass);
+          many.apply(k);
+          ASSERT_EQ(k.breaches(), 0) << "threads " << threads << ", slow third " << slow << ", pass " << pass;
+          for (std::size_t e = 0; e < k.result().size(); ++e)
+            ASSERT_EQ(k.result()[e], single[static_cast<std::size_t>(pass)][e])
+                << "threads " << threads << ", bands " << many.bandCount() << ", slow third " << slow << ", pass "
+                << pass << ", particle " << e / 3;
         }
       }
     }

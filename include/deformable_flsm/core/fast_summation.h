@@ -4,6 +4,7 @@
 
 #include "deformable_flsm/core/lattice.h"
 
+#include <atomic>
 #include <cstdint>
 #include <vector>
 
@@ -98,13 +99,21 @@ class RegionSummer {
 /// The z-windows restart (a direct sum over the window) every kBlock slices, and threads take
 /// whole blocks: every sum is the same sequence of additions for any thread count, and the
 /// blocks can move between threads (they do, towards equal busy times) without changing a bit.
-/// The bands depend on the lattice only, never on the thread count.
+/// The bands depend on the lattice only, never on the thread count. Each thread sweeps a chunk
+/// of slices; the particle blocks near a chunk's inner edges (whose windows reach the next
+/// chunk's regions, and kSpareBlocks more) are left to whichever thread is free first, each as
+/// soon as the chunks it depends on have published the regions it reads. A thread that
+/// finishes its sweep early takes over its neighbour's blocks instead of waiting at a barrier.
 class BarSummer : public RegionSummer {
  public:
   /// Slices per block: z-windows restart at block starts, threads split the lattice at them.
   static constexpr int kBlock = 2;
   /// Largest band-slice apply() aims for (particles in a band's rows of one slice, halo included).
   static constexpr std::size_t kBandParticles = 4096;
+  /// Blocks beyond the necessary that each inner chunk edge leaves to whichever thread is free
+  /// first (threads > 1), so that one that finishes its sweep early takes work over from its
+  /// neighbour instead of waiting for it.
+  static constexpr int kSpareBlocks = 1;
   /// @param[in] threads  OpenMP threads (>= 1); results are identical for any count
   /// @param[in] bandParticles  slices with more particles are swept in bands of rows (see above)
   /// @throws std::invalid_argument if the lattice's particles are not sorted by (k, j, i)
@@ -125,11 +134,41 @@ class BarSummer : public RegionSummer {
   /// Grows the two scratch buffers to #P*K; never shrinks them (no refill between passes).
   void reserveScratch(int K);
   void reserveSliceScratch(int Kg, int Ks);
-  /// apply() for the slices [k0, k1) (whole blocks), `t` the thread's scratch; the particle slices
-  /// whose windows reach other threads' regions wait for `barrier` (called once, by every thread).
-  template <typename Barrier>
+  /// apply() for the slices [k0, k1) (whole blocks), `t` the thread's scratch. The sweep calls
+  /// published(b, r) after region slice r of band b, then drain(finish) once: the particle
+  /// blocks near other chunks (ownsBlock()) are left to it (finish(b, c0, c1) does the
+  /// particle slices [c0, c1) of band b, in this thread's scratch).
+  template <typename Published, typename Drain>
   void applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0, std::size_t k1, SliceScratch& t,
-                  Barrier barrier);
+                  Published published, Drain drain);
+  /// Slices from a chunk's inner edge within which its sweep leaves the particle blocks to
+  /// drain(): w, the reach of their windows into the next chunk's regions, and kSpareBlocks more.
+  std::ptrdiff_t deferMargin() const { return lattice_.regionHalfWidth() + kSpareBlocks * kBlock; }
+  /// Whether the sweep of chunk [lo, hi) does the particle block [first, last] itself (else drain()).
+  bool ownsBlock(std::ptrdiff_t first, std::ptrdiff_t last, std::ptrdiff_t lo, std::ptrdiff_t hi) const {
+    const std::ptrdiff_t m = deferMargin(), slices = static_cast<std::ptrdiff_t>(sliceStart_.size()) - 1;
+    return (lo == 0 || first - m >= lo) && (hi == slices || last + m < hi);
+  }
+  /// A block of particle slices that its chunk's sweep leaves (see listDeferred()): band, slices
+  /// [c0, c1), and its conditions deps_[depBegin, depEnd).
+  struct Deferred {
+    std::uint32_t band, c0, c1, depBegin, depEnd;
+  };
+  /// A condition of a deferred block: chunk `chunk` has published at least `need` (progress()).
+  struct Dependency {
+    std::uint32_t chunk;
+    std::uint64_t need;
+  };
+  /// What a chunk has published in this pass: progress(b, r) after region slice r of band b,
+  /// progress(b, slices) at the end of band b. Increasing through a sweep.
+  std::uint64_t progress(std::size_t band, std::size_t slice) const {
+    return band * (sliceStart_.size()) + slice + 1;
+  }
+  /// deferred_ and deps_ for the current chunk boundaries.
+  void listDeferred();
+  struct alignas(64) Progress {
+    std::atomic<std::uint64_t> value{0};
+  };
   /// The rows of the lattice (y) in bands: band b holds region rows [bandY_[b], bandY_[b + 1]).
   void makeBands(std::size_t bandParticles);
   /// First particle of slice k in row j or above (rows counted from the lowest occupied row;
@@ -159,7 +198,7 @@ class BarSummer : public RegionSummer {
   /// Moves the chunk boundaries towards equal busy times (see the definition).
   void rebalance();
   std::vector<std::size_t> chunkStart_;  // threads_ + 1 slice indices, multiples of kBlock
-  std::vector<double> busySeconds_;         // per thread: time in its chunk in the last apply()
+  std::vector<double> busySeconds_;         // per thread: time of its sweep in the last apply()
   std::vector<double> secondsPerParticle_;  // per chunk: smoothed busy time per particle
   /// sharedSlice_ from the chunk boundaries (see the definition).
   void markSharedSlices();
@@ -167,6 +206,12 @@ class BarSummer : public RegionSummer {
   std::vector<double> regionOut_;    // #P * K_s region data of the slices near chunk boundaries
   std::vector<char> sharedSlice_;    // per slice: its region data goes to regionOut_ (threads > 1)
   int scratchKg_ = 0, scratchKs_ = 0;
+  // threads > 1: the deferred blocks of this pass and their conditions (capacity reserved at
+  // construction), a claim flag per block, each chunk's published progress
+  std::vector<Deferred> deferred_;
+  std::vector<Dependency> deps_;
+  std::vector<std::atomic<std::uint8_t>> claimed_;
+  std::vector<Progress> progress_;
 };
 
 /// Direct summation over explicit member lists: O(w^3) per particle. The oracle.
