@@ -89,7 +89,7 @@ class RegionSummer {
 /// so that the rings stay small whatever the lattice's cross-section (a slice of the
 /// 200k-particle bunny holds up to 5,252 particles, whose two rings at w = 2 take 10.6 MB). A
 /// flat 100 x 100 x 20 box costs 120 instead of 159 ns per particle-step with bands of 4096,
-/// the bunny at 200k 2-5 % less; bands much smaller cost more in halo than they save. A band
+/// the bunny at 200k 10-20 % less; bands much smaller cost more in halo than they save. A band
 /// computes the regions of its rows [y0, y1) from the data of rows [y0 - w, y1 + w) (the halo,
 /// generated twice), and the particle results of rows [y0 - w, y1 - w), which need the regions of rows
 /// [y0 - 2w, y1): the band below leaves its top 2w region rows in a boundary store. Regions and
