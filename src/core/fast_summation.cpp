@@ -597,7 +597,8 @@ void BarSummer::apply(RegionKernel& kernel) {
 //    and the block overwrites them): the data below u's chunk is read before u's first region
 //    slice, the data above it before u's last. For a chunk with slices of its own the regions
 //    the block reads already ask as much; a chunk left without any (more threads than blocks)
-//    still reads its halo, and publishes only at the end of each band.
+//    still reads its halo, and publishes only at the end of each band (the 3-slice lattice of
+//    test DeferredBlocksWaitForWhatTheyRead).
 // Particles of band b's results lie in no other band's data rows but band b - 1's, which every
 // chunk finishes before any band-b progress. Within a band, the block is finished after the
 // regions it reads, as in a single sweep.
