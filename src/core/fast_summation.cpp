@@ -233,6 +233,8 @@ BarSummer::BarSummer(const Lattice& lattice, int threads, std::size_t bandPartic
     deps_.reserve(blocks * T);
     claimed_ = std::vector<std::atomic<std::uint8_t>>(blocks);
     progress_ = std::vector<Progress>(T);
+    markSharedSlices();
+    listDeferred();
   }
   busySeconds_.assign(static_cast<std::size_t>(threads_), 0.0);
   secondsPerParticle_.assign(static_cast<std::size_t>(threads_), 0.0);
@@ -536,8 +538,6 @@ void BarSummer::apply(RegionKernel& kernel) {
     applyChunk(kernel, Kg, Ks, 0, slices, sliceScratch_[0], unpublished, nothingLeft);
     return;
   }
-  markSharedSlices();
-  listDeferred();
   for (Progress& p : progress_) p.value.store(0, std::memory_order_relaxed);
   for (std::size_t i = 0; i < deferred_.size(); ++i) claimed_[i].store(0, std::memory_order_relaxed);
 #pragma omp parallel num_threads(threads_)
@@ -667,6 +667,7 @@ void BarSummer::rebalance() {
     const double rate = busySeconds_[t] / particles;
     secondsPerParticle_[t] = secondsPerParticle_[t] > 0.0 ? 0.8 * secondsPerParticle_[t] + 0.2 * rate : rate;
   }
+  bool moved = false;
   for (std::size_t t = 1; t < T; ++t) {
     const double r0 = secondsPerParticle_[t - 1], r1 = secondsPerParticle_[t];
     if (!(r0 > 0.0) || !(r1 > 0.0)) continue;
@@ -683,7 +684,12 @@ void BarSummer::rebalance() {
         bestMiss = miss;
       }
     }
+    moved = moved || best != chunkStart_[t];
     chunkStart_[t] = best;
+  }
+  if (moved) {  // what depends on the boundaries, for the next pass
+    markSharedSlices();
+    listDeferred();
   }
 }
 

@@ -164,7 +164,8 @@ class BarSummer : public RegionSummer {
   std::uint64_t progress(std::size_t band, std::size_t slice) const {
     return band * (sliceStart_.size()) + slice + 1;
   }
-  /// deferred_ and deps_ for the current chunk boundaries.
+  /// deferred_ and deps_ for the current chunk boundaries (at construction and whenever
+  /// rebalance() moves them, like markSharedSlices()).
   void listDeferred();
   struct alignas(64) Progress {
     std::atomic<std::uint64_t> value{0};
