@@ -437,7 +437,7 @@ void BarSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0,
   auto ringRow = [&](std::ptrdiff_t k) { return t.ring.data() + (static_cast<std::size_t>(k) % ringSize) * dataStride; };
   // Region data of slice k, from row yN0 on: in the thread's ring of 2w + 2 slices (a particle
   // slice's z-window reads w slices either side and, when it slides, the one leaving), or for
-  // the slices that a block finished after the barrier may read, in the shared regionOut_
+  // the slices that a block left to drain() may read, in the shared regionOut_
   // (indexed by particle).
   auto shared = [&](std::size_t z) { return !sharedSlice_.empty() && sharedSlice_[z] != 0; };
   auto regionRow = [&](std::ptrdiff_t k) {
