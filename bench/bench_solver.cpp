@@ -7,10 +7,12 @@
 //
 // Then the fast solver at w = 2 across lattice sizes (1k to 200k particles: cost per particle
 // should stay flat), and with every hardware thread against one thread (same results) at the
-// benchmark's size and at 50k particles. Threads pay only on idle cores: a sub-step's region
-// pass has one barrier, and a worker that another process has descheduled stalls it for a time
-// slice (the chunk boundaries follow a slower thread, a descheduled one they cannot). Run it on
-// a quiet machine; SolverParams::threads defaults to 1 for that reason.
+// benchmark's size and at 50k particles, next to what the machine gives just then to as many
+// independent one-thread solvers (its ceiling in that spell). Threads pay only on idle cores: a
+// sub-step's region pass ends when every thread's chunk is done, and a worker that another
+// process has descheduled holds it up for a time slice (the chunk boundaries follow a slower
+// thread, and the blocks near them go to whichever thread is free first; a descheduled one they
+// cannot help). Run it on a quiet machine; SolverParams::threads defaults to 1 for that reason.
 //
 //   bench_solver [--mesh PATH] [--particles N] [--steps N] [--repeats N] [--max-naive-w W]
 
@@ -27,6 +29,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <malloc.h>
+#include <memory>
 #include <string>
 #include <thread>
 #include <vector>
@@ -204,8 +207,12 @@ int main(int argc, char** argv) {
   const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
   std::printf("\nfast, w=2: %u threads against 1 (same results required; speed-up: median of the ratios within a\n"
               "round; fastest: the fastest run of one thread against the fastest of all, what the threads give\n"
-              "when the machine leaves both cores alone)\n%10s %14s %14s %9s %9s %22s\n",
-              hw, "particles", "1: ns/p-step", "all: ns/p-step", "speed-up", "fastest", "max position difference");
+              "when the machine leaves both cores alone; machine: %u independent one-thread solvers, each of 1/%u\n"
+              "of the particles, stepped at once against one after the other in the same rounds: what this\n"
+              "machine's cores give just then to the same work when nothing waits for anything; of machine:\n"
+              "the median of the speed-up / machine ratios within a round)\n%10s %14s %14s %9s %9s %9s %10s %22s\n",
+              hw, hw, hw, "particles", "1: ns/p-step", "all: ns/p-step", "speed-up", "fastest", "machine", "of machine",
+              "max position difference");
   for (std::size_t target : {args.particles, std::size_t{50000}}) {
     const Voxelization v = target == args.particles ? vox : voxelizeNear(mesh, target);
     auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
@@ -213,14 +220,35 @@ int main(int argc, char** argv) {
     p.substeps = 1;
     const int steps = std::max(5, static_cast<int>(1e8 / (400.0 * double(lat->size()))));
     Timed one(lat, p, steps);
+    // The machine's ceiling: hw independent one-thread solvers of 1/hw of the particles each (the
+    // same state and work in all as the one lattice), one after the other, then at once.
+    const Voxelization part = voxelizeNear(mesh, lat->size() / hw);
+    auto partLattice = std::make_shared<const Lattice>(part, 1000.0, 2);
+    std::vector<std::unique_ptr<Timed>> apart;
+    for (unsigned k = 0; k < hw; ++k) apart.push_back(std::make_unique<Timed>(partLattice, p, steps));
     p.threads = static_cast<int>(hw);
     Timed all(lat, p, steps);
-    interleave({&one, &all}, 3 * args.repeats);
+    std::vector<double> machine, ofMachine;
+    for (int r = 0; r < 3 * args.repeats; ++r) {
+      one.run();
+      all.run();
+      const auto t0 = std::chrono::steady_clock::now();
+      for (auto& a : apart) a->run();
+      const auto t1 = std::chrono::steady_clock::now();
+      std::vector<std::thread> others;
+      for (std::size_t k = 1; k < apart.size(); ++k) others.emplace_back([&apart, k] { apart[k]->run(); });
+      apart[0]->run();
+      for (auto& t : others) t.join();
+      const auto t2 = std::chrono::steady_clock::now();
+      machine.push_back(std::chrono::duration<double>(t1 - t0).count() / std::chrono::duration<double>(t2 - t1).count());
+      ofMachine.push_back(one.samples.back() / all.samples.back() / machine.back());
+    }
     double diff = 0.0;
     for (std::size_t i = 0; i < lat->size(); ++i)
       diff = std::max(diff, (one.solver->positions()[i] - all.solver->positions()[i]).norm());
-    std::printf("%10zu %14.1f %14.1f %8.2fx %8.2fx %22.3g\n", lat->size(), median(one.samples), median(all.samples),
-                ratioMedian(one, all), fastest(one.samples) / fastest(all.samples), diff);
+    std::printf("%10zu %14.1f %14.1f %8.2fx %8.2fx %8.2fx %9.0f%% %22.3g\n", lat->size(), median(one.samples),
+                median(all.samples), ratioMedian(one, all), fastest(one.samples) / fastest(all.samples),
+                median(machine), 100.0 * median(ofMachine), diff);
   }
   return 0;
 }
