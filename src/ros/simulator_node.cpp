@@ -377,11 +377,19 @@ void SimulatorNode::reportProblems(const Snapshot& s) {
                       static_cast<unsigned long long>(d.droppedSteps));
   } else if (!d.idle && d.achievedRealTimeFactor < kSlowFraction * d.requestedRealTimeFactor &&
              d.steps > 10) {
+    // A step may take the wall time it stands for; if it takes (nearly) all of it, the scene is too
+    // big for the asked rate (or the machine too busy to give it a core); if not, something else
+    // holds the loop up.
+    const double budget = params_.solver.timeStep / d.requestedRealTimeFactor;
+    const bool stepsTooLong = d.stepSeconds > kSlowFraction * budget;
     ROS_WARN_THROTTLE(kWarnPeriod,
-                      "flsm_node: running at %.2f of the asked real-time factor %.2f (steps take "
-                      "%.1f ms); the machine is busy",
-                      d.achievedRealTimeFactor / d.requestedRealTimeFactor,
-                      d.requestedRealTimeFactor, 1e3 * d.stepSeconds);
+                      "flsm_node: running at %.2f of the asked real-time factor %.2f (a step takes "
+                      "%.1f ms of the %.1f ms it may); %s",
+                      d.achievedRealTimeFactor / d.requestedRealTimeFactor, d.requestedRealTimeFactor,
+                      1e3 * d.stepSeconds, 1e3 * budget,
+                      stepsTooLong ? "the steps take too long: lower ~real_time_factor, ~substeps or "
+                                     "~particle_budget, or free a core"
+                                   : "the steps fit, so other work on this machine holds the loop up");
   }
 }
 
