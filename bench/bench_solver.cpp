@@ -6,7 +6,8 @@
 // ratios (naive/fast, w = 4 / w = 1, each size against 10k, threads) are taken within a round.
 //
 // Then the fast solver at w = 2 across lattice sizes (1k to 200k particles: cost per particle
-// should stay flat), and with every hardware thread against one thread (same results) at the
+// should stay flat), on boxes that hold the slices' cross-section while the particle count grows
+// and the other way round (what the cost per particle follows), and with every hardware thread against one thread (same results) at the
 // benchmark's size and at 50k particles, next to what the machine gives just then to as many
 // independent one-thread solvers (its ceiling in that spell). Threads pay only on idle cores: a
 // sub-step's region pass ends when every thread's chunk is done, and a worker that another
@@ -16,6 +17,7 @@
 //
 //   bench_solver [--mesh PATH] [--particles N] [--steps N] [--repeats N] [--max-naive-w W]
 
+#include "deformable_flsm/core/fast_summation.h"
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/mesh.h"
 #include "deformable_flsm/core/resolution.h"
@@ -201,6 +203,41 @@ int main(int argc, char** argv) {
       const double ns = median(t.samples);
       std::printf("%10zu %10d %16.1f %10.1f %8.2f %14.2f\n", t.lattice->size(), resolution[i], ns, fastest(t.samples),
                   ratioMedian(t, *sizes[reference]), ns * double(t.lattice->size()) * 1e-6);
+    }
+  }
+  // Boxes of full cells: the cost per particle against the particle count with the slices' cross-
+  // section held, and against the cross-section with the count held (the region pass's working set
+  // is a few slices: 2w + 2 in each direction's ring, and the slice buffers).
+  std::printf("\nfast, w=2, single thread, boxes of full cells (median of %d rounds; x first: the median of the\n"
+              "ratios to the first box's run in the same round)\n%16s %10s %8s %12s %8s %6s\n",
+              args.repeats, "box", "particles", "slice", "ns/p-step", "x first", "bands");
+  {
+    std::vector<std::unique_ptr<Timed>> boxes;
+    const std::vector<Eigen::Vector3i> dims = {{20, 20, 25}, {20, 20, 125}, {20, 20, 500},
+                                               {30, 30, 220}, {45, 45, 100}, {64, 64, 49}};
+    for (const Eigen::Vector3i& d : dims) {
+      Voxelization v;
+      v.spacing = 0.01;
+      v.dims = d;
+      v.closed = true;
+      for (int k = 0; k < d.z(); ++k)
+        for (int j = 0; j < d.y(); ++j)
+          for (int i = 0; i < d.x(); ++i) v.cells.emplace_back(i, j, k);
+      v.fillFraction.assign(v.cells.size(), 1.0);
+      auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
+      SolverParams q;
+      q.substeps = 1;
+      boxes.push_back(std::make_unique<Timed>(lat, q, std::max(2, static_cast<int>(5e5 / double(lat->size())))));
+    }
+    std::vector<Timed*> all;
+    for (auto& t : boxes) all.push_back(t.get());
+    interleave(all, args.repeats);
+    for (std::size_t i = 0; i < boxes.size(); ++i) {
+      const Timed& t = *boxes[i];
+      const Eigen::Vector3i& d = dims[i];
+      const std::string name = std::to_string(d.x()) + " x " + std::to_string(d.y()) + " x " + std::to_string(d.z());
+      std::printf("%16s %10zu %8d %12.1f %8.2f %6zu\n", name.c_str(), t.lattice->size(), d.x() * d.y(),
+                  median(t.samples), ratioMedian(t, *boxes[0]), BarSummer(*t.lattice).bandCount());
     }
   }
   // Threads: every hardware thread against one, at the benchmark's size and at 50k particles.
