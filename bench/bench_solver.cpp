@@ -7,13 +7,13 @@
 //
 // Then the fast solver at w = 2 across lattice sizes (1k to 200k particles: cost per particle
 // should stay flat), on boxes that hold the slices' cross-section while the particle count grows
-// and the other way round (what the cost per particle follows), and with every hardware thread against one thread (same results) at the
-// benchmark's size and at 50k particles, next to what the machine gives just then to as many
-// independent one-thread solvers (its ceiling in that spell). Threads pay only on idle cores: a
-// sub-step's region pass ends when every thread's chunk is done, and a worker that another
-// process has descheduled holds it up for a time slice (the chunk boundaries follow a slower
-// thread, and the blocks near them go to whichever thread is free first; a descheduled one they
-// cannot help). Run it on a quiet machine; SolverParams::threads defaults to 1 for that reason.
+// and the other way round (what the cost per particle follows), and with every hardware thread
+// against one thread (same results) at the benchmark's size and at 50k particles, next to what
+// the machine gives just then to as many independent one-thread solvers (its ceiling in that
+// spell). Threads pay only on idle cores: a sub-step's region pass ends when every thread's chunk
+// is done, and a worker that another process has descheduled holds it up for a time slice (the
+// chunk boundaries follow a slower thread, and the blocks near them go to whichever thread is
+// free first; a descheduled one they cannot help). Run it on a quiet machine; SolverParams::threads defaults to 1 for that reason.
 //
 //   bench_solver [--mesh PATH] [--particles N] [--steps N] [--repeats N] [--max-naive-w W]
 
