@@ -13,7 +13,8 @@
 // spell). Threads pay only on idle cores: a sub-step's region pass ends when every thread's chunk
 // is done, and a worker that another process has descheduled holds it up for a time slice (the
 // chunk boundaries follow a slower thread, and the blocks near them go to whichever thread is
-// free first; a descheduled one they cannot help). Run it on a quiet machine; SolverParams::threads defaults to 1 for that reason.
+// free first; a descheduled one they cannot help). Run it on a quiet machine; SolverParams::threads
+// defaults to 1 for that reason.
 //
 //   bench_solver [--mesh PATH] [--particles N] [--steps N] [--repeats N] [--max-naive-w W]
 
