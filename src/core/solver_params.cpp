@@ -48,7 +48,9 @@ int regionHalfWidthForRadius(double radius, double spacing) {
   if (w > kMaxRegionHalfWidth)
     fail("region_radius", str(radius),
          "is " + str(w) + " cells at spacing " + str(spacing) + " m; at most " +
-             std::to_string(kMaxRegionHalfWidth) + " cells: use a smaller radius or a coarser lattice");
+             std::to_string(kMaxRegionHalfWidth) + " cells: use a radius of at most " +
+             str(kMaxRegionHalfWidth * spacing) + " m on this lattice, or a coarser lattice (a larger "
+             "spacing, a smaller resolution or particle_budget)");
   return std::max(1, static_cast<int>(w));
 }
 

@@ -293,6 +293,22 @@ TEST(SolverParams, ValidateNamesTheFieldAndRange) {
   EXPECT_THROW(Solver(bar(2), p), std::invalid_argument);
 }
 
+// A region radius too large for the lattice names the largest radius that fits it.
+TEST(SolverParams, RegionRadiusTooLargeNamesTheLargestThatFits) {
+  EXPECT_EQ(deformable_flsm::regionHalfWidthForRadius(0.1, 0.01), 10);
+  EXPECT_EQ(deformable_flsm::regionHalfWidthForRadius(0.004, 0.01), 1);
+  std::string what;
+  try {
+    deformable_flsm::regionHalfWidthForRadius(0.2, 0.01);
+  } catch (const std::invalid_argument& e) {
+    what = e.what();
+  }
+  EXPECT_NE(what.find("region_radius"), std::string::npos) << what;
+  EXPECT_NE(what.find("20 cells"), std::string::npos) << what;
+  EXPECT_NE(what.find("at most 0.1 m"), std::string::npos) << what;
+  EXPECT_NE(what.find("coarser lattice"), std::string::npos) << what;
+}
+
 // The fast (separable) and naive (explicit member lists) solvers compute the same sums in a
 // different order: over 500 steps of a drag and release on the bunny lattice their positions
 // agree to 1e-10 of the object size (round-off is ~1e-16 per sum; the dynamics is damped, so

@@ -108,7 +108,8 @@ class StartupFailureTest(unittest.TestCase):
                                  '_resolution:=60', '_max_particles:=1000')
 
     def test_region_radius_beyond_ten_cells_is_refused(self):
-        self.assert_fails_naming('flsm_big_regions', ['region_radius', 'at most 10 cells'],
+        self.assert_fails_naming('flsm_big_regions', ['region_radius', 'at most 10 cells',
+                                                     'use a radius of at most'],
                                  '_resolution:=10', '_region_radius:=0.5', '_mesh_scale:=0.1')
 
 
