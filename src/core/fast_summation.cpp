@@ -240,10 +240,11 @@ BarSummer::BarSummer(const Lattice& lattice, int threads, std::size_t bandPartic
   secondsPerParticle_.assign(static_cast<std::size_t>(threads_), 0.0);
 }
 
-// Bands as high as the target allows (the widest slice of a band's data rows, halo included, at
-// most `target` particles) and at least 2w rows, so that the region rows a band leaves to the
-// next one are its own. One band when the whole slices fit.
-void BarSummer::makeBands(std::size_t target) {
+// One band when the whole slices fit in `bandParticles`. Otherwise as few bands as keep the
+// widest slice of every band's data rows (halo included) within min(bandParticles,
+// kBandTarget) particles, as even as that count allows, and each at least 2w rows high, so that
+// the region rows a band leaves to the next one are its own.
+void BarSummer::makeBands(std::size_t bandParticles) {
   const int w = lattice_.regionHalfWidth();
   const std::size_t slices = sliceStart_.size() - 1;
   auto widest = [&](int y0, int y1) {  // the largest slice of rows [y0, y1), clipped to the lattice
@@ -253,16 +254,32 @@ void BarSummer::makeBands(std::size_t target) {
     for (std::size_t k = 0; k < slices && y0 < y1; ++k) most = std::max<std::size_t>(most, rowStart(k, y1) - rowStart(k, y0));
     return most;
   };
-  bandY_.assign(1, 0);
-  if (widest(0, rows_) <= target) {
-    bandY_.push_back(rows_);
-  } else {
+  // bands from the bottom up, each as high as `most` allows (and at least 2w rows)
+  auto greedy = [&](std::size_t most, std::vector<int>& bands) {
+    bands.assign(1, 0);
     for (int y0 = 0; y0 < rows_;) {
       int y1 = std::min(y0 + 2 * w, rows_);
-      while (y1 < rows_ && widest(y0 - w, y1 + 1 + w) <= target) ++y1;
-      bandY_.push_back(y1);
+      while (y1 < rows_ && widest(y0 - w, y1 + 1 + w) <= most) ++y1;
+      bands.push_back(y1);
       y0 = y1;
     }
+  };
+  if (widest(0, rows_) <= bandParticles) {
+    bandY_ = {0, rows_};
+  } else {
+    greedy(std::min(bandParticles, kBandTarget), bandY_);
+    // the smallest bound that needs no more bands evens them out (the greedy bands' last one
+    // can be a sliver that costs its halo for little)
+    const std::size_t count = bandY_.size() - 1;
+    std::vector<int> trial;
+    std::size_t lo = 1, hi = std::min(bandParticles, kBandTarget);
+    while (lo < hi) {
+      const std::size_t mid = lo + (hi - lo) / 2;
+      greedy(mid, trial);
+      if (trial.size() - 1 <= count) hi = mid;
+      else lo = mid + 1;
+    }
+    greedy(lo, bandY_);
   }
   const std::size_t bands = bandCount();
   maxData_ = maxRegion_ = maxScatter_ = 0;

@@ -279,6 +279,27 @@ TEST(Summation, FullBoxRegionSizesAreClippedCubes) {
   EXPECT_DOUBLE_EQ(counts[lattice.particleAt(Eigen::Vector3i(1, 4, 8))], 4.0 * 5.0 * 3.0);
 }
 
+// Slices that fit in kBandParticles stay whole; wider ones go in as few bands as keep every
+// band-slice (halo included) within kBandTarget, as even as that count allows. A full box of
+// 100-particle rows, w = 2: 60 rows need 3 bands of at most 25 data rows (2,500 particles, the
+// greedy first two), and 3 bands need no more than 23 (2,300): rows [0, 21), [21, 40), [40, 60)
+// with data rows [0, 23), [19, 42), [38, 60).
+TEST(Summation, BandsAreFewAndEven) {
+  ASSERT_EQ(BarSummer::kBandParticles, 4096u);
+  ASSERT_EQ(BarSummer::kBandTarget, 2560u);
+  const Lattice whole(deformable_flsm::test::makeBox(100, 40, 3, 0.01), 1000.0, 2);
+  EXPECT_EQ(BarSummer(whole).bandCount(), 1u);
+  EXPECT_EQ(BarSummer(whole).widestBandSlice(), 4000u);
+  const Lattice wide(deformable_flsm::test::makeBox(100, 60, 3, 0.01), 1000.0, 2);
+  const BarSummer banded(wide);
+  EXPECT_EQ(banded.bandCount(), 3u);
+  EXPECT_EQ(banded.widestBandSlice(), 2300u);
+  // a smaller bound given to the constructor wins over kBandTarget
+  const BarSummer small(wide, 1, 1000);
+  EXPECT_LE(small.widestBandSlice(), 1000u);
+  EXPECT_GE(small.bandCount(), 6u);
+}
+
 TEST(Summation, RejectsUnsupportedChannelCount) {
   const Lattice lattice(deformable_flsm::test::makeBox(2, 2, 2, 0.01), 1000.0, 1);
   BarSummer fast(lattice);

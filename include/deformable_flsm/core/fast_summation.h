@@ -85,14 +85,19 @@ class RegionSummer {
 /// follows w slices behind, its region data in a second ring, its x-sums handed to the kernel
 /// run by run. The working set is a few slices, not a few copies of the whole lattice.
 ///
-/// Slices wider than `bandParticles` are swept in bands of rows (y), one band after the other,
-/// so that the rings stay small whatever the lattice's cross-section (a slice of the
-/// 200k-particle bunny holds up to 5,252 particles, whose two rings at w = 2 take 10.6 MB). A
-/// flat 100 x 100 x 20 box costs 120 instead of 159 ns per particle-step with bands of 4096,
-/// the bunny at 200k 10-20 % less; bands much smaller cost more in halo than they save. A band
-/// computes the regions of its rows [y0, y1) from the data of rows [y0 - w, y1 + w) (the halo,
-/// generated twice), and the particle results of rows [y0 - w, y1 - w), which need the regions of rows
-/// [y0 - 2w, y1): the band below leaves its top 2w region rows in a boundary store. Regions and
+/// Slices wider than `bandParticles` (4096) are swept in bands of rows (y), one band after the
+/// other, so that the rings stay small whatever the lattice's cross-section (a slice of the
+/// 200k-particle bunny holds up to 5,252 particles, whose two rings at w = 2 take 10.6 MB): as
+/// few bands as keep every band-slice within kBandTarget (2560) particles, halo included, as
+/// even as that allows. Stop 11's bands (greedy, up to 4096) took a flat 100 x 100 x 20 box from
+/// 159 to 120 ns per particle-step and the bunny at 200k 10-20 % lower; these (stop 13) save
+/// ~3 % more at both (interleaved A/B, six runs at 200k: 0.88-1.01, the gains in busy spells;
+/// two builds of the same code: 0.98-1.03). Slices that fit in 4096 stay whole: the 100k
+/// bunny's (up to ~3,300) cost 1.01-1.05x in bands of 2560, and bands much smaller cost more in
+/// halo than they save. A band computes the regions of its rows [y0, y1) from the data of rows
+/// [y0 - w, y1 + w) (the halo, generated twice), and the particle results of rows [y0 - w, y1 -
+/// w), which need the regions of rows [y0 - 2w, y1): the band below leaves its top 2w region
+/// rows in a boundary store. Regions and
 /// particle results are computed once; only the halo's data and the boundary rows' z-windows
 /// are redone (2w of every band's rows; bands are at least 2w rows high).
 ///
@@ -108,14 +113,18 @@ class BarSummer : public RegionSummer {
  public:
   /// Slices per block: z-windows restart at block starts, threads split the lattice at them.
   static constexpr int kBlock = 2;
-  /// Largest band-slice apply() aims for (particles in a band's rows of one slice, halo included).
+  /// Slices with more particles than this are swept in bands (see above).
   static constexpr std::size_t kBandParticles = 4096;
+  /// Largest band-slice the bands then aim for (particles in a band's rows of one slice, halo
+  /// included).
+  static constexpr std::size_t kBandTarget = 2560;
   /// Blocks beyond the necessary that each inner chunk edge leaves to whichever thread is free
   /// first (threads > 1), so that one that finishes its sweep early takes work over from its
   /// neighbour instead of waiting for it.
   static constexpr int kSpareBlocks = 1;
   /// @param[in] threads  OpenMP threads (>= 1); results are identical for any count
-  /// @param[in] bandParticles  slices with more particles are swept in bands of rows (see above)
+  /// @param[in] bandParticles  slices with more particles are swept in bands of rows of at most
+  ///                           min(bandParticles, kBandTarget) (see above)
   /// @throws std::invalid_argument if the lattice's particles are not sorted by (k, j, i)
   explicit BarSummer(const Lattice& lattice, int threads = 1, std::size_t bandParticles = kBandParticles);
   using RegionSummer::gather;
@@ -125,6 +134,9 @@ class BarSummer : public RegionSummer {
   void apply(RegionKernel& kernel) override;
   /// Bands of rows apply() sweeps one after the other (1: whole slices).
   std::size_t bandCount() const { return bandY_.size() - 1; }
+  /// Particles in the widest slice of a band's data rows (its rows and the halo): the largest
+  /// band-slice the rings are sized for.
+  std::size_t widestBandSlice() const { return maxData_; }
 
  private:
   /// Per-thread slice buffers of apply().
