@@ -97,9 +97,9 @@ class RegionSummer {
 /// halo than they save. A band computes the regions of its rows [y0, y1) from the data of rows
 /// [y0 - w, y1 + w) (the halo, generated twice), and the particle results of rows [y0 - w, y1 -
 /// w), which need the regions of rows [y0 - 2w, y1): the band below leaves its top 2w region
-/// rows in a boundary store. Regions and
-/// particle results are computed once; only the halo's data and the boundary rows' z-windows
-/// are redone (2w of every band's rows; bands are at least 2w rows high).
+/// rows in a boundary store. Regions and particle results are computed once; only the halo's
+/// data and the boundary rows' z-windows are redone (2w of every band's rows; bands are at least
+/// 2w rows high).
 ///
 /// The z-windows restart (a direct sum over the window) every kBlock slices, and threads take
 /// whole blocks: every sum is the same sequence of additions for any thread count, and the
