@@ -267,12 +267,13 @@ void BarSummer::makeBands(std::size_t bandParticles) {
   if (widest(0, rows_) <= bandParticles) {
     bandY_ = {0, rows_};
   } else {
-    greedy(std::min(bandParticles, kBandTarget), bandY_);
+    const std::size_t bound = std::min(bandParticles, kBandTarget);
+    greedy(bound, bandY_);
     // the smallest bound that needs no more bands evens them out (the greedy bands' last one
     // can be a sliver that costs its halo for little)
     const std::size_t count = bandY_.size() - 1;
     std::vector<int> trial;
-    std::size_t lo = 1, hi = std::min(bandParticles, kBandTarget);
+    std::size_t lo = 1, hi = bound;
     while (lo < hi) {
       const std::size_t mid = lo + (hi - lo) / 2;
       greedy(mid, trial);
