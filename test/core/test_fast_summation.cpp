@@ -288,8 +288,9 @@ TEST(Summation, BandsAreFewAndEven) {
   ASSERT_EQ(BarSummer::kBandParticles, 4096u);
   ASSERT_EQ(BarSummer::kBandTarget, 2560u);
   const Lattice whole(deformable_flsm::test::makeBox(100, 40, 3, 0.01), 1000.0, 2);
-  EXPECT_EQ(BarSummer(whole).bandCount(), 1u);
-  EXPECT_EQ(BarSummer(whole).widestBandSlice(), 4000u);
+  const BarSummer unbanded(whole);
+  EXPECT_EQ(unbanded.bandCount(), 1u);
+  EXPECT_EQ(unbanded.widestBandSlice(), 4000u);
   const Lattice wide(deformable_flsm::test::makeBox(100, 60, 3, 0.01), 1000.0, 2);
   const BarSummer banded(wide);
   EXPECT_EQ(banded.bandCount(), 3u);

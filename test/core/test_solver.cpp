@@ -524,8 +524,8 @@ TEST(Solver, ThreadsGiveIdenticalResultsOnATallLattice) {
 }
 
 TEST(Solver, StepDoesNotAllocate) {
-  // (two threads: the blocks left near the chunk edges are listed anew every pass, as the
-  // boundaries move, within the capacity reserved at construction)
+  // (two threads: the blocks left near the chunk edges are listed anew whenever the boundaries
+  // move, within the capacity reserved at construction)
   for (auto [kind, threads] : {std::pair<SolverKind, int>{SolverKind::Fast, 1}, {SolverKind::Fast, 2}, {SolverKind::Naive, 1}}) {
     SolverParams p;
     p.kind = kind;
