@@ -101,6 +101,9 @@ struct Timed {
   }
 };
 
+/// Steps in one timed run of the sizes and boxes tables: about 50 ms of stepping, at least 2.
+int stepsPerRun(const Lattice& lattice) { return std::max(2, static_cast<int>(5e5 / double(lattice.size()))); }
+
 double median(std::vector<double> x) {
   std::sort(x.begin(), x.end());
   return x[x.size() / 2];
@@ -190,10 +193,8 @@ int main(int argc, char** argv) {
       auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
       SolverParams q;
       q.substeps = 1;
-      // about 50 ms of stepping per run, at least 2 steps
-      const int steps = std::max(2, static_cast<int>(5e5 / double(lat->size())));
       if (target == 10000u) reference = sizes.size();
-      sizes.push_back(std::make_unique<Timed>(lat, q, steps));
+      sizes.push_back(std::make_unique<Timed>(lat, q, stepsPerRun(*lat)));
       resolution.push_back(v.dims.maxCoeff());
     }
     std::vector<Timed*> all;
@@ -228,7 +229,7 @@ int main(int argc, char** argv) {
       auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
       SolverParams q;
       q.substeps = 1;
-      boxes.push_back(std::make_unique<Timed>(lat, q, std::max(2, static_cast<int>(5e5 / double(lat->size())))));
+      boxes.push_back(std::make_unique<Timed>(lat, q, stepsPerRun(*lat)));
     }
     std::vector<Timed*> all;
     for (auto& t : boxes) all.push_back(t.get());
