@@ -3,6 +3,7 @@
 /// damping, external forces, pins and drags, advanced at a fixed time step.
 #pragma once
 
+#include "deformable_flsm/core/collider.h"
 #include "deformable_flsm/core/fast_summation.h"
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/solver_params.h"
@@ -118,6 +119,23 @@ class Solver : private RegionKernel {
                   double duration);
   const std::vector<TimedForce>& activeForces() const { return forces_; }
 
+  // --- colliders ------------------------------------------------------------------------
+  /// Adds collider `id`, or replaces the collider of that id. Particles collide with it as
+  /// spheres of radius params().contactRadius, with Coulomb friction (see collider.h).
+  /// @throws std::invalid_argument if collider.validate() fails.
+  void setCollider(const std::string& id, const Collider& collider);
+  /// Gives collider `id` its pose at the start of the next step() and its velocity over that
+  /// step (the sub-steps move it along). Returns false if there is no such collider.
+  /// @throws std::invalid_argument for a non-finite pose or velocity.
+  bool moveCollider(const std::string& id, const Eigen::Isometry3d& pose,
+                    const Eigen::Vector3d& linearVelocity, const Eigen::Vector3d& angularVelocity);
+  /// Removes collider `id`. Returns false if there is no such collider.
+  bool removeCollider(const std::string& id);
+  void removeAllColliders();
+  const std::map<std::string, Collider>& colliders() const { return colliders_; }
+  /// What the object exerted on collider `id` during the last step(); zero for an unknown id.
+  ContactWrench contactWrench(const std::string& id) const;
+
   // --- queries --------------------------------------------------------------------------
   /// The `count` particles nearest to `point` in the current configuration, nearest first.
   std::vector<std::uint32_t> nearestParticles(const Eigen::Vector3d& point, std::size_t count) const;
@@ -185,6 +203,7 @@ class Solver : private RegionKernel {
   std::vector<Eigen::Vector3d> impulseDv_;  // velocity change pending from impulses
   bool impulsePending_ = false;
   std::map<std::string, Drag> drags_;
+  std::map<std::string, Collider> colliders_;
   std::vector<TimedForce> forces_;
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
   std::vector<std::uint32_t> forcedParticles_;  // where forceAccel_ is non-zero

@@ -72,6 +72,10 @@ struct SolverParams {
   /// another job on the second core, two threads were 1.3-1.7x slower than one.
   int threads = 1;
 
+  /// Radius (m) of the sphere each particle is for contact with colliders; 0 means half the
+  /// lattice spacing (the particles' cells then tile the object's volume).
+  double contactRadius = 0.0;
+
   /// @throws std::invalid_argument with a message naming the field, its value and the valid range.
   void validate() const;
 
