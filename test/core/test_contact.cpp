@@ -241,6 +241,24 @@ TEST(Contact, KinematicColliderPushesAndFollowsItsVelocity) {
   EXPECT_NEAR(s.linearMomentum().y(), 0.0, 1e-9);
 }
 
+TEST(Contact, TurntableCarriesTheBlockByFriction) {
+  // a ground spinning about its normal at 1 rad/s under a block centred on the axis: friction on
+  // the velocity relative to the surface (omega x r) turns the block with it
+  auto lattice = std::make_shared<const Lattice>(test::makeBox(6, 4, 3, 0.01), 1000.0, 1);
+  Solver s(lattice, sceneParams(*lattice, 0.3));
+  Collider table;
+  table.pose.translation() = Eigen::Vector3d(0.03, 0.02, 0.0);  // under the block's centre
+  s.setCollider("table", table);
+  for (int i = 0; i < stepsFor(0.5, s); ++i) s.step();
+  const Eigen::Matrix3d before = s.rigidFrame().linear();
+  s.moveCollider("table", s.colliders().at("table").pose, Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 1.0));
+  for (int i = 0; i < stepsFor(1.0, s); ++i) s.step();
+  const Eigen::AngleAxisd turned(s.rigidFrame().linear() * before.transpose());
+  EXPECT_NEAR(turned.angle(), 1.0, 0.02) << "the block turned with the table";
+  EXPECT_NEAR(std::abs(turned.axis().z()), 1.0, 1e-3);
+  EXPECT_NEAR((centreOfMass(s) - table.pose.translation()).head<2>().norm(), 0.0, 1e-3) << "about its axis";
+}
+
 TEST(Contact, WrenchesDoNotDependOnTheThreadCount) {
   if (!std::filesystem::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing (package glmark2-data)";
   const BunnyScene scene = bunnyScene();
