@@ -151,7 +151,7 @@ void RegionSummer::scatter(const std::vector<double>& in, int K, std::vector<dou
   scatter(in.data(), K, out.data());
 }
 
-BarSummer::BarSummer(const Lattice& lattice, int threads, std::size_t bandParticles)
+SliceStreamSummer::SliceStreamSummer(const Lattice& lattice, int threads, std::size_t bandParticles)
     : RegionSummer(lattice.size()), lattice_(lattice), threads_(std::max(1, threads)) {
   const auto& cells = lattice.cells();
   const std::size_t n = cells.size();
@@ -160,7 +160,7 @@ BarSummer::BarSummer(const Lattice& lattice, int threads, std::size_t bandPartic
   };
   for (std::size_t p = 1; p < n; ++p)
     if (!before(cells[p - 1], cells[p]))
-      throw std::invalid_argument("BarSummer: the lattice's particles must be sorted by (k, j, i)");
+      throw std::invalid_argument("SliceStreamSummer: the lattice's particles must be sorted by (k, j, i)");
 
   // slices: one per z from the lowest to the highest occupied layer (empty ones allowed)
   const int zmin = cells.front().z();
@@ -244,7 +244,7 @@ BarSummer::BarSummer(const Lattice& lattice, int threads, std::size_t bandPartic
 // widest slice of every band's data rows (halo included) within min(bandParticles,
 // kBandTarget) particles, as even as that count allows, and each at least 2w rows high, so that
 // the region rows a band leaves to the next one are its own.
-void BarSummer::makeBands(std::size_t bandParticles) {
+void SliceStreamSummer::makeBands(std::size_t bandParticles) {
   const int w = lattice_.regionHalfWidth();
   const std::size_t slices = sliceStart_.size() - 1;
   auto widest = [&](int y0, int y1) {  // the largest slice of rows [y0, y1), clipped to the lattice
@@ -300,7 +300,7 @@ void BarSummer::makeBands(std::size_t bandParticles) {
   boundaryBase_.back() = total;
 }
 
-void BarSummer::reserveSliceScratch(int Kg, int Ks) {
+void SliceStreamSummer::reserveSliceScratch(int Kg, int Ks) {
   if (Kg <= scratchKg_ && Ks <= scratchKs_) return;
   scratchKg_ = std::max(scratchKg_, Kg);
   scratchKs_ = std::max(scratchKs_, Ks);
@@ -357,7 +357,7 @@ inline void zWindowRows(std::size_t s, std::uint32_t p0, std::uint32_t p1, std::
 }  // namespace
 
 template <typename Published, typename Drain>
-void BarSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0, std::size_t k1,
+void SliceStreamSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0, std::size_t k1,
                            SliceScratch& t, Published published, Drain drain) {
   const std::ptrdiff_t w = lattice_.regionHalfWidth();
   const int wr = static_cast<int>(w);
@@ -544,7 +544,7 @@ void BarSummer::applyChunk(RegionKernel& kernel, int Kg, int Ks, std::size_t k0,
   });
 }
 
-void BarSummer::apply(RegionKernel& kernel) {
+void SliceStreamSummer::apply(RegionKernel& kernel) {
   const int Kg = kernel.gatherChannels(), Ks = kernel.scatterChannels();
   withChannels(Kg, [](auto) {});
   withChannels(Ks, [](auto) {});
@@ -620,7 +620,7 @@ void BarSummer::apply(RegionKernel& kernel) {
 // Particles of band b's results lie in no other band's data rows but band b - 1's, which every
 // chunk finishes before any band-b progress. Within a band, the block is finished after the
 // regions it reads, as in a single sweep.
-void BarSummer::listDeferred() {
+void SliceStreamSummer::listDeferred() {
   const std::ptrdiff_t w = lattice_.regionHalfWidth();
   const std::ptrdiff_t slices = static_cast<std::ptrdiff_t>(sliceStart_.size()) - 1;
   const std::size_t T = static_cast<std::size_t>(threads_);
@@ -661,7 +661,7 @@ void BarSummer::listDeferred() {
 // within deferMargin() + kBlock - 1 of its chunk's edge: the region slices within deferMargin() +
 // w + kBlock of an inner chunk boundary go to regionOut_, where any thread can read them after the
 // sweeps have moved on.
-void BarSummer::markSharedSlices() {
+void SliceStreamSummer::markSharedSlices() {
   const std::size_t slices = sliceStart_.size() - 1;
   const std::ptrdiff_t reach = deferMargin() + lattice_.regionHalfWidth() + kBlock;
   sharedSlice_.assign(slices, 0);
@@ -677,7 +677,7 @@ void BarSummer::markSharedSlices() {
 // more per particle; another process may share a core): each boundary moves to where the two
 // chunks' smoothed cost per particle (of their sweeps) predicts equal times, at whole blocks; the
 // blocks left to drain() even out the rest. The sums do not depend on where the boundaries are.
-void BarSummer::rebalance() {
+void SliceStreamSummer::rebalance() {
   const std::size_t T = static_cast<std::size_t>(threads_);
   for (std::size_t t = 0; t < T; ++t) {
     const double particles = double(sliceStart_[chunkStart_[t + 1]] - sliceStart_[chunkStart_[t]]);
@@ -711,7 +711,7 @@ void BarSummer::rebalance() {
   }
 }
 
-void BarSummer::reserveScratch(int K) {
+void SliceStreamSummer::reserveScratch(int K) {
   const std::size_t size = particles_ * static_cast<std::size_t>(K);
   if (tmpA_.size() < size) {
     tmpA_.resize(size);
@@ -719,14 +719,14 @@ void BarSummer::reserveScratch(int K) {
   }
 }
 
-void BarSummer::gather(const double* in, int K, double* out) {
+void SliceStreamSummer::gather(const double* in, int K, double* out) {
   reserveScratch(K);
   windowPass(lattice_, 0, in, K, tmpA_.data(), threads_);
   windowPass(lattice_, 1, tmpA_.data(), K, tmpB_.data(), threads_);
   windowPass(lattice_, 2, tmpB_.data(), K, out, threads_);
 }
 
-void BarSummer::scatter(const double* in, int K, double* out) {
+void SliceStreamSummer::scatter(const double* in, int K, double* out) {
   reserveScratch(K);
   windowPass(lattice_, 2, in, K, tmpA_.data(), threads_);
   windowPass(lattice_, 1, tmpA_.data(), K, tmpB_.data(), threads_);

@@ -25,10 +25,10 @@ void windowPass(const Lattice& lattice, int axis, const double* in, int K, doubl
 ///  3. particleResult: what each particle does with its scatter sums.
 /// Every range is a contiguous range of particle (= region) indices; data for index p sits at
 /// (p - begin) * K in the buffer passed. regionData and particleResult visit each index exactly
-/// once per pass; particleData may visit an index more than once (BarSummer: the halo slices of
+/// once per pass; particleData may visit an index more than once (SliceStreamSummer: the halo slices of
 /// threads, concurrently, and the halo rows of bands), so it must only read. Calls for disjoint ranges may run
 /// concurrently, so an implementation must only write what belongs to the indices of its range;
-/// BarSummer never runs particleData on particles whose particleResult of the same pass has run
+/// SliceStreamSummer never runs particleData on particles whose particleResult of the same pass has run
 /// or is running.
 class RegionKernel {
  public:
@@ -109,7 +109,7 @@ class RegionSummer {
 /// chunk's regions, and kSpareBlocks more) are left to whichever thread is free first, each as
 /// soon as the chunks it depends on have published the regions it reads. A thread that
 /// finishes its sweep early takes over its neighbour's blocks instead of waiting at a barrier.
-class BarSummer : public RegionSummer {
+class SliceStreamSummer : public RegionSummer {
  public:
   /// Slices per block: z-windows restart at block starts, threads split the lattice at them.
   static constexpr int kBlock = 2;
@@ -126,7 +126,7 @@ class BarSummer : public RegionSummer {
   /// @param[in] bandParticles  slices with more particles are swept in bands of rows of at most
   ///                           min(bandParticles, kBandTarget) (see above)
   /// @throws std::invalid_argument if the lattice's particles are not sorted by (k, j, i)
-  explicit BarSummer(const Lattice& lattice, int threads = 1, std::size_t bandParticles = kBandParticles);
+  explicit SliceStreamSummer(const Lattice& lattice, int threads = 1, std::size_t bandParticles = kBandParticles);
   using RegionSummer::gather;
   using RegionSummer::scatter;
   void gather(const double* in, int K, double* out) override;
