@@ -8,9 +8,6 @@ namespace deformable_flsm {
 
 namespace {
 
-/// Largest region half-width accepted: (2w+1)^3 = 9261 cells per region at w = 10, beyond any
-/// useful stiffness and a likely typo.
-constexpr int kMaxRegionHalfWidth = 10;
 /// Largest time step accepted (s); beyond it even a stiff lattice is a slideshow.
 constexpr double kMaxTimeStep = 0.1;
 constexpr int kMaxSubsteps = 1000;

@@ -151,9 +151,17 @@ void NodeParams::validate() const {
   throw ParamError(why.str());
 }
 
-int NodeParams::resolveRegionHalfWidth(double latticeSpacing) const {
+int NodeParams::resolveRegionHalfWidth(double latticeSpacing, int* askedCells) const {
+  if (askedCells) *askedCells = 0;
   if (regionHalfWidth > 0) return regionHalfWidth;
   if (regionRadius <= 0.0) return SolverParams().regionHalfWidth;
+  if (std::isfinite(latticeSpacing) && latticeSpacing > 0.0 &&
+      std::round(regionRadius / latticeSpacing) > kMaxRegionHalfWidth) {
+    // The same radius in metres is more cells on a finer lattice (a smaller object at the same
+    // particle budget): take the largest regions the solver allows rather than refuse to start.
+    if (askedCells) *askedCells = static_cast<int>(std::round(regionRadius / latticeSpacing));
+    return kMaxRegionHalfWidth;
+  }
   try {
     return regionHalfWidthForRadius(regionRadius, latticeSpacing);
   } catch (const std::invalid_argument& e) {

@@ -63,9 +63,26 @@ TEST(BuildScene, RegionRadiusInMetresBecomesWholeCells) {
   p.regionRadius = 0.0;
   p.regionHalfWidth = 1;
   EXPECT_EQ(buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0).info.regionHalfWidth, 1);
-  p.regionHalfWidth = 0;
-  p.regionRadius = 5.0;  // 50 cells: beyond the solver's limit
-  EXPECT_THROW(buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0), ParamError);
+  EXPECT_EQ(regionClampWarning(buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0).info, p),
+            "");
+}
+
+TEST(BuildScene, RegionRadiusBeyondTheLimitIsClampedWithAWarning) {
+  // A radius that suits one mesh is too many cells on a smaller one (the same particle budget
+  // makes a finer lattice): the scene starts with the largest regions the solver allows.
+  NodeParams p = cubeParams();
+  p.regionRadius = 5.0;  // 50 cells of 0.1 m
+  const Scene s = buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0);
+  EXPECT_EQ(s.info.regionHalfWidth, kMaxRegionHalfWidth);
+  EXPECT_EQ(s.info.regionAskedCells, 50);
+  EXPECT_EQ(s.solver->params().regionHalfWidth, kMaxRegionHalfWidth);
+  const std::string w = regionClampWarning(s.info, p);
+  EXPECT_NE(w.find("50 cells"), std::string::npos) << w;
+  EXPECT_NE(w.find("at most 1 m"), std::string::npos) << w;  // 10 cells of 0.1 m
+  EXPECT_NE(describeScene(s.info, p).find("clamped"), std::string::npos);
+  // 10.4 cells rounds to 10: no clamp.
+  p.regionRadius = 1.04;
+  EXPECT_EQ(buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0).info.regionAskedCells, 0);
 }
 
 TEST(BuildScene, PinnedBoxesAreCountedPerBox) {

@@ -107,11 +107,6 @@ class StartupFailureTest(unittest.TestCase):
         self.assert_fails_naming('flsm_too_fine', ['~max_particles', 'resolution'],
                                  '_resolution:=60', '_max_particles:=1000')
 
-    def test_region_radius_beyond_ten_cells_is_refused(self):
-        self.assert_fails_naming('flsm_big_regions', ['region_radius', 'at most 10 cells',
-                                                     'use a radius of at most'],
-                                 '_resolution:=10', '_region_radius:=0.5', '_mesh_scale:=0.1')
-
 
 if __name__ == '__main__':
     rostest.rosrun(PKG, 'startup_failure', StartupFailureTest)

@@ -23,9 +23,14 @@ SolverKind parseSolverKind(const std::string& name);
 /// "fast" or "naive".
 const char* toString(SolverKind kind);
 
+/// Largest region half-width w (cells) the solver accepts: (2w+1)^3 = 9261 cells per region at
+/// w = 10, beyond any useful stiffness.
+constexpr int kMaxRegionHalfWidth = 10;
+
 /// Region half-width w (cells) for a region radius in metres: the nearest whole number of cells,
 /// at least 1, so that regions keep their physical size whatever the lattice spacing.
-/// @throws std::invalid_argument for a non-positive or non-finite radius or spacing
+/// @throws std::invalid_argument for a non-positive or non-finite radius or spacing, or a
+///         radius of more than kMaxRegionHalfWidth cells
 int regionHalfWidthForRadius(double radius, double spacing);
 
 struct SolverParams {

@@ -65,7 +65,8 @@ struct NodeParams {
   int maxParticles = 200000;
 
   // --- regions and material ---------------------------------------------------------------
-  /// ~region_radius: region half-width in metres (preferred; rounded to whole cells); 0 = unset
+  /// ~region_radius: region half-width in metres (preferred; rounded to whole cells, at most
+  /// kMaxRegionHalfWidth cells: clamped with a warning); 0 = unset
   double regionRadius = 0.0;
   /// ~region_half_width: region half-width in cells (classic); 0 = unset
   int regionHalfWidth = 0;
@@ -95,9 +96,12 @@ struct NodeParams {
   /// @throws ParamError naming the first field that is out of range.
   void validate() const;
 
-  /// Region half-width w for a lattice of the given spacing: from regionRadius, from
-  /// regionHalfWidth, or 2. @throws ParamError when the radius is out of range.
-  int resolveRegionHalfWidth(double latticeSpacing) const;
+  /// Region half-width w for a lattice of the given spacing: from regionRadius (rounded to
+  /// whole cells), from regionHalfWidth, or 2. A radius of more cells than the solver accepts
+  /// (kMaxRegionHalfWidth) on this lattice is clamped to the largest that fits, and
+  /// `askedCells`, when given, receives the cells asked for (else 0), so that the caller can
+  /// warn: a radius that suits one mesh must not stop another from starting.
+  int resolveRegionHalfWidth(double latticeSpacing, int* askedCells = nullptr) const;
 };
 
 /// Reads `~` parameters with their defaults. A parameter that is set with the wrong type is an
