@@ -35,11 +35,6 @@ constexpr double kServiceTimeout = 2.0;
 /// listener to hear the frame.
 constexpr double kTransformTimeout = 0.1;
 constexpr double kFirstTransformTimeout = 1.0;
-/// The simulation rests when every particle is slower than this many object sizes per second
-/// (1 mm/s for the 30 cm bunny: a 2 Hz wobble of 0.08 mm, invisible) ...
-constexpr double kIdleSpeedPerSize = 3e-3;
-/// ... for this long (s of simulated time) with nothing acting on it.
-constexpr double kIdleHold = 1.0;
 /// Warn when the achieved real-time factor falls below this fraction of the requested one.
 constexpr double kSlowFraction = 0.9;
 constexpr double kWarnPeriod = 5.0;    // s between two warnings of the same kind
@@ -92,8 +87,7 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
 
   LoopSettings settings;
   settings.realTimeFactor = params_.realTimeFactor;
-  settings.idleSpeed = kIdleSpeedPerSize * lattice_->objectSize();
-  settings.idleHold = kIdleHold;
+  // Rest (LoopSettings::restFraction, idleHold): the defaults, relative to the object size.
   loop_ = std::make_unique<SimulationLoop>(std::move(scene.solver), settings, stats_);
 
   validator_ = std::make_unique<CommandValidator>(
