@@ -126,6 +126,10 @@ void NodeParams::validate() const {
              realTimeFactor > kMaxRealTimeFactor) {
     why << "~real_time_factor is " << realTimeFactor << ": it must be in (0, "
         << kMaxRealTimeFactor << "] (simulated seconds per wall-clock second)";
+  } else if (material == Material::Youngs && (!std::isfinite(youngsModulus) || youngsModulus <= 0.0)) {
+    why << "~youngs_modulus is " << youngsModulus << ": it must be a finite modulus > 0 (Pa) "
+        << "with ~material youngs (a firm jelly is ~1e4, rubber ~1e6); to give alpha per "
+        << "sub-step directly as ~stiffness instead, set ~material to classic";
   } else if (renderTriangleBudget < 0) {
     why << "~render_triangle_budget is " << renderTriangleBudget
         << ": it must be a number of triangles >= 1, or 0 to render the mesh as loaded";
@@ -140,6 +144,7 @@ void NodeParams::validate() const {
     }
     // The solver's own ranges (stiffness, damping, time step, ...); w is checked once known.
     SolverParams s = solver;
+    s.youngsModulus = material == Material::Youngs ? youngsModulus : 0.0;
     s.regionHalfWidth = regionHalfWidth > 0 ? regionHalfWidth : s.regionHalfWidth;
     try {
       s.validate();
@@ -169,6 +174,21 @@ int NodeParams::resolveRegionHalfWidth(double latticeSpacing, int* askedCells) c
   }
 }
 
+const char* toString(NodeParams::Material material) {
+  return material == NodeParams::Material::Youngs ? "youngs" : "classic";
+}
+
+bool parseMaterial(const std::string& name, NodeParams::Material& material) {
+  if (name == "youngs") {
+    material = NodeParams::Material::Youngs;
+  } else if (name == "classic") {
+    material = NodeParams::Material::Classic;
+  } else {
+    return false;
+  }
+  return true;
+}
+
 NodeParams ParamLoader::loadNodeParams() const {
   NodeParams p;
   p.mesh = getString("mesh", p.mesh);
@@ -186,7 +206,12 @@ NodeParams ParamLoader::loadNodeParams() const {
   p.regionHalfWidth = getInt("region_half_width", p.regionHalfWidth);
   SolverParams& s = p.solver;
   s.stiffness = getDouble("stiffness", s.stiffness);
-  s.youngsModulus = getDouble("youngs_modulus", s.youngsModulus);
+  p.youngsModulus = getDouble("youngs_modulus", p.youngsModulus);
+  const std::string material = getString("material", toString(p.material));
+  if (!parseMaterial(material, p.material)) {
+    throw ParamError("~material is '" + material + "': it must be 'youngs' (the stiffness from "
+                     "~youngs_modulus) or 'classic' (alpha = ~stiffness per sub-step)");
+  }
   s.damping = getDouble("damping", s.damping);
   s.ambientDamping = getDouble("ambient_damping", s.ambientDamping);
   s.gravity = getVector3("gravity", s.gravity);
@@ -208,6 +233,7 @@ NodeParams ParamLoader::loadNodeParams() const {
   p.pinned = getBoxes("pinned");
   p.renderTriangleBudget = getInt("render_triangle_budget", p.renderTriangleBudget);
   p.validate();
+  p.applyMaterial();
   return p;
 }
 
@@ -216,7 +242,7 @@ std::vector<std::string> ParamLoader::unknownParams() const {
   static const char* const kKnown[] = {
       "mesh", "mesh_scale", "mesh_rpy", "frame_id", "object_frame_id", "spacing", "resolution",
       "particle_budget", "max_particles", "region_radius", "region_half_width", "stiffness",
-      "youngs_modulus", "damping", "ambient_damping", "gravity", "time_step", "substeps",
+      "youngs_modulus", "material", "damping", "ambient_damping", "gravity", "time_step", "substeps",
       "density", "solver", "publish_rate", "republish_at_rest", "real_time_factor", "pinned",
       "render_triangle_budget", "threads", "gravity_x", "gravity_y", "gravity_z"};
   std::vector<std::string> all, unknown;

@@ -153,8 +153,8 @@ std::string describeScene(const SceneInfo& info, const NodeParams& params) {
                   info.substepsForModulus > 0 ? "saturated: softer than asked, see the warning"
                                               : "as asked");
   } else {
-    std::snprintf(buf, sizeof buf, "material: alpha = ~stiffness = %.3g per sub-step (no "
-                  "~youngs_modulus), density %.4g kg/m^3", s.stiffness, s.density);
+    std::snprintf(buf, sizeof buf, "material: alpha = ~stiffness = %.3g per sub-step "
+                  "(~material classic), density %.4g kg/m^3", s.stiffness, s.density);
   }
   out << buf << "\n";
   std::snprintf(buf, sizeof buf,

@@ -187,7 +187,9 @@ TEST(NodeParams, EveryInvalidValueIsNamed) {
       {[](NodeParams& p) { p.pinned.push_back(Box{Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 1)}); }, "~pinned"},
       {[&](NodeParams& p) { p.pinned.push_back(Box{Eigen::Vector3d(nan, 0, 0), Eigen::Vector3d(1, 1, 1)}); }, "~pinned"},
       {[](NodeParams& p) { p.solver.stiffness = 2.0; }, "stiffness"},
-      {[](NodeParams& p) { p.solver.youngsModulus = -1.0; }, "youngs_modulus"},
+      {[](NodeParams& p) { p.youngsModulus = -1.0; }, "~youngs_modulus is -1"},
+      {[](NodeParams& p) { p.youngsModulus = 0.0; }, "~material"},  // no longer "classic"
+      {[&](NodeParams& p) { p.youngsModulus = nan; }, "~youngs_modulus"},
       {[](NodeParams& p) { p.solver.damping = -1.0; }, "damping"},
       {[](NodeParams& p) { p.solver.timeStep = 0.0; }, "time_step"},
       {[](NodeParams& p) { p.solver.substeps = 0; }, "substeps"},
@@ -201,6 +203,24 @@ TEST(NodeParams, EveryInvalidValueIsNamed) {
     const std::string why = problem(p);
     EXPECT_NE(why.find(c.named), std::string::npos) << "expected '" << c.named << "' in: " << why;
   }
+}
+
+TEST(NodeParams, TheMaterialIsItsOwnSwitch) {
+  NodeParams p;
+  p.youngsModulus = 2e4;
+  p.solver.stiffness = 0.5;
+  p.applyMaterial();
+  EXPECT_EQ(p.solver.youngsModulus, 2e4);
+  p.material = NodeParams::Material::Classic;
+  p.youngsModulus = 0.0;  // not used by the classic model, so not checked
+  EXPECT_EQ(problem(p), "");
+  p.applyMaterial();
+  EXPECT_EQ(p.solver.youngsModulus, 0.0);  // the solver's alpha = stiffness
+  NodeParams::Material m = NodeParams::Material::Youngs;
+  EXPECT_TRUE(parseMaterial("classic", m));
+  EXPECT_EQ(m, NodeParams::Material::Classic);
+  EXPECT_FALSE(parseMaterial("", m));
+  EXPECT_STREQ(toString(NodeParams::Material::Youngs), "youngs");
 }
 
 }  // namespace

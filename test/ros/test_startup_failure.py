@@ -88,6 +88,18 @@ class StartupFailureTest(unittest.TestCase):
     def test_stiffness_above_one_is_refused(self):
         self.assert_fails_naming('flsm_stiff', ['stiffness', '(0, 1]'], '_stiffness:=1.5')
 
+    def test_non_positive_youngs_modulus_is_refused(self):
+        # 0 once meant "classic FastLSM": now that has its own switch, ~material.
+        self.assert_fails_naming('flsm_negative_modulus', ['~youngs_modulus is -5', '> 0',
+                                                           '~material'],
+                                 '_youngs_modulus:=-5.0')
+        self.assert_fails_naming('flsm_zero_modulus', ['~youngs_modulus is 0', '~material'],
+                                 '_youngs_modulus:=0.0')
+
+    def test_unknown_material_is_refused(self):
+        self.assert_fails_naming('flsm_bad_material', ["~material is 'rubber'", "'youngs'",
+                                                      "'classic'"], '_material:=rubber')
+
     def test_zero_substeps_is_refused(self):
         self.assert_fails_naming('flsm_substeps', ['substeps', '1 to'], '_substeps:=0')
 
