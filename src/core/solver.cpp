@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <numeric>
 #include <stdexcept>
@@ -82,10 +83,7 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
   const Lattice& L = *lattice_;
   const std::size_t n = L.size();
   threads_ = resolveThreadCount(params_.threads);
-  if (params_.kind == SolverKind::Fast)
-    summer_ = std::make_unique<SliceStreamSummer>(L, threads_);
-  else
-    summer_ = std::make_unique<NaiveSummer>(L);
+  makeSummers();
 
   const auto& x0 = L.restPositions();
   const auto& m = L.masses();
@@ -187,14 +185,12 @@ void Solver::setParams(const SolverParams& params) {
     throw std::invalid_argument("solver: density cannot change at run time (it defines the particle "
                                 "masses); restart with the new value");
   const int threads = resolveThreadCount(params.threads);
-  if (params.kind != params_.kind || threads != threads_) {
-    threads_ = threads;
-    if (params.kind == SolverKind::Fast)
-      summer_ = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
-    else
-      summer_ = std::make_unique<NaiveSummer>(*lattice_);
-  }
+  const bool rebuild = params.kind != params_.kind || threads != threads_;
   params_ = params;
+  if (rebuild) {
+    threads_ = threads;
+    makeSummers();
+  }
   computeRegionWeights();
 }
 
@@ -227,9 +223,38 @@ void Solver::setVelocities(const std::vector<Eigen::Vector3d>& v) {
   v_ = v;
 }
 
+void Solver::makeSummers() {
+  singleSummer_.reset();
+  governor_ = ThreadGovernor();
+  if (params_.kind == SolverKind::Fast) {
+    summer_ = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
+    if (threads_ > 1) {
+      // Used only when the governor says so, possibly first in the middle of a run: no
+      // allocation then.
+      auto single = std::make_unique<SliceStreamSummer>(*lattice_, 1);
+      single->reserve(kShapeChannels + kDampingChannels, kTransformChannels + kVelocityFieldChannels);
+      singleSummer_ = std::move(single);
+    }
+  } else {
+    summer_ = std::make_unique<NaiveSummer>(*lattice_);
+  }
+  activeSummer_ = summer_.get();
+}
+
 void Solver::step() {
   const double h = params_.timeStep / params_.substeps;
+  if (!singleSummer_) {
+    for (int s = 0; s < params_.substeps; ++s) substep(h);
+    return;
+  }
+  // Threads or one thread, whichever has been faster lately (ThreadGovernor): the same sums
+  // in the same order either way, so the results do not depend on the choice.
+  const bool threaded = governor_.threaded();
+  activeSummer_ = threaded ? summer_.get() : singleSummer_.get();
+  const auto t0 = std::chrono::steady_clock::now();
   for (int s = 0; s < params_.substeps; ++s) substep(h);
+  governor_.record(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  activeSummer_ = summer_.get();
 }
 
 // One pass over the regions computes the goal positions and, when damping is on, the damping
@@ -254,7 +279,7 @@ void Solver::regionPass(bool withDamping) {
   // Any point of the object keeps the sums O(object size) and gives the same goals up to
   // round-off: the anchor costs nothing, where the centre of mass was a sweep per sub-step.
   xref_ = x_[anchor_];
-  summer_->apply(*this);
+  activeSummer_->apply(*this);
 }
 
 int Solver::gatherChannels() const { return passDamping_ ? kShapeChannels + kDampingChannels : kShapeChannels; }

@@ -7,6 +7,7 @@
 #include "deformable_flsm/core/fast_summation.h"
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/solver_params.h"
+#include "deformable_flsm/core/thread_governor.h"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -57,6 +58,10 @@ class Solver : private RegionKernel {
   /// time. @throws std::invalid_argument if invalid, or if regionHalfWidth or density change
   /// (they define the lattice: build a new Solver).
   void setParams(const SolverParams& params);
+  /// With params.threads > 1 (fast solver), which steps ran on the threads and which on one
+  /// thread: each step times itself and a ThreadGovernor picks the faster (results are
+  /// identical either way); nullptr with one thread.
+  const ThreadGovernor* threadGovernor() const { return singleSummer_ ? &governor_ : nullptr; }
 
   /// alpha used per sub-step: params().requestedAlpha(spacing), capped so that no particle's
   /// alpha s_i exceeds params().stiffness (s_i = 1 in classic mode, see computeRegionWeights()).
@@ -177,11 +182,17 @@ class Solver : private RegionKernel {
   void particleResult(std::size_t begin, std::size_t end, const double* sums) override;
   void accumulateForces(double h);
   void computeRegionWeights();
+  /// summer_ (and singleSummer_) for params_.kind and threads_.
+  void makeSummers();
   void reserveForcedParticles();
 
   std::shared_ptr<const Lattice> lattice_;
   SolverParams params_;
   std::unique_ptr<RegionSummer> summer_;
+  /// With threads_ > 1: the same sums on one thread, for the steps the governor gives to it.
+  std::unique_ptr<RegionSummer> singleSummer_;
+  RegionSummer* activeSummer_ = nullptr;  // the summer of the step being run
+  ThreadGovernor governor_;
 
   std::vector<Eigen::Vector3d> x_, v_;
   std::vector<Eigen::Vector3d>* goalsOut_ = nullptr;  // where computeGoals() wants the goals
