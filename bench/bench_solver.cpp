@@ -296,7 +296,7 @@ int main(int argc, char** argv) {
               "threaded", "max position difference");
   struct BusyRow {
     std::size_t particles;
-    double one, all, cost, threaded, diff;
+    double one, all, cost, threaded, diff, msThreads, msOne;
   };
   std::vector<BusyRow> busyRows;
   for (std::size_t target : {args.particles, std::size_t{50000}}) {
@@ -344,15 +344,18 @@ int main(int argc, char** argv) {
     double busyDiff = 0.0;
     for (std::size_t i = 0; i < lat->size(); ++i)
       busyDiff = std::max(busyDiff, (oneBusy.solver->positions()[i] - allBusy.solver->positions()[i]).norm());
+    const ThreadGovernor* g = allBusy.solver->threadGovernor();
     busyRows.push_back({lat->size(), median(oneBusy.samples), median(allBusy.samples), ratioMedian(allBusy, oneBusy),
-                        threadedShare(*allBusy.solver), busyDiff});
+                        threadedShare(*allBusy.solver), busyDiff, g ? 1e3 * g->recentSeconds(true) : 0.0,
+                        g ? 1e3 * g->recentSeconds(false) : 0.0});
   }
   std::printf("\nthe same with another process spinning on one core (started before and stopped after each\n"
-              "entry's run, in the same rounds as above; cost: median of the all / 1 time ratios within a round)\n"
-              "%10s %14s %14s %9s %9s %22s\n",
-              "particles", "1: ns/p-step", "all: ns/p-step", "cost", "threaded", "max position difference");
+              "entry's run, in the same rounds as above; cost: median of the all / 1 time ratios within a round;\n"
+              "governor: the threaded solver's recent median step on the threads and on one thread)\n"
+              "%10s %14s %14s %9s %9s %22s %22s\n",
+              "particles", "1: ns/p-step", "all: ns/p-step", "cost", "threaded", "governor: threads/one", "max position difference");
   for (const BusyRow& b : busyRows)
-    std::printf("%10zu %14.1f %14.1f %8.2fx %8.0f%% %22.3g\n", b.particles, b.one, b.all, b.cost, 100.0 * b.threaded,
-                b.diff);
+    std::printf("%10zu %14.1f %14.1f %8.2fx %8.0f%% %11.2f / %.2f ms %22.3g\n", b.particles, b.one, b.all, b.cost,
+                100.0 * b.threaded, b.msThreads, b.msOne, b.diff);
   return 0;
 }

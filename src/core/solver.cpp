@@ -227,13 +227,18 @@ void Solver::makeSummers() {
   singleSummer_.reset();
   governor_ = ThreadGovernor();
   if (params_.kind == SolverKind::Fast) {
-    summer_ = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
     if (threads_ > 1) {
-      // Used only when the governor says so, possibly first in the middle of a run: no
+      // Each used only when the governor says so, possibly first in the middle of a run: no
       // allocation then.
+      const int Kg = kShapeChannels + kDampingChannels, Ks = kTransformChannels + kVelocityFieldChannels;
+      auto threaded = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
+      threaded->reserve(Kg, Ks);
+      summer_ = std::move(threaded);
       auto single = std::make_unique<SliceStreamSummer>(*lattice_, 1);
-      single->reserve(kShapeChannels + kDampingChannels, kTransformChannels + kVelocityFieldChannels);
+      single->reserve(Kg, Ks);
       singleSummer_ = std::move(single);
+    } else {
+      summer_ = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
     }
   } else {
     summer_ = std::make_unique<NaiveSummer>(*lattice_);

@@ -12,26 +12,40 @@ double ThreadGovernor::Recent::median() const {
   return sorted[n / 2];
 }
 
+bool ThreadGovernor::better(bool m) const {
+  const Recent& mine = recent_[m ? 1 : 0];
+  const Recent& rival = recent_[m ? 0 : 1];
+  if (mine.count < kMinSamples || rival.count < kMinSamples) return false;
+  const double margin = m ? kToThreadsMargin : kToSingleMargin;
+  return mine.median() < (1.0 - margin) * rival.median();
+}
+
 void ThreadGovernor::record(double seconds) {
   const bool mode = threaded();
   ++steps_[mode ? 1 : 0];
+  Recent& mine = recent_[mode ? 1 : 0];
+  const double usual = mine.median();
+  mine.add(seconds);
   if (probing_) {
     probing_ = false;
     sinceProbe_ = 0;
-    const double rival = recent_[threaded_ ? 1 : 0].median();
-    recent_[mode ? 1 : 0].add(seconds);
-    if (rival <= 0.0 || seconds < (1.0 - kSwitchMargin) * rival) {
-      threaded_ = mode;  // the probe won: switch, and check the old mode again soon
+    if (better(mode)) {
+      threaded_ = mode;  // the probed mode wins: switch, and check the old one again soon
       interval_ = kFirstProbe;
-    } else {
+    } else if (mine.count >= kMinSamples) {
       interval_ = std::min(2 * interval_, kLastProbe);
     }
     return;
   }
-  Recent& mine = recent_[mode ? 1 : 0];
-  const double usual = mine.median();
-  mine.add(seconds);
-  if (mine.count > kRecent / 2 && seconds > kChangeFactor * usual) interval_ = kFirstProbe;
+  // Another job started and took a core from the threads: look at one thread soon. (Slower
+  // one-thread steps mean a busier machine, where threads would fare worse still.)
+  if (threaded_ && mine.count > kRecent / 2 && seconds > kChangeFactor * usual) interval_ = kFirstProbe;
+  if (better(!threaded_)) {  // this mode's recent steps fell behind the other's figure
+    threaded_ = !threaded_;
+    interval_ = kFirstProbe;
+    sinceProbe_ = 0;
+    return;
+  }
   if (++sinceProbe_ >= interval_) probing_ = true;
 }
 

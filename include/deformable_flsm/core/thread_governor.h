@@ -11,25 +11,31 @@ namespace deformable_flsm {
 
 /// Threads pay only when they get a core each: a sub-step's region pass waits for its slowest
 /// thread, so with another process busy on one of two cores a two-thread step can take several
-/// times a one-thread step. The governor keeps the mode whose steps are faster and now and then
-/// tries the other (a probe): after every probe that loses, the next comes twice as late (from
-/// kFirstProbe up to kLastProbe steps), so that a mode that keeps losing costs less and less;
-/// a probe that wins switches at once. A step much slower than its mode's recent ones (the
-/// machine changed: another job started or stopped) brings the next probe forward.
+/// times a one-thread step. The governor keeps the last kRecent step times of each mode and runs
+/// the mode whose median is lower; the other mode is tried now and then (a probe) to keep its
+/// figure fresh: kFirstProbe steps apart until it has kMinSamples times, then twice as far apart
+/// after every probe that does not change the choice (up to kLastProbe steps), so that a mode
+/// that keeps losing costs less and less. Moving to the threads asks for a clear win
+/// (kToThreadsMargin: a lucky step of a busy machine must not bring back a run of slow ones);
+/// moving to one thread a small one (kToSingleMargin). A step much slower than its mode's recent
+/// ones on the threads (another job started) brings the next probe of one thread forward.
 ///
 /// Usage, per step: `bool t = g.threaded();` run the step on that many threads, then
 /// `g.record(seconds)`. No allocation; not thread-safe (one per solver).
 class ThreadGovernor {
  public:
-  /// Steps before the first probe, and the longest interval between two probes.
+  /// Steps between probes at first, and the longest interval between two probes.
   static constexpr int kFirstProbe = 8;
   static constexpr int kLastProbe = 256;
-  /// A probe switches modes only when it is this much faster than its rival's recent median.
-  static constexpr double kSwitchMargin = 0.05;
+  /// The threads are chosen when their median step is this fraction shorter than one thread's;
+  /// one thread when its median is this fraction shorter than the threads'.
+  static constexpr double kToThreadsMargin = 0.2;
+  static constexpr double kToSingleMargin = 0.05;
   /// A step this many times its mode's recent median brings the next probe forward.
   static constexpr double kChangeFactor = 2.0;
-  /// Recent steps remembered per mode.
+  /// Recent steps remembered per mode, and how many a mode needs before it can be chosen.
   static constexpr std::size_t kRecent = 8;
+  static constexpr std::size_t kMinSamples = 3;
 
   /// true: run the next step on several threads; false: on one.
   bool threaded() const { return probing_ ? !threaded_ : threaded_; }
@@ -39,6 +45,8 @@ class ThreadGovernor {
   /// Steps run threaded and on one thread so far.
   std::size_t threadedSteps() const { return steps_[1]; }
   std::size_t singleSteps() const { return steps_[0]; }
+  /// Median of the recent step times (s) of a mode; 0 before its first step.
+  double recentSeconds(bool threaded) const { return recent_[threaded ? 1 : 0].median(); }
 
  private:
   struct Recent {
@@ -49,7 +57,13 @@ class ThreadGovernor {
     double median() const;
   };
 
-  bool threaded_ = true;  // the mode in use (starts threaded: what was asked for)
+  /// true when mode `m`'s recent steps beat the other mode's by the margin moving to m asks.
+  bool better(bool m) const;
+
+  // The mode in use. It starts on one thread: until the threads have shown they are faster,
+  // the safe choice (a step on a busy machine's threads can take several times as long; one on
+  // a quiet machine's single thread at most as many times as there are threads).
+  bool threaded_ = false;
   bool probing_ = false;  // the step being run is a probe of the other mode
   int interval_ = kFirstProbe;
   int sinceProbe_ = 0;
