@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
 #include <functional>
 #include <limits>
 #include <thread>
@@ -285,6 +286,9 @@ TEST(SimulationLoop, RestsOnlyAtEquilibrium) {
   const Snapshot& s = loop.acquire();
   ASSERT_TRUE(s.diag.idle) << "not at rest after 30 s (" << s.diag.simTime << " s simulated)";
   const double atRest = tipDeflection(s.positions, loop.lattice());
+  RecordProperty("tip_deflection_kept_awake_um", static_cast<int>(std::lround(-1e6 * settled)));
+  RecordProperty("tip_deflection_at_rest_um", static_cast<int>(std::lround(-1e6 * atRest)));
+  RecordProperty("rest_after_simulated_ms", static_cast<int>(std::lround(1e3 * s.diag.simTime)));
   // Within 1 % of the settled deflection.
   EXPECT_NEAR(atRest, settled, 0.01 * std::abs(settled))
       << "declared at rest at " << s.diag.simTime << " s of simulated time";
