@@ -35,8 +35,10 @@ struct LoopSettings {
   /// once no particle has moved farther than restFraction object sizes (Lattice::objectSize())
   /// from where it was idleHold seconds of simulated time earlier, with no drag or force
   /// acting. A speed threshold is not enough: a slow swing turns at its ends with almost no
-  /// speed for a second or more, far from where it settles (a soft cantilever swinging at
-  /// 0.15 Hz was declared still 40 % past its final deflection). Over a whole second, a swing
+  /// speed for a second or more, far from where it settles (the soft cantilever of
+  /// test_simulation_loop's RestsOnlyAtEquilibrium, with a period of several seconds, was
+  /// declared still 9 % past its final deflection at 3.4 s; now it rests at 9.7 s, within
+  /// 0.1 %). Over a whole second, a swing
   /// of amplitude A moves a particle by ~A (slow swings) to 2A (fast ones), and a creep moves
   /// it by what the next second would add, so the object rests within ~restFraction sizes of
   /// its equilibrium: 2e-5 is 7 um for the 33 cm bunny, far below what can be seen, and the
