@@ -62,6 +62,16 @@ int resolveThreadCount(int requested) {
   return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
 }
 
+/// A rigid transform's rotation is orthonormal with determinant 1 up to round-off; looser than
+/// this is a scaled, sheared or mirrored frame, which a rigid body cannot have.
+constexpr double kRigidTolerance = 1e-6;
+
+bool isRigid(const Eigen::Isometry3d& T) {
+  const Eigen::Matrix3d R = T.linear();
+  return T.matrix().allFinite() && (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < kRigidTolerance &&
+         std::abs(R.determinant() - 1.0) < kRigidTolerance;
+}
+
 Eigen::Vector3d centroidOf(const std::vector<Eigen::Vector3d>& x,
                            const std::vector<std::uint32_t>& particles) {
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
@@ -208,6 +218,7 @@ void Solver::reset() {
   std::fill(rotations_.begin(), rotations_.end(), Eigen::Quaterniond::Identity());
   pinPosition_ = x_;
   drags_.clear();
+  dragFrames_.clear();
   markHardDrags();
   forces_.clear();
   std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
@@ -227,9 +238,38 @@ void Solver::setVelocities(const std::vector<Eigen::Vector3d>& v) {
   v_ = v;
 }
 
+Eigen::Vector3d Drag::centroidTarget() const {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& o : offsets) c += o;
+  if (!offsets.empty()) c /= static_cast<double>(offsets.size());
+  return pose * c;
+}
+
 void Solver::step() {
   const double h = params_.timeStep / params_.substeps;
-  for (int s = 0; s < params_.substeps; ++s) substep(h);
+  for (int s = 0; s < params_.substeps; ++s) {
+    interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
+    substep(h);
+  }
+  for (auto& entry : drags_) entry.second.reached = entry.second.pose;
+}
+
+// A drag frame moved by moveDrag() between two steps goes there over the sub-steps of the next
+// step: translation linearly and rotation along the shortest arc (slerp), i.e. at a constant
+// linear and angular velocity, the velocity a body moving from one pose to the next has.
+void Solver::interpolateDragFrames(double s) {
+  std::size_t k = 0;
+  for (const auto& entry : drags_) {
+    const Drag& drag = entry.second;
+    Eigen::Isometry3d& frame = dragFrames_[k++];
+    if (s >= 1.0) {
+      frame = drag.pose;
+      continue;
+    }
+    const Eigen::Quaterniond from(drag.reached.linear()), to(drag.pose.linear());
+    frame.linear() = from.slerp(s, to).toRotationMatrix();
+    frame.translation() = drag.reached.translation() + s * (drag.pose.translation() - drag.reached.translation());
+  }
 }
 
 // One pass over the regions computes the goal positions and, when damping is on, the damping
@@ -415,8 +455,10 @@ void Solver::accumulateForces(double h) {
     for (std::uint32_t p : f.particles) forceAccel_[p] += a;
     forcedParticles_.insert(forcedParticles_.end(), f.particles.begin(), f.particles.end());
   }
+  std::size_t k = 0;
   for (const auto& entry : drags_) {
     const Drag& drag = entry.second;
+    const Eigen::Isometry3d& frame = dragFrames_[k++];
     if (drag.stiffness <= 0.0) continue;
     double M = 0.0;
     for (std::uint32_t p : drag.particles) M += m[p];
@@ -424,7 +466,7 @@ void Solver::accumulateForces(double h) {
     const double k = drag.stiffness / M;
     for (std::size_t e = 0; e < drag.particles.size(); ++e) {
       const std::uint32_t p = drag.particles[e];
-      forceAccel_[p] += k * (drag.target + drag.offsets[e] - x_[p]);
+      forceAccel_[p] += k * (frame * drag.offsets[e] - x_[p]);
     }
     forcedParticles_.insert(forcedParticles_.end(), drag.particles.begin(), drag.particles.end());
   }
@@ -464,13 +506,15 @@ void Solver::substep(double h) {
 // The particles particleResult() leaves alone: hard-dragged ones follow their target (the
 // velocity that reaches it in one sub-step), pinned ones stay.
 void Solver::finishSubstep(double h) {
+  std::size_t k = 0;
   for (const auto& entry : drags_) {
     const Drag& drag = entry.second;
+    const Eigen::Isometry3d& frame = dragFrames_[k++];
     if (drag.stiffness > 0.0) continue;
     for (std::size_t e = 0; e < drag.particles.size(); ++e) {
       const std::uint32_t p = drag.particles[e];
       if (pinned_[p] != 0) continue;
-      v_[p] = (drag.target + drag.offsets[e] - x_[p]) / h;
+      v_[p] = (frame * drag.offsets[e] - x_[p]) / h;
       x_[p] += h * v_[p];
     }
   }
@@ -521,19 +565,41 @@ std::size_t Solver::pinnedCount() const {
 
 void Solver::grab(const std::string& id, const std::vector<std::uint32_t>& particles,
                   const Eigen::Vector3d& target, double stiffness) {
+  if (!target.allFinite()) throw std::invalid_argument("solver: drag target must be finite");
   if (particles.empty()) throw std::invalid_argument("solver: a drag needs at least one particle");
   for (std::uint32_t p : particles)
     if (p >= x_.size()) throw std::out_of_range("solver: particle index out of range");
-  if (!target.allFinite() || !std::isfinite(stiffness) || stiffness < 0.0)
-    throw std::invalid_argument("solver: drag target must be finite and stiffness >= 0");
+  // The drag frame sits at the centroid, unrotated: offsets are relative to the centroid, and
+  // the frame glides from there to `target` over the first step.
+  const Eigen::Isometry3d frame(Eigen::Translation3d(centroidOf(x_, particles)));
+  addDrag(id, particles, frame, Eigen::Isometry3d(Eigen::Translation3d(target)), stiffness);
+}
+
+void Solver::attach(const std::string& id, const std::vector<std::uint32_t>& particles,
+                    const Eigen::Isometry3d& frame, double stiffness) {
+  if (!isRigid(frame))
+    throw std::invalid_argument("solver: the frame to attach to must be finite and rigid (a rotation "
+                                "and a translation)");
+  addDrag(id, particles, frame, frame, stiffness);
+}
+
+void Solver::addDrag(const std::string& id, const std::vector<std::uint32_t>& particles,
+                     const Eigen::Isometry3d& frame, const Eigen::Isometry3d& pose, double stiffness) {
+  if (particles.empty()) throw std::invalid_argument("solver: a drag needs at least one particle");
+  for (std::uint32_t p : particles)
+    if (p >= x_.size()) throw std::out_of_range("solver: particle index out of range");
+  if (!std::isfinite(stiffness) || stiffness < 0.0)
+    throw std::invalid_argument("solver: drag stiffness must be finite and >= 0");
   Drag drag;
   drag.particles = particles;
-  const Eigen::Vector3d c = centroidOf(x_, particles);
+  const Eigen::Isometry3d toFrame = frame.inverse(Eigen::Isometry);
   drag.offsets.reserve(particles.size());
-  for (std::uint32_t p : particles) drag.offsets.push_back(x_[p] - c);
-  drag.target = target;
+  for (std::uint32_t p : particles) drag.offsets.push_back(toFrame * x_[p]);
+  drag.pose = pose;
+  drag.reached = frame;
   drag.stiffness = stiffness;
   drags_[id] = std::move(drag);
+  dragFrames_.resize(drags_.size());
   markHardDrags();
   reserveForcedParticles();
 }
@@ -547,22 +613,34 @@ void Solver::reserveForcedParticles() {
   forcedParticles_.reserve(total);
 }
 
+bool Solver::moveDrag(const std::string& id, const Eigen::Isometry3d& pose) {
+  auto it = drags_.find(id);
+  if (it == drags_.end()) return false;
+  if (!isRigid(pose))
+    throw std::invalid_argument("solver: a drag pose must be finite and rigid (a rotation and a "
+                                "translation)");
+  it->second.pose = pose;
+  return true;
+}
+
 bool Solver::moveDrag(const std::string& id, const Eigen::Vector3d& target) {
   auto it = drags_.find(id);
   if (it == drags_.end()) return false;
   if (!target.allFinite()) throw std::invalid_argument("solver: drag target must be finite");
-  it->second.target = target;
+  it->second.pose.translation() = target;
   return true;
 }
 
 bool Solver::release(const std::string& id) {
   const bool found = drags_.erase(id) > 0;
+  dragFrames_.resize(drags_.size());
   markHardDrags();
   return found;
 }
 
 void Solver::releaseAll() {
   drags_.clear();
+  dragFrames_.clear();
   markHardDrags();
 }
 

@@ -19,18 +19,31 @@
 
 namespace deformable_flsm {
 
-/// A drag: particles pulled so that their centroid goes to `target`, keeping their arrangement
-/// at the moment they were grabbed.
+/// A drag: particles pulled to targets that move rigidly with a frame, the drag's pose. Each
+/// particle keeps the offset it had in that frame when it was grabbed: its target is
+/// pose * offsets[i]. grab() puts the frame at the grabbed particles' centroid, unrotated, so
+/// that moving the pose's translation pulls the centroid there; attach() takes the frame of a
+/// body (a gripper, a robot link) so that the particles follow that body as it moves and turns.
 struct Drag {
   /// grabbed particle indices
   std::vector<std::uint32_t> particles;
-  /// per particle: its target is target + offsets[i] (m)
+  /// per particle: where it was in the drag frame when grabbed (m); its target is
+  /// pose * offsets[i]
   std::vector<Eigen::Vector3d> offsets;
-  /// where the centroid of the grabbed particles is pulled to (m, simulation frame)
-  Eigen::Vector3d target = Eigen::Vector3d::Zero();
-  /// 0 for a hard constraint (the particles follow the target exactly); otherwise the stiffness
-  /// (N/m) of a spring from each particle to its target, scaled by the particle's mass share
+  /// the drag frame in the simulation frame at the end of the next step()
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  /// the drag frame the last step() ended at; the sub-steps of the next step() move the frame
+  /// from here to `pose` (translation linearly, rotation by slerp), so that a frame moving
+  /// steadily drags the particles at its own velocity instead of in one jump per step
+  Eigen::Isometry3d reached = Eigen::Isometry3d::Identity();
+  /// 0 for a hard constraint (the particles follow their targets exactly); otherwise the
+  /// stiffness (N/m) of a spring from each particle to its target, scaled by the particle's mass
+  /// share
   double stiffness = 0.0;
+
+  /// Where the grabbed particles' centroid is pulled to (m, simulation frame): pose applied to
+  /// the centroid of the offsets (for grab(), the pose's translation).
+  Eigen::Vector3d centroidTarget() const;
 };
 
 /// A force spread over a set of particles in proportion to their masses, so that all of them
@@ -100,10 +113,22 @@ class Solver : private RegionKernel {
 
   // --- drags ----------------------------------------------------------------------------
   /// Grabs `particles` under `id` (replacing a drag of the same id) and pulls their centroid to
-  /// `target`. stiffness 0 = hard constraint, > 0 = spring (N/m).
+  /// `target`, keeping their arrangement unrotated. stiffness 0 = hard constraint, > 0 = spring
+  /// (N/m). @throws std::invalid_argument, std::out_of_range for an empty or bad selection, a
+  /// non-finite target or a negative stiffness.
   void grab(const std::string& id, const std::vector<std::uint32_t>& particles,
             const Eigen::Vector3d& target, double stiffness);
-  /// Moves the target of drag `id`. Returns false if there is no such drag.
+  /// Attaches `particles` to a moving frame under `id` (replacing a drag of the same id): each
+  /// keeps its present position in `frame` (simulation frame <- attached frame), and follows it
+  /// when moveDrag() moves and turns the frame. Nothing moves until the frame does.
+  /// @throws like grab(), and std::invalid_argument for a non-rigid or non-finite frame.
+  void attach(const std::string& id, const std::vector<std::uint32_t>& particles,
+              const Eigen::Isometry3d& frame, double stiffness);
+  /// Moves the drag frame of drag `id` to `pose` at the end of the next step(). Returns false
+  /// if there is no such drag. @throws std::invalid_argument for a non-rigid or non-finite pose.
+  bool moveDrag(const std::string& id, const Eigen::Isometry3d& pose);
+  /// Moves the origin of drag `id`'s frame to `target` and keeps its rotation (for a grab(): the
+  /// grabbed centroid goes to `target`). Returns false if there is no such drag.
   bool moveDrag(const std::string& id, const Eigen::Vector3d& target);
   /// Releases drag `id`. Returns false if there is no such drag.
   bool release(const std::string& id);
@@ -169,6 +194,11 @@ class Solver : private RegionKernel {
   void finishSubstep(double h);
   /// hardDragged_ from drags_
   void markHardDrags();
+  /// Stores a drag under `id`: offsets are the particles' positions in `frame`.
+  void addDrag(const std::string& id, const std::vector<std::uint32_t>& particles,
+               const Eigen::Isometry3d& frame, const Eigen::Isometry3d& pose, double stiffness);
+  /// Every drag's frame at fraction `s` of the step from `reached` to `pose` into dragFrames_.
+  void interpolateDragFrames(double s);
   // RegionKernel
   int gatherChannels() const override;
   int scatterChannels() const override;
@@ -203,6 +233,8 @@ class Solver : private RegionKernel {
   std::vector<Eigen::Vector3d> impulseDv_;  // velocity change pending from impulses
   bool impulsePending_ = false;
   std::map<std::string, Drag> drags_;
+  /// per drag (in drags_ order): its frame at the current sub-step; capacity kept across steps
+  std::vector<Eigen::Isometry3d> dragFrames_;
   std::map<std::string, Collider> colliders_;
   std::vector<TimedForce> forces_;
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
