@@ -103,6 +103,8 @@ bool SimulationLoop::submit(Command command) {
   return false;
 }
 
+void SimulationLoop::setFrameSource(FrameSource source) { frameSource_ = std::move(source); }
+
 void SimulationLoop::setRealTimeFactor(double realTimeFactor) {
   if (!(realTimeFactor > 0.0) || !std::isfinite(realTimeFactor))
     throw std::invalid_argument("real-time factor must be finite and > 0");
@@ -188,6 +190,7 @@ void SimulationLoop::run() {
       steps = 1;
     }
     for (std::int64_t s = 0; s < steps; ++s) {
+      followFrames();
       timedStep();
       owed -= dt;
     }
@@ -211,6 +214,19 @@ void SimulationLoop::ensureFinite() {
   solver_->reset();
   ++diag_.solverResets;
   stillFor_ = 0.0;
+}
+
+void SimulationLoop::followFrames() {
+  if (!frameSource_) return;
+  for (const auto& entry : attachedFrames_) {
+    Eigen::Isometry3d pose;
+    if (!frameSource_(entry.second, pose)) continue;  // unknown or stale: hold
+    // The source gives rigid, finite frames; should one not be, holding beats a crash.
+    try {
+      solver_->moveDrag(entry.first, pose);
+    } catch (const std::invalid_argument&) {
+    }
+  }
 }
 
 void SimulationLoop::timedStep() {
@@ -276,7 +292,7 @@ void SimulationLoop::writeSnapshot() {
     d.id = entry.first;
     for (std::uint32_t p : entry.second.particles) d.centroid += s.positions[p];
     d.centroid /= static_cast<double>(entry.second.particles.size());
-    d.target = entry.second.target;
+    d.target = entry.second.centroidTarget();
     s.drags.push_back(std::move(d));
   }
   const Eigen::Isometry3d rigid = solver.rigidFrame();
@@ -310,6 +326,8 @@ bool SimulationLoop::apply(Command& command) {
         using T = std::decay_t<decltype(c)>;
         if constexpr (std::is_same_v<T, GrabCommand>) {
           return grab(c);
+        } else if constexpr (std::is_same_v<T, AttachCommand>) {
+          return grab(c.grab, &c);
         } else if constexpr (std::is_same_v<T, MoveCommand>) {
           return move(c);
         } else if constexpr (std::is_same_v<T, ReleaseCommand>) {
@@ -318,11 +336,13 @@ bool SimulationLoop::apply(Command& command) {
           return force(c);
         } else if constexpr (std::is_same_v<T, ResetCommand>) {
           solver_->reset();
+          attachedFrames_.clear();
           stillFor_ = 0.0;
           return accepted("reset to rest; pins kept, drags and forces released");
         } else if constexpr (std::is_same_v<T, ReleaseAllCommand>) {
           const std::size_t n = solver_->drags().size();
           solver_->releaseAll();
+          attachedFrames_.clear();
           return accepted("released " + std::to_string(n) + " drag(s)");
         } else if constexpr (std::is_same_v<T, PinBoxCommand>) {
           return pinBox(c);
@@ -350,7 +370,7 @@ double SimulationLoop::massOf(const std::vector<std::uint32_t>& particles) const
   return m;
 }
 
-CommandOutcome SimulationLoop::grab(const GrabCommand& c) {
+CommandOutcome SimulationLoop::grab(const GrabCommand& c, const AttachCommand* attach) {
   const std::size_t n = lattice_->size();
   if (c.particle >= static_cast<std::int64_t>(n))
     return reject("bad_index", "drag '" + c.id + "': particle " + std::to_string(c.particle) +
@@ -372,19 +392,42 @@ CommandOutcome SimulationLoop::grab(const GrabCommand& c) {
                         " kg of particles at sub-step " + num(h) + " s: at most " + num(limit) +
                         " N/m (or 0 for a hard drag)");
   }
-  solver_->grab(c.id, particles, c.target, c.stiffness);
+  if (attach == nullptr) {
+    solver_->grab(c.id, particles, c.target, c.stiffness);
+    attachedFrames_.erase(c.id);
+    return accepted("drag '" + c.id + "' holds " + std::to_string(particles.size()) +
+                        " particle(s)",
+                    particles.size());
+  }
+  try {
+    solver_->attach(c.id, particles, attach->pose, c.stiffness);
+  } catch (const std::invalid_argument& e) {
+    return reject("bad_frame", "attach '" + c.id + "' to frame '" + attach->frame + "': " + e.what());
+  }
+  if (attach->frame.empty())
+    attachedFrames_.erase(c.id);
+  else
+    attachedFrames_[c.id] = attach->frame;
   return accepted("drag '" + c.id + "' holds " + std::to_string(particles.size()) +
-                      " particle(s)",
+                      " particle(s)" +
+                      (attach->frame.empty() ? std::string(" where they are")
+                                             : " attached to frame '" + attach->frame + "'"),
                   particles.size());
 }
 
 CommandOutcome SimulationLoop::move(const MoveCommand& c) {
+  const auto attached = attachedFrames_.find(c.id);
+  if (attached != attachedFrames_.end())
+    return reject("attached_drag", "move of drag '" + c.id + "': it follows frame '" +
+                                       attached->second +
+                                       "'; RELEASE it, or ATTACH it to another frame");
   if (!solver_->moveDrag(c.id, c.target))
     return reject("unknown_drag", "move of drag '" + c.id + "': no such drag (grab first)");
   return accepted("drag '" + c.id + "' moved");
 }
 
 CommandOutcome SimulationLoop::release(const ReleaseCommand& c) {
+  attachedFrames_.erase(c.id);
   if (!solver_->release(c.id))
     return reject("unknown_drag", "release of drag '" + c.id + "': no such drag");
   return accepted("drag '" + c.id + "' released");

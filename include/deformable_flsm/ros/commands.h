@@ -6,6 +6,7 @@
 #include "deformable_flsm/core/solver_params.h"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <cstdint>
 #include <functional>
@@ -75,6 +76,16 @@ struct GrabCommand {
   double stiffness = 0.0;
 };
 
+/// Grab like `grab` and attach the particles to the moving frame `frame`: each keeps its present
+/// position in that frame. `pose` is the frame now (simulation frame <- frame); the simulation
+/// loop follows the frame before every step through its FrameSource. An empty `frame` holds the
+/// particles where they are (nothing to follow).
+struct AttachCommand {
+  GrabCommand grab;
+  std::string frame;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+};
+
 /// Move the target of drag `id` (simulation frame, m).
 struct MoveCommand {
   std::string id;
@@ -113,8 +124,9 @@ struct ParamsCommand {
   SolverParams params;
 };
 
-using CommandBody = std::variant<GrabCommand, MoveCommand, ReleaseCommand, PushCommand,
-                                 ResetCommand, ReleaseAllCommand, PinBoxCommand, ParamsCommand>;
+using CommandBody = std::variant<GrabCommand, AttachCommand, MoveCommand, ReleaseCommand,
+                                 PushCommand, ResetCommand, ReleaseAllCommand, PinBoxCommand,
+                                 ParamsCommand>;
 
 /// A command and, optionally, the promise its outcome is delivered to.
 struct Command {

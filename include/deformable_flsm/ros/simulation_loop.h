@@ -15,6 +15,8 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -90,6 +92,12 @@ struct Snapshot {
 
 class SimulationLoop {
  public:
+  /// Where a frame that drags follow is now: simFromFrame maps the frame into the simulation
+  /// frame. Called by the simulation thread before every step, once per attached drag; it must
+  /// not block (the node reads tf's latest transform). false = not known now: the drag holds
+  /// its last pose.
+  using FrameSource = std::function<bool(const std::string& frame, Eigen::Isometry3d& simFromFrame)>;
+
   /// @param[in] solver    the solver, ready (pins set); owned by the loop from now on
   /// @param[in] settings  pacing and idling
   /// @param[in] stats     where accepted and rejected commands are counted
@@ -109,6 +117,9 @@ class SimulationLoop {
   /// once (borrowing the next step's time; see run()). When the queue is full the
   /// command is rejected ("queue_full"), its outcome delivered, and false returned.
   bool submit(Command command);
+  /// Sets how attached drags (AttachCommand) find their frames; call before start(). Without a
+  /// source, attached drags hold their pose.
+  void setFrameSource(FrameSource source);
   /// Changes the pace (simulated seconds per wall second, > 0) and wakes an idle loop.
   void setRealTimeFactor(double realTimeFactor);
 
@@ -124,7 +135,7 @@ class SimulationLoop {
   void run();
   /// Applies one command; returns true when it was accepted.
   bool apply(Command& command);
-  CommandOutcome grab(const GrabCommand& c);
+  CommandOutcome grab(const GrabCommand& c, const AttachCommand* attach = nullptr);
   CommandOutcome move(const MoveCommand& c);
   CommandOutcome release(const ReleaseCommand& c);
   CommandOutcome force(const PushCommand& c);
@@ -135,6 +146,8 @@ class SimulationLoop {
   double massOf(const std::vector<std::uint32_t>& particles) const;
   /// Resets a non-finite state to rest and counts it.
   void ensureFinite();
+  /// Moves every attached drag to where its frame is now (see FrameSource).
+  void followFrames();
   void timedStep();
   /// Starts a new averaging window for the step cost and the achieved real-time factor.
   void restartWindow(std::chrono::steady_clock::time_point now);
@@ -165,6 +178,8 @@ class SimulationLoop {
   Eigen::Vector3d centerOfMass_ = Eigen::Vector3d::Zero();
 
   // Owned by the simulation thread.
+  FrameSource frameSource_;
+  std::map<std::string, std::string> attachedFrames_;  // drag id -> the frame it follows
   LoopDiagnostics diag_;
   std::uint64_t sequence_ = 0;
   bool idle_ = false;
