@@ -224,6 +224,7 @@ void Solver::reset() {
   std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
   impulsePending_ = false;
   frameRotation_.setIdentity();
+  for (ContactBody& body : contactBodies_) body.wrench = ContactWrench();
   time_ = 0.0;
   substeps_ = 0;
 }
@@ -247,10 +248,12 @@ Eigen::Vector3d Drag::centroidTarget() const {
 
 void Solver::step() {
   const double h = params_.timeStep / params_.substeps;
+  beginContactStep();
   for (int s = 0; s < params_.substeps; ++s) {
     interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
     substep(h);
   }
+  endContactStep();
   for (auto& entry : drags_) entry.second.reached = entry.second.pose;
 }
 
@@ -494,6 +497,7 @@ void Solver::substep(double h) {
   step_.forced = !forcedParticles_.empty();
   regionPass(step_.kd > 0.0);
   step_.integrate = false;
+  contactPass(h);
   finishSubstep(h);
   for (TimedForce& f : forces_) f.remaining -= h;
   forces_.erase(std::remove_if(forces_.begin(), forces_.end(),
