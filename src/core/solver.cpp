@@ -213,6 +213,7 @@ void Solver::reset() {
   std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
   impulsePending_ = false;
   frameRotation_.setIdentity();
+  for (ContactBody& body : contactBodies_) body.wrench = ContactWrench();
   time_ = 0.0;
   substeps_ = 0;
 }
@@ -229,7 +230,9 @@ void Solver::setVelocities(const std::vector<Eigen::Vector3d>& v) {
 
 void Solver::step() {
   const double h = params_.timeStep / params_.substeps;
+  beginContactStep();
   for (int s = 0; s < params_.substeps; ++s) substep(h);
+  endContactStep();
 }
 
 // One pass over the regions computes the goal positions and, when damping is on, the damping
@@ -452,6 +455,7 @@ void Solver::substep(double h) {
   step_.forced = !forcedParticles_.empty();
   regionPass(step_.kd > 0.0);
   step_.integrate = false;
+  contactPass(h);
   finishSubstep(h);
   for (TimedForce& f : forces_) f.remaining -= h;
   forces_.erase(std::remove_if(forces_.begin(), forces_.end(),

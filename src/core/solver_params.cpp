@@ -86,6 +86,9 @@ void SolverParams::validate() const {
          "expected 0 (all hardware threads) or a count from 1 to " + std::to_string(kMaxThreads));
   if (!std::isfinite(density) || density <= 0.0)
     fail("density", str(density), "expected a finite density > 0 (kg/m^3)");
+  if (!std::isfinite(contactRadius) || contactRadius < 0.0)
+    fail("contact_radius", str(contactRadius),
+         "expected a finite radius >= 0 (m; 0 uses half the lattice spacing)");
 }
 
 }  // namespace deformable_flsm

@@ -74,7 +74,8 @@ class Solver : private RegionKernel {
   /// Sub-steps taken since construction or reset().
   std::uint64_t substepCount() const { return substeps_; }
 
-  /// Back to rest: positions = rest positions, zero velocities; drags, forces released; pins kept.
+  /// Back to rest: positions = rest positions, zero velocities; drags, forces released; pins and
+  /// colliders kept (their wrenches cleared).
   void reset();
 
   /// #P current positions x (m)
@@ -121,12 +122,17 @@ class Solver : private RegionKernel {
 
   // --- colliders ------------------------------------------------------------------------
   /// Adds collider `id`, or replaces the collider of that id. Particles collide with it as
-  /// spheres of radius params().contactRadius, with Coulomb friction (see collider.h).
-  /// @throws std::invalid_argument if collider.validate() fails.
+  /// spheres of radius contactRadius(), with Coulomb friction (see collider.h and
+  /// contactPass()). A mesh collider gets its MeshDistanceField here when it has none (this
+  /// takes a moment for a large mesh; share one field between colliders of the same mesh).
+  /// @throws std::invalid_argument if collider.validate() fails; MeshError for an open mesh.
   void setCollider(const std::string& id, const Collider& collider);
   /// Gives collider `id` its pose at the start of the next step() and its velocity over that
-  /// step (the sub-steps move it along). Returns false if there is no such collider.
-  /// @throws std::invalid_argument for a non-finite pose or velocity.
+  /// step (the sub-steps move it along). step() leaves each collider at its pose at the end of
+  /// the step, so that a collider keeps moving at its velocity until told otherwise.
+  /// Returns false if there is no such collider.
+  /// @throws std::invalid_argument for a non-finite pose or velocity, or a pose whose rotation
+  ///         part is not a rotation.
   bool moveCollider(const std::string& id, const Eigen::Isometry3d& pose,
                     const Eigen::Vector3d& linearVelocity, const Eigen::Vector3d& angularVelocity);
   /// Removes collider `id`. Returns false if there is no such collider.
@@ -135,6 +141,11 @@ class Solver : private RegionKernel {
   const std::map<std::string, Collider>& colliders() const { return colliders_; }
   /// What the object exerted on collider `id` during the last step(); zero for an unknown id.
   ContactWrench contactWrench(const std::string& id) const;
+  /// Radius of the particles' contact spheres (m): params().contactRadius, or half the lattice
+  /// spacing when that is 0. At half the spacing a particle's sphere touches its cell's faces, so
+  /// the particles of a full bottom layer stand with their cells' lower faces on the ground: the
+  /// rest surface of the voxelized object rests on the collider.
+  double contactRadius() const;
 
   // --- queries --------------------------------------------------------------------------
   /// The `count` particles nearest to `point` in the current configuration, nearest first.
@@ -176,6 +187,15 @@ class Solver : private RegionKernel {
   void regionData(std::size_t begin, std::size_t end, const double* sums, double* out) override;
   void particleResult(std::size_t begin, std::size_t end, const double* sums) override;
   void accumulateForces(double h);
+  // --- contact (solver_contact.cpp) ---
+  /// Collider poses at the start of a step, wrench accumulators cleared.
+  void beginContactStep();
+  /// The contact response of the free particles after the region pass of a sub-step of length h.
+  void contactPass(double h);
+  /// Wrenches averaged over the step; colliders left at their end-of-step poses.
+  void endContactStep();
+  /// contactBodies_ and the reduction buffers after a change of colliders_.
+  void rebuildContactBodies();
   void computeRegionWeights();
   void reserveForcedParticles();
 
@@ -204,6 +224,29 @@ class Solver : private RegionKernel {
   bool impulsePending_ = false;
   std::map<std::string, Drag> drags_;
   std::map<std::string, Collider> colliders_;
+  /// A collider as the contact pass sees it, in the order of colliders_.
+  struct ContactBody {
+    const std::string* id = nullptr;
+    Collider* collider = nullptr;
+    Eigen::Isometry3d start = Eigen::Isometry3d::Identity();  // pose at the start of the step
+    Eigen::Isometry3d now = Eigen::Isometry3d::Identity();    // pose at the end of this sub-step
+    Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();  // bounds + radius
+    bool bounded = false;
+    Eigen::Vector3d impulse = Eigen::Vector3d::Zero();  // sum of m dv on the particles this step
+    Eigen::Vector3d moment = Eigen::Vector3d::Zero();   // sum of (contact point - origin) x m dv
+    std::size_t contacts = 0;                            // in the last sub-step
+    ContactWrench wrench;                                // over the last step
+  };
+  /// One chunk's share of a body's impulse (chunks of fixed size: thread-count-independent sums).
+  struct ContactPartial {
+    Eigen::Vector3d impulse = Eigen::Vector3d::Zero();
+    Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+    std::size_t contacts = 0;
+  };
+  std::vector<ContactBody> contactBodies_;
+  std::vector<int> activeBodies_;               // bodies near the object in this sub-step
+  std::vector<ContactPartial> contactPartials_;  // chunk-major, #chunks x #bodies
+  double contactTime_ = 0.0;                    // time since the start of the step (s)
   std::vector<TimedForce> forces_;
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
   std::vector<std::uint32_t> forcedParticles_;  // where forceAccel_ is non-zero
