@@ -142,7 +142,7 @@ bool ColliderCommandValidator::check(const ColliderCommand& msg, CommandBody& ou
       break;
     case ColliderType::Mesh:
       try {
-        shape.mesh = loadColliderMesh(msg.mesh, msg.mesh_scale == 0.0 ? 1.0 : msg.mesh_scale);
+        loadColliderMesh(msg.mesh, msg.mesh_scale == 0.0 ? 1.0 : msg.mesh_scale, shape);
       } catch (const std::invalid_argument& e) {
         return refuse(why, "bad_mesh", "collider '" + msg.id + "': " + e.what());
       }

@@ -1,5 +1,7 @@
 #include "deformable_flsm/ros/collider_params.h"
 
+#include "deformable_flsm/core/mesh_distance_field.h"
+
 #include "deformable_flsm/ros/commands.h"
 #include "deformable_flsm/ros/param_loader.h"
 
@@ -122,7 +124,7 @@ bool validColliderId(const std::string& id) {
   return true;
 }
 
-std::shared_ptr<const TriMesh> loadColliderMesh(const std::string& url, double scale) {
+void loadColliderMesh(const std::string& url, double scale, ColliderShape& shape) {
   if (url.empty()) throw std::invalid_argument("mesh is empty: give a mesh file or package:// URL");
   if (!std::isfinite(scale) || scale <= 0.0)
     throw std::invalid_argument("mesh_scale " + std::to_string(scale) +
@@ -134,7 +136,9 @@ std::shared_ptr<const TriMesh> loadColliderMesh(const std::string& url, double s
     throw std::invalid_argument(std::string("mesh ") + e.what());
   }
   try {
-    return std::make_shared<const TriMesh>(loadMesh(path, scale));
+    auto mesh = std::make_shared<const TriMesh>(loadMesh(path, scale));
+    shape.distanceField = std::make_shared<const MeshDistanceField>(*mesh);
+    shape.mesh = std::move(mesh);
   } catch (const MeshError& e) {
     throw std::invalid_argument("mesh '" + url + "' (file '" + path + "') cannot be used: " +
                                 e.what());
@@ -218,7 +222,7 @@ std::vector<ColliderSpec> parseColliderList(XmlRpc::XmlRpcValue& value,
         if (scale <= 0.0)
           r.fail("mesh_scale is " + std::to_string(scale) + ": it must be > 0");
         try {
-          shape.mesh = loadColliderMesh(spec.meshUrl, scale);
+          loadColliderMesh(spec.meshUrl, scale, shape);
         } catch (const std::invalid_argument& e) {
           r.fail(e.what());
         }

@@ -85,8 +85,7 @@ Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps
   info.substepsForModulus = substepsForModulus(solver);
 
   // Colliders before the measurement, so that it includes their cost (reset() keeps them).
-  info.contactRadius =
-      solverParams.contactRadius > 0.0 ? solverParams.contactRadius : 0.5 * L.spacing();
+  info.contactRadius = solver.contactRadius();
   try {
     if (params.ground) {
       const Collider ground = groundCollider(L, mesh, solverParams.gravity, info.contactRadius,
@@ -97,7 +96,7 @@ Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps
     for (const ColliderSpec& spec : params.colliders) {
       if (spec.followFrame.empty()) solver.setCollider(spec.id, spec.collider);
     }
-  } catch (const std::invalid_argument& e) {
+  } catch (const std::exception& e) {  // invalid_argument, MeshError
     throw ParamError(std::string("a collider cannot be used: ") + e.what());
   }
   info.colliders = solver.colliders().size();

@@ -523,7 +523,7 @@ CommandOutcome SimulationLoop::setCollider(const SetColliderCommand& c) {
       // In the solver from its first sampled pose on (followColliders()).
       solver_->removeCollider(c.id);
     }
-  } catch (const std::invalid_argument& e) {
+  } catch (const std::exception& e) {  // invalid_argument, or MeshError for an open mesh
     return reject("bad_collider", "collider '" + c.id + "': " + e.what());
   }
   if (c.followFrame.empty()) {

@@ -47,9 +47,11 @@ std::string colliderFrameId(const std::string& id);
 /// true when `id` is 1 to CommandLimits::kMaxIdLength printable characters.
 bool validColliderId(const std::string& id);
 
-/// Loads a mesh collider's mesh: `url` a file path or package:// / file:// URL.
-/// @throws std::invalid_argument saying which file and why it cannot be used.
-std::shared_ptr<const TriMesh> loadColliderMesh(const std::string& url, double scale);
+/// Loads a mesh collider's mesh into `shape` (mesh and its distance field, built here rather
+/// than by the simulation thread): `url` a file path or package:// / file:// URL.
+/// @throws std::invalid_argument saying which file and why it cannot be used (unreadable, not a
+///         closed triangle mesh, bad scale).
+void loadColliderMesh(const std::string& url, double scale, ColliderShape& shape);
 
 /// Parses the ~colliders parameter: a list of dictionaries (see README for the fields).
 /// @param[in] value     the parameter as read from the server
