@@ -1,5 +1,7 @@
 #include "deformable_flsm/ros/simulation_loop.h"
 
+#include "deformable_flsm/ros/collider_params.h"
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -26,6 +28,21 @@ std::string num(double v) {
   os << v;
   return os.str();
 }
+
+/// A pose moved along a constant velocity for dt: the origin by v dt, the axes turned by w dt.
+Eigen::Isometry3d advance(const Eigen::Isometry3d& pose, const Eigen::Vector3d& v,
+                          const Eigen::Vector3d& w, double dt) {
+  Eigen::Isometry3d next = pose;
+  next.translation() += v * dt;
+  const double angle = w.norm() * dt;
+  if (angle > 0.0) {
+    next.linear() = (Eigen::AngleAxisd(angle, w.normalized()) * pose.linear()).eval();
+  }
+  return next;
+}
+
+/// Changes of a followed collider's pose below these do not wake a resting simulation (m, rad).
+constexpr double kStillPoseChange = 1e-7;
 
 CommandOutcome accepted(std::string message, std::size_t particles = 0) {
   CommandOutcome o;
@@ -116,6 +133,35 @@ void SimulationLoop::setRealTimeFactor(double realTimeFactor) {
   wakeUp_.notify_one();
 }
 
+void SimulationLoop::addFollowedCollider(const std::string& id, const Collider& collider) {
+  collider.validate();
+  Followed f;
+  f.collider = collider;
+  followed_[id] = f;
+}
+
+void SimulationLoop::setColliderMotion(const std::string& id, const ColliderMotion& motion) {
+  bool wake = false;
+  {
+    std::lock_guard<std::mutex> lock(motionMutex_);
+    auto last = postedMotions_.find(id);
+    wake = last == postedMotions_.end() || !motion.linearVelocity.isZero(0.0) ||
+           !motion.angularVelocity.isZero(0.0) ||
+           (motion.pose.translation() - last->second.pose.translation()).norm() >
+               kStillPoseChange ||
+           Eigen::AngleAxisd(motion.pose.linear().transpose() * last->second.pose.linear())
+                   .angle() > kStillPoseChange;
+    postedMotions_[id] = motion;
+    motions_[id] = motion;
+  }
+  if (!wake) return;
+  {
+    std::lock_guard<std::mutex> lock(queueMutex_);
+    wakeRequested_ = true;
+  }
+  wakeUp_.notify_one();
+}
+
 const Snapshot& SimulationLoop::acquire() {
   std::lock_guard<std::mutex> lock(snapshotMutex_);
   if (fresh_) {
@@ -190,6 +236,7 @@ void SimulationLoop::run() {
       steps = 1;
     }
     for (std::int64_t s = 0; s < steps; ++s) {
+      followColliders(dt);
       followFrames();
       timedStep();
       owed -= dt;
@@ -267,7 +314,7 @@ void SimulationLoop::updateStillness(double simulated) {
   const double vIdle = settings_.idleSpeed;
   const bool still = diag_.maxSpeed < vIdle &&
                      diag_.kineticEnergy < 0.5 * lattice_->totalMass() * vIdle * vIdle &&
-                     !solver_->hasPendingCommands();
+                     !solver_->hasPendingCommands() && !collidersMoving_;
   stillFor_ = still ? stillFor_ + simulated : 0.0;
   if (settings_.idleHold > 0.0 && stillFor_ >= settings_.idleHold) {
     std::lock_guard<std::mutex> lock(queueMutex_);
@@ -295,6 +342,9 @@ void SimulationLoop::writeSnapshot() {
     d.target = entry.second.centroidTarget();
     s.drags.push_back(std::move(d));
   }
+  s.colliders = solver.colliders();
+  s.wrenches.clear();
+  for (const auto& entry : s.colliders) s.wrenches[entry.first] = solver.contactWrench(entry.first);
   const Eigen::Isometry3d rigid = solver.rigidFrame();
   s.objectFrame = rigid * Eigen::Translation3d(restCenterOfMass_);
 
@@ -346,8 +396,15 @@ bool SimulationLoop::apply(Command& command) {
           return accepted("released " + std::to_string(n) + " drag(s)");
         } else if constexpr (std::is_same_v<T, PinBoxCommand>) {
           return pinBox(c);
-        } else {
+        } else if constexpr (std::is_same_v<T, ParamsCommand>) {
           return setParams(c);
+        } else if constexpr (std::is_same_v<T, SetColliderCommand>) {
+          return setCollider(c);
+        } else if constexpr (std::is_same_v<T, MoveColliderCommand>) {
+          return moveCollider(c);
+        } else {
+          static_assert(std::is_same_v<T, RemoveColliderCommand>, "a command is not handled");
+          return removeCollider(c);
         }
       },
       command.body);
@@ -491,6 +548,109 @@ CommandOutcome SimulationLoop::setParams(const ParamsCommand& c) {
     return reject("invalid_params", e.what());
   }
   return accepted("solver parameters set");
+}
+
+CommandOutcome SimulationLoop::setCollider(const SetColliderCommand& c) {
+  const bool known = solver_->colliders().count(c.id) > 0 || followed_.count(c.id) > 0;
+  std::size_t count = solver_->colliders().size();
+  for (const auto& entry : followed_) count += entry.second.inSolver ? 0 : 1;
+  if (!known && count >= ColliderLimits::kMaxColliders)
+    return reject("too_many_colliders", "collider '" + c.id + "': already " +
+                                            std::to_string(ColliderLimits::kMaxColliders) +
+                                            " colliders; remove one first");
+  try {
+    c.collider.validate();
+    if (c.followFrame.empty()) {
+      solver_->setCollider(c.id, c.collider);
+    } else {
+      // In the solver from its first sampled pose on (followColliders()).
+      solver_->removeCollider(c.id);
+    }
+  } catch (const std::exception& e) {  // invalid_argument, or MeshError for an open mesh
+    return reject("bad_collider", "collider '" + c.id + "': " + e.what());
+  }
+  if (c.followFrame.empty()) {
+    followed_.erase(c.id);
+    return accepted("collider '" + c.id + "' " + (known ? "replaced" : "added"));
+  }
+  Followed f;
+  f.collider = c.collider;
+  followed_[c.id] = f;
+  {
+    // A motion posted for the collider this id named before is not this one's.
+    std::lock_guard<std::mutex> lock(motionMutex_);
+    motions_.erase(c.id);
+    postedMotions_.erase(c.id);
+  }
+  return accepted("collider '" + c.id + "' follows frame '" + c.followFrame +
+                  "' from its first transform on");
+}
+
+CommandOutcome SimulationLoop::moveCollider(const MoveColliderCommand& c) {
+  if (followed_.count(c.id) > 0)
+    return reject("collider_follows_frame",
+                  "move of collider '" + c.id + "': it follows a tf frame; move the frame, or "
+                  "ADD it again without follow_frame");
+  try {
+    if (!solver_->moveCollider(c.id, c.pose, c.linearVelocity, c.angularVelocity))
+      return reject("unknown_collider",
+                    "move of collider '" + c.id + "': no such collider (ADD it first)");
+  } catch (const std::invalid_argument& e) {
+    return reject("non_finite", "move of collider '" + c.id + "': " + e.what());
+  }
+  return accepted("collider '" + c.id + "' moved");
+}
+
+CommandOutcome SimulationLoop::removeCollider(const RemoveColliderCommand& c) {
+  const bool followed = followed_.erase(c.id) > 0;
+  if (!solver_->removeCollider(c.id) && !followed)
+    return reject("unknown_collider", "removal of collider '" + c.id + "': no such collider");
+  return accepted("collider '" + c.id + "' removed");
+}
+
+void SimulationLoop::followColliders(double dt) {
+  collidersMoving_ = false;
+  if (followed_.empty()) return;
+  {
+    std::lock_guard<std::mutex> lock(motionMutex_);
+    incomingMotions_.swap(motions_);
+    motions_.clear();
+  }
+  for (auto& entry : followed_) {
+    Followed& f = entry.second;
+    const auto sample = incomingMotions_.find(entry.first);
+    if (sample != incomingMotions_.end()) {
+      f.motion = sample->second;
+      f.sinceSample = 0.0;
+    } else if (!f.inSolver) {
+      continue;  // its frame has not been seen yet
+    } else if (f.sinceSample > kMaxExtrapolation) {
+      // No news for a while: hold still where the last sample led.
+      f.motion.linearVelocity.setZero();
+      f.motion.angularVelocity.setZero();
+    }
+    const ColliderMotion& m = f.motion;
+    try {
+      if (!f.inSolver) {
+        Collider c = f.collider;
+        c.pose = m.pose;
+        c.linearVelocity = m.linearVelocity;
+        c.angularVelocity = m.angularVelocity;
+        solver_->setCollider(entry.first, c);
+        f.inSolver = true;
+      } else {
+        solver_->moveCollider(entry.first, m.pose, m.linearVelocity, m.angularVelocity);
+      }
+    } catch (const std::invalid_argument&) {
+      continue;  // a non-finite sample (the node sends none): the collider stays where it was
+    }
+    collidersMoving_ = collidersMoving_ || !m.linearVelocity.isZero(0.0) ||
+                       !m.angularVelocity.isZero(0.0);
+    // Where the next step starts if no sample comes before it.
+    f.motion.pose = advance(m.pose, m.linearVelocity, m.angularVelocity, dt);
+    f.sinceSample += dt;
+  }
+  incomingMotions_.clear();
 }
 
 }  // namespace deformable_flsm

@@ -1,5 +1,6 @@
 #include "deformable_flsm/ros/simulator_node.h"
 
+#include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/ros/mesh_messages.h"
 #include "deformable_flsm/ros/render_mesh.h"
 
@@ -104,6 +105,11 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
 
   initTriangleListMarker(params_.frameId, kMarkerNamespace, kMeshColor, marker_);
   advertise();
+  colliders_ = std::make_unique<ColliderTopics>(
+      pnh_, commandNh_, params_, *loop_, stats_, tfBuffer_, [this] { startTfListener(); },
+      [this](const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
+             std::string& why) { return lookupTransform(frame, stamp, T, why); },
+      [this](CommandBody body) { send(std::move(body), false); }, lattice_->objectSize());
 
   // dynamic_reconfigure: start from the loaded parameters, then listen. The first callback
   // (setCallback calls it at once) only echoes them and is skipped.
@@ -154,9 +160,11 @@ void SimulatorNode::warnAboutScene() const {
                lattice_->restMax().z());
     }
   }
-  if (info_.pinned == 0 && !params_.solver.gravity.isZero(0.0)) {
-    ROS_WARN("flsm_node: gravity is on and no particle is pinned: with no ground, the object "
-             "falls forever. Pin a box (~pinned) or set ~gravity to [0, 0, 0].");
+  if (info_.pinned == 0 && !params_.ground && params_.colliders.empty() &&
+      !params_.solver.gravity.isZero(0.0)) {
+    ROS_WARN("flsm_node: gravity is on, no particle is pinned and there is no collider: the "
+             "object falls forever. Set ~ground to true, pin a box (~pinned) or set ~gravity to "
+             "[0, 0, 0].");
   }
 }
 
@@ -234,6 +242,7 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
   const ros::Time stamp = ros::Time::now();
   const Snapshot& s = loop_->acquire();
   publishTf(s, stamp);
+  colliders_->publish(s, stamp);
   publishState(s, stamp);
   reportProblems(s);
   updateHandlePose(s);
@@ -244,6 +253,8 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
       (surfaceDue && surface_.builtSequence != s.sequence)) {
     if (verticesSequence_ != s.sequence) {
       embedding_->deform(s.positions, s.rotations, vertices_);
+      // The embedded surface may dip below a collider the particles rest on: not on screen.
+      projectOutOfColliders(vertices_, s.colliders, 0.0);
       verticesSequence_ = s.sequence;
     }
   }
@@ -347,6 +358,7 @@ void SimulatorNode::publishState(const Snapshot& s, const ros::Time& stamp) {
     m.reject_counts.push_back(entry.second);
   }
   m.last_rejection = counts.lastRejection;
+  colliders_->fillState(s, m);
   statePub_.publish(m);
 }
 
@@ -426,16 +438,16 @@ CommandOutcome SimulatorNode::send(CommandBody body, bool wait) {
   return result.get();
 }
 
+bool SimulatorNode::startTfListener() {
+  std::lock_guard<std::mutex> lock(tfListenerMutex_);
+  if (tfListener_) return false;
+  tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_);
+  return true;
+}
+
 bool SimulatorNode::lookupTransform(const std::string& frame, const ros::Time& stamp,
                                     Eigen::Isometry3d& T, std::string& why) {
-  double timeout = kTransformTimeout;
-  {
-    std::lock_guard<std::mutex> lock(tfListenerMutex_);
-    if (!tfListener_) {
-      tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_);
-      timeout = kFirstTransformTimeout;
-    }
-  }
+  const double timeout = startTfListener() ? kFirstTransformTimeout : kTransformTimeout;
   try {
     const geometry_msgs::TransformStamped t = tfBuffer_.lookupTransform(
         params_.frameId, frame, stamp, ros::Duration(timeout));

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "deformable_flsm/core/mesh.h"
+#include "deformable_flsm/ros/collider_params.h"
 #include "deformable_flsm/core/solver_params.h"
 
 #include <ros/node_handle.h>
@@ -70,7 +71,7 @@ struct NodeParams {
   /// ~region_half_width: region half-width in cells (classic); 0 = unset
   int regionHalfWidth = 0;
   /// ~stiffness, ~youngs_modulus, ~damping, ~ambient_damping, ~gravity, ~time_step,
-  /// ~substeps, ~density, ~solver, ~threads; regionHalfWidth is set by
+  /// ~substeps, ~density, ~solver, ~threads, ~contact_radius; regionHalfWidth is set by
   /// resolveRegionHalfWidth()
   SolverParams solver;
 
@@ -85,6 +86,12 @@ struct NodeParams {
   double realTimeFactor = 1.0;
   /// ~pinned: boxes whose particles (by rest position) are pinned at start-up
   std::vector<Box> pinned;
+  /// ~ground: a plane collider "ground" below the object, normal against gravity
+  bool ground = true;
+  /// ~ground_clearance: gap (m, >= 0) between the object's lowest rest point and the ground
+  double groundClearance = 0.1;
+  /// ~colliders: more colliders (parsed and validated, meshes loaded)
+  std::vector<ColliderSpec> colliders;
   /// ~render_triangle_budget: simplify the render mesh to at most this many triangles at
   /// load (0 = render the mesh as loaded); the lattice is chosen from the full mesh
   int renderTriangleBudget = 0;
@@ -125,6 +132,7 @@ class ParamLoader {
   std::string getString(const std::string& name, const std::string& fallback) const;
   Eigen::Vector3d getVector3(const std::string& name, const Eigen::Vector3d& fallback) const;
   std::vector<Box> getBoxes(const std::string& name) const;
+  std::vector<ColliderSpec> getColliders(const std::string& name, const std::string& simFrame) const;
 
   ros::NodeHandle pnh_;
 };

@@ -87,7 +87,18 @@ struct Snapshot {
   /// the object's best-fit rigid frame, origin at its centre of mass: the identity maps the
   /// rest centre of mass to itself (Solver::rigidFrame() followed by a shift to the rest COM)
   Eigen::Isometry3d objectFrame = Eigen::Isometry3d::Identity();
+  /// the colliders in the solver (poses at the end of the step) and what the object exerted on
+  /// each during the step (simulation frame)
+  std::map<std::string, Collider> colliders;
+  std::map<std::string, ContactWrench> wrenches;
   LoopDiagnostics diag;
+};
+
+/// Where a collider that follows a tf frame is (simulation frame), and how fast it moves.
+struct ColliderMotion {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d linearVelocity = Eigen::Vector3d::Zero();   ///< m/s of the frame origin
+  Eigen::Vector3d angularVelocity = Eigen::Vector3d::Zero();  ///< rad/s
 };
 
 class SimulationLoop {
@@ -123,6 +134,17 @@ class SimulationLoop {
   /// Changes the pace (simulated seconds per wall second, > 0) and wakes an idle loop.
   void setRealTimeFactor(double realTimeFactor);
 
+  /// Registers a collider that follows a tf frame; call before start() (colliders added at run
+  /// time come as SetColliderCommand). It joins the solver at its first setColliderMotion().
+  void addFollowedCollider(const std::string& id, const Collider& collider);
+  /// The newest pose and velocity of followed collider `id`, from any thread (the node samples
+  /// tf). Only the newest per collider is kept; before each step the loop moves the collider
+  /// there, and between two samples along the sampled velocity for at most kMaxExtrapolation
+  /// (then it holds still). Wakes a resting loop when the collider moves.
+  void setColliderMotion(const std::string& id, const ColliderMotion& motion);
+  /// Simulated seconds a followed collider keeps moving along its last sampled velocity.
+  static constexpr double kMaxExtrapolation = 0.1;
+
   /// The newest snapshot. Single reader: the reference stays valid and unchanged until the next
   /// call of acquire().
   const Snapshot& acquire();
@@ -141,6 +163,12 @@ class SimulationLoop {
   CommandOutcome force(const PushCommand& c);
   CommandOutcome pinBox(const PinBoxCommand& c);
   CommandOutcome setParams(const ParamsCommand& c);
+  CommandOutcome setCollider(const SetColliderCommand& c);
+  CommandOutcome moveCollider(const MoveColliderCommand& c);
+  CommandOutcome removeCollider(const RemoveColliderCommand& c);
+  /// Before a step of dt: puts followed colliders at their newest sampled pose (or moves them on
+  /// along the sampled velocity), adding those seen for the first time.
+  void followColliders(double dt);
   /// Rejection: counted, and the outcome carries the detail.
   CommandOutcome reject(const std::string& reason, const std::string& detail);
   double massOf(const std::vector<std::uint32_t>& particles) const;
@@ -177,9 +205,25 @@ class SimulationLoop {
   bool fresh_ = false;
   Eigen::Vector3d centerOfMass_ = Eigen::Vector3d::Zero();
 
+  // Followed colliders' motions, shared with setColliderMotion().
+  std::mutex motionMutex_;
+  std::map<std::string, ColliderMotion> motions_;        // not yet applied
+  std::map<std::string, ColliderMotion> postedMotions_;  // the last posted, to decide on waking
+
   // Owned by the simulation thread.
   FrameSource frameSource_;
   std::map<std::string, std::string> attachedFrames_;  // drag id -> the frame it follows
+  /// A collider that follows a tf frame: its shape, whether it is in the solver yet, the pose
+  /// and velocity for the next step, and the simulated time since its last sample.
+  struct Followed {
+    Collider collider;
+    bool inSolver = false;
+    ColliderMotion motion;
+    double sinceSample = 0.0;
+  };
+  std::map<std::string, Followed> followed_;
+  std::map<std::string, ColliderMotion> incomingMotions_;
+  bool collidersMoving_ = false;  // a followed collider moved in the last step
   LoopDiagnostics diag_;
   std::uint64_t sequence_ = 0;
   bool idle_ = false;
