@@ -10,8 +10,9 @@ namespace deformable_flsm {
 
 namespace {
 
-/// The ground and other planes: grey, half transparent so that the object's underside shows.
-constexpr float kPlaneColor[4] = {0.55f, 0.55f, 0.55f, 0.5f};
+/// The ground and other planes: light grey, slightly transparent so that the object's underside
+/// shows through.
+constexpr float kPlaneColor[4] = {0.8f, 0.8f, 0.78f, 0.75f};
 /// Solid colliders: steel blue, slightly transparent.
 constexpr float kSolidColor[4] = {0.35f, 0.5f, 0.75f, 0.8f};
 /// A plane's slab is this fraction of its width thick.

@@ -338,6 +338,7 @@ void SimulatorNode::publishState(const Snapshot& s, const ros::Time& stamp) {
   m.max_displacement = d.maxDisplacement;
   m.max_speed = d.maxSpeed;
   m.shape_error = d.shapeError;
+  m.mass = lattice_->totalMass();
   m.particles = static_cast<std::uint32_t>(lattice_->size());
   m.pinned_particles = static_cast<std::uint32_t>(d.pinned);
   m.active_drags = static_cast<std::uint32_t>(d.drags);
