@@ -150,16 +150,6 @@ class GraspTest(unittest.TestCase):
         with self.wrench_lock:
             return [w for w in self.wrenches if t0 <= w[0] <= t1]
 
-    def weight(self, state):
-        """The object's weight (N): ~state's mass times g."""
-        if hasattr(state, 'mass'):
-            return state.mass * GRAVITY
-        # Resting on the ground, the ground carries it.
-        with self.wrench_lock:
-            self.assertTrue(self.wrenches)
-        msg = rospy.wait_for_message('/flsm_node/contact_wrenches', ContactWrenches, 5.0)
-        return -msg.wrenches[list(msg.ids).index('ground')].wrench.force.z
-
     def set_friction(self, mu):
         pub = rospy.Publisher('/flsm_node/collider', ColliderCommand, queue_size=10)
         end = time.time() + 10.0
@@ -189,7 +179,7 @@ class GraspTest(unittest.TestCase):
             self.set_friction(self.friction)
         s = f.wait_state(lambda s: s.idle, 90.0)
         self.assertIsNotNone(s, 'the bunny did not come to rest on the ground')
-        weight = self.weight(s)
+        weight = s.mass * GRAVITY
         x = f.particles()
         com = np.mean(x, axis=0)  # equal-mass particles inside; near enough for aiming
         try:
