@@ -5,7 +5,7 @@ fingers (it slips by less than 5 mm over 5 s, measured between the fingers' fram
 object's tf frame flsm_object) and the fingers' vertical contact forces (~contact_wrenches)
 carry its weight (~state mass times g) within 5 %; with friction 0.05 it slips out.
 
-Parameters (private): ~friction (static = kinetic) to give the fingers through ~collider before
+Parameters (private): ~squeeze (m, default SQUEEZE), ~friction (static = kinetic) to give the fingers through ~collider before
 the grasp (0: keep those of the parameters), ~expect "hold" or "slip"."""
 
 import math
@@ -27,7 +27,7 @@ FINGERS = ('finger_left', 'finger_right')
 GRAVITY = 9.81
 # The grasp: each finger's inner face goes SQUEEZE m into the object's contact surface at the
 # height of its centre of mass; the fingers then lift it LIFT m.
-SQUEEZE = 0.025
+SQUEEZE = 0.035
 LIFT = 0.10
 # Seconds: the fingers come from their parking places to either side of the object, close,
 # wait for the grip to settle, lift, and wait for the lifted object to stop swinging; then HOLD
@@ -110,6 +110,7 @@ class GraspTest(unittest.TestCase):
         rospy.init_node('test_grasp')
         cls.friction = float(rospy.get_param('~friction', 0.0))
         cls.expect = rospy.get_param('~expect', 'hold')
+        cls.squeeze = float(rospy.get_param('~squeeze', SQUEEZE))
         params = rospy.get_param('/flsm_node/colliders')
         cls.specs = {c['id']: c for c in params if c['id'] in FINGERS}
         cls.size = {k: np.array(v['size'], float) for k, v in cls.specs.items()}
@@ -200,8 +201,8 @@ class GraspTest(unittest.TestCase):
         centre_x, centre_z = com[0], com[2]
         open_l = (centre_x, lo - 0.03 - half, centre_z)
         open_r = (centre_x, hi + 0.03 + half, centre_z)
-        closed_l = (centre_x, lo + SQUEEZE - half, centre_z)
-        closed_r = (centre_x, hi - SQUEEZE + half, centre_z)
+        closed_l = (centre_x, lo + self.squeeze - half, centre_z)
+        closed_r = (centre_x, hi - self.squeeze + half, centre_z)
         up = np.array([0.0, 0.0, LIFT])
         rospy.loginfo('grasp: weight %.3f N, object %.3f m across y at z %.3f; fingers close '
                       'from y %.3f / %.3f to %.3f / %.3f', weight, hi - lo, centre_z,
