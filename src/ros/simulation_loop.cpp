@@ -530,15 +530,11 @@ CommandOutcome SimulationLoop::setCollider(const SetColliderCommand& c) {
     followed_.erase(c.id);
     return accepted("collider '" + c.id + "' " + (known ? "replaced" : "added"));
   }
+  // Its motions come from the node's follower, which learnt of the new frame and offset before
+  // this command was sent: a motion already waiting is this collider's.
   Followed f;
   f.collider = c.collider;
   followed_[c.id] = f;
-  {
-    // A motion posted for the collider this id named before is not this one's.
-    std::lock_guard<std::mutex> lock(motionMutex_);
-    motions_.erase(c.id);
-    postedMotions_.erase(c.id);
-  }
   return accepted("collider '" + c.id + "' follows frame '" + c.followFrame +
                   "' from its first transform on");
 }
