@@ -43,10 +43,11 @@ ColliderTopics::ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& commandNh,
   markerPub_ = pnh.advertise(options);
   wrenchPub_ = pnh.advertise<ContactWrenches>("contact_wrenches", 1);
   commandSub_ = commandNh.subscribe("collider", kCommandQueue, &ColliderTopics::onCommand, this);
-  // Followed frames are sampled once per simulation step.
+  // Followed frames are sampled once per simulation step; the timer runs from the first
+  // followed collider on (a node without any does not wake for it).
   followTimer_ = pnh.createTimer(
       ros::Duration(params.solver.timeStep / params.realTimeFactor), &ColliderTopics::onFollowTimer,
-      this);
+      this, false, !follower_.empty());
 }
 
 void ColliderTopics::onCommand(const ColliderCommand::ConstPtr& msg) {
@@ -64,6 +65,7 @@ void ColliderTopics::onCommand(const ColliderCommand::ConstPtr& msg) {
     } else {
       startTfListener_();
       follower_.follow(add->id, add->followFrame, add->collider.pose);
+      followTimer_.start();  // no-op when running
     }
   } else if (const auto* remove = std::get_if<RemoveColliderCommand>(&body)) {
     follower_.forget(remove->id);
