@@ -66,6 +66,10 @@ double shapeDistance(const ColliderShape& shape, const Eigen::Vector3d& p, Eigen
 
 double colliderDistance(const ColliderShape& shape, const Eigen::Isometry3d& pose, const Eigen::Vector3d& x,
                         Eigen::Vector3d& normal) {
+  if (shape.type == ColliderType::HalfSpace) {  // the common ground: one dot product
+    normal = pose.linear().col(2);
+    return normal.dot(x - pose.translation());
+  }
   const Eigen::Matrix3d R = pose.linear();
   const Eigen::Vector3d local = R.transpose() * (x - pose.translation());
   Eigen::Vector3d n;

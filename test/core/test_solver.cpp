@@ -543,3 +543,45 @@ TEST(Solver, StepDoesNotAllocate) {
     EXPECT_EQ(gAllocations.load() - before, 0) << toString(kind) << ", threads " << threads;
   }
 }
+
+TEST(Solver, StepWithCollidersDoesNotAllocate) {
+  // The bar on the ground, a kinematic box pressing on it, a sphere, a capsule and a mesh box
+  // touching it: every shape's contact path, the wrench sums and the kinematic poses.
+  for (int threads : {1, 2}) {
+    SolverParams p;
+    p.threads = threads;
+    Solver s(bar(), p);
+    deformable_flsm::Collider ground;
+    ground.pose.translation() = Eigen::Vector3d(0, 0, -0.001);
+    s.setCollider("ground", ground);
+    deformable_flsm::Collider press;
+    press.shape.type = deformable_flsm::ColliderType::Box;
+    press.shape.halfExtents = Eigen::Vector3d(0.02, 0.05, 0.01);
+    press.pose.translation() = Eigen::Vector3d(0.06, 0.02, 0.05);
+    press.linearVelocity = Eigen::Vector3d(0, 0, -0.05);
+    press.angularVelocity = Eigen::Vector3d(0, 0, 0.5);
+    s.setCollider("press", press);
+    deformable_flsm::Collider ball;
+    ball.shape.type = deformable_flsm::ColliderType::Sphere;
+    ball.shape.radius = 0.01;
+    ball.pose.translation() = Eigen::Vector3d(0.125, 0.02, 0.02);
+    s.setCollider("ball", ball);
+    deformable_flsm::Collider rod;
+    rod.shape.type = deformable_flsm::ColliderType::Capsule;
+    rod.shape.radius = 0.005;
+    rod.shape.halfLength = 0.03;
+    rod.pose.translation() = Eigen::Vector3d(-0.004, 0.02, 0.02);
+    s.setCollider("rod", rod);
+    deformable_flsm::Collider block;
+    block.shape.type = deformable_flsm::ColliderType::Mesh;
+    block.shape.mesh = std::make_shared<const deformable_flsm::TriMesh>(
+        deformable_flsm::test::boxMesh(Eigen::Vector3d(0.02, -0.03, 0.0), Eigen::Vector3d(0.04, 0.002, 0.04)));
+    s.setCollider("block", block);
+    s.step();
+    const long before = gAllocations.load();
+    for (int i = 0; i < 20; ++i) s.step();
+    EXPECT_EQ(gAllocations.load() - before, 0) << "threads " << threads;
+    for (const char* id : {"ground", "press", "ball", "rod", "block"})
+      EXPECT_GT(s.contactWrench(id).contacts, 0u) << id << " touches the bar";
+  }
+}
