@@ -76,7 +76,10 @@ void ColliderFollower::sample(const ros::Time& now, const Post& post,
       problems.push_back("collider '" + id + "': frame '" + e.frame + "' is not finite");
       continue;
     }
-    if (e.seen && !e.holding && t.header.stamp == e.stamp) continue;  // nothing new
+    // Nothing new: the simulation moves on along the velocity. A static transform (stamp 0)
+    // is posted every time, so that a collider (re)added on that frame always gets its pose;
+    // an unchanged pose does not wake the simulation.
+    if (e.seen && !e.holding && t.header.stamp == e.stamp && !t.header.stamp.isZero()) continue;
     ColliderMotion m;
     m.pose = pose;
     const double dt = (t.header.stamp - e.stamp).toSec();

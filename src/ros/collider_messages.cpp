@@ -62,6 +62,7 @@ void fillColliderMarkers(const std::map<std::string, Collider>& colliders,
   clear.header.frame_id = frameId;
   clear.header.stamp = stamp;
   clear.action = Marker::DELETEALL;
+  clear.pose.orientation.w = 1.0;  // RViz warns about a zero quaternion even here
   markers.markers.push_back(clear);
   for (const auto& entry : colliders) {
     const std::string& ns = entry.first;

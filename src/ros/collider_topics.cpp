@@ -29,7 +29,8 @@ ColliderTopics::ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& commandNh,
     : simFrame_(params.frameId), loop_(loop), stats_(std::move(stats)),
       startTfListener_(std::move(startTfListener)),
       validator_(params.frameId, std::move(lookup)), send_(std::move(send)),
-      planeSize_(kPlaneSizePerObject * objectSize), follower_(tfBuffer, params.frameId) {
+      planeSize_(kPlaneSizePerObject * objectSize), republishAtRest_(params.republishAtRest),
+      follower_(tfBuffer, params.frameId) {
   for (const ColliderSpec& spec : params.colliders) {
     if (spec.followFrame.empty()) continue;
     loop_.addFollowedCollider(spec.id, spec.collider);
@@ -37,16 +38,14 @@ ColliderTopics::ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& commandNh,
   }
   if (!follower_.empty()) startTfListener_();
 
-  ros::AdvertiseOptions options;
-  options.init<visualization_msgs::MarkerArray>(
-      "colliders", 1, [this](const ros::SingleSubscriberPublisher&) { newMarkerSubscriber_ = true; });
-  markerPub_ = pnh.advertise(options);
+  markers_.advertise<visualization_msgs::MarkerArray>(pnh, "colliders");
   wrenchPub_ = pnh.advertise<ContactWrenches>("contact_wrenches", 1);
   commandSub_ = commandNh.subscribe("collider", kCommandQueue, &ColliderTopics::onCommand, this);
-  // Followed frames are sampled once per simulation step.
+  // Followed frames are sampled once per simulation step; the timer runs from the first
+  // followed collider on (a node without any does not wake for it).
   followTimer_ = pnh.createTimer(
       ros::Duration(params.solver.timeStep / params.realTimeFactor), &ColliderTopics::onFollowTimer,
-      this);
+      this, false, !follower_.empty());
 }
 
 void ColliderTopics::onCommand(const ColliderCommand::ConstPtr& msg) {
@@ -64,6 +63,7 @@ void ColliderTopics::onCommand(const ColliderCommand::ConstPtr& msg) {
     } else {
       startTfListener_();
       follower_.follow(add->id, add->followFrame, add->collider.pose);
+      followTimer_.start();  // no-op when running
     }
   } else if (const auto* remove = std::get_if<RemoveColliderCommand>(&body)) {
     follower_.forget(remove->id);
@@ -94,18 +94,11 @@ void ColliderTopics::publish(const Snapshot& s, const ros::Time& stamp) {
     colliderTransforms(s.colliders, simFrame_, stamp, transforms_);
     tfBroadcaster_.sendTransform(transforms_);
   }
-  if (markerPub_.getNumSubscribers() == 0) return;
-  const bool newSubscriber = newMarkerSubscriber_.exchange(false);
-  if (newSubscriber || markersSequence_ != s.sequence) {
-    fillColliderMarkers(s.colliders, simFrame_, planeSize_, stamp, markers_);
-    markerPub_.publish(markers_);
-    markersSequence_ = s.sequence;
+  if (markers_.due(s, republishAtRest_)) {
+    markers_.publish(s, stamp, markerArray_, [&](visualization_msgs::MarkerArray& m) {
+      fillColliderMarkers(s.colliders, simFrame_, planeSize_, stamp, m);
+    });
   }
-}
-
-void ColliderTopics::fillState(const Snapshot& s, SimulationState& state) const {
-  state.colliders = static_cast<std::uint32_t>(s.colliders.size());
-  state.collider_frame_misses = follower_.misses();
 }
 
 }  // namespace deformable_flsm

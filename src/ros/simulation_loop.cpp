@@ -382,7 +382,7 @@ bool SimulationLoop::apply(Command& command) {
           return move(c);
         } else if constexpr (std::is_same_v<T, ReleaseCommand>) {
           return release(c);
-        } else if constexpr (std::is_same_v<T, PushCommand>) {
+        } else if constexpr (std::is_same_v<T, ApplyForceCommand>) {
           return force(c);
         } else if constexpr (std::is_same_v<T, ResetCommand>) {
           solver_->reset();
@@ -490,7 +490,7 @@ CommandOutcome SimulationLoop::release(const ReleaseCommand& c) {
   return accepted("drag '" + c.id + "' released");
 }
 
-CommandOutcome SimulationLoop::force(const PushCommand& c) {
+CommandOutcome SimulationLoop::force(const ApplyForceCommand& c) {
   const std::size_t n = lattice_->size();
   if (c.particle >= static_cast<std::int64_t>(n))
     return reject("bad_index", "force: particle " + std::to_string(c.particle) +
@@ -573,15 +573,11 @@ CommandOutcome SimulationLoop::setCollider(const SetColliderCommand& c) {
     followed_.erase(c.id);
     return accepted("collider '" + c.id + "' " + (known ? "replaced" : "added"));
   }
+  // Its motions come from the node's follower, which learnt of the new frame and offset before
+  // this command was sent: a motion already waiting is this collider's.
   Followed f;
   f.collider = c.collider;
   followed_[c.id] = f;
-  {
-    // A motion posted for the collider this id named before is not this one's.
-    std::lock_guard<std::mutex> lock(motionMutex_);
-    motions_.erase(c.id);
-    postedMotions_.erase(c.id);
-  }
   return accepted("collider '" + c.id + "' follows frame '" + c.followFrame +
                   "' from its first transform on");
 }

@@ -234,6 +234,30 @@ class CollidersTest(unittest.TestCase):
         self.assertNotIn('probe', self.markers())
         self.assertEqual(f.state().accepted_commands, s0.accepted_commands + 3)
 
+    def test_5_add_a_collider_that_follows_a_frame(self):
+        f = self.flsm
+        s0 = f.state()
+        with self.frame.lock:
+            self.frame.on = True
+        self.pub.publish(self.command(ColliderCommand.ADD, collider_id='finger2', kind='sphere',
+                                      radius=0.01, position=(0.0, 0.0, -0.02),
+                                      frame='no_such_frame_flsm', follow=FINGER_FRAME))
+        s = f.wait_state(lambda s: s.colliders == s0.colliders + 1, 10.0)
+        self.assertIsNotNone(s, 'the ADDed collider did not join when its frame was known')
+        end = time.time() + 5.0
+        while time.time() < end:
+            m = self.markers().get('finger2')
+            p = m[0].pose.position
+            error = np.linalg.norm(np.array([p.x, p.y, p.z]) - self.frame.where() -
+                                   np.array([0.0, 0.0, -0.02]))
+            if error < 0.01:
+                break
+        self.assertLess(error, 0.01)
+        self.pub.publish(self.command(ColliderCommand.REMOVE, collider_id='finger2'))
+        self.assertIsNotNone(f.wait_state(lambda s: s.colliders == s0.colliders, 5.0))
+        with self.frame.lock:
+            self.frame.on = False
+
 
 if __name__ == '__main__':
     rostest.rosrun(PKG, 'colliders', CollidersTest)

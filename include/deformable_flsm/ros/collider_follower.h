@@ -45,7 +45,8 @@ class ColliderFollower {
   ///     first one and for a static transform);
   ///   - an unknown or stale frame (seen before): the last pose with zero velocity, once, and
   ///     the problem appended to `problems` (every call while it lasts) and counted in misses();
-  ///   - no new transform yet, still fresh: nothing (the simulation moves on along the velocity).
+  ///   - no new transform yet, still fresh: nothing (the simulation moves on along the
+  ///     velocity); a static transform (stamp 0) is posted again every time, at rest.
   void sample(const ros::Time& now, const Post& post, std::vector<std::string>& problems);
 
   /// Samples so far that found a followed frame unknown or stale.

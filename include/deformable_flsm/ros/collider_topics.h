@@ -7,12 +7,12 @@
 #include "deformable_flsm/ros/collider_command_validator.h"
 #include "deformable_flsm/ros/collider_follower.h"
 #include "deformable_flsm/ros/commands.h"
+#include "deformable_flsm/ros/lazy_topic.h"
 #include "deformable_flsm/ros/param_loader.h"
 #include "deformable_flsm/ros/simulation_loop.h"
 
 #include <deformable_flsm/ColliderCommand.h>
 #include <deformable_flsm/ContactWrenches.h>
-#include <deformable_flsm/SimulationState.h>
 #include <ros/node_handle.h>
 #include <ros/publisher.h>
 #include <ros/subscriber.h>
@@ -21,7 +21,6 @@
 #include <tf2_ros/transform_broadcaster.h>
 #include <visualization_msgs/MarkerArray.h>
 
-#include <atomic>
 #include <functional>
 #include <memory>
 #include <string>
@@ -53,10 +52,10 @@ class ColliderTopics {
                  CommandValidator::TransformLookup lookup, Send send, double objectSize);
 
   /// Every publish tick: ~contact_wrenches (also at rest), the colliders' tf frames, and
-  /// ~colliders when it has subscribers and the colliders changed (or a subscriber is new).
+  /// ~colliders when it is due (LazyTopic::due(): while subscribed, like ~lattice).
   void publish(const Snapshot& s, const ros::Time& stamp);
-  /// The ~state fields about colliders.
-  void fillState(const Snapshot& s, SimulationState& state) const;
+  /// Samples that found a followed tf frame unknown or stale (for ~state).
+  std::uint64_t frameMisses() const { return follower_.misses(); }
 
  private:
   void onCommand(const ColliderCommand::ConstPtr& msg);
@@ -69,18 +68,18 @@ class ColliderTopics {
   ColliderCommandValidator validator_;
   Send send_;
   double planeSize_;
+  bool republishAtRest_;
   ColliderFollower follower_;
 
-  ros::Publisher wrenchPub_, markerPub_;
+  ros::Publisher wrenchPub_;
+  LazyTopic markers_;
   ros::Subscriber commandSub_;
   ros::Timer followTimer_;
   tf2_ros::TransformBroadcaster tfBroadcaster_;
-  std::atomic<bool> newMarkerSubscriber_{false};
 
   // Publish-timer state (main thread only).
-  std::uint64_t markersSequence_ = 0;
   ContactWrenches wrenches_;
-  visualization_msgs::MarkerArray markers_;
+  visualization_msgs::MarkerArray markerArray_;
   std::vector<geometry_msgs::TransformStamped> transforms_;
   std::vector<std::string> problems_;
 };

@@ -99,8 +99,9 @@ struct ReleaseCommand {
 };
 
 /// A force (N) for `duration` s of simulated time, or an impulse (N s), on `particle` or on the
-/// particles within `radius` of `point` (radius 0: the nearest particle), spread by mass.
-struct PushCommand {
+/// particles within `radius` of `point` (radius 0: the nearest particle), spread by mass: a
+/// validated ForceCommand message.
+struct ApplyForceCommand {
   std::int64_t particle = -1;
   Eigen::Vector3d point = Eigen::Vector3d::Zero();
   double radius = 0.0;
@@ -147,7 +148,7 @@ struct RemoveColliderCommand {
 };
 
 using CommandBody = std::variant<GrabCommand, AttachCommand, MoveCommand, ReleaseCommand,
-                                 PushCommand, ResetCommand, ReleaseAllCommand, PinBoxCommand,
+                                 ApplyForceCommand, ResetCommand, ReleaseAllCommand, PinBoxCommand,
                                  ParamsCommand, SetColliderCommand, MoveColliderCommand,
                                  RemoveColliderCommand>;
 

@@ -160,7 +160,7 @@ class SimulationLoop {
   CommandOutcome grab(const GrabCommand& c, const AttachCommand* attach = nullptr);
   CommandOutcome move(const MoveCommand& c);
   CommandOutcome release(const ReleaseCommand& c);
-  CommandOutcome force(const PushCommand& c);
+  CommandOutcome force(const ApplyForceCommand& c);
   CommandOutcome pinBox(const PinBoxCommand& c);
   CommandOutcome setParams(const ParamsCommand& c);
   CommandOutcome setCollider(const SetColliderCommand& c);
