@@ -147,10 +147,10 @@ class Solver : private RegionKernel {
 
   // --- colliders ------------------------------------------------------------------------
   /// Adds collider `id`, or replaces the collider of that id. Particles collide with it as
-  /// spheres of radius contactRadius(), with Coulomb friction (see collider.h and
-  /// contactPass()). A mesh collider gets its MeshDistanceField here when it has none (this
+  /// spheres of radius contactRadius(), with Coulomb friction (collider.h; the response is
+  /// contactVelocityChange() in contact.h). A mesh collider gets its MeshDistanceField here when it has none (this
   /// takes a moment for a large mesh; share one field between colliders of the same mesh).
-  /// @throws std::invalid_argument if collider.validate() fails; MeshError for an open mesh.
+  /// @throws std::invalid_argument if collider.validate() fails (an open mesh among others).
   void setCollider(const std::string& id, const Collider& collider);
   /// Gives collider `id` its pose at the start of the next step() and its velocity over that
   /// step (the sub-steps move it along). step() leaves each collider at its pose at the end of
