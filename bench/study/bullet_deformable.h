@@ -296,8 +296,12 @@ class BulletDeformableMethod : public VoxelBulletBody {
 
     body_ = newBody(world_->getWorldInfo());
     body_->initializeDmInverse();
+    // Bullet's TetraScratch leaves its matrices uninitialised until the first step fills them
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
     body_->m_tetraScratches.resize(body_->m_tetras.size());
     body_->m_tetraScratchesTn.resize(body_->m_tetras.size());
+#pragma GCC diagnostic pop
     const double h = lattice_->spacing();
     const double full = h * h * h * kStudyDensity;
     for (int t = 0; t < body_->m_tetras.size(); ++t)
@@ -360,11 +364,12 @@ struct BulletVolumeParams {
   /// Material linear stiffness kLST in (0, 1] of the links (btSoftBody::Material::m_kLST).
   double linearStiffness = 1.0;
   /// Pose matching kMT in [0, 1] (btSoftBody::Config::kMT): each sub-step moves every free
-  /// node by this fraction towards the best rigid fit of the whole rest shape.
+  /// node by this fraction towards the best rigid fit of the whole rest shape (a global goal:
+  /// its pull per second grows with the number of sub-steps).
   double poseMatching = 0.05;
-  /// Volume conservation kVC (Pa/m^3, btSoftBody::Config::kVC): a pressure kVC (V0 - V) on the
-  /// boundary faces.
-  double volumeStiffness = 0.0;
+  /// Bulk modulus K (Pa) of the volume conservation: btSoftBody::Config::kVC = K / V0, so that
+  /// the pressure kVC (V0 - V) on the boundary faces is K times the relative volume loss.
+  double bulkModulus = 0.0;
   /// Position-solver iterations per sub-step (btSoftBody::Config::piterations).
   int positionIterations = 4;
   /// As BulletParams::ambientDamping (kDP = 1 - exp(-rate h)).
@@ -385,9 +390,9 @@ class BulletVolumeMethod : public VoxelBulletBody {
   BulletVolumeMethod(std::shared_ptr<const Lattice> lattice, const BulletVolumeParams& params)
       : VoxelBulletBody(std::move(lattice), params.timeStep, params.substeps), params_(params) {
     if (!(params_.linearStiffness > 0.0) || params_.linearStiffness > 1.0 || !(params_.poseMatching >= 0.0) ||
-        params_.poseMatching > 1.0 || !(params_.volumeStiffness >= 0.0) || params_.positionIterations < 1 ||
+        params_.poseMatching > 1.0 || !(params_.bulkModulus >= 0.0) || params_.positionIterations < 1 ||
         !(params_.ambientDamping >= 0.0))
-      throw std::invalid_argument("bullet: kLST in (0, 1], kMT in [0, 1], kVC >= 0, iterations > 0");
+      throw std::invalid_argument("bullet: kLST in (0, 1], kMT in [0, 1], bulk modulus >= 0, iterations > 0");
     info_.m_gravity = toBt(params_.gravity);
     info_.m_sparsesdf.Initialize();
     body_ = newBody(info_);
@@ -402,9 +407,9 @@ class BulletVolumeMethod : public VoxelBulletBody {
     body_->m_cfg.piterations = params_.positionIterations;
     body_->m_cfg.kDP = static_cast<btScalar>(1.0 - std::exp(-params_.ambientDamping * frameStep_ / substeps_));
     body_->m_cfg.kMT = static_cast<btScalar>(params_.poseMatching);
-    body_->m_cfg.kVC = static_cast<btScalar>(params_.volumeStiffness);
     body_->m_cfg.collisions = 0;
-    body_->setPose(params_.volumeStiffness > 0.0, params_.poseMatching > 0.0);
+    body_->setPose(params_.bulkModulus > 0.0, params_.poseMatching > 0.0);
+    body_->m_cfg.kVC = static_cast<btScalar>(params_.bulkModulus / std::abs(body_->getVolume()));
     body_->updateConstants();
     body_->m_bUpdateRtCst = false;
     takeInverseMasses();

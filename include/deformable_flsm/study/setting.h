@@ -16,6 +16,10 @@ namespace study {
 
 /// Mass density of every study object (kg/m^3).
 constexpr double kStudyDensity = 1000.0;
+/// Poisson's ratio of every study material (the FEM oracle and Bullet's deformable body take it;
+/// FastLSM's shape matching, the mass-spring lattice and the legacy soft body have no such
+/// parameter).
+constexpr double kStudyPoissonRatio = 0.3;
 /// The bunny file's units to metres in the study's programs (the ~2-unit bunny becomes ~30 cm).
 constexpr double kStudyBunnyScale = 0.1;
 
@@ -29,6 +33,8 @@ struct Setting {
   double frameStep = 1.0 / 60.0;
   /// Young's modulus of the object (Pa).
   double youngsModulus = 1e4;
+  /// Poisson's ratio of the object.
+  double poissonRatio = kStudyPoissonRatio;
   /// Reach of a shape-matching region (m), the same at every resolution.
   double regionRadius = 0.01;
   /// Rate (1/s) of drag towards rest in the world frame (SolverParams::ambientDamping); every
