@@ -7,9 +7,9 @@
 #pragma once
 
 #include "deformable_flsm/core/lattice.h"
-#include "deformable_flsm/study/method.h"
-#include "deformable_flsm/study/metrics.h"
-#include "deformable_flsm/study/setting.h"
+#include "study/method.h"
+#include "study/metrics.h"
+#include "study/setting.h"
 
 #include <btBulletDynamicsCommon.h>
 #include <BulletSoftBody/btDeformableBodySolver.h>

@@ -19,13 +19,13 @@
 #include "deformable_flsm/core/fem_oracle.h"
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/voxelizer.h"
-#include "deformable_flsm/study/mass_spring.h"
-#include "deformable_flsm/study/method.h"
-#include "deformable_flsm/study/metrics.h"
-#include "deformable_flsm/study/scenarios.h"
-#include "deformable_flsm/study/setting.h"
+#include "study/mass_spring.h"
+#include "study/method.h"
+#include "study/metrics.h"
+#include "study/scenarios.h"
+#include "study/setting.h"
 #ifdef FLSM_STUDY_WITH_BULLET
-#include "bullet_deformable.h"
+#include "study/bullet_deformable.h"
 #endif
 
 #include <algorithm>
