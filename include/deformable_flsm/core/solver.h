@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -218,6 +219,17 @@ class Solver : private RegionKernel {
     bool forced = false;     // some particle has a force or spring acceleration (forceAccel_)
   } step_;
   std::vector<double> regionWeight_;     // beta_r
+  bool volumetric_ = false;  // physical mode with nu > 0: the Poisson term is on
+  /// The Poisson term on the lattice stencil of each particle (see computeVolumetricForces())
+  struct VolumetricStencil {
+    std::uint32_t plus[3], minus[3];  // the particles whose difference is column a of F_i
+    double invDistance[3];            // 1 / their rest distance along a; 0 where there is none
+    double weight;                    // lambda_eff V_i (N m)
+  };
+  std::vector<VolumetricStencil> stencil_;
+  std::vector<std::array<Eigen::Vector3d, 3>> stencilForce_;  // G_ia = lambda V e_i F_ia / d_ia
+  std::vector<Eigen::Vector3d> volumetricAccel_;
+  void computeVolumetricForces();
   std::vector<double> invWeightSum_;     // 1 / sum_{r contains i} beta_r
   std::vector<double> stiffnessFactor_;  // s_i = sum_{r contains i} beta_r / n_i
   int threads_ = 1;

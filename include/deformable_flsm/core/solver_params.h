@@ -47,6 +47,15 @@ struct SolverParams {
   /// material at every time step and lattice spacing, as long as alpha stays under its cap
   /// (Solver::stiffnessSaturated() tells when the step is too long for E).
   double youngsModulus = 0.0;
+  /// Poisson's ratio nu of the material, in [0, 0.45] (physical mode only: with youngsModulus 0
+  /// it must stay 0). Shape matching penalises every non-rigid deformation alike, the energy of
+  /// a material with Lame parameters (mu, lambda = 0), i.e. nu = 0; nu > 0 takes
+  /// mu = E / (2 (1 + nu)) for shape matching and adds, per region, the volumetric energy
+  /// lambda / 2 V_r (tr(R_r^T F_r) - 3)^2 with lambda = E nu / ((1 + nu)(1 - 2 nu)), F_r the
+  /// region's least-squares deformation gradient and V_r its centre cell's volume (see
+  /// Solver::computeRegionWeights()). Exact for uniform strain; a region wider than half a
+  /// section averages the bending strain across it, which softens bending by up to (1 + nu).
+  double poissonsRatio = 0.0;
   /// Rate (1/s) at which each region's deviation from rigid motion is damped; 0 for none.
   /// Momentum-conserving: linear and angular momentum of every region are kept. Bending modes
   /// longer than a region look nearly rigid inside each region and are damped far more slowly
@@ -84,6 +93,12 @@ struct SolverParams {
   /// The alpha that youngsModulus asks for on a lattice of the given spacing (m), before the cap;
   /// `stiffness` when youngsModulus is 0.
   double requestedAlpha(double spacing) const;
+  /// Shear modulus mu = E / (2 (1 + nu)) (Pa); 0 in classic mode.
+  double shearModulus() const { return youngsModulus / (2.0 * (1.0 + poissonsRatio)); }
+  /// Lame's first parameter lambda = E nu / ((1 + nu)(1 - 2 nu)) (Pa); 0 in classic mode.
+  double lameLambda() const {
+    return youngsModulus * poissonsRatio / ((1.0 + poissonsRatio) * (1.0 - 2.0 * poissonsRatio));
+  }
 };
 
 }  // namespace deformable_flsm
