@@ -510,7 +510,8 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
       (*goalsOut_)[i] = g;
       continue;
     }
-    // v <- (v + alpha s_i (g - x) / h + h (gravity + f / m) + kd (v_rigid - v)) keep;  x <- x + h v
+    // v <- v_obj + keep (v - v_obj) + alpha s_i (g - x) / h + h (gravity + f / m) + kd (v_rigid - v);
+    // x <- x + h v
     // (a pinned or hard-dragged particle is left to finishSubstep())
     if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
     Eigen::Vector3d a = params_.gravity;
@@ -523,9 +524,47 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
           (Eigen::Vector3d(s[12], s[13], s[14]) + Eigen::Vector3d(s[15], s[16], s[17]).cross(p)) * invCount_[i];
       dv += k.kd * (target - v_[i]);
     }
-    v_[i] = (v_[i] + dv) * k.keep;
+    if (k.ambient) {
+      // ambient damping of the motion relative to the object's rigid motion (computeRigidMotion())
+      const Eigen::Vector3d rigid = rigidVelocity_ + rigidSpin_.cross(x_[i] - xref_);
+      v_[i] = rigid + k.keep * (v_[i] - rigid) + dv;
+    } else {
+      v_[i] += dv;
+    }
     x_[i] += k.h * v_[i];
   }
+}
+
+// Ambient damping is mass-proportional (Rayleigh) damping, C = c M, of the motion relative to the
+// object's own rigid motion: every vibration mode of angular frequency omega gets the damping
+// ratio c / (2 omega), and a falling, thrown or spinning object keeps its momentum (a vibration
+// mode of a free object has neither linear nor angular momentum, so its rigid part is zero).
+// The rigid motion keeps the object's linear and angular momentum: v_obj(x) = V + W x (x - xref),
+// V the centre-of-mass velocity moved to xref, W = I^+ L about the centre of mass. A pinned object
+// is held by the world: its rigid motion is the world's, zero (drag towards rest, as before).
+void Solver::computeRigidMotion() {
+  rigidVelocity_.setZero();
+  rigidSpin_.setZero();
+  if (pinnedCount_ > 0) return;
+  const auto& m = lattice_->masses();
+  xref_ = x_[anchor_];
+  double M = 0.0;
+  Eigen::Vector3d mx = Eigen::Vector3d::Zero(), mv = Eigen::Vector3d::Zero(), l = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d mxx = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < x_.size(); ++i) {
+    const Eigen::Vector3d p = x_[i] - xref_;
+    M += m[i];
+    mx += m[i] * p;
+    mv += m[i] * v_[i];
+    l += m[i] * p.cross(v_[i]);
+    mxx.noalias() += m[i] * p * p.transpose();
+  }
+  const Eigen::Vector3d c = mx / M, V = mv / M;
+  const Eigen::Vector3d L = l - c.cross(mv);                 // about the centre of mass
+  const Eigen::Matrix3d P = mxx - M * c * c.transpose();     // second moment about it
+  const Eigen::Matrix3d I = P.trace() * Eigen::Matrix3d::Identity() - P;
+  rigidSpin_ = solveInertia(I, L);
+  rigidVelocity_ = V - rigidSpin_.cross(c);
 }
 
 void Solver::accumulateForces(double h) {
@@ -560,8 +599,9 @@ void Solver::accumulateForces(double h) {
 
 // One sub-step of FastLSM dynamics (Rivers & James 2007, eq. 7):
 //   v <- v + alpha (g - x) / h + h f / m,   damping,   x <- x + h v.
-// Shape matching and region damping both act on the state at the start of the sub-step:
-//   v <- (v + alpha s_i (g - x) / h + h f / m + kd (v_rigid(v) - v)) keep
+// Shape matching and both dampings act on the state at the start of the sub-step:
+//   v <- v_obj + keep (v - v_obj) + alpha s_i (g - x) / h + h f / m + kd (v_rigid(v) - v)
+// with v_obj the object's rigid motion (zero when pinned, see computeRigidMotion()).
 // The update of each particle is the last step of the region pass (particleResult()), done as
 // soon as its goal is known: the state is read and written in one sweep over the lattice.
 void Solver::substep(double h) {
@@ -577,7 +617,9 @@ void Solver::substep(double h) {
   step_.kd = 1.0 - std::exp(-params_.damping * h);
   step_.pull = alpha_ / h;
   step_.keep = std::exp(-params_.ambientDamping * h);
+  step_.ambient = params_.ambientDamping > 0.0;
   step_.forced = !forcedParticles_.empty();
+  if (step_.ambient) computeRigidMotion();
   if (volumetric_) computeVolumetricForces();
   regionPass(step_.kd > 0.0);
   step_.integrate = false;
@@ -640,6 +682,7 @@ void Solver::setPinned(std::uint32_t particle, bool pinned) {
     pinPosition_[particle] = x_[particle];
     v_[particle].setZero();
   }
+  if (pinned != (pinned_[particle] != 0)) pinned ? ++pinnedCount_ : --pinnedCount_;
   pinned_[particle] = pinned ? 1 : 0;
   pinnedListStale_ = true;
 }

@@ -356,3 +356,135 @@ TEST(PhysicalMaterial, PoissonTermConservesMomentum) {
   EXPECT_LT((s.linearMomentum() - P0).norm(), 1e-11 * pScale);
   EXPECT_LT((s.angularMomentum() - L0).norm(), 1e-10 * lScale);
 }
+
+// Ambient damping acts on the motion relative to the object's rigid motion: an object falling
+// under gravity with ambient damping falls exactly as without (v = g t, to round-off), where a
+// drag in the world frame would hold it to (1 - e^-ct) / c of that after t = 1 s.
+TEST(AmbientDamping, FreeFallKeepsItsMomentum) {
+  SolverParams p = physical(5e3, 0.3, 2, 4);
+  p.ambientDamping = 0.5;
+  Solver s(std::make_shared<const Lattice>(notched(), kDensity, 2), p);
+  for (int i = 0; i < 60; ++i) s.step();
+  const double M = s.lattice().totalMass();
+  const Eigen::Vector3d expected = M * s.time() * p.gravity;
+  EXPECT_LT((s.linearMomentum() - expected).norm(), 1e-9 * expected.norm());
+  EXPECT_LT(s.shapeError(), 1e-9 * s.lattice().objectSize()) << "free fall deforms nothing";
+}
+
+namespace {
+
+/// Kinetic energy of the motion relative to the rigid motion with the object's linear and angular
+/// momentum (J).
+double wobbleEnergy(const Solver& s) {
+  const auto& m = s.lattice().masses();
+  const auto& x = s.positions();
+  const auto& v = s.velocities();
+  const double M = s.lattice().totalMass();
+  Eigen::Vector3d c = Eigen::Vector3d::Zero(), V = Eigen::Vector3d::Zero(), L = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    c += m[i] * x[i] / M;
+    V += m[i] * v[i] / M;
+  }
+  Eigen::Matrix3d I = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const Eigen::Vector3d r = x[i] - c;
+    L += m[i] * r.cross(v[i]);
+    I += m[i] * (r.squaredNorm() * Eigen::Matrix3d::Identity() - r * r.transpose());
+  }
+  const Eigen::Vector3d w = I.ldlt().solve(L);
+  double e = 0.0;
+  for (std::size_t i = 0; i < x.size(); ++i) e += 0.5 * m[i] * (v[i] - V - w.cross(x[i] - c)).squaredNorm();
+  return e;
+}
+
+}  // namespace
+
+// A thrown, spinning object keeps its linear and angular momentum under ambient damping, while
+// its wobble (motion relative to its rigid motion) dies out.
+TEST(AmbientDamping, ThrownSpinningObjectKeepsMomentumAndStopsWobbling) {
+  SolverParams p = physical(5e3, 0.0, 2, 4);
+  p.gravity.setZero();
+  p.damping = 0.0;
+  p.ambientDamping = 2.0;
+  Solver s(std::make_shared<const Lattice>(notched(), kDensity, 2), p);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Eigen::Vector3d> v(s.positions().size());
+  for (std::size_t i = 0; i < v.size(); ++i)
+    v[i] = Eigen::Vector3d(0.3, -0.1, 0.2) + Eigen::Vector3d(0.5, 3.0, -1.0).cross(s.positions()[i]) +
+           0.2 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+  s.setVelocities(v);
+  double pScale = 0.0, lScale = 0.0;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    pScale += s.lattice().masses()[i] * v[i].norm();
+    lScale += s.lattice().masses()[i] * s.positions()[i].norm() * v[i].norm();
+  }
+  const Eigen::Vector3d P0 = s.linearMomentum(), L0 = s.angularMomentum();
+  const double wobble0 = wobbleEnergy(s);
+  for (int i = 0; i < 300; ++i) s.step();  // 5 s: e^-20 of the relative motion's energy is left
+  EXPECT_LT((s.linearMomentum() - P0).norm(), 1e-10 * pScale);
+  EXPECT_LT((s.angularMomentum() - L0).norm(), 1e-9 * lScale);
+  EXPECT_LT(wobbleEnergy(s), 1e-4 * wobble0) << "the wobble must have died out (a spinning body keeps a "
+                                                 "steady centrifugal stretch, so the shape is not the measure)";
+}
+
+// Ambient damping is mass-proportional Rayleigh damping, C = c M: a vibration mode of angular
+// frequency omega gets the damping ratio c / (2 omega). A cantilever released from rest under a
+// light load oscillates about its sag in its first bending mode; the logarithmic decrement of its
+// tip's swings gives zeta = delta / sqrt(4 pi^2 + delta^2), which must be c / (2 omega_n) within
+// 20 % (omega_n from the measured period). Region damping off: it is the other channel.
+TEST(AmbientDamping, LogarithmicDecrementGivesTheDampingRatio) {
+  const double t = 0.1, L = 0.8, h = 0.05;
+  const Voxelization vox = box(18, 2, 2, h, Eigen::Vector3d(-2 * h, 0, 0));
+  const double E = modulusFor(h);
+  const double omegaBeam = analytic::cantileverFirstBendingFrequency(L, t, E, kDensity);
+  for (double zeta : {0.02, 0.08}) {
+    SolverParams p = physical(E, 0.0, 1, 4);
+    p.damping = 0.0;
+    p.ambientDamping = 2.0 * zeta * omegaBeam;
+    p.gravity = Eigen::Vector3d(0, 0, -0.01 * L * E * t * t / (1.5 * kDensity * std::pow(L, 4)));
+    auto lattice = std::make_shared<const Lattice>(vox, kDensity, 1);
+    Solver s(lattice, p);
+    s.pinBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(0.0, kBig, kBig), true);
+    std::vector<std::uint32_t> tip;
+    for (std::uint32_t i = 0; i < lattice->size(); ++i)
+      if (lattice->restPositions()[i].x() > L - h) tip.push_back(i);
+    const double period = 2.0 * M_PI / omegaBeam;
+    const int steps = static_cast<int>(6.0 * period / kStep);
+    std::vector<double> z(static_cast<std::size_t>(steps));
+    for (int k = 0; k < steps; ++k) {
+      s.step();
+      double sum = 0.0;
+      for (std::uint32_t i : tip) sum += s.positions()[i].z();
+      z[static_cast<std::size_t>(k)] = sum / tip.size();
+    }
+    // swings: extremes of the tip, each the largest or smallest within a quarter of a period
+    // (so that the faint higher modes cannot make extremes of their own)
+    const int window = static_cast<int>(0.25 * period / kStep);
+    std::vector<std::pair<int, double>> extremes;
+    for (int k = window; k + window < steps; ++k) {
+      bool isMax = true, isMin = true;
+      for (int j = k - window; j <= k + window; ++j) {
+        isMax = isMax && z[static_cast<std::size_t>(j)] <= z[static_cast<std::size_t>(k)];
+        isMin = isMin && z[static_cast<std::size_t>(j)] >= z[static_cast<std::size_t>(k)];
+      }
+      if (isMax || isMin) extremes.emplace_back(k, z[static_cast<std::size_t>(k)]);
+    }
+    ASSERT_GE(extremes.size(), 6u) << "zeta " << zeta;
+    double logRatio = 0.0, halfPeriods = 0.0;
+    const std::size_t swings = extremes.size() - 2;
+    for (std::size_t e = 0; e < swings; ++e) {
+      const double r0 = std::abs(extremes[e + 1].second - extremes[e].second);
+      const double r1 = std::abs(extremes[e + 2].second - extremes[e + 1].second);
+      logRatio += std::log(r0 / r1);
+    }
+    halfPeriods = (extremes.back().first - extremes.front().first) * kStep / (extremes.size() - 1);
+    const double delta = 2.0 * logRatio / swings;  // per full period
+    const double measured = delta / std::sqrt(4.0 * M_PI * M_PI + delta * delta);
+    const double omegaN = M_PI / halfPeriods / std::sqrt(1.0 - measured * measured);
+    const double expected = p.ambientDamping / (2.0 * omegaN);
+    EXPECT_NEAR(measured / expected, 1.0, 0.20) << "zeta asked " << zeta << ": measured " << measured
+                                                << ", c / (2 omega_n) " << expected << ", omega_n " << omegaN
+                                                << " rad/s (Euler-Bernoulli " << omegaBeam << ")";
+  }
+}

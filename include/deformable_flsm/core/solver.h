@@ -59,8 +59,11 @@ class Solver : private RegionKernel {
   /// (they define the lattice: build a new Solver).
   void setParams(const SolverParams& params);
 
-  /// alpha used per sub-step: params().requestedAlpha(spacing), capped so that no particle's
-  /// alpha s_i exceeds params().stiffness (s_i = 1 in classic mode, see computeRegionWeights()).
+  /// alpha used per sub-step: params().requestedAlpha(spacing), capped. Classic mode: the cap is
+  /// params().stiffness. Physical mode: the cap follows the stability of the sub-step, symplectic
+  /// Euler on the linearised dynamics, (omega h)^2 < 4: alpha (s_i + Lambda_i) <= 4 * 1/2 *
+  /// params().stiffness for every particle, s_i the region weight factor and Lambda_i the Poisson
+  /// term's bound (see computeRegionWeights()); the stiffest mode then has (omega h)^2 <= 2.
   double alpha() const { return alpha_; }
   /// true when youngsModulus asks for more than the cap: the material is softer than asked,
   /// by the factor alpha() / params().requestedAlpha(); more sub-steps fix it.
@@ -217,7 +220,13 @@ class Solver : private RegionKernel {
     double pull = 0.0;       // alpha / h
     double keep = 1.0;       // ambient damping factor per sub-step
     bool forced = false;     // some particle has a force or spring acceleration (forceAccel_)
+    bool ambient = false;    // ambient damping is on
   } step_;
+  /// The object's rigid motion at the start of the sub-step, v_obj(x) = rigidVelocity_ +
+  /// rigidSpin_ x (x - xref_) (zero when pinned), what ambient damping leaves alone.
+  Eigen::Vector3d rigidVelocity_ = Eigen::Vector3d::Zero(), rigidSpin_ = Eigen::Vector3d::Zero();
+  std::size_t pinnedCount_ = 0;
+  void computeRigidMotion();
   std::vector<double> regionWeight_;     // beta_r
   bool volumetric_ = false;  // physical mode with nu > 0: the Poisson term is on
   /// The Poisson term on the lattice stencil of each particle (see computeVolumetricForces())
