@@ -171,6 +171,12 @@ std::size_t FemOracle::clampCellsInBox(const Eigen::Vector3d& lo, const Eigen::V
   return count;
 }
 
+std::size_t FemOracle::fixNodesInBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
+  std::size_t count = 0;
+  for (int axis = 0; axis < 3; ++axis) count = prescribeInBox(lo, hi, axis, 0.0);
+  return count;
+}
+
 std::size_t FemOracle::prescribeInBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int axis,
                                       double value) {
   if (axis < 0 || axis > 2) throw std::invalid_argument("fem: axis " + std::to_string(axis) + ": expected 0, 1 or 2");

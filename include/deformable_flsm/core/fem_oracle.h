@@ -6,7 +6,7 @@
 /// Usage (a cantilever clamped over its first quarter, sagging under gravity):
 /// @code
 ///   FemOracle fem(voxels, FemMaterial{E, nu, rho}, 2);   // each cell split into 2^3 elements
-///   fem.clampCellsInBox(lo, hi);                          // the cells Solver::pinBox(lo, hi) pins
+///   fem.fixNodesInBox(lo, hi);  // the support Solver::pinBox(lo, hi) gives (hi at pinned centres)
 ///   const FemSolution u = fem.solveStatic(Eigen::Vector3d(0, 0, -9.81));
 ///   u.cellDisplacements[p];  // displacement at lattice particle p's rest position (m)
 /// @endcode
@@ -85,6 +85,12 @@ class FemOracle {
   /// Fixes every node of the cells whose centres lie in the box [lo, hi] (m): the same cells
   /// Solver::pinBox(lo, hi, true) pins, held in place as a whole. Returns how many cells.
   std::size_t clampCellsInBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi);
+  /// Fixes (all three components of) every node whose rest position lies in [lo, hi] (m).
+  /// Solver::pinBox holds particles, i.e. cell centres: to give the oracle the same support, fix
+  /// the nodes up to the pinned cells' centres (an even subdivision puts a node at every centre);
+  /// clampCellsInBox() instead moves the support out to the pinned cells' faces, half a cell
+  /// further along the object. Returns how many nodes.
+  std::size_t fixNodesInBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi);
   /// Prescribes component `axis` (0, 1, 2) of the displacement of every node whose rest position
   /// lies in [lo, hi] (m) to `value` (m). Returns how many nodes.
   /// @throws std::invalid_argument for an axis outside 0..2 or a non-finite value.
