@@ -633,7 +633,7 @@ int main(int argc, char** argv) {
       << ", " << kFemSubdivision << "^3 trilinear hexahedra per cell, nu = " << kStudyPoissonRatio << "): the physical reference\n"
       << "fem_check_tip," << num(ph.femCheckTip) << ",1,FEM oracle tip deflection / L at resolution "
       << kFemCheckResolution << " (coarser, convergence check)\n"
-      << "poisson_ratio," << num(kStudyPoissonRatio) << ",1,Poisson's ratio of the FEM oracle and Bullet's deformable body\n"
+      << "poisson_ratio," << num(kStudyPoissonRatio) << ",1,Poisson's ratio of FastLSM, the FEM oracle and Bullet's deformable body\n"
       << "fastlsm_tip," << num(calib.fastlsmTip) << ",1,FastLSM tip deflection / L at the calibration setting (res "
       << kCalibrationResolution << ", " << kCalibrationSubsteps << " sub-steps)\n"
       << "spring_ratio," << num(calib.springRatio) << ",1,mass-spring kappa / E: spring stiffness k = kappa h fill\n"

@@ -16,9 +16,8 @@ namespace study {
 
 /// Mass density of every study object (kg/m^3).
 constexpr double kStudyDensity = 1000.0;
-/// Poisson's ratio of every study material (the FEM oracle and Bullet's deformable body take it;
-/// FastLSM's shape matching, the mass-spring lattice and the legacy soft body have no such
-/// parameter).
+/// Poisson's ratio of every study material (FastLSM, the FEM oracle and Bullet's deformable body
+/// take it; the mass-spring lattice and the legacy soft body have no such parameter).
 constexpr double kStudyPoissonRatio = 0.3;
 /// The bunny file's units to metres in the study's programs (the ~2-unit bunny becomes ~30 cm).
 constexpr double kStudyBunnyScale = 0.1;
@@ -62,6 +61,7 @@ inline SolverParams flsmParams(const Setting& setting, double latticeSpacing, So
   p.kind = kind;
   p.density = kStudyDensity;
   p.youngsModulus = setting.youngsModulus;
+  p.poissonsRatio = setting.poissonRatio;
   p.stiffness = 1.0;
   p.regionHalfWidth = regionHalfWidthForRadius(setting.regionRadius, latticeSpacing);
   p.ambientDamping = setting.ambientDamping;
