@@ -30,7 +30,9 @@ PANELS = [
      "RMS of deflection - FEM's, over FEM's tip deflection", True),
     ("cantilever", "tip_ratio", "(b) Cantilever tip deflection over FEM's (1 = physics)",
      "tip deflection / FEM tip deflection", False),
-    ("ear-drag", "error_ref", "(c) Bunny ear drag, whole trajectory: against the method's own\n"
+    ("column", "profile_vs_fem", "(c) Column under its weight at rest against physics (FEM oracle)",
+     "RMS of shortening - FEM's, over FEM's top shortening", True),
+    ("ear-drag", "error_ref", "(d) Bunny ear drag, whole trajectory: against the method's own\n"
      "converged run (no physical reference: shows convergence, not physics)",
      "RMS vertex distance to own reference / object size", True),
 ]
@@ -68,8 +70,8 @@ def value(row, column):
 
 
 def chart(rows, calibration, path):
-    fig, axes = plt.subplots(1, len(PANELS), figsize=(20, 6.5))
-    for ax, (scenario, column, title, ylabel, logy) in zip(axes, PANELS):
+    fig, axes = plt.subplots(2, 2, figsize=(16, 12))
+    for ax, (scenario, column, title, ylabel, logy) in zip(axes.flat, PANELS):
         for key, label, color, marker in METHODS:
             pts = []
             for r in rows:

@@ -55,6 +55,8 @@ constexpr double kBarLength = 1.0;
 /// Resolutions of the accuracy runs and of the reference (finest) run. Multiples of the coarsest
 /// resolution, so that the region radius is a whole number of cells at every one of them.
 const std::vector<int> kBarResolutions = {20, 40, 60};
+/// Resolutions of the column (physics only, no reference run).
+const std::vector<int> kColumnResolutions = {20, 40};
 constexpr int kBarReferenceResolution = 80;
 const std::vector<int> kBunnyResolutions = {12, 24};
 constexpr int kBunnyReferenceResolution = 36;
@@ -83,13 +85,13 @@ constexpr double kBulletMinStiffness = 1e-6;
 constexpr double kBulletVolumeFraction = 0.005;
 /// Legacy Bullet's calibration runs at this many sub-steps (its cost per run is highest).
 constexpr int kBulletCalibrationSubsteps = 4;
-/// Bullet's deformable body (implicit): sub-steps per frame at each resolution of the accuracy
-/// runs (index as kBarResolutions / kBunnyResolutions). Its users run it at the frame rate; a
+/// Bullet's deformable body (implicit): sub-steps per frame at each resolution of the bar runs
+/// (index as kBarResolutions; none at the finer ones: ~10 s per simulated second at 60 cells). Its users run it at the frame rate; a
 /// few sub-steps show what shorter steps buy. No reference run: its cost at the reference
 /// resolution is beyond the study's budget, and physics is the reference that counts. It runs
-/// the cantilever only: on the bunny its conjugate gradients cost ~10 s per simulated second at
+/// the bar scenarios only: on the bunny its conjugate gradients cost ~10 s per simulated second at
 /// resolution 12, beyond the study's budget for the ear drag and the stress scenarios.
-const std::vector<std::vector<int>> kBulletFemSubsteps = {{1, 2, 4}, {1}, {1}};
+const std::vector<std::vector<int>> kBulletFemSubsteps = {{1, 2, 4}, {1}};
 /// FEM oracle: the bar's voxels at this resolution, each cell split into kFemSubdivision^3
 /// linear hexahedra (8 elements across the section); and a coarser one (4 across) to show how
 /// far the reference is from converged (trilinear elements are stiff in bending).
@@ -312,19 +314,26 @@ double calibrationTip(const StudyObject& bar, const std::string& method, int sub
 
 /// The physical answer to the cantilever: the deflection (m, downward) of the bar's centre line
 /// at each probe (StudyObject::probes), from the FEM oracle on the bar's voxels and from
-/// Timoshenko's beam, and the tips.
+/// Timoshenko's beam, and the tips; and to the column: the shortening (m, along -x) at each
+/// probe from the FEM oracle and from uniaxial stress (nu = 0, free sides).
 struct Physics {
   std::vector<double> fem, timoshenko;
   double femTip = 0.0, timoshenkoTip = 0.0, eulerBernoulliTip = 0.0;  // / L
-  double femCheckTip = 0.0;                                           // / L, finer oracle
+  double femCheckTip = 0.0;                                           // / L, coarser oracle
   double femSeconds = 0.0;
+  std::vector<double> columnFem, columnUniaxial;
+  double columnFemTop = 0.0, columnUniaxialTop = 0.0;  // / L
 };
 
-/// Downward deflection (m) of the centre line at each probe of `bar` from a static FEM solve on
+/// Axis along which a bar scenario's load acts (the displacement that is compared).
+int loadAxis(Scenario s) { return s == Scenario::Column ? 0 : 2; }
+
+/// Displacement (m) against the load (downward for the cantilever, along -x for the column) of
+/// the centre line at each probe of `bar` from a static FEM solve of `scenario` on
 /// the bar's voxels at `resolution`, clamped as the scenario clamps (cells with centres within
 /// L / 20 of the fixed end): the node displacements along the centre line (a node line when the
 /// section has an even number of elements), interpolated linearly in x.
-std::vector<double> femProbeDeflections(const StudyObject& bar, int resolution, int subdivision) {
+std::vector<double> femProbeDeflections(const StudyObject& bar, Scenario scenario, int resolution, int subdivision) {
   VoxelizeOptions options;
   options.resolution = resolution;
   const Voxelization voxels = voxelize(bar.mesh, options);
@@ -332,14 +341,15 @@ std::vector<double> femProbeDeflections(const StudyObject& bar, int resolution, 
   const double inf = std::numeric_limits<double>::infinity();
   const double cut = bar.mesh.boundsMin().x() + kBarClampFraction * (bar.mesh.boundsMax().x() - bar.mesh.boundsMin().x());
   fem.clampCellsInBox(Eigen::Vector3d(-inf, -inf, -inf), Eigen::Vector3d(cut, inf, inf));
-  const FemSolution u = fem.solveStatic(scenarioGravity(Scenario::Cantilever));
+  const FemSolution u = fem.solveStatic(scenarioGravity(scenario));
+  const int axis = loadAxis(scenario);
   const Eigen::Vector3d& probe0 = bar.probes.front();
   const double tol = 1e-6 * voxels.spacing;
   std::vector<std::pair<double, double>> line;  // (x, downward deflection)
   for (std::size_t n = 0; n < fem.nodePositions().size(); ++n) {
     const Eigen::Vector3d& x = fem.nodePositions()[n];
     if (std::abs(x.y() - probe0.y()) < tol && std::abs(x.z() - probe0.z()) < tol)
-      line.emplace_back(x.x(), -u.nodeDisplacements[n].z());
+      line.emplace_back(x.x(), -u.nodeDisplacements[n][axis]);
   }
   if (line.size() < 2)
     throw std::runtime_error("FEM oracle: no node line on the bar's centre line at resolution " +
@@ -360,34 +370,44 @@ std::vector<double> femProbeDeflections(const StudyObject& bar, int resolution, 
 Physics physics(const StudyObject& bar) {
   Physics ph;
   const auto t0 = std::chrono::steady_clock::now();
-  ph.fem = femProbeDeflections(bar, kFemResolution, kFemSubdivision);
+  ph.fem = femProbeDeflections(bar, Scenario::Cantilever, kFemResolution, kFemSubdivision);
   ph.femSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  ph.femCheckTip = femProbeDeflections(bar, kFemCheckResolution, kFemSubdivision).back() / kBarLength;
+  ph.femCheckTip = femProbeDeflections(bar, Scenario::Cantilever, kFemCheckResolution, kFemSubdivision).back() / kBarLength;
+  ph.columnFem = femProbeDeflections(bar, Scenario::Column, kFemResolution, kFemSubdivision);
+  ph.columnFemTop = ph.columnFem.back() / kBarLength;
   ph.femTip = ph.fem.back() / kBarLength;
   const double a = kBarLength / kBarAspect, clamp = kBarClampFraction * kBarLength, lf = kBarLength - clamp;
   for (const Eigen::Vector3d& p : bar.probes)
     ph.timoshenko.push_back(analytic::cantileverSelfWeightDeflection(p.x() - clamp, lf, a, a, bar.youngsModulus,
                                                                       kStudyPoissonRatio, kStudyDensity, kBarLoad));
   ph.timoshenkoTip = ph.timoshenko.back() / kBarLength;
+  // uniaxial stress: u(x) = rho g (H x - x^2 / 2) / E along a free column of height H
+  for (const Eigen::Vector3d& p : bar.probes) {
+    const double x = p.x() - clamp;
+    ph.columnUniaxial.push_back(kStudyDensity * kColumnLoad * (lf * x - 0.5 * x * x) / bar.youngsModulus);
+  }
+  ph.columnUniaxialTop = ph.columnUniaxial.back() / kBarLength;
   const double q = kStudyDensity * kBarLoad * a * a, I = a * a * a * a / 12.0;
   ph.eulerBernoulliTip = q * std::pow(lf, 4) / (8.0 * bar.youngsModulus * I) / kBarLength;
   return ph;
 }
 
-/// A cantilever run against physics: tip deflection over the reference's minus 1 (negative:
-/// too stiff), and the RMS over the probes of the deflection difference over the reference tip.
+/// A cantilever or column run against physics: tip displacement over the reference's minus 1
+/// (negative: too stiff), and the RMS over the probes of the displacement difference over the
+/// reference tip's.
 struct PhysicalError {
   double tip = std::numeric_limits<double>::quiet_NaN();
   double profile = std::numeric_limits<double>::quiet_NaN();
 };
 
-PhysicalError physicalError(const StudyObject& bar, const std::vector<Eigen::Vector3d>& finalPoints,
+PhysicalError physicalError(const StudyObject& bar, Scenario scenario, const std::vector<Eigen::Vector3d>& finalPoints,
                             const std::vector<double>& reference) {
+  const int axis = loadAxis(scenario);
   PhysicalError e;
   const std::size_t np = bar.probes.size(), first = finalPoints.size() - np;
   double sum = 0.0;
   for (std::size_t k = 0; k < np; ++k) {
-    const double w = bar.probes[k].z() - finalPoints[first + k].z();
+    const double w = bar.probes[k][axis] - finalPoints[first + k][axis];
     sum += (w - reference[k]) * (w - reference[k]);
     if (k + 1 == np) e.tip = w / reference[k] - 1.0;
   }
@@ -474,7 +494,7 @@ struct Row {
   double ebRms = std::numeric_limits<double>::quiet_NaN();
   double tip = std::numeric_limits<double>::quiet_NaN();
   double diffVsFast = std::numeric_limits<double>::quiet_NaN();
-  PhysicalError vsFem, vsTimoshenko;
+  PhysicalError vsFem, vsAnalytic;
 };
 
 /// RMS distance / size between two runs' samples: the final points for the cantilever, the
@@ -518,6 +538,8 @@ int main(int argc, char** argv) {
               "%.5f L; Timoshenko %.5f L; Euler-Bernoulli %.5f L\n",
               kFemResolution, kFemSubdivision, ph.femSeconds, ph.femTip, kFemCheckResolution, ph.femCheckTip,
               ph.timoshenkoTip, ph.eulerBernoulliTip);
+  std::printf("physics: column shortening, FEM oracle %.5f L; uniaxial stress (nu = 0) %.5f L\n", ph.columnFemTop,
+              ph.columnUniaxialTop);
   const Calibration calib = calibrate(bar, ph, withBullet);
 
   std::vector<std::string> methods = {"fastlsm", "naive-lsm", "mass-spring"};
@@ -535,21 +557,25 @@ int main(int argc, char** argv) {
 
   std::vector<std::unique_ptr<Run>> runs;
   std::vector<Row> rows;
-  for (Scenario scenario : {Scenario::Cantilever, Scenario::EarDrag}) {
-    const StudyObject& object = scenario == Scenario::Cantilever ? bar : bunny;
-    const std::vector<int>& resolutions = scenario == Scenario::Cantilever ? barRes : bunnyRes;
-    const int refRes = scenario == Scenario::Cantilever ? barRef : bunnyRef;
+  const std::vector<int> columnRes = args.quick ? std::vector<int>{20} : kColumnResolutions;
+  for (Scenario scenario : {Scenario::Cantilever, Scenario::Column, Scenario::EarDrag}) {
+    const bool onBar = scenario != Scenario::EarDrag;
+    const StudyObject& object = onBar ? bar : bunny;
+    const std::vector<int>& resolutions =
+        scenario == Scenario::Cantilever ? barRes : (scenario == Scenario::Column ? columnRes : bunnyRes);
+    const int refRes = onBar ? barRef : bunnyRef;
     std::printf("%s:\n", toString(scenario));
     std::map<std::string, const Run*> fastBySetting;
     const Run* fastRef = nullptr;
     for (const std::string& method : methods) {
-      if (method == "bullet-fem" && scenario != Scenario::Cantilever) continue;
+      if (method == "bullet-fem" && !onBar) continue;
       // the method's own sub-step lists at each resolution, and its reference
       auto substepsAt = [&](int res) {
         if (method == "bullet-fem") {
           const std::size_t k = static_cast<std::size_t>(
               std::find(resolutions.begin(), resolutions.end(), res) - resolutions.begin());
-          return args.quick ? std::vector<int>{1} : kBulletFemSubsteps[std::min(k, kBulletFemSubsteps.size() - 1)];
+          if (args.quick) return std::vector<int>{1};
+          return k < kBulletFemSubsteps.size() ? kBulletFemSubsteps[k] : std::vector<int>{};
         }
         if (method != "mass-spring") return subs;
         const int smin = massSpringMinSubsteps(buildLattice(object, res), calib, object.youngsModulus, kAccuracyFrameStep);
@@ -560,7 +586,7 @@ int main(int argc, char** argv) {
       const Run* ref = nullptr;
       if (method == "naive-lsm") {
         ref = fastRef;  // same algorithm as FastLSM (sums in another order): same reference
-      } else if (method != "bullet-fem") {
+      } else if (method != "bullet-fem" && scenario != Scenario::Column) {  // the column: physics only
         const int rs = method == "mass-spring"
                            ? massSpringMinSubsteps(buildLattice(object, refRes), calib, object.youngsModulus,
                                                    kAccuracyFrameStep) *
@@ -591,12 +617,17 @@ int main(int argc, char** argv) {
     }
   }
   for (Row& row : rows) {
-    if (row.run->scenario == Scenario::Cantilever && !row.run->record.blewUp) {
+    const Scenario sc = row.run->scenario;
+    if (row.run->record.blewUp) continue;
+    if (sc == Scenario::Cantilever) {
       const CantileverProfile p = cantileverProfile(bar, row.run->record.finalPoints);
       row.tip = p.tipDeflection;
       row.ebRms = p.eulerBernoulliRms;
-      row.vsFem = physicalError(bar, row.run->record.finalPoints, ph.fem);
-      row.vsTimoshenko = physicalError(bar, row.run->record.finalPoints, ph.timoshenko);
+      row.vsFem = physicalError(bar, sc, row.run->record.finalPoints, ph.fem);
+      row.vsAnalytic = physicalError(bar, sc, row.run->record.finalPoints, ph.timoshenko);
+    } else if (sc == Scenario::Column) {
+      row.vsFem = physicalError(bar, sc, row.run->record.finalPoints, ph.columnFem);
+      row.vsAnalytic = physicalError(bar, sc, row.run->record.finalPoints, ph.columnUniaxial);
     }
   }
 
@@ -633,6 +664,10 @@ int main(int argc, char** argv) {
       << ", " << kFemSubdivision << "^3 trilinear hexahedra per cell, nu = " << kStudyPoissonRatio << "): the physical reference\n"
       << "fem_check_tip," << num(ph.femCheckTip) << ",1,FEM oracle tip deflection / L at resolution "
       << kFemCheckResolution << " (coarser, convergence check)\n"
+      << "column_fem_top," << num(ph.columnFemTop) << ",1,FEM oracle shortening / L of the column (the bar clamped at "
+         "its base, load " << kColumnLoad << " m/s^2 along it)\n"
+      << "column_uniaxial_top," << num(ph.columnUniaxialTop) << ",1,uniaxial-stress shortening / L of a free column "
+         "(rho g H^2 / (2 E), nu = 0)\n"
       << "poisson_ratio," << num(kStudyPoissonRatio) << ",1,Poisson's ratio of FastLSM, the FEM oracle and Bullet's deformable body\n"
       << "fastlsm_tip," << num(calib.fastlsmTip) << ",1,FastLSM tip deflection / L at the calibration setting (res "
       << kCalibrationResolution << ", " << kCalibrationSubsteps << " sub-steps)\n"
@@ -653,21 +688,21 @@ int main(int argc, char** argv) {
     std::ofstream f(dir + "/accuracy.csv");
     f << "scenario,method,resolution,substeps,reference,particles,half_width,substep_s,blew_up,error_ref,"
          "eb_rms,tip_deflection,shape_error,volume_change,peak_kinetic_energy_J,wall_s_per_sim_s,"
-         "ns_per_particle_step,repeats,diff_vs_fast,alpha,saturated,tip_vs_fem,profile_vs_fem,tip_vs_timoshenko,"
-         "profile_vs_timoshenko\n";
+         "ns_per_particle_step,repeats,diff_vs_fast,alpha,saturated,tip_vs_fem,profile_vs_fem,tip_vs_analytic,"
+         "profile_vs_analytic\n";
     for (const Row& row : rows) {
       const Run& r = *row.run;
       const double frameStep = scenarioSetting(r.scenario, bar, r.resolution, r.substeps).frameStep;
       f << toString(r.scenario) << ',' << r.method << ',' << r.resolution << ',' << r.substeps << ','
         << (r.reference ? 1 : 0) << ',' << r.particles << ',' << r.halfWidth << ',' << num(r.substep) << ','
         << (r.record.blewUp ? 1 : 0) << ',' << num(row.errorRef) << ',' << num(row.ebRms) << ',' << num(row.tip) << ','
-        << num(r.scenario == Scenario::Cantilever ? std::numeric_limits<double>::quiet_NaN() : r.record.shapeError)
+        << num(r.scenario != Scenario::EarDrag ? std::numeric_limits<double>::quiet_NaN() : r.record.shapeError)
         << ',' << num(r.record.volumeChange) << ',' << num(r.record.peakKineticEnergy) << ','
         << num(r.secondsPerFrame / frameStep) << ','
         << num(1e9 * r.secondsPerFrame / (double(r.substeps) * double(r.particles))) << ',' << r.repeats << ','
         << num(row.diffVsFast) << ',' << num(r.alpha) << ',' << (r.saturated < 0 ? std::string() : std::to_string(r.saturated))
-        << ',' << num(row.vsFem.tip) << ',' << num(row.vsFem.profile) << ',' << num(row.vsTimoshenko.tip) << ','
-        << num(row.vsTimoshenko.profile) << '\n';
+        << ',' << num(row.vsFem.tip) << ',' << num(row.vsFem.profile) << ',' << num(row.vsAnalytic.tip) << ','
+        << num(row.vsAnalytic.profile) << '\n';
     }
   }
   {
