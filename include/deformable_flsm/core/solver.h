@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -71,8 +72,11 @@ class Solver : private RegionKernel {
   /// (they define the lattice: build a new Solver).
   void setParams(const SolverParams& params);
 
-  /// alpha used per sub-step: params().requestedAlpha(spacing), capped so that no particle's
-  /// alpha s_i exceeds params().stiffness (s_i = 1 in classic mode, see computeRegionWeights()).
+  /// alpha used per sub-step: params().requestedAlpha(spacing), capped. Classic mode: the cap is
+  /// params().stiffness. Physical mode: the cap follows the stability of the sub-step, symplectic
+  /// Euler on the linearised dynamics, (omega h)^2 < 4: alpha (s_i + Lambda_i) <= 4 * 1/2 *
+  /// params().stiffness for every particle, s_i the region weight factor and Lambda_i the Poisson
+  /// term's bound (see computeRegionWeights()); the stiffest mode then has (omega h)^2 <= 2.
   double alpha() const { return alpha_; }
   /// true when youngsModulus asks for more than the cap: the material is softer than asked,
   /// by the factor alpha() / params().requestedAlpha(); more sub-steps fix it.
@@ -291,8 +295,25 @@ class Solver : private RegionKernel {
     double pull = 0.0;       // alpha / h
     double keep = 1.0;       // ambient damping factor per sub-step
     bool forced = false;     // some particle has a force or spring acceleration (forceAccel_)
+    bool ambient = false;    // ambient damping is on
   } step_;
+  /// The object's rigid motion at the start of the sub-step, v_obj(x) = rigidVelocity_ +
+  /// rigidSpin_ x (x - xref_) (zero when pinned), what ambient damping leaves alone.
+  Eigen::Vector3d rigidVelocity_ = Eigen::Vector3d::Zero(), rigidSpin_ = Eigen::Vector3d::Zero();
+  std::size_t pinnedCount_ = 0;
+  void computeRigidMotion();
   std::vector<double> regionWeight_;     // beta_r
+  bool volumetric_ = false;  // physical mode with nu > 0: the Poisson term is on
+  /// The Poisson term on the lattice stencil of each particle (see computeVolumetricForces())
+  struct VolumetricStencil {
+    std::uint32_t plus[3], minus[3];  // the particles whose difference is column a of F_i
+    double invDistance[3];            // 1 / their rest distance along a; 0 where there is none
+    double weight;                    // lambda_eff V_i (N m)
+  };
+  std::vector<VolumetricStencil> stencil_;
+  std::vector<std::array<Eigen::Vector3d, 3>> stencilForce_;  // G_ia = lambda V e_i F_ia / d_ia
+  std::vector<Eigen::Vector3d> volumetricAccel_;
+  void computeVolumetricForces();
   std::vector<double> invWeightSum_;     // 1 / sum_{r contains i} beta_r
   std::vector<double> stiffnessFactor_;  // s_i = sum_{r contains i} beta_r / n_i
   int threads_ = 1;
