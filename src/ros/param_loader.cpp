@@ -130,6 +130,12 @@ void NodeParams::validate() const {
     why << "~youngs_modulus is " << youngsModulus << ": it must be a finite modulus > 0 (Pa) "
         << "with ~material youngs (a firm jelly is ~1e4, rubber ~1e6); to give alpha per "
         << "sub-step directly as ~stiffness instead, set ~material to classic";
+  } else if (!std::isfinite(solver.contactRadius) || solver.contactRadius < 0.0) {
+    why << "~contact_radius is " << solver.contactRadius
+        << ": it must be a finite radius > 0 (m), or 0 for half the lattice spacing";
+  } else if (!std::isfinite(groundClearance) || groundClearance < 0.0) {
+    why << "~ground_clearance is " << groundClearance
+        << ": it must be a finite gap >= 0 (m) between the object and the ground";
   } else if (renderTriangleBudget < 0) {
     why << "~render_triangle_budget is " << renderTriangleBudget
         << ": it must be a number of triangles >= 1, or 0 to render the mesh as loaded";
@@ -141,6 +147,18 @@ void NodeParams::validate() const {
                          str(box.hi) + "]: each box is [xmin, ymin, zmin, xmax, ymax, zmax] of "
                          "finite numbers (m) with min <= max");
       }
+    }
+    for (std::size_t c = 0; c < colliders.size(); ++c) {
+      if (ground && colliders[c].id == ColliderLimits::kGroundId) {
+        throw ParamError("~colliders entry " + std::to_string(c) + " ('ground'): the id 'ground' "
+                         "is the ground's (~ground is true): rename the entry or set ~ground "
+                         "to false");
+      }
+    }
+    if (colliders.size() + (ground ? 1 : 0) > ColliderLimits::kMaxColliders) {
+      throw ParamError("~colliders and ~ground make " +
+                       std::to_string(colliders.size() + (ground ? 1 : 0)) +
+                       " colliders: at most " + std::to_string(ColliderLimits::kMaxColliders));
     }
     // The solver's own ranges (stiffness, damping, time step, ...); w is checked once known.
     SolverParams s = solver;
@@ -219,6 +237,7 @@ NodeParams ParamLoader::loadNodeParams() const {
   s.substeps = getInt("substeps", s.substeps);
   s.density = getDouble("density", s.density);
   s.threads = getInt("threads", s.threads);
+  s.contactRadius = getDouble("contact_radius", s.contactRadius);
   const std::string kind = getString("solver", toString(s.kind));
   try {
     s.kind = parseSolverKind(kind);
@@ -232,6 +251,9 @@ NodeParams ParamLoader::loadNodeParams() const {
   p.realTimeFactor = getDouble("real_time_factor", p.realTimeFactor);
   p.pinned = getBoxes("pinned");
   p.renderTriangleBudget = getInt("render_triangle_budget", p.renderTriangleBudget);
+  p.ground = getBool("ground", p.ground);
+  p.groundClearance = getDouble("ground_clearance", p.groundClearance);
+  p.colliders = getColliders("colliders", p.frameId);
   p.validate();
   p.applyMaterial();
   return p;
@@ -244,7 +266,8 @@ std::vector<std::string> ParamLoader::unknownParams() const {
       "particle_budget", "max_particles", "region_radius", "region_half_width", "stiffness",
       "youngs_modulus", "material", "damping", "ambient_damping", "gravity", "time_step", "substeps",
       "density", "solver", "publish_rate", "republish_at_rest", "real_time_factor", "pinned",
-      "render_triangle_budget", "threads", "gravity_x", "gravity_y", "gravity_z"};
+      "render_triangle_budget", "threads", "gravity_x", "gravity_y", "gravity_z", "ground",
+      "ground_clearance", "colliders", "contact_radius"};
   std::vector<std::string> all, unknown;
   ros::param::getParamNames(all);
   const std::string prefix = pnh_.getNamespace() + "/";
@@ -348,6 +371,16 @@ std::vector<Box> ParamLoader::getBoxes(const std::string& name) const {
     boxes.push_back(box);
   }
   return boxes;
+}
+
+std::vector<ColliderSpec> ParamLoader::getColliders(const std::string& name,
+                                                    const std::string& simFrame) const {
+  if (!pnh_.hasParam(name)) {
+    return {};
+  }
+  XmlRpc::XmlRpcValue value;
+  pnh_.getParam(name, value);
+  return parseColliderList(value, simFrame);
 }
 
 std::string resolveMeshPath(const std::string& url) {

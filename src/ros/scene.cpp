@@ -85,6 +85,23 @@ Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps
   info.alpha = solver.alpha();
   info.substepsForModulus = substepsForModulus(solver);
 
+  // Colliders before the measurement, so that it includes their cost (reset() keeps them).
+  info.contactRadius = solver.contactRadius();
+  try {
+    if (params.ground) {
+      const Collider ground = groundCollider(L, mesh, solverParams.gravity, info.contactRadius,
+                                             params.groundClearance);
+      info.groundHeight = ground.pose.translation().dot(ground.pose.linear().col(2));
+      solver.setCollider(ColliderLimits::kGroundId, ground);
+    }
+    for (const ColliderSpec& spec : params.colliders) {
+      if (spec.followFrame.empty()) solver.setCollider(spec.id, spec.collider);
+    }
+  } catch (const std::exception& e) {  // invalid_argument, MeshError
+    throw ParamError(std::string("a collider cannot be used: ") + e.what());
+  }
+  info.colliders = solver.colliders().size();
+
   // The cost of a step, measured on this machine with this lattice, then back to rest.
   if (measureSteps > 0) {
     solver.step();  // warm-up: first touches of the scratch arrays
@@ -173,6 +190,10 @@ std::string describeScene(const SceneInfo& info, const NodeParams& params) {
                   info.loadedTriangles, params.renderTriangleBudget, 100.0 * info.simplifyError);
     out << buf;
   }
+  std::snprintf(buf, sizeof buf, "\ncolliders: %zu (%s), particles collide as spheres of "
+                "radius %.3g m", params.colliders.size() + (params.ground ? 1 : 0),
+                params.ground ? "with the ground" : "no ground", info.contactRadius);
+  out << buf;
   out << "\npinned: " << info.pinned << " particles";
   for (std::size_t b = 0; b < info.pinnedPerBox.size(); ++b) {
     out << (b == 0 ? " (" : ", ") << "box " << b << ": " << info.pinnedPerBox[b];

@@ -57,6 +57,11 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   publisher_ = std::make_unique<StatePublisher>(pnh_, params_, *lattice_, renderMesh_, *embedding_, *stats_);
   reporter_ = std::make_unique<ProblemReporter>(params_, info_, *lattice_);
   advertise();
+  colliders_ = std::make_unique<ColliderTopics>(
+      pnh_, commandNh_, params_, *loop_, stats_, tfBuffer_, [this] { startTfListener(); },
+      [this](const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
+             std::string& why) { return lookupTransform(frame, stamp, T, why); },
+      [this](CommandBody body) { send(std::move(body), false); }, lattice_->objectSize());
   reconfigure_ = std::make_unique<Reconfigure>(pnh_, params_,
                                                [this](const FlsmConfig& c) { return onReconfigure(c); });
   mouse_ = std::make_unique<InteractiveDrag>(pnh_, params_.frameId, *lattice_, renderMesh_,
@@ -99,7 +104,8 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
   const ros::Time stamp = ros::Time::now();
   const Snapshot& s = loop_->acquire();
   publisher_->publishTf(s, stamp);
-  publisher_->publishState(s, stamp);
+  colliders_->publish(s, stamp);
+  publisher_->publishState(s, stamp, colliders_->frameMisses());
   reporter_->report(s.diag);
   mouse_->follow(s.objectFrame);
   publisher_->publishHeavy(s, stamp);
@@ -127,16 +133,18 @@ CommandOutcome SimulatorNode::send(CommandBody body, bool wait) {
   return result.get();
 }
 
+bool SimulatorNode::startTfListener() {
+  std::lock_guard<std::mutex> lock(tfListenerMutex_);
+  if (tfListener_) return false;
+  tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_);
+  return true;
+}
+
 bool SimulatorNode::lookupTransform(const std::string& frame, const ros::Time& stamp,
                                     Eigen::Isometry3d& T, std::string& why) {
-  {
-    std::lock_guard<std::mutex> lock(tfListenerMutex_);
-    if (!tfListener_) {
-      tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_);
-      // Once: let the new listener hear the frames (tf_static at once, tf within a period).
-      tfBuffer_.canTransform(params_.frameId, frame, ros::Time(0),
-                             ros::Duration(kFirstTransformTimeout));
-    }
+  if (startTfListener()) {
+    // Once: let the new listener hear the frames (tf_static at once, tf within a period).
+    tfBuffer_.canTransform(params_.frameId, frame, ros::Time(0), ros::Duration(kFirstTransformTimeout));
   }
   // Never wait: at the command's stamp if tf has it, else the latest transform (a command
   // stamped a little ahead of the last tf message), else refused. Waiting here would hold up

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <mutex>
 #include <thread>
 
 namespace deformable_flsm {
@@ -116,6 +117,95 @@ TEST(SimulationLoop, HardGrabHoldsTheParticleAtTheTargetAndReleaseReturnsToRest)
   // Back to the rest shape (it may have drifted as a whole: the drag gave it momentum).
   EXPECT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.idle; }, 20.0));
   EXPECT_LT(rig.loop->acquire().diag.shapeError, 1e-3 * rig.loop->lattice().objectSize());
+}
+
+// An attached drag follows its frame through the FrameSource before every step; while the
+// source does not know the frame, the drag holds where the frame was last seen.
+TEST(SimulationLoop, AttachedDragFollowsItsFrameAndHoldsWhenTheFrameIsLost) {
+  LoopSettings settings;
+  settings.idleHold = 0.0;
+  Rig rig(settings);
+  std::mutex mutex;
+  Eigen::Isometry3d hand = Eigen::Isometry3d::Identity();
+  bool known = true;
+  int lookups = 0;
+  rig.loop->setFrameSource([&](const std::string& frame, Eigen::Isometry3d& T) {
+    std::lock_guard<std::mutex> lock(mutex);
+    EXPECT_EQ(frame, "hand");
+    ++lookups;
+    T = hand;
+    return known;
+  });
+  const Eigen::Vector3d corner = rig.loop->lattice().restPositions()[0];
+  const std::vector<std::uint32_t> grabbed = rig.solver->nearestParticles(corner, 4);
+  rig.loop->start();
+
+  AttachCommand a;
+  a.grab.id = "hand";
+  a.grab.point = corner;
+  a.grab.count = 4;
+  a.frame = "hand";
+  a.pose = hand;  // the particles' offsets in the hand frame are their positions now
+  const CommandOutcome o = rig.run(a);
+  ASSERT_TRUE(o.accepted) << o.message;
+  EXPECT_EQ(o.particles, 4u);
+  // A MOVE would fight the frame: refused.
+  EXPECT_FALSE(rig.run(MoveCommand{"hand", Eigen::Vector3d::Zero()}).accepted);
+  EXPECT_EQ(rig.rejected("attached_drag"), 1u);
+
+  const auto at = [&](const Snapshot& s, const Eigen::Isometry3d& T) {
+    double e = 0.0;
+    for (std::uint32_t p : grabbed)
+      e = std::max(e, (s.positions[p] - T * rig.loop->lattice().restPositions()[p]).norm());
+    return e;
+  };
+  Eigen::Isometry3d moved = Eigen::Translation3d(0.0, 0.0, 0.02) *
+                            Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitX());
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    hand = moved;
+  }
+  EXPECT_TRUE(rig.waitFor([&](const Snapshot& s) { return at(s, moved) < 1e-9; }));
+  // Lost: the frame source says no; a pose it would have given is ignored, the drag holds.
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    known = false;
+    hand = Eigen::Translation3d(0.0, 0.05, 0.0) * moved;
+  }
+  const std::uint64_t steps = rig.loop->acquire().diag.steps;
+  ASSERT_TRUE(rig.waitFor([&](const Snapshot& s) { return s.diag.steps > steps + 10; }));
+  EXPECT_LT(at(rig.loop->acquire(), moved), 1e-9);
+  // Found again: it follows.
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    known = true;
+    moved = hand;
+  }
+  EXPECT_TRUE(rig.waitFor([&](const Snapshot& s) { return at(s, moved) < 1e-9; }));
+  // Released: the frame is no longer looked up.
+  ASSERT_TRUE(rig.run(ReleaseCommand{"hand"}).accepted);
+  int before;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    before = lookups;
+  }
+  const std::uint64_t released = rig.loop->acquire().diag.steps;
+  ASSERT_TRUE(rig.waitFor([&](const Snapshot& s) { return s.diag.steps > released + 5; }));
+  std::lock_guard<std::mutex> lock(mutex);
+  EXPECT_EQ(lookups, before);
+}
+
+TEST(SimulationLoop, AttachToANonRigidFrameIsRefused) {
+  Rig rig;
+  rig.loop->start();
+  AttachCommand a;
+  a.grab.id = "hand";
+  a.grab.particle = 0;
+  a.frame = "hand";
+  a.pose.linear() *= 1.5;
+  EXPECT_FALSE(rig.run(a).accepted);
+  EXPECT_EQ(rig.rejected("bad_frame"), 1u);
+  EXPECT_TRUE(rig.loop->acquire().drags.empty());
 }
 
 TEST(SimulationLoop, RejectionsCarryTheirReason) {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "deformable_flsm/core/mesh.h"
+#include "deformable_flsm/ros/collider_params.h"
 #include "deformable_flsm/core/solver_params.h"
 
 #include <ros/node_handle.h>
@@ -80,7 +81,7 @@ struct NodeParams {
   /// solver receives it in solver.youngsModulus (0 there under Material::Classic).
   double youngsModulus = 14000.0;
   /// ~stiffness, ~damping, ~ambient_damping, ~gravity, ~time_step, ~substeps, ~density,
-  /// ~solver, ~threads; youngsModulus from ~material and ~youngs_modulus (see
+  /// ~solver, ~threads, ~contact_radius; youngsModulus from ~material and ~youngs_modulus (see
   /// applyMaterial()); regionHalfWidth is set by resolveRegionHalfWidth()
   SolverParams solver;
 
@@ -95,6 +96,12 @@ struct NodeParams {
   double realTimeFactor = 1.0;
   /// ~pinned: boxes whose particles (by rest position) are pinned at start-up
   std::vector<Box> pinned;
+  /// ~ground: a plane collider "ground" below the object, normal against gravity
+  bool ground = true;
+  /// ~ground_clearance: gap (m, >= 0) between the object's lowest rest point and the ground
+  double groundClearance = 0.1;
+  /// ~colliders: more colliders (parsed and validated, meshes loaded)
+  std::vector<ColliderSpec> colliders;
   /// ~render_triangle_budget: simplify the render mesh to at most this many triangles at
   /// load (0 = render the mesh as loaded); the lattice is chosen from the full mesh
   int renderTriangleBudget = 0;
@@ -146,6 +153,7 @@ class ParamLoader {
   std::string getString(const std::string& name, const std::string& fallback) const;
   Eigen::Vector3d getVector3(const std::string& name, const Eigen::Vector3d& fallback) const;
   std::vector<Box> getBoxes(const std::string& name) const;
+  std::vector<ColliderSpec> getColliders(const std::string& name, const std::string& simFrame) const;
 
   ros::NodeHandle pnh_;
 };

@@ -36,6 +36,13 @@ struct SceneInfo {
   double simplifyError = 0.0;  ///< relative to the mesh extent
   std::vector<std::size_t> pinnedPerBox;
   std::size_t pinned = 0;
+  /// colliders in the solver at start-up (the ground and those fixed in the simulation frame;
+  /// colliders that follow a tf frame join when their frame is first known)
+  std::size_t colliders = 0;
+  /// radius of the particles' contact spheres (m)
+  double contactRadius = 0.0;
+  /// height of the ground's surface along its normal (m), when there is a ground
+  double groundHeight = 0.0;
   /// alpha asked for by youngs_modulus (before the cap), alpha used, and the sub-steps that
   /// would bring the asked alpha under the cap when it is saturated (0 otherwise)
   double requestedAlpha = 0.0, alpha = 0.0;

@@ -3,6 +3,7 @@
 /// core (through SimulationLoop); this class owns the ROS handles and converts at the edges.
 #pragma once
 
+#include "deformable_flsm/ros/collider_topics.h"
 #include "deformable_flsm/ros/command_validator.h"
 #include "deformable_flsm/ros/commands.h"
 #include "deformable_flsm/ros/interactive_drag.h"
@@ -36,8 +37,10 @@
 namespace deformable_flsm {
 
 /// flsm_node's topics, services and timers (see README for the full table):
-///   in   ~drag (DragCommand), ~force (ForceCommand), RViz mouse via ~drag_marker
-///   out  ~mesh, ~surface, ~particles, ~lattice (only while subscribed), ~state, tf
+///   in   ~drag (DragCommand), ~force (ForceCommand), ~collider (ColliderCommand), RViz mouse
+///        via ~drag_marker
+///   out  ~mesh, ~surface, ~particles, ~lattice, ~colliders (only while subscribed), ~state,
+///        ~contact_wrenches, tf
 ///   srv  ~reset, ~release_all, ~pin_box; dynamic_reconfigure on ~
 ///
 /// Threads: the simulation thread (SimulationLoop) steps the solver; the main thread (ros::spin)
@@ -82,6 +85,8 @@ class SimulatorNode {
   /// kFirstTransformTimeout).
   bool lookupTransform(const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
                        std::string& why);
+  /// Starts the tf listener if it is not running; true when this call started it.
+  bool startTfListener();
 
   ros::NodeHandle nh_, pnh_;
   ros::NodeHandle commandNh_;  ///< private namespace, served by commandSpinner_
@@ -96,6 +101,7 @@ class SimulatorNode {
   std::shared_ptr<CommandStats> stats_;
   std::unique_ptr<SimulationLoop> loop_;
   std::unique_ptr<CommandValidator> validator_;
+  std::unique_ptr<ColliderTopics> colliders_;  ///< ~collider, ~contact_wrenches, ~colliders
 
   tf2_ros::Buffer tfBuffer_;
   std::mutex tfListenerMutex_;
