@@ -28,6 +28,10 @@ constexpr double kServiceTimeout = 2.0;
 /// frames, up to this long (s).
 constexpr double kFirstTransformTimeout = 1.0;
 constexpr double kRejectPeriod = 1.0;  // s between two rejection warnings
+/// A frame that drags are attached to whose newest transform is older than this (s) is stale:
+/// its drags hold still (as colliders that follow a frame do, ColliderFollower::kStaleAfter).
+constexpr double kAttachStaleAfter = 0.5;
+constexpr double kAttachWarnPeriod = 5.0;  // s between two warnings about attached frames
 
 Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return {p.x, p.y, p.z}; }
 
@@ -68,6 +72,9 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
                                              [this](const DragCommand& d) { return onMouseDrag(d); });
 
   reporter_->warnAboutScene();
+  loop_->setFrameSource([this](const std::string& frame, Eigen::Isometry3d& T) {
+    return attachedFrame(frame, T);
+  });
   loop_->start();
   publishTimer_ = pnh_.createTimer(ros::Duration(1.0 / params_.publishRate),
                                    &SimulatorNode::onPublishTimer, this);
@@ -138,6 +145,37 @@ bool SimulatorNode::startTfListener() {
   if (tfListener_) return false;
   tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_);
   return true;
+}
+
+bool SimulatorNode::attachedFrame(const std::string& frame, Eigen::Isometry3d& simFromFrame) {
+  geometry_msgs::TransformStamped t;
+  try {
+    // The latest transform, no timeout: the simulation thread never waits for tf. (The ATTACH
+    // that named the frame started the listener when it looked the frame up.)
+    t = tfBuffer_.lookupTransform(params_.frameId, frame, ros::Time(0));
+  } catch (const tf2::TransformException& e) {
+    ROS_WARN_THROTTLE(kAttachWarnPeriod,
+                      "flsm_node: frame '%s', which a drag is attached to, is not known now (%s): "
+                      "the drag holds still until it is",
+                      frame.c_str(), e.what());
+    return false;
+  }
+  const double age = (ros::Time::now() - t.header.stamp).toSec();
+  if (!t.header.stamp.isZero() && age > kAttachStaleAfter) {  // a static transform never is
+    ROS_WARN_THROTTLE(kAttachWarnPeriod,
+                      "flsm_node: the newest transform of frame '%s', which a drag is attached "
+                      "to, is %.2f s old: the drag holds still until the frame moves again",
+                      frame.c_str(), age);
+    return false;
+  }
+  // tf accepts quaternions normalised to within 1 %: the drag needs an exact rotation.
+  const geometry_msgs::Quaternion& r = t.transform.rotation;
+  const geometry_msgs::Vector3& p = t.transform.translation;
+  Eigen::Quaterniond q(r.w, r.x, r.y, r.z);
+  if (!(q.norm() > 0.0)) return false;
+  q.normalize();
+  simFromFrame = Eigen::Translation3d(p.x, p.y, p.z) * q;
+  return simFromFrame.matrix().allFinite();
 }
 
 bool SimulatorNode::lookupTransform(const std::string& frame, const ros::Time& stamp,

@@ -87,6 +87,10 @@ class SimulatorNode {
                        std::string& why);
   /// Starts the tf listener if it is not running; true when this call started it.
   bool startTfListener();
+  /// Where a frame that drags are attached to (DragCommand ATTACH) is now: the simulation loop's
+  /// FrameSource, called from the simulation thread before every step. tf's latest transform,
+  /// never waiting; false, with a throttled warning, while the frame is unknown or stale.
+  bool attachedFrame(const std::string& frame, Eigen::Isometry3d& simFromFrame);
 
   ros::NodeHandle nh_, pnh_;
   ros::NodeHandle commandNh_;  ///< private namespace, served by commandSpinner_
