@@ -220,6 +220,11 @@ BulletDeformableParams bulletFemParams(const Setting& s, const Calibration& c) {
 std::unique_ptr<Method> makeMethod(const std::string& name, const std::shared_ptr<const Lattice>& lattice,
                                    const Setting& s, const Calibration& c) {
   if (name == "fastlsm") return std::make_unique<FlsmMethod>(lattice, flsmParams(s, lattice->spacing(), SolverKind::Fast));
+  if (name == "fastlsm-nu0") {  // the stress table's FastLSM without the Poisson term
+    Setting s0 = s;
+    s0.poissonRatio = 0.0;
+    return std::make_unique<FlsmMethod>(lattice, flsmParams(s0, lattice->spacing(), SolverKind::Fast));
+  }
   if (name == "naive-lsm")
     return std::make_unique<FlsmMethod>(lattice, flsmParams(s, lattice->spacing(), SolverKind::Naive));
   if (name == "mass-spring") return std::make_unique<MassSpringMethod>(lattice, massSpringParams(s, c));
@@ -637,7 +642,9 @@ int main(int argc, char** argv) {
   std::vector<std::unique_ptr<Run>> stress;
   const int massSpringStressSubsteps =
       massSpringMinSubsteps(buildLattice(bunny, kStressResolution), calib, bunny.youngsModulus, kStressFrameStep);
-  for (const std::string& method : methods) {
+  std::vector<std::string> stressMethods = methods;
+  stressMethods.insert(stressMethods.begin() + 1, "fastlsm-nu0");
+  for (const std::string& method : stressMethods) {
     if (method == "bullet-fem") continue;  // see kBulletFemSubsteps
     std::vector<int> subsList = {1};
     if (method == "mass-spring") subsList.push_back(massSpringStressSubsteps);
