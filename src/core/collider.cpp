@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <sstream>
+#include <string>
 #include <stdexcept>
 
 namespace deformable_flsm {
@@ -65,6 +66,10 @@ void ColliderShape::validate() const {
       } catch (const MeshError& e) {
         fail(e.what());
       }
+      // the distance field tells inside from outside by ray parity: it needs a closed surface
+      if (const std::size_t open = countBoundaryEdges(*mesh))
+        fail("mesh collider: the mesh has " + std::to_string(open) +
+             " open edges; a collider needs a closed mesh (a solid) to tell inside from outside");
       break;
   }
 }

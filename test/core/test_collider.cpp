@@ -103,6 +103,12 @@ TEST(Collider, ValidateSaysWhatIsWrong) {
   EXPECT_NE(message(c).find("without a mesh"), std::string::npos);
   c.shape.mesh = std::make_shared<const TriMesh>();
   EXPECT_NE(message(c).find("no triangles"), std::string::npos);
+  TriMesh open = test::boxMesh(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones());
+  open.triangles.erase(open.triangles.begin(), open.triangles.begin() + 2);
+  c.shape.mesh = std::make_shared<const TriMesh>(open);
+  EXPECT_NE(message(c).find("open edges"), std::string::npos);
+  c.shape.mesh = std::make_shared<const TriMesh>(test::boxMesh(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones()));
+  EXPECT_EQ(message(c), "") << "a closed box mesh is a valid collider";
   c = Collider();
   c.staticFriction = 0.3;
   c.kineticFriction = 0.5;

@@ -173,6 +173,31 @@ TEST(Contact, BlockRestsOnTheGroundAndItsWeightIsTheNormalForce) {
   EXPECT_EQ(s.colliders().size(), 1u);
 }
 
+TEST(Contact, BlockRestsOnAMeshTable) {
+  // the same block on a table given as a triangle mesh (a 20 x 20 x 5 cm box whose top is z = 0)
+  auto lattice = std::make_shared<const Lattice>(test::makeBox(6, 4, 3, 0.01), 1000.0, 1);
+  Solver s(lattice, sceneParams(*lattice, 0.3));
+  Collider table;
+  table.shape.type = ColliderType::Mesh;
+  table.shape.mesh = std::make_shared<const TriMesh>(
+      test::boxMesh(Eigen::Vector3d(-0.07, -0.08, -0.05), Eigen::Vector3d(0.13, 0.12, 0.0)));
+  table.pose.translation() = Eigen::Vector3d(0, 0, -0.01);
+  s.setCollider("table", table);
+  ASSERT_TRUE(s.colliders().at("table").shape.distanceField) << "setCollider builds the field";
+  const int steps = stepsFor(4.0, s), last = stepsFor(1.0, s);
+  double deepest = 0.0, fz = 0.0;
+  for (int i = 0; i < steps; ++i) {
+    s.step();
+    deepest = std::max(deepest, -0.01 + s.contactRadius() - lowestZ(s));
+    if (i >= steps - last) fz += s.contactWrench("table").force.z() / last;
+  }
+  // the top face is far from the table's edges: the field is exact there
+  EXPECT_LT(deepest, 1e-9);
+  const double W = lattice->totalMass() * kG;
+  EXPECT_NEAR(fz, -W, 2e-3 * W);
+  EXPECT_EQ(s.contactWrench("table").contacts, 24u);
+}
+
 TEST(Contact, PinnedParticlesAreNotMovedByContact) {
   auto lattice = std::make_shared<const Lattice>(test::makeBox(4, 4, 4, 0.01), 1000.0, 1);
   SolverParams p = sceneParams(*lattice);
@@ -214,6 +239,24 @@ TEST(Contact, KinematicColliderPushesAndFollowsItsVelocity) {
   EXPECT_GE(back - s.contactRadius(), face - 1e-12) << "nothing behind the wall's face";
   EXPECT_GT(centreOfMass(s).x(), 0.2) << "the block was pushed along";
   EXPECT_NEAR(s.linearMomentum().y(), 0.0, 1e-9);
+}
+
+TEST(Contact, TurntableCarriesTheBlockByFriction) {
+  // a ground spinning about its normal at 1 rad/s under a block centred on the axis: friction on
+  // the velocity relative to the surface (omega x r) turns the block with it
+  auto lattice = std::make_shared<const Lattice>(test::makeBox(6, 4, 3, 0.01), 1000.0, 1);
+  Solver s(lattice, sceneParams(*lattice, 0.3));
+  Collider table;
+  table.pose.translation() = Eigen::Vector3d(0.03, 0.02, 0.0);  // under the block's centre
+  s.setCollider("table", table);
+  for (int i = 0; i < stepsFor(0.5, s); ++i) s.step();
+  const Eigen::Matrix3d before = s.rigidFrame().linear();
+  s.moveCollider("table", s.colliders().at("table").pose, Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 1.0));
+  for (int i = 0; i < stepsFor(1.0, s); ++i) s.step();
+  const Eigen::AngleAxisd turned(s.rigidFrame().linear() * before.transpose());
+  EXPECT_NEAR(turned.angle(), 1.0, 0.02) << "the block turned with the table";
+  EXPECT_NEAR(std::abs(turned.axis().z()), 1.0, 1e-3);
+  EXPECT_NEAR((centreOfMass(s) - table.pose.translation()).head<2>().norm(), 0.0, 1e-3) << "about its axis";
 }
 
 TEST(Contact, WrenchesDoNotDependOnTheThreadCount) {

@@ -52,7 +52,8 @@ struct ColliderShape {
   /// when it is missing; give one to share it between colliders of the same mesh.
   std::shared_ptr<const MeshDistanceField> distanceField;
 
-  /// @throws std::invalid_argument saying which field is wrong (NaN, negative, missing mesh).
+  /// @throws std::invalid_argument saying which field is wrong (NaN, negative, missing, empty
+  ///         or open mesh).
   void validate() const;
 };
 

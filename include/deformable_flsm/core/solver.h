@@ -122,10 +122,10 @@ class Solver : private RegionKernel {
 
   // --- colliders ------------------------------------------------------------------------
   /// Adds collider `id`, or replaces the collider of that id. Particles collide with it as
-  /// spheres of radius contactRadius(), with Coulomb friction (see collider.h and
-  /// contactPass()). A mesh collider gets its MeshDistanceField here when it has none (this
+  /// spheres of radius contactRadius(), with Coulomb friction (collider.h; the response is
+  /// contactVelocityChange() in contact.h). A mesh collider gets its MeshDistanceField here when it has none (this
   /// takes a moment for a large mesh; share one field between colliders of the same mesh).
-  /// @throws std::invalid_argument if collider.validate() fails; MeshError for an open mesh.
+  /// @throws std::invalid_argument if collider.validate() fails (an open mesh among others).
   void setCollider(const std::string& id, const Collider& collider);
   /// Gives collider `id` its pose at the start of the next step() and its velocity over that
   /// step (the sub-steps move it along). step() leaves each collider at its pose at the end of
@@ -246,6 +246,7 @@ class Solver : private RegionKernel {
   std::vector<ContactBody> contactBodies_;
   std::vector<int> activeBodies_;               // bodies near the object in this sub-step
   std::vector<ContactPartial> contactPartials_;  // chunk-major, #chunks x #bodies
+  std::vector<int> chunkBodies_;                // per chunk, the active bodies near it (#chunks x #bodies)
   double contactTime_ = 0.0;                    // time since the start of the step (s)
   std::vector<TimedForce> forces_;
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
