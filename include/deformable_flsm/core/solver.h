@@ -293,6 +293,7 @@ class Solver : private RegionKernel {
   std::vector<ContactBody> contactBodies_;
   std::vector<int> activeBodies_;               // bodies near the object in this sub-step
   std::vector<ContactPartial> contactPartials_;  // chunk-major, #chunks x #bodies
+  std::vector<int> chunkBodies_;                // per chunk, the active bodies near it (#chunks x #bodies)
   double contactTime_ = 0.0;                    // time since the start of the step (s)
   std::vector<TimedForce> forces_;
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
