@@ -144,7 +144,9 @@ void Solver::contactPass(double h) {
   const std::size_t bodies = contactBodies_.size();
   const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + kContactChunk - 1) / kContactChunk);
   const auto& m = lattice_->masses();
-#pragma omp parallel for num_threads(threads_) schedule(static) if (threads_ > 1)
+  // the thread count the governor gave this step (the sums do not depend on it)
+  const int threads = singleSummer_ && activeSummer_ == singleSummer_.get() ? 1 : threads_;
+#pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
   for (std::ptrdiff_t chunk = 0; chunk < chunks; ++chunk) {
     ContactPartial* partial = contactPartials_.data() + static_cast<std::size_t>(chunk) * bodies;
     for (int a : activeBodies_) partial[a] = ContactPartial();
