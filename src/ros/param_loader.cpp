@@ -179,6 +179,7 @@ NodeParams ParamLoader::loadNodeParams() const {
   SolverParams& s = p.solver;
   s.stiffness = getDouble("stiffness", s.stiffness);
   s.youngsModulus = getDouble("youngs_modulus", s.youngsModulus);
+  s.poissonsRatio = getDouble("poissons_ratio", s.poissonsRatio);
   s.damping = getDouble("damping", s.damping);
   s.ambientDamping = getDouble("ambient_damping", s.ambientDamping);
   s.gravity = getVector3("gravity", s.gravity);
@@ -208,9 +209,9 @@ std::vector<std::string> ParamLoader::unknownParams() const {
   static const char* const kKnown[] = {
       "mesh", "mesh_scale", "mesh_rpy", "frame_id", "object_frame_id", "spacing", "resolution",
       "particle_budget", "max_particles", "region_radius", "region_half_width", "stiffness",
-      "youngs_modulus", "damping", "ambient_damping", "gravity", "time_step", "substeps",
-      "density", "solver", "publish_rate", "republish_at_rest", "real_time_factor", "pinned",
-      "render_triangle_budget", "threads", "gravity_x", "gravity_y", "gravity_z"};
+      "youngs_modulus", "poissons_ratio", "damping", "ambient_damping", "gravity", "time_step",
+      "substeps", "density", "solver", "publish_rate", "republish_at_rest", "real_time_factor",
+      "pinned", "render_triangle_budget", "threads", "gravity_x", "gravity_y", "gravity_z"};
   std::vector<std::string> all, unknown;
   ros::param::getParamNames(all);
   const std::string prefix = pnh_.getNamespace() + "/";

@@ -110,6 +110,7 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   reconfigure_ = std::make_unique<dynamic_reconfigure::Server<FlsmConfig>>(reconfigureMutex_, pnh_);
   FlsmConfig config;
   config.youngs_modulus = params_.solver.youngsModulus;
+  config.poissons_ratio = params_.solver.poissonsRatio;
   config.stiffness = params_.solver.stiffness;
   config.damping = params_.solver.damping;
   config.ambient_damping = params_.solver.ambientDamping;
@@ -543,6 +544,7 @@ void SimulatorNode::onReconfigure(FlsmConfig& config, std::uint32_t /*level*/) {
   SolverParams p = params_.solver;
   p.regionHalfWidth = info_.regionHalfWidth;
   p.youngsModulus = config.youngs_modulus;
+  p.poissonsRatio = config.poissons_ratio;
   p.stiffness = config.stiffness;
   p.damping = config.damping;
   p.ambientDamping = config.ambient_damping;

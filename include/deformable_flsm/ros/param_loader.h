@@ -69,7 +69,7 @@ struct NodeParams {
   double regionRadius = 0.0;
   /// ~region_half_width: region half-width in cells (classic); 0 = unset
   int regionHalfWidth = 0;
-  /// ~stiffness, ~youngs_modulus, ~damping, ~ambient_damping, ~gravity, ~time_step,
+  /// ~stiffness, ~youngs_modulus, ~poissons_ratio, ~damping, ~ambient_damping, ~gravity, ~time_step,
   /// ~substeps, ~density, ~solver, ~threads; regionHalfWidth is set by
   /// resolveRegionHalfWidth()
   SolverParams solver;
