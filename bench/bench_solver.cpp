@@ -239,7 +239,7 @@ int main(int argc, char** argv) {
       const Eigen::Vector3i& d = dims[i];
       const std::string name = std::to_string(d.x()) + " x " + std::to_string(d.y()) + " x " + std::to_string(d.z());
       std::printf("%16s %10zu %8d %12.1f %8.2f %6zu\n", name.c_str(), t.lattice->size(), d.x() * d.y(),
-                  median(t.samples), ratioMedian(t, *boxes[0]), BarSummer(*t.lattice).bandCount());
+                  median(t.samples), ratioMedian(t, *boxes[0]), SliceStreamSummer(*t.lattice).bandCount());
     }
   }
   // Threads: every hardware thread against one, at the benchmark's size and at 50k particles.

@@ -13,13 +13,13 @@
 // Definitions of every figure: README.md, section "Speed against accuracy".
 
 #include "deformable_flsm/core/lattice.h"
-#include "deformable_flsm/study/mass_spring.h"
-#include "deformable_flsm/study/method.h"
-#include "deformable_flsm/study/metrics.h"
-#include "deformable_flsm/study/scenarios.h"
-#include "deformable_flsm/study/setting.h"
+#include "study/mass_spring.h"
+#include "study/method.h"
+#include "study/metrics.h"
+#include "study/scenarios.h"
+#include "study/setting.h"
 #ifdef FLSM_STUDY_WITH_BULLET
-#include "deformable_flsm/study/bullet_soft_body.h"
+#include "study/bullet_soft_body.h"
 #endif
 
 #include <algorithm>

@@ -1,6 +1,6 @@
 #include "deformable_flsm/core/lattice.h"
 
-#include "deformable_flsm/core/fast_summation.h"
+#include "deformable_flsm/core/window_sums.h"
 
 #include <algorithm>
 #include <cmath>

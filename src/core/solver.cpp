@@ -93,7 +93,7 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
   const std::size_t n = L.size();
   threads_ = resolveThreadCount(params_.threads);
   if (params_.kind == SolverKind::Fast)
-    summer_ = std::make_unique<BarSummer>(L, threads_);
+    summer_ = std::make_unique<SliceStreamSummer>(L, threads_);
   else
     summer_ = std::make_unique<NaiveSummer>(L);
 
@@ -317,7 +317,7 @@ void Solver::setParams(const SolverParams& params) {
   if (params.kind != params_.kind || threads != threads_) {
     threads_ = threads;
     if (params.kind == SolverKind::Fast)
-      summer_ = std::make_unique<BarSummer>(*lattice_, threads_);
+      summer_ = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
     else
       summer_ = std::make_unique<NaiveSummer>(*lattice_);
   }

@@ -144,7 +144,7 @@ bool CommandValidator::force(const ForceCommand& msg, CommandBody& out, Rejectio
                                          str(msg.radius) + ", force " + str(f) + ", duration " +
                                          str(msg.duration) + ": every field must be finite");
   if (!particleIndex(msg.particle, why)) return false;
-  PushCommand push;
+  ApplyForceCommand push;
   push.impulse = msg.kind == ForceCommand::IMPULSE;
   if (!push.impulse && (msg.duration <= 0.0 || msg.duration > CommandLimits::kMaxForceDuration))
     return refuse(why, "bad_duration", "force duration " + str(msg.duration) +

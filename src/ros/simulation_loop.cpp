@@ -314,7 +314,7 @@ bool SimulationLoop::apply(Command& command) {
           return move(c);
         } else if constexpr (std::is_same_v<T, ReleaseCommand>) {
           return release(c);
-        } else if constexpr (std::is_same_v<T, PushCommand>) {
+        } else if constexpr (std::is_same_v<T, ApplyForceCommand>) {
           return force(c);
         } else if constexpr (std::is_same_v<T, ResetCommand>) {
           solver_->reset();
@@ -390,7 +390,7 @@ CommandOutcome SimulationLoop::release(const ReleaseCommand& c) {
   return accepted("drag '" + c.id + "' released");
 }
 
-CommandOutcome SimulationLoop::force(const PushCommand& c) {
+CommandOutcome SimulationLoop::force(const ApplyForceCommand& c) {
   const std::size_t n = lattice_->size();
   if (c.particle >= static_cast<std::int64_t>(n))
     return reject("bad_index", "force: particle " + std::to_string(c.particle) +

@@ -10,7 +10,7 @@
 #include <random>
 #include <utility>
 
-using deformable_flsm::BarSummer;
+using deformable_flsm::SliceStreamSummer;
 using deformable_flsm::Lattice;
 using deformable_flsm::NaiveSummer;
 using deformable_flsm::test::makeVoxels;
@@ -46,7 +46,7 @@ class SummationByWidth : public ::testing::TestWithParam<int> {};
 // scatter alike; inputs are O(1) and regions hold at most 729 members, so 1e-12 bounds round-off.
 TEST_P(SummationByWidth, FastEqualsNaiveOnRaggedLattice) {
   const Lattice lattice(raggedVoxels(7), 1000.0, GetParam());
-  BarSummer fast(lattice);
+  SliceStreamSummer fast(lattice);
   NaiveSummer naive(lattice);
   for (int K : {1, 3, 6, 12, 24}) {
     const auto in = randomData(lattice.size(), K, 11 + K);
@@ -63,7 +63,7 @@ TEST_P(SummationByWidth, FastEqualsNaiveOnRaggedLattice) {
 // Scatter is the transpose of gather: <gather(f), h> = <f, scatter(h)>.
 TEST_P(SummationByWidth, ScatterIsTransposeOfGather) {
   const Lattice lattice(raggedVoxels(5), 1000.0, GetParam());
-  BarSummer fast(lattice);
+  SliceStreamSummer fast(lattice);
   const auto f = randomData(lattice.size(), 1, 1);
   const auto h = randomData(lattice.size(), 1, 2);
   std::vector<double> gf, sh;
@@ -129,9 +129,9 @@ TEST_P(SummationByWidth, StreamedPassEqualsNaiveAndIsThreadIndependent) {
   const Lattice lattice(raggedVoxels(3, 14, 6), 1000.0, w);
   const std::size_t n = lattice.size();
   NaiveSummer naive(lattice);
-  for (std::size_t band : {BarSummer::kBandParticles, std::size_t{60}, std::size_t{1}}) {
-    const std::size_t bands = BarSummer(lattice, 1, band).bandCount();
-    if (band == BarSummer::kBandParticles) {
+  for (std::size_t band : {SliceStreamSummer::kBandParticles, std::size_t{60}, std::size_t{1}}) {
+    const std::size_t bands = SliceStreamSummer(lattice, 1, band).bandCount();
+    if (band == SliceStreamSummer::kBandParticles) {
       ASSERT_EQ(bands, 1u);
     } else {
       ASSERT_GE(bands, 2u) << "band target " << band;  // 10 rows: at least 2 bands for w <= 4
@@ -144,7 +144,7 @@ TEST_P(SummationByWidth, StreamedPassEqualsNaiveAndIsThreadIndependent) {
       naive.apply(reference);
       std::vector<double> single;
       for (int threads : {1, 2, 3}) {
-        BarSummer fast(lattice, threads, band);
+        SliceStreamSummer fast(lattice, threads, band);
         RecordingKernel k(n, Kg, Ks, 5);
         for (int pass = 0; pass < 3; ++pass) fast.apply(k);  // boundaries move between passes
         // regions and results exactly once per pass; particle data once with one thread and one
@@ -232,14 +232,14 @@ TEST_P(SummationByWidth, DeferredBlocksWaitForWhatTheyRead) {
   for (int layers : {30, 3}) {
     const Lattice lattice(raggedVoxels(4, layers), 1000.0, w);
     const std::size_t n = lattice.size();
-    for (std::size_t band : {BarSummer::kBandParticles, std::size_t{60}}) {
+    for (std::size_t band : {SliceStreamSummer::kBandParticles, std::size_t{60}}) {
       for (int slow = 0; slow < 3; ++slow) {
         const std::size_t slowFrom = n * static_cast<std::size_t>(slow) / 3;
         const std::size_t slowTo = n * static_cast<std::size_t>(slow + 1) / 3;
         constexpr int kPasses = 4;
         std::vector<std::vector<double>> single;
         {
-          BarSummer one(lattice, 1, band);
+          SliceStreamSummer one(lattice, 1, band);
           PassKernel k(n, 9, n, n);
           for (int pass = 0; pass < kPasses; ++pass) {
             k.beginPass(pass);
@@ -248,7 +248,7 @@ TEST_P(SummationByWidth, DeferredBlocksWaitForWhatTheyRead) {
           }
         }
         for (int threads : {2, 3}) {
-          BarSummer many(lattice, threads, band);
+          SliceStreamSummer many(lattice, threads, band);
           PassKernel k(n, 9, slowFrom, slowTo);
           for (int pass = 0; pass < kPasses; ++pass) {
             k.beginPass(pass);
@@ -271,7 +271,7 @@ TEST(Summation, FullBoxRegionSizesAreClippedCubes) {
   // In a full 9^3 box with w = 2, the region of a corner particle has 3^3 members, of an interior
   // one 5^3: the gather of ones is the region size.
   const Lattice lattice(deformable_flsm::test::makeBox(9, 9, 9, 0.01), 1000.0, 2);
-  BarSummer fast(lattice);
+  SliceStreamSummer fast(lattice);
   std::vector<double> ones(lattice.size(), 1.0), counts;
   fast.gather(ones, 1, counts);
   EXPECT_DOUBLE_EQ(counts[lattice.particleAt(Eigen::Vector3i(0, 0, 0))], 27.0);
@@ -285,25 +285,25 @@ TEST(Summation, FullBoxRegionSizesAreClippedCubes) {
 // greedy first two), and 3 bands need no more than 23 (2,300): rows [0, 21), [21, 40), [40, 60)
 // with data rows [0, 23), [19, 42), [38, 60).
 TEST(Summation, BandsAreFewAndEven) {
-  ASSERT_EQ(BarSummer::kBandParticles, 4096u);
-  ASSERT_EQ(BarSummer::kBandTarget, 2560u);
+  ASSERT_EQ(SliceStreamSummer::kBandParticles, 4096u);
+  ASSERT_EQ(SliceStreamSummer::kBandTarget, 2560u);
   const Lattice whole(deformable_flsm::test::makeBox(100, 40, 3, 0.01), 1000.0, 2);
-  const BarSummer unbanded(whole);
+  const SliceStreamSummer unbanded(whole);
   EXPECT_EQ(unbanded.bandCount(), 1u);
   EXPECT_EQ(unbanded.widestBandSlice(), 4000u);
   const Lattice wide(deformable_flsm::test::makeBox(100, 60, 3, 0.01), 1000.0, 2);
-  const BarSummer banded(wide);
+  const SliceStreamSummer banded(wide);
   EXPECT_EQ(banded.bandCount(), 3u);
   EXPECT_EQ(banded.widestBandSlice(), 2300u);
   // a smaller bound given to the constructor wins over kBandTarget
-  const BarSummer small(wide, 1, 1000);
+  const SliceStreamSummer small(wide, 1, 1000);
   EXPECT_LE(small.widestBandSlice(), 1000u);
   EXPECT_GE(small.bandCount(), 6u);
 }
 
 TEST(Summation, RejectsUnsupportedChannelCount) {
   const Lattice lattice(deformable_flsm::test::makeBox(2, 2, 2, 0.01), 1000.0, 1);
-  BarSummer fast(lattice);
+  SliceStreamSummer fast(lattice);
   std::vector<double> in(lattice.size() * 5), out;
   EXPECT_THROW(fast.gather(in, 5, out), std::invalid_argument);
 }

@@ -1,12 +1,12 @@
-// The study's stress scenarios (include/deformable_flsm/study/scenarios.h) on FastLSM: a time
+// The study's stress scenarios (bench/study/scenarios.h) on FastLSM: a time
 // step of 1/30 s in one sub-step, and a drag 5 object sizes away, a collapse onto a plane and a
 // scrambled start. Each must stay finite and come back to the rest shape. Also the measures the
 // study's accuracy figures rest on.
 
-#include "deformable_flsm/study/mass_spring.h"
-#include "deformable_flsm/study/metrics.h"
-#include "deformable_flsm/study/scenarios.h"
-#include "deformable_flsm/study/setting.h"
+#include "study/mass_spring.h"
+#include "study/metrics.h"
+#include "study/scenarios.h"
+#include "study/setting.h"
 
 #include <gtest/gtest.h>
 

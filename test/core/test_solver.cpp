@@ -374,13 +374,13 @@ TEST_P(FastVersusNaive, AgreeOnBunnyOverDragAndRelease) {
 
 INSTANTIATE_TEST_SUITE_P(W, FastVersusNaive, ::testing::Values(1, 2, 3));
 
-// A plate whose slices (68 x 64 = 4352 particles) are wider than BarSummer::kBandParticles, so
+// A plate whose slices (68 x 64 = 4352 particles) are wider than SliceStreamSummer::kBandParticles, so
 // that the fast solver sweeps them in bands of rows: it must still agree with the naive solver,
 // and two threads with one, bit for bit, through a drag (a corner pinned, the far corner pulled
 // up).
 TEST(Solver, BandsAgreeWithNaiveAndAcrossThreads) {
   auto lattice = std::make_shared<const Lattice>(makeBox(68, 64, 3, 0.01), 1000.0, 2);
-  ASSERT_GE(deformable_flsm::BarSummer(*lattice).bandCount(), 2u);
+  ASSERT_GE(deformable_flsm::SliceStreamSummer(*lattice).bandCount(), 2u);
   SolverParams p;
   p.regionHalfWidth = 2;
   p.substeps = 1;
@@ -463,7 +463,7 @@ TEST(Solver, ThreadsGiveIdenticalResults) {
 // their size): drags, timed forces, pins, damping and both summers included.
 // A lattice tall in z, so that every thread gets several blocks of slices, some processed before
 // the threads meet and some after; pins, a hard drag, a spring drag, a force and an impulse all
-// act, and the chunk boundaries move between steps (BarSummer balances busy times). Every
+// act, and the chunk boundaries move between steps (SliceStreamSummer balances busy times). Every
 // position and velocity must be bit-identical to one thread's.
 TEST(Solver, ThreadsGiveIdenticalResultsOnATallLattice) {
   for (int w : {1, 2, 3}) {

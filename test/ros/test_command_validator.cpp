@@ -150,7 +150,7 @@ TEST_F(Validator, GoodForceIsRotatedNotTranslated) {
   CommandBody out;
   Rejection why;
   ASSERT_TRUE(validator_.force(m, out, why)) << why.detail;
-  const PushCommand& p = std::get<PushCommand>(out);
+  const ApplyForceCommand& p = std::get<ApplyForceCommand>(out);
   EXPECT_FALSE(p.impulse);
   EXPECT_NEAR(p.force.x(), 0.0, 1e-12);  // x turned 90 deg about z is y
   EXPECT_NEAR(p.force.y(), 1.0, 1e-12);
@@ -166,7 +166,7 @@ TEST_F(Validator, ImpulseIgnoresDuration) {
   CommandBody out;
   Rejection why;
   ASSERT_TRUE(validator_.force(m, out, why)) << why.detail;
-  EXPECT_TRUE(std::get<PushCommand>(out).impulse);
+  EXPECT_TRUE(std::get<ApplyForceCommand>(out).impulse);
 }
 
 TEST_F(Validator, EveryBadForceFieldIsRefusedWithItsReason) {

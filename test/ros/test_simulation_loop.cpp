@@ -135,7 +135,7 @@ TEST(SimulationLoop, RejectionsCarryTheirReason) {
   EXPECT_NE(o.message.find("N/m"), std::string::npos) << o.message;
   EXPECT_EQ(rig.rejected("spring_too_stiff"), 1u);
 
-  PushCommand huge;
+  ApplyForceCommand huge;
   huge.particle = 3;
   huge.force = Eigen::Vector3d(1e30, 0, 0);
   huge.duration = 0.1;
@@ -144,7 +144,7 @@ TEST(SimulationLoop, RejectionsCarryTheirReason) {
   EXPECT_FALSE(rig.run(huge).accepted);
   EXPECT_EQ(rig.rejected("too_large"), 2u);
 
-  PushCommand nowhere;
+  ApplyForceCommand nowhere;
   nowhere.point = Eigen::Vector3d(0.5, 0.5, 0.5);  // 40 cm from a 6 cm box
   nowhere.radius = 0.01;
   nowhere.duration = 0.1;
@@ -161,7 +161,7 @@ TEST(SimulationLoop, RejectionsCarryTheirReason) {
 TEST(SimulationLoop, SensibleForceAndImpulseAreApplied) {
   Rig rig;
   rig.loop->start();
-  PushCommand f;
+  ApplyForceCommand f;
   f.point = rig.loop->lattice().restPositions()[0];
   f.radius = 0.015;
   f.force = Eigen::Vector3d(0.0, 0.0, 0.5);
@@ -222,7 +222,7 @@ TEST(SimulationLoop, RestsWhenStillAndWakesOnACommand) {
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
   EXPECT_EQ(rig.loop->acquire().diag.steps, steps);
   // ... an accepted one does, at once.
-  PushCommand kick;
+  ApplyForceCommand kick;
   kick.particle = 0;
   kick.force = Eigen::Vector3d(0.0, 0.0, 1e-4);
   kick.impulse = true;

@@ -86,7 +86,7 @@ struct SolverParams {
   SolverKind kind = SolverKind::Fast;
   /// Threads a step uses (OpenMP); 0 for every hardware thread. Results do not depend on it:
   /// threads take whole blocks of z-slices, at whose starts every sliding window restarts, so
-  /// each sum is the same sequence of additions (see BarSummer). Pays only on idle cores: with
+  /// each sum is the same sequence of additions (see SliceStreamSummer). Pays only on idle cores: with
   /// another job on the second core, two threads were 1.3-1.7x slower than one.
   int threads = 1;
 

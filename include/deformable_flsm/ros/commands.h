@@ -87,8 +87,9 @@ struct ReleaseCommand {
 };
 
 /// A force (N) for `duration` s of simulated time, or an impulse (N s), on `particle` or on the
-/// particles within `radius` of `point` (radius 0: the nearest particle), spread by mass.
-struct PushCommand {
+/// particles within `radius` of `point` (radius 0: the nearest particle), spread by mass: a
+/// validated ForceCommand message.
+struct ApplyForceCommand {
   std::int64_t particle = -1;
   Eigen::Vector3d point = Eigen::Vector3d::Zero();
   double radius = 0.0;
@@ -113,8 +114,8 @@ struct ParamsCommand {
   SolverParams params;
 };
 
-using CommandBody = std::variant<GrabCommand, MoveCommand, ReleaseCommand, PushCommand,
-                                 ResetCommand, ReleaseAllCommand, PinBoxCommand, ParamsCommand>;
+using CommandBody = std::variant<GrabCommand, MoveCommand, ReleaseCommand, ApplyForceCommand, ResetCommand,
+                                 ReleaseAllCommand, PinBoxCommand, ParamsCommand>;
 
 /// A command and, optionally, the promise its outcome is delivered to.
 struct Command {

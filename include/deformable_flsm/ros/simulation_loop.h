@@ -127,7 +127,7 @@ class SimulationLoop {
   CommandOutcome grab(const GrabCommand& c);
   CommandOutcome move(const MoveCommand& c);
   CommandOutcome release(const ReleaseCommand& c);
-  CommandOutcome force(const PushCommand& c);
+  CommandOutcome force(const ApplyForceCommand& c);
   CommandOutcome pinBox(const PinBoxCommand& c);
   CommandOutcome setParams(const ParamsCommand& c);
   /// Rejection: counted, and the outcome carries the detail.

@@ -8,9 +8,9 @@
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/mesh.h"
 #include "deformable_flsm/core/voxelizer.h"
-#include "deformable_flsm/study/method.h"
-#include "deformable_flsm/study/metrics.h"
-#include "deformable_flsm/study/setting.h"
+#include "study/method.h"
+#include "study/metrics.h"
+#include "study/setting.h"
 
 #include <Eigen/Core>
 

@@ -4,8 +4,8 @@
 #pragma once
 
 #include "deformable_flsm/core/lattice.h"
-#include "deformable_flsm/study/method.h"
-#include "deformable_flsm/study/metrics.h"
+#include "study/method.h"
+#include "study/metrics.h"
 
 #include <Eigen/Core>
 

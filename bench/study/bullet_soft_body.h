@@ -5,9 +5,9 @@
 #pragma once
 
 #include "deformable_flsm/core/lattice.h"
-#include "deformable_flsm/study/mass_spring.h"
-#include "deformable_flsm/study/method.h"
-#include "deformable_flsm/study/metrics.h"
+#include "study/mass_spring.h"
+#include "study/method.h"
+#include "study/metrics.h"
 
 #include <BulletSoftBody/btSoftBody.h>
 #include <BulletSoftBody/btSoftBodyHelpers.h>

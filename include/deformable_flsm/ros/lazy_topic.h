@@ -1,0 +1,77 @@
+/// @file lazy_topic.h
+/// A heavy topic that costs nothing while nobody listens: its message is built only while
+/// subscribed, and not republished while the simulation rests except to a new subscriber.
+#pragma once
+
+#include "deformable_flsm/ros/simulation_loop.h"
+
+#include <ros/advertise_options.h>
+#include <ros/node_handle.h>
+#include <ros/publisher.h>
+#include <ros/single_subscriber_publisher.h>
+#include <ros/time.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <atomic>
+#include <cstdint>
+#include <string>
+
+namespace deformable_flsm {
+
+class LazyTopic {
+ public:
+  LazyTopic() = default;
+  LazyTopic(const LazyTopic&) = delete;  // the connect callback holds `this`
+  LazyTopic& operator=(const LazyTopic&) = delete;
+
+  /// Advertises `name` (queue 1, not latched: a new subscriber is served by the connect
+  /// callback with a fresh stamp) on `nh`.
+  template <typename Msg>
+  void advertise(ros::NodeHandle& nh, const std::string& name) {
+    ros::AdvertiseOptions options;
+    options.template init<Msg>(name, 1, [this](const ros::SingleSubscriberPublisher&) { newSubscriber_ = true; });
+    options.latch = false;
+    pub_ = nh.advertise(options);
+  }
+
+  /// true when the topic has subscribers and snapshot `s` should be sent now; false leaves it
+  /// alone. While the simulation runs: every tick. At rest: the final state once, then only to
+  /// new subscribers (what they missed); the others already show it. `republishAtRest` keeps the
+  /// stream steady instead (the cached message goes out again with a new stamp).
+  bool due(const Snapshot& s, bool republishAtRest) {
+    if (pub_.getNumSubscribers() == 0) return false;
+    const bool newSubscriber = newSubscriber_.exchange(false);
+    return !s.diag.idle || republishAtRest || publishedSequence_ != s.sequence || newSubscriber;
+  }
+
+  /// Whether the cached message shows another snapshot than `s` (build() would run).
+  bool stale(const Snapshot& s) const { return builtSequence_ != s.sequence; }
+
+  /// Publishes `msg` for snapshot `s`, stamped `stamp`: build(msg) first when the cached message
+  /// shows another snapshot.
+  template <typename Msg, typename Build>
+  void publish(const Snapshot& s, const ros::Time& stamp, Msg& msg, Build&& build) {
+    if (builtSequence_ != s.sequence) {
+      build(msg);
+      builtSequence_ = s.sequence;
+    }
+    setStamp(msg, stamp);
+    pub_.publish(msg);
+    publishedSequence_ = s.sequence;
+  }
+
+ private:
+  template <typename Msg>
+  static void setStamp(Msg& msg, const ros::Time& stamp) {
+    msg.header.stamp = stamp;
+  }
+  static void setStamp(visualization_msgs::MarkerArray& msg, const ros::Time& stamp) {
+    for (auto& m : msg.markers) m.header.stamp = stamp;
+  }
+  ros::Publisher pub_;
+  std::uint64_t builtSequence_ = 0;      ///< snapshot the cached message shows
+  std::uint64_t publishedSequence_ = 0;  ///< snapshot last published
+  std::atomic<bool> newSubscriber_{false};
+};
+
+}  // namespace deformable_flsm

@@ -1,0 +1,135 @@
+#include "deformable_flsm/ros/interactive_drag.h"
+
+#include "deformable_flsm/ros/mesh_messages.h"
+#include "deformable_flsm/ros/render_mesh.h"
+
+#include <tf2_eigen/tf2_eigen.h>
+#include <visualization_msgs/InteractiveMarker.h>
+#include <visualization_msgs/InteractiveMarkerControl.h>
+#include <visualization_msgs/Marker.h>
+
+#include <cmath>
+#include <cstdint>
+#include <utility>
+
+namespace deformable_flsm {
+
+namespace {
+
+/// The RViz mouse drag: its id, how many particles it grabs, and the invisible handle that
+/// RViz picks (a simplified copy of the render mesh, following the object's rigid frame).
+/// The mouse takes the particle under the cursor and its 6 nearest neighbours: one particle
+/// pulled alone by centimetres drags out a spike one cell wide.
+constexpr const char kMouseDragId[] = "rviz";
+constexpr std::uint32_t kMouseGrabCount = 7;
+constexpr std::size_t kHandleTriangles = 1500;
+constexpr float kHandleAlpha = 0.0f;
+/// The handle follows the object when it moved by more than these (fraction of the size, rad).
+constexpr double kHandleMoveFraction = 1e-3;
+constexpr double kHandleTurn = 1e-2;
+
+geometry_msgs::Point toPoint(const Eigen::Vector3d& v) {
+  geometry_msgs::Point p;
+  p.x = v.x();
+  p.y = v.y();
+  p.z = v.z();
+  return p;
+}
+
+Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return {p.x, p.y, p.z}; }
+
+Eigen::Vector3d restCenterOfMass(const Lattice& L) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < L.size(); ++i) c += L.masses()[i] * L.restPositions()[i];
+  return c / L.totalMass();
+}
+
+}  // namespace
+
+InteractiveDrag::InteractiveDrag(const ros::NodeHandle& pnh, const std::string& frameId,
+                                 const Lattice& lattice, const TriMesh& renderMesh, SendDrag sendDrag)
+    : objectSize_(lattice.objectSize()), sendDrag_(std::move(sendDrag)) {
+  server_ = std::make_unique<interactive_markers::InteractiveMarkerServer>(
+      pnh.resolveName("drag_marker"), "", false);
+  const Eigen::Vector3d com = restCenterOfMass(lattice);
+  handlePose_ = Eigen::Translation3d(com);
+
+  visualization_msgs::InteractiveMarker im;
+  im.header.frame_id = frameId;
+  im.name = "object";
+  im.description = "";
+  im.scale = static_cast<float>(objectSize_);
+  im.pose = tf2::toMsg(handlePose_);
+
+  // What RViz picks: a coarse copy of the object, invisible, in the object's frame.
+  visualization_msgs::Marker handle;
+  initTriangleListMarker(frameId, "flsm_handle", {1.0f, 1.0f, 1.0f, kHandleAlpha}, handle);
+  TriMesh coarse = simplifyMesh(renderMesh, kHandleTriangles).mesh;
+  for (Eigen::Vector3d& v : coarse.vertices) v -= com;
+  setTriangleListPoints(coarse.vertices, coarse.triangles, handle);
+  handle.header.frame_id.clear();  // in the interactive marker's frame
+
+  visualization_msgs::InteractiveMarkerControl control;
+  control.name = "drag";
+  control.interaction_mode = visualization_msgs::InteractiveMarkerControl::MOVE_3D;
+  control.orientation.w = 1.0;
+  control.always_visible = true;
+  control.markers.push_back(handle);
+  im.controls.push_back(control);
+
+  server_->insert(im, [this](const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback) {
+    onFeedback(feedback);
+  });
+  server_->applyChanges();
+}
+
+void InteractiveDrag::follow(const Eigen::Isometry3d& objectFrame) {
+  if (dragging_) return;  // RViz owns the handle while the mouse holds it
+  const double moved = (objectFrame.translation() - handlePose_.translation()).norm();
+  const Eigen::AngleAxisd turned(objectFrame.linear().transpose() * handlePose_.linear());
+  if (moved < kHandleMoveFraction * objectSize_ && std::abs(turned.angle()) < kHandleTurn) return;
+  handlePose_ = objectFrame;
+  server_->setPose("object", tf2::toMsg(handlePose_));
+  server_->applyChanges();
+}
+
+void InteractiveDrag::onFeedback(const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback) {
+  using visualization_msgs::InteractiveMarkerFeedback;
+  DragCommand drag;
+  drag.header = feedback->header;
+  drag.id = kMouseDragId;
+  const Eigen::Vector3d pose = toEigen(feedback->pose.position);
+  switch (feedback->event_type) {
+    case InteractiveMarkerFeedback::MOUSE_DOWN:
+      if (!feedback->mouse_point_valid) return;
+      // Grab the particle under the cursor and hold it there; the target then follows the
+      // handle's motion from this pose.
+      drag.action = DragCommand::GRAB;
+      drag.particle = -1;
+      drag.point = feedback->mouse_point;
+      drag.count = kMouseGrabCount;
+      drag.target = feedback->mouse_point;
+      grabPoint_ = toEigen(feedback->mouse_point);
+      grabPose_ = pose;
+      break;
+    case InteractiveMarkerFeedback::POSE_UPDATE:
+      if (!dragging_) return;
+      drag.action = DragCommand::MOVE;
+      drag.target = toPoint(grabPoint_ + (pose - grabPose_));
+      break;
+    case InteractiveMarkerFeedback::MOUSE_UP:
+      if (!dragging_) return;
+      drag.action = DragCommand::RELEASE;
+      break;
+    default:
+      return;
+  }
+  if (!sendDrag_(drag)) return;
+  if (drag.action == DragCommand::GRAB) dragging_ = true;
+  if (drag.action == DragCommand::RELEASE) {
+    dragging_ = false;
+    handlePose_.translation().setConstant(std::nan(""));  // snap back at the next tick
+  }
+}
+
+}  // namespace deformable_flsm

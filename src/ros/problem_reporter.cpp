@@ -1,0 +1,93 @@
+#include "deformable_flsm/ros/problem_reporter.h"
+
+#include <ros/console.h>
+
+#include <string>
+
+namespace deformable_flsm {
+
+namespace {
+
+/// Warn when the achieved real-time factor falls below this fraction of the requested one.
+constexpr double kSlowFraction = 0.9;
+constexpr double kWarnPeriod = 5.0;  // s between two warnings of the same kind
+
+}  // namespace
+
+ProblemReporter::ProblemReporter(const NodeParams& params, const SceneInfo& info, const Lattice& lattice)
+    : params_(params),
+      info_(info),
+      lattice_(lattice),
+      reportedSaturated_(info.substepsForModulus > 0) {}  // warned about by warnAboutScene()
+
+void ProblemReporter::warnAboutScene() const {
+  const std::string saturated = saturationWarning(info_, params_);
+  if (!saturated.empty()) ROS_WARN("flsm_node: %s", saturated.c_str());
+  for (std::size_t b = 0; b < info_.pinnedPerBox.size(); ++b) {
+    if (info_.pinnedPerBox[b] == 0) {
+      ROS_WARN("flsm_node: ~pinned box %zu holds no particle (rest positions are in frame '%s', "
+               "after ~mesh_scale and ~mesh_rpy; the lattice spans [%.3g, %.3g, %.3g] to "
+               "[%.3g, %.3g, %.3g] m)",
+               b, params_.frameId.c_str(), lattice_.restMin().x(), lattice_.restMin().y(),
+               lattice_.restMin().z(), lattice_.restMax().x(), lattice_.restMax().y(),
+               lattice_.restMax().z());
+    }
+  }
+  if (info_.pinned == 0 && !params_.solver.gravity.isZero(0.0)) {
+    ROS_WARN("flsm_node: gravity is on and no particle is pinned: with no ground, the object "
+             "falls forever. Pin a box (~pinned) or set ~gravity to [0, 0, 0].");
+  }
+}
+
+void ProblemReporter::report(const LoopDiagnostics& d) {
+  if (d.stiffnessSaturated != reportedSaturated_) {
+    reportedSaturated_ = d.stiffnessSaturated;
+    if (d.stiffnessSaturated) {
+      ROS_WARN("flsm_node: ~youngs_modulus %.4g Pa now asks for more stiffness than the time "
+               "step allows (alpha capped at %.3g): the material is softer than asked; more "
+               "~substeps (restart) would fix it", params_.solver.youngsModulus, d.alpha);
+    }
+  }
+  if (d.solverResets > reportedResets_) {
+    reportedResets_ = d.solverResets;
+    ROS_ERROR("flsm_node: the solver state became non-finite and was reset to rest (%llu "
+              "times so far). This should not happen: please report it with the commands sent.",
+              static_cast<unsigned long long>(d.solverResets));
+  }
+  if (d.droppedSteps > reportedDropped_) {
+    reportedDropped_ = d.droppedSteps;
+    ROS_WARN_THROTTLE(kWarnPeriod,
+                      "flsm_node: the machine cannot keep up: %.2f simulated s per wall s (asked "
+                      "%.2f), a step takes %.1f ms for %.1f ms of simulated time; %llu steps "
+                      "dropped so far. Lower ~real_time_factor, ~substeps or ~particle_budget.",
+                      d.achievedRealTimeFactor, d.requestedRealTimeFactor, 1e3 * d.stepSeconds,
+                      1e3 * params_.solver.timeStep,
+                      static_cast<unsigned long long>(d.droppedSteps));
+  } else if (!d.idle && d.achievedRealTimeFactor < kSlowFraction * d.requestedRealTimeFactor &&
+             d.steps > 10) {
+    // A step may take the wall time it stands for; if it takes (nearly) all of it, the scene is too
+    // big for the asked rate (or the machine too busy to give it a core); if not, something else
+    // holds the loop up.
+    const double budget = params_.solver.timeStep / d.requestedRealTimeFactor;
+    const bool stepsTooLong = d.stepSeconds > kSlowFraction * budget;
+    ROS_WARN_THROTTLE(kWarnPeriod,
+                      "flsm_node: running at %.2f of the asked real-time factor %.2f (a step takes "
+                      "%.1f ms of the %.1f ms it may); %s",
+                      d.achievedRealTimeFactor / d.requestedRealTimeFactor, d.requestedRealTimeFactor,
+                      1e3 * d.stepSeconds, 1e3 * budget,
+                      stepsTooLong ? "the steps take too long: lower ~real_time_factor, ~substeps or "
+                                     "~particle_budget, or free a core"
+                                   : "the steps fit, so other work on this machine holds the loop up");
+  }
+}
+
+void ProblemReporter::publishingTook(double seconds) const {
+  if (seconds > 1.0 / params_.publishRate) {
+    ROS_WARN_THROTTLE(kWarnPeriod,
+                      "flsm_node: publishing took %.1f ms, longer than the %.1f ms period of "
+                      "~publish_rate: lower ~publish_rate or ~render_triangle_budget",
+                      1e3 * seconds, 1e3 / params_.publishRate);
+  }
+}
+
+}  // namespace deformable_flsm
