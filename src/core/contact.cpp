@@ -94,9 +94,15 @@ bool colliderBounds(const ColliderShape& shape, const Eigen::Isometry3d& pose, E
       localHi = Eigen::Vector3d(shape.radius, shape.radius, shape.radius + shape.halfLength);
       break;
     case ColliderType::Mesh:
-      if (!shape.mesh) return false;
-      localLo = shape.mesh->boundsMin();
-      localHi = shape.mesh->boundsMax();
+      if (shape.distanceField) {  // bounds kept by the field: no pass over the vertices
+        localLo = shape.distanceField->meshMin();
+        localHi = shape.distanceField->meshMax();
+      } else if (shape.mesh) {
+        localLo = shape.mesh->boundsMin();
+        localHi = shape.mesh->boundsMax();
+      } else {
+        return false;
+      }
       break;
   }
   if (shape.type != ColliderType::Mesh) localLo = -localHi;

@@ -88,6 +88,7 @@ void Solver::rebuildContactBodies() {
   activeBodies_.reserve(contactBodies_.size());
   const std::size_t chunks = (x_.size() + kContactChunk - 1) / kContactChunk;
   contactPartials_.assign(chunks * contactBodies_.size(), ContactPartial());
+  chunkBodies_.assign(chunks * contactBodies_.size(), 0);
 }
 
 void Solver::beginContactStep() {
@@ -103,7 +104,8 @@ void Solver::beginContactStep() {
 // Contact of the particle spheres (radius r = contactRadius()) with the colliders, after the
 // region pass has moved every free particle to x* = x + h v:
 //  1. broad phase: colliders whose bounds (inflated by r) miss the object's bounds are skipped,
-//     and so, per particle, are colliders whose inflated bounds miss the particle;
+//     then those that miss a chunk's bounds (a slab of the lattice), then, per particle, those
+//     whose inflated bounds miss the particle;
 //  2. velocity-level response (contactVelocityChange()): a particle whose sphere ends inside a
 //     collider, at the collider's pose at the end of the sub-step, gets the velocity that ends
 //     it on the surface, with Coulomb friction relative to the collider's surface velocity;
@@ -148,11 +150,26 @@ void Solver::contactPass(double h) {
     for (int a : activeBodies_) partial[a] = ContactPartial();
     const std::size_t begin = static_cast<std::size_t>(chunk) * kContactChunk;
     const std::size_t end = std::min(n, begin + kContactChunk);
+    // The chunk's own broad phase: particles are sorted by (k, j, i), so a chunk is a slab of the
+    // lattice, and most colliders (the ground, under the bottom slabs) miss most slabs.
+    Eigen::Vector3d chunkLo = x_[begin], chunkHi = x_[begin];
+    for (std::size_t i = begin + 1; i < end; ++i) {
+      chunkLo = chunkLo.cwiseMin(x_[i]);
+      chunkHi = chunkHi.cwiseMax(x_[i]);
+    }
+    int* near = chunkBodies_.data() + static_cast<std::size_t>(chunk) * bodies;
+    int nearCount = 0;
+    for (int a : activeBodies_) {
+      const ContactBody& body = contactBodies_[a];
+      if (boxNearCollider(body.collider->shape, body.now, chunkLo, chunkHi, r)) near[nearCount++] = a;
+    }
+    if (nearCount == 0) continue;
     for (std::size_t i = begin; i < end; ++i) {
       if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
       Eigen::Vector3d x = x_[i], v = v_[i];
       bool touched = false;
-      for (int a : activeBodies_) {
+      for (int k = 0; k < nearCount; ++k) {
+        const int a = near[k];
         const ContactBody& body = contactBodies_[a];
         if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
         const Collider& c = *body.collider;
@@ -173,8 +190,8 @@ void Solver::contactPass(double h) {
         touched = true;
       }
       if (!touched) continue;
-      for (int a : activeBodies_) {
-        const ContactBody& body = contactBodies_[a];
+      for (int k = 0; k < nearCount; ++k) {
+        const ContactBody& body = contactBodies_[near[k]];
         if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
         Eigen::Vector3d normal;
         const double depth = colliderDistance(body.collider->shape, body.now, x, normal) - r;

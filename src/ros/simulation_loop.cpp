@@ -70,6 +70,9 @@ SimulationLoop::SimulationLoop(std::unique_ptr<Solver> solver, const LoopSetting
   centerOfMass_ = restCenterOfMass_;
   diag_.requestedRealTimeFactor = settings_.realTimeFactor;
   queue_.reserve(CommandLimits::kQueueCapacity);
+  if (!(settings_.restFraction >= 0.0))
+    throw std::invalid_argument("SimulationLoop: rest fraction must be >= 0");
+  stillFrom_ = solver_->positions();
 }
 
 SimulationLoop::~SimulationLoop() { stop(); }
@@ -208,14 +211,14 @@ void SimulationLoop::run() {
       if (!acted && !woken) continue;  // only rejected commands: rest on
       // Awake: the time spent resting is not owed.
       idle_ = false;
-      stillFor_ = 0.0;
+      restartStillness();
       last = Clock::now();
       owed = 0.0;
       restartWindow(last);
       diag_.idle = false;
       writeSnapshot();
     } else if (acted) {
-      stillFor_ = 0.0;
+      restartStillness();
     }
 
     const Clock::time_point now = Clock::now();
@@ -260,7 +263,7 @@ void SimulationLoop::ensureFinite() {
   // command is range-checked); if it does, never let NaN reach a subscriber.
   solver_->reset();
   ++diag_.solverResets;
-  stillFor_ = 0.0;
+  restartStillness();
 }
 
 void SimulationLoop::followFrames() {
@@ -307,21 +310,31 @@ void SimulationLoop::restartWindow(Clock::time_point now) {
 }
 
 void SimulationLoop::updateStillness(double simulated) {
+  const std::vector<Eigen::Vector3d>& x = solver_->positions();
   double maxSpeed2 = 0.0;
   for (const Eigen::Vector3d& v : solver_->velocities()) maxSpeed2 = std::max(maxSpeed2, v.squaredNorm());
   diag_.maxSpeed = std::sqrt(maxSpeed2);
   diag_.kineticEnergy = solver_->kineticEnergy();
-  const double vIdle = settings_.idleSpeed;
-  const bool still = diag_.maxSpeed < vIdle &&
-                     diag_.kineticEnergy < 0.5 * lattice_->totalMass() * vIdle * vIdle &&
-                     !solver_->hasPendingCommands() && !collidersMoving_;
-  stillFor_ = still ? stillFor_ + simulated : 0.0;
+  double moved2 = 0.0;
+  for (std::size_t i = 0; i < x.size(); ++i)
+    moved2 = std::max(moved2, (x[i] - stillFrom_[i]).squaredNorm());
+  const double limit = settings_.restFraction * lattice_->objectSize();
+  if (moved2 > limit * limit || solver_->hasPendingCommands() || collidersMoving_) {
+    restartStillness();
+  } else {
+    stillFor_ += simulated;
+  }
   if (settings_.idleHold > 0.0 && stillFor_ >= settings_.idleHold) {
     std::lock_guard<std::mutex> lock(queueMutex_);
     // A command that came in during the step keeps the loop awake.
     if (queue_.empty() && !wakeRequested_) idle_ = true;
   }
   diag_.idle = idle_;
+}
+
+void SimulationLoop::restartStillness() {
+  stillFor_ = 0.0;
+  std::copy(solver_->positions().begin(), solver_->positions().end(), stillFrom_.begin());
 }
 
 void SimulationLoop::writeSnapshot() {
@@ -387,7 +400,7 @@ bool SimulationLoop::apply(Command& command) {
         } else if constexpr (std::is_same_v<T, ResetCommand>) {
           solver_->reset();
           attachedFrames_.clear();
-          stillFor_ = 0.0;
+          restartStillness();
           return accepted("reset to rest; pins kept, drags and forces released");
         } else if constexpr (std::is_same_v<T, ReleaseAllCommand>) {
           const std::size_t n = solver_->drags().size();

@@ -6,6 +6,7 @@
 #include <tf2_eigen/tf2_eigen.h>
 
 #include <chrono>
+#include <cmath>
 #include <future>
 #include <utility>
 
@@ -13,22 +14,19 @@ namespace deformable_flsm {
 
 namespace {
 
-/// Incoming commands: enough for a burst between two drains of the spinner thread; the
-/// simulation's own queue (CommandLimits::kQueueCapacity) is the bound that is counted.
-constexpr std::uint32_t kCommandQueue = 100;
+/// Incoming commands. Their callback never waits (tf is not waited for, services have their
+/// own thread), so this queue only has to hold what arrives while it validates a message
+/// (microseconds) or, once, while the first foreign frame starts the tf listener: 1000 holds
+/// a second of several floods at a few hundred messages per second. Beyond it roscpp would drop
+/// the oldest uncounted; the simulation's own queue (CommandLimits::kQueueCapacity) is counted.
+constexpr std::uint32_t kCommandQueue = 1000;
 /// How long a service waits for the simulation thread to apply its command (s).
 constexpr double kServiceTimeout = 2.0;
-/// How long a command waits for its transform (s). The tf listener is started by the first
-/// command in a frame other than ~frame_id (so that a node nobody commands in other frames
-/// does not receive its own tf 30 times a second); that first lookup waits longer, for the
-/// listener to hear the frame.
-constexpr double kTransformTimeout = 0.1;
+/// Commands do not wait for tf. The tf listener is started by the first command in a frame
+/// other than ~frame_id (so that a node nobody commands in other frames does not receive its
+/// own tf 30 times a second); that first lookup alone waits, for the listener to hear the
+/// frames, up to this long (s).
 constexpr double kFirstTransformTimeout = 1.0;
-/// The simulation rests when every particle is slower than this many object sizes per second
-/// (1 mm/s for the 30 cm bunny: a 2 Hz wobble of 0.08 mm, invisible) ...
-constexpr double kIdleSpeedPerSize = 3e-3;
-/// ... for this long (s of simulated time) with nothing acting on it.
-constexpr double kIdleHold = 1.0;
 constexpr double kRejectPeriod = 1.0;  // s between two rejection warnings
 /// A frame that drags are attached to whose newest transform is older than this (s) is stale:
 /// its drags hold still (as colliders that follow a frame do, ColliderFollower::kStaleAfter).
@@ -41,7 +39,7 @@ Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return {p.x, p.y, p.z};
 
 SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh,
                              const NodeParams& params, Scene scene)
-    : nh_(nh), pnh_(pnh), commandNh_(pnh), params_(params), info_(scene.info),
+    : nh_(nh), pnh_(pnh), commandNh_(pnh), serviceNh_(pnh), params_(params), info_(scene.info),
       lattice_(scene.lattice), renderMesh_(std::move(scene.renderMesh)),
       embedding_(std::move(scene.embedding)), stats_(std::make_shared<CommandStats>()) {
   stats_->setRejectHook([](const std::string& reason, const std::string& detail) {
@@ -51,8 +49,7 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
 
   LoopSettings settings;
   settings.realTimeFactor = params_.realTimeFactor;
-  settings.idleSpeed = kIdleSpeedPerSize * lattice_->objectSize();
-  settings.idleHold = kIdleHold;
+  // Rest (LoopSettings::restFraction, idleHold): the defaults, relative to the object size.
   loop_ = std::make_unique<SimulationLoop>(std::move(scene.solver), settings, stats_);
 
   validator_ = std::make_unique<CommandValidator>(
@@ -70,7 +67,7 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
              std::string& why) { return lookupTransform(frame, stamp, T, why); },
       [this](CommandBody body) { send(std::move(body), false); }, lattice_->objectSize());
   reconfigure_ = std::make_unique<Reconfigure>(pnh_, params_,
-                                               [this](const FlsmConfig& c) { onReconfigure(c); });
+                                               [this](const FlsmConfig& c) { return onReconfigure(c); });
   mouse_ = std::make_unique<InteractiveDrag>(pnh_, params_.frameId, *lattice_, renderMesh_,
                                              [this](const DragCommand& d) { return onMouseDrag(d); });
 
@@ -83,23 +80,27 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
                                    &SimulatorNode::onPublishTimer, this);
   commandSpinner_ = std::make_unique<ros::AsyncSpinner>(1, &commandQueue_);
   commandSpinner_->start();
+  serviceSpinner_ = std::make_unique<ros::AsyncSpinner>(1, &serviceQueue_);
+  serviceSpinner_->start();
 }
 
 SimulatorNode::~SimulatorNode() {
   publishTimer_.stop();
   loop_->stop();  // answers services still waiting, so the spinner can stop
   commandSpinner_->stop();
+  serviceSpinner_->stop();
   mouse_.reset();
 }
 
 void SimulatorNode::advertise() {
-  // Commands and services on their own queue and thread (see the class comment).
+  // Commands and services on queues and threads of their own (see the class comment).
   commandNh_.setCallbackQueue(&commandQueue_);
   dragSub_ = commandNh_.subscribe("drag", kCommandQueue, &SimulatorNode::onDrag, this);
   forceSub_ = commandNh_.subscribe("force", kCommandQueue, &SimulatorNode::onForce, this);
-  resetSrv_ = commandNh_.advertiseService("reset", &SimulatorNode::onReset, this);
-  releaseAllSrv_ = commandNh_.advertiseService("release_all", &SimulatorNode::onReleaseAll, this);
-  pinBoxSrv_ = commandNh_.advertiseService("pin_box", &SimulatorNode::onPinBox, this);
+  serviceNh_.setCallbackQueue(&serviceQueue_);
+  resetSrv_ = serviceNh_.advertiseService("reset", &SimulatorNode::onReset, this);
+  releaseAllSrv_ = serviceNh_.advertiseService("release_all", &SimulatorNode::onReleaseAll, this);
+  pinBoxSrv_ = serviceNh_.advertiseService("pin_box", &SimulatorNode::onPinBox, this);
 }
 
 // --------------------------------------------------------------------------------------------
@@ -179,11 +180,21 @@ bool SimulatorNode::attachedFrame(const std::string& frame, Eigen::Isometry3d& s
 
 bool SimulatorNode::lookupTransform(const std::string& frame, const ros::Time& stamp,
                                     Eigen::Isometry3d& T, std::string& why) {
-  const double timeout = startTfListener() ? kFirstTransformTimeout : kTransformTimeout;
+  if (startTfListener()) {
+    // Once: let the new listener hear the frames (tf_static at once, tf within a period).
+    tfBuffer_.canTransform(params_.frameId, frame, ros::Time(0), ros::Duration(kFirstTransformTimeout));
+  }
+  // Never wait: at the command's stamp if tf has it, else the latest transform (a command
+  // stamped a little ahead of the last tf message), else refused. Waiting here would hold up
+  // every other client's commands for as long as one client names a frame nobody publishes.
+  std::string atStamp;
+  ros::Time when = stamp;
+  if (stamp.isZero() || !tfBuffer_.canTransform(params_.frameId, frame, stamp, &atStamp)) {
+    when = ros::Time(0);
+    if (!tfBuffer_.canTransform(params_.frameId, frame, when, &why)) return false;
+  }
   try {
-    const geometry_msgs::TransformStamped t = tfBuffer_.lookupTransform(
-        params_.frameId, frame, stamp, ros::Duration(timeout));
-    T = tf2::transformToEigen(t);
+    T = tf2::transformToEigen(tfBuffer_.lookupTransform(params_.frameId, frame, when));
     return true;
   } catch (const tf2::TransformException& e) {
     why = e.what();
@@ -247,15 +258,32 @@ bool SimulatorNode::onPinBox(PinBox::Request& req, PinBox::Response& res) {
   return true;
 }
 
-void SimulatorNode::onReconfigure(const FlsmConfig& config) {
-  SolverParams p = Reconfigure::solverParams(config, params_.solver);
+bool SimulatorNode::onReconfigure(const FlsmConfig& config) {
+  NodeParams changed = params_;
+  if (!Reconfigure::apply(config, changed)) {
+    stats_->reject("invalid_params", "material '" + config.material +
+                                         "': use 'youngs' or 'classic'; nothing changed");
+    return false;
+  }
+  if (changed.material == NodeParams::Material::Youngs &&
+      !(std::isfinite(changed.youngsModulus) && changed.youngsModulus > 0.0)) {
+    // dynamic_reconfigure has clamped anything below the range to its minimum, 0.
+    stats_->reject("invalid_params",
+                   "youngs_modulus " + std::to_string(changed.youngsModulus) +
+                       ": it must be > 0 Pa (a value below 0 arrives clamped to 0); the material "
+                       "is unchanged. For alpha = stiffness per sub-step, set material classic");
+    return false;
+  }
+  SolverParams p = changed.solver;
   p.regionHalfWidth = info_.regionHalfWidth;
   try {
     p.validate();
   } catch (const std::invalid_argument& e) {
-    stats_->reject("invalid_params", e.what());
-    return;
+    stats_->reject("invalid_params", std::string(e.what()) + "; nothing changed");
+    return false;
   }
+  params_.material = changed.material;
+  params_.youngsModulus = changed.youngsModulus;
   params_.solver = p;
   send(ParamsCommand{p}, false);
   if (config.publish_rate != params_.publishRate) {
@@ -266,6 +294,7 @@ void SimulatorNode::onReconfigure(const FlsmConfig& config) {
     params_.realTimeFactor = config.real_time_factor;
     loop_->setRealTimeFactor(params_.realTimeFactor);
   }
+  return true;
 }
 
 }  // namespace deformable_flsm

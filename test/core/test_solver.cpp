@@ -1,6 +1,7 @@
 #include "deformable_flsm/core/solver.h"
 
 #include "deformable_flsm/core/fast_summation.h"
+#include "deformable_flsm/core/fem_oracle.h"
 #include "deformable_flsm/core/mesh.h"
 #include "fixtures.h"
 
@@ -344,23 +345,34 @@ TEST(Solver, ForcesDeliverExactlyTheirImpulse) {
   EXPECT_THROW(s.grab("x", {100000}, Eigen::Vector3d::Zero(), 0.0), std::out_of_range);
 }
 
+// Pins hold, and the cantilever they hold sags as far as linear elasticity says: a stubby bar
+// (12 x 4 x 4 cells, two layers pinned, w = 2) of E = 1152 Pa settled under a light load against
+// the FEM oracle on the same voxels, supported at the pinned particles. 10 %: the material's
+// accuracy on this case is 4 % (bench_material, "stubby"); E off by 2x is 2x off.
 TEST(Solver, PinnedParticlesHoldTheCantileverUnderGravity) {
+  const double E = 1152.0, g = 0.0123, h = 0.01;
   SolverParams p;
+  p.youngsModulus = E;
+  p.gravity = Eigen::Vector3d(0, 0, -g);
+  p.ambientDamping = 2.0 * deformable_flsm::analytic::cantileverFirstBendingFrequency(0.1, 0.04, E, p.density);
   Solver s(bar(), p);
   const std::size_t pinned = s.pinBox(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(0.016, 1, 1), true);
   EXPECT_EQ(pinned, 2u * 16u);
   EXPECT_EQ(s.pinnedCount(), pinned);
   for (int i = 0; i < 240; ++i) s.step();
   const auto& x0 = s.lattice().restPositions();
-  double tipSag = 0.0;
-  for (std::size_t i = 0; i < x0.size(); ++i) {
-    if (s.isPinned(static_cast<std::uint32_t>(i))) {
-      EXPECT_EQ(s.positions()[i], x0[i]);
+  for (std::size_t i = 0; i < x0.size(); ++i)
+    if (s.isPinned(static_cast<std::uint32_t>(i))) EXPECT_EQ(s.positions()[i], x0[i]);
+  deformable_flsm::FemOracle fem(makeBox(12, 4, 4, h), deformable_flsm::FemMaterial{E, 0.0, p.density}, 2);
+  fem.fixNodesInBox(Eigen::Vector3d::Constant(-1), Eigen::Vector3d(0.015 + 1e-9, 1, 1));
+  const deformable_flsm::FemSolution u = fem.solveStatic(p.gravity);
+  double sag = 0.0, oracle = 0.0;
+  for (std::size_t i = 0; i < x0.size(); ++i)
+    if (x0[i].x() > 0.11) {
+      sag += x0[i].z() - s.positions()[i].z();
+      oracle -= u.cellDisplacements[i].z();
     }
-    if (x0[i].x() > 0.11) tipSag = std::max(tipSag, x0[i].z() - s.positions()[i].z());
-  }
-  EXPECT_GT(tipSag, 1e-4) << "gravity should bend the free end down";
-  EXPECT_LT(tipSag, 0.12) << "the bar should not fall off its pins";
+  EXPECT_NEAR(sag / oracle, 1.0, 0.10) << "tip sag " << sag / 16 << " m, oracle " << oracle / 16 << " m";
   s.reset();
   EXPECT_EQ(s.pinnedCount(), pinned);
   EXPECT_EQ(s.maxDisplacement(), 0.0);
@@ -532,48 +544,6 @@ TEST(Solver, BandsAgreeWithNaiveAndAcrossThreads) {
   EXPECT_GT(fast.maxDisplacement(), 0.01 * size) << "the drag should have bent the plate";
 }
 
-namespace {
-
-/// A cantilever L x L/2 x L/2 (L = 1 m) at `resolution` cells along L, clamped over its first
-/// quarter, in physical mode (E = 20 kPa, region radius 0.25 m) under a 0.2 m/s^2 load: the mean
-/// sag of its last quarter after 40 s (m).
-double cantileverSag(int resolution, double subStep) {
-  const double h = 1.0 / resolution;
-  const auto vox = deformable_flsm::test::makeBox(resolution, resolution / 2, resolution / 2, h);
-  SolverParams p;
-  p.youngsModulus = 2e4;
-  p.regionHalfWidth = deformable_flsm::regionHalfWidthForRadius(0.25, h);
-  p.gravity = Eigen::Vector3d(0.0, 0.0, -0.2);
-  p.timeStep = subStep;
-  p.substeps = 1;
-  auto lattice = std::make_shared<const Lattice>(vox, p.density, p.regionHalfWidth);
-  Solver s(lattice, p);
-  s.pinBox(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d(0.25, 1.0, 1.0), true);
-  for (int i = 0, n = static_cast<int>(std::lround(40.0 / subStep)); i < n; ++i) s.step();
-  double sag = 0.0;
-  int count = 0;
-  for (std::size_t i = 0; i < lattice->size(); ++i)
-    if (lattice->restPositions()[i].x() > 0.75) {
-      sag += lattice->restPositions()[i].z() - s.positions()[i].z();
-      ++count;
-    }
-  return sag / count;
-}
-
-}  // namespace
-
-// Issue 6: the same Young's modulus and region radius give the same material at every lattice
-// resolution and time step (bench_material prints the full table; 10% is the requirement).
-TEST(PhysicalMaterial, CantileverSagIndependentOfResolutionAndTimeStep) {
-  const double coarse = cantileverSag(8, 1.0 / 120);
-  const double fine = cantileverSag(16, 1.0 / 120);
-  const double longStep = cantileverSag(8, 1.0 / 60);
-  const double shortStep = cantileverSag(8, 1.0 / 480);
-  EXPECT_GT(coarse, 0.005) << "the bar should sag visibly";
-  EXPECT_NEAR(fine / coarse, 1.0, 0.10);
-  EXPECT_NEAR(longStep / shortStep, 1.0, 0.10);
-}
-
 TEST(PhysicalMaterial, RegionWeightsAreOneInsideAndRestoreClippedRegions) {
   SolverParams p = weightless();
   p.youngsModulus = 1e3;
@@ -581,7 +551,7 @@ TEST(PhysicalMaterial, RegionWeightsAreOneInsideAndRestoreClippedRegions) {
   const auto& L = s.lattice();
   // interior region: full (2w+1)^3 cube, beta = 1 exactly (to round-off of the moment sums)
   EXPECT_NEAR(s.regionWeights()[L.particleAt(Eigen::Vector3i(4, 4, 4))], 1.0, 1e-9);
-  // corner region: clipped to 3^3 cells, its second moment is smaller: beta > 1
+  // corner region: clipped to 3^3 cells, smaller along every axis, the largest too: beta > 1
   EXPECT_GT(s.regionWeights()[L.particleAt(Eigen::Vector3i(0, 0, 0))], 1.2);
   // classic mode keeps FastLSM's uniform regions
   Solver classic(std::make_shared<const Lattice>(makeBox(9, 9, 9, 0.01), 1000.0, 2), weightless());
@@ -630,7 +600,8 @@ TEST(Solver, ThreadsGiveIdenticalResults) {
 // A lattice tall in z, so that every thread gets several blocks of slices, some processed before
 // the threads meet and some after; pins, a hard drag, a spring drag, a force and an impulse all
 // act, and the chunk boundaries move between steps (SliceStreamSummer balances busy times). Every
-// position and velocity must be bit-identical to one thread's.
+// position and velocity must be bit-identical to one thread's, whichever steps the threaded
+// solver's governor gave to one thread (it tries one thread after 8 steps whatever the machine).
 TEST(Solver, ThreadsGiveIdenticalResultsOnATallLattice) {
   for (int w : {1, 2, 3}) {
     for (int threads : {2, 3}) {
@@ -658,6 +629,10 @@ TEST(Solver, ThreadsGiveIdenticalResultsOnATallLattice) {
         ASSERT_EQ(one.velocities()[i], many.velocities()[i]) << "w " << w << ", threads " << threads;
       }
       EXPECT_GT(one.maxDisplacement(), 0.01);  // the object did move
+      ASSERT_NE(many.threadGovernor(), nullptr);
+      EXPECT_GT(many.threadGovernor()->singleSteps(), 0u);
+      EXPECT_GT(many.threadGovernor()->threadedSteps(), 0u);
+      EXPECT_EQ(one.threadGovernor(), nullptr);
     }
   }
 }

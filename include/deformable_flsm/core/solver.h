@@ -7,10 +7,12 @@
 #include "deformable_flsm/core/fast_summation.h"
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/solver_params.h"
+#include "deformable_flsm/core/thread_governor.h"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -70,9 +72,16 @@ class Solver : private RegionKernel {
   /// time. @throws std::invalid_argument if invalid, or if regionHalfWidth or density change
   /// (they define the lattice: build a new Solver).
   void setParams(const SolverParams& params);
+  /// With params.threads > 1 (fast solver), which steps ran on the threads and which on one
+  /// thread: each step times itself and a ThreadGovernor picks the faster (results are
+  /// identical either way); nullptr with one thread.
+  const ThreadGovernor* threadGovernor() const { return singleSummer_ ? &governor_ : nullptr; }
 
-  /// alpha used per sub-step: params().requestedAlpha(spacing), capped so that no particle's
-  /// alpha s_i exceeds params().stiffness (s_i = 1 in classic mode, see computeRegionWeights()).
+  /// alpha used per sub-step: params().requestedAlpha(spacing), capped. Classic mode: the cap is
+  /// params().stiffness. Physical mode: the cap follows the stability of the sub-step, symplectic
+  /// Euler on the linearised dynamics, (omega h)^2 < 4: alpha (s_i + Lambda_i) <= 4 * 1/2 *
+  /// params().stiffness for every particle, s_i the region weight factor and Lambda_i the Poisson
+  /// term's bound (see computeRegionWeights()); the stiffest mode then has (omega h)^2 <= 2.
   double alpha() const { return alpha_; }
   /// true when youngsModulus asks for more than the cap: the material is softer than asked,
   /// by the factor alpha() / params().requestedAlpha(); more sub-steps fix it.
@@ -227,11 +236,17 @@ class Solver : private RegionKernel {
   /// contactBodies_ and the reduction buffers after a change of colliders_.
   void rebuildContactBodies();
   void computeRegionWeights();
+  /// summer_ (and singleSummer_) for params_.kind and threads_.
+  void makeSummers();
   void reserveForcedParticles();
 
   std::shared_ptr<const Lattice> lattice_;
   SolverParams params_;
   std::unique_ptr<RegionSummer> summer_;
+  /// With threads_ > 1: the same sums on one thread, for the steps the governor gives to it.
+  std::unique_ptr<RegionSummer> singleSummer_;
+  RegionSummer* activeSummer_ = nullptr;  // the summer of the step being run
+  ThreadGovernor governor_;
 
   std::vector<Eigen::Vector3d> x_, v_;
   std::vector<Eigen::Vector3d>* goalsOut_ = nullptr;  // where computeGoals() wants the goals
@@ -278,6 +293,7 @@ class Solver : private RegionKernel {
   std::vector<ContactBody> contactBodies_;
   std::vector<int> activeBodies_;               // bodies near the object in this sub-step
   std::vector<ContactPartial> contactPartials_;  // chunk-major, #chunks x #bodies
+  std::vector<int> chunkBodies_;                // per chunk, the active bodies near it (#chunks x #bodies)
   double contactTime_ = 0.0;                    // time since the start of the step (s)
   std::vector<TimedForce> forces_;
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
@@ -291,8 +307,25 @@ class Solver : private RegionKernel {
     double pull = 0.0;       // alpha / h
     double keep = 1.0;       // ambient damping factor per sub-step
     bool forced = false;     // some particle has a force or spring acceleration (forceAccel_)
+    bool ambient = false;    // ambient damping is on
   } step_;
+  /// The object's rigid motion at the start of the sub-step, v_obj(x) = rigidVelocity_ +
+  /// rigidSpin_ x (x - xref_) (zero when pinned), what ambient damping leaves alone.
+  Eigen::Vector3d rigidVelocity_ = Eigen::Vector3d::Zero(), rigidSpin_ = Eigen::Vector3d::Zero();
+  std::size_t pinnedCount_ = 0;
+  void computeRigidMotion();
   std::vector<double> regionWeight_;     // beta_r
+  bool volumetric_ = false;  // physical mode with nu > 0: the Poisson term is on
+  /// The Poisson term on the lattice stencil of each particle (see computeVolumetricForces())
+  struct VolumetricStencil {
+    std::uint32_t plus[3], minus[3];  // the particles whose difference is column a of F_i
+    double invDistance[3];            // 1 / their rest distance along a; 0 where there is none
+    double weight;                    // lambda_eff V_i (N m)
+  };
+  std::vector<VolumetricStencil> stencil_;
+  std::vector<std::array<Eigen::Vector3d, 3>> stencilForce_;  // G_ia = lambda V e_i F_ia / d_ia
+  std::vector<Eigen::Vector3d> volumetricAccel_;
+  void computeVolumetricForces();
   std::vector<double> invWeightSum_;     // 1 / sum_{r contains i} beta_r
   std::vector<double> stiffnessFactor_;  // s_i = sum_{r contains i} beta_r / n_i
   int threads_ = 1;

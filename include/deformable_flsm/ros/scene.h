@@ -27,6 +27,9 @@ struct SceneInfo {
   int voxelizations = 0;
   double voxelizeSeconds = 0.0;
   int regionHalfWidth = 0;
+  /// cells ~region_radius asked for when that was more than the solver allows and
+  /// regionHalfWidth was clamped to kMaxRegionHalfWidth; 0 when not clamped
+  int regionAskedCells = 0;
   double objectSize = 0.0;  ///< m, diagonal of the rest bounding box of the lattice
   double totalMass = 0.0;   ///< kg
   std::size_t loadedTriangles = 0, renderTriangles = 0, renderVertices = 0;
@@ -64,7 +67,8 @@ struct Scene {
 /// @param[in] mesh    the loaded mesh (m, oriented), already validated
 /// @param[in] measureSteps  solver steps timed at start-up (0 skips the measurement)
 /// @throws ParamError with a message naming the parameter to change (lattice too fine for
-///         ~max_particles, region radius out of range, ...).
+///         ~max_particles, ...). A region radius beyond the solver's limit is clamped, not
+///         refused (SceneInfo::regionAskedCells, regionClampWarning()).
 Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps = 10);
 
 /// A few lines for the start-up log: the lattice, the regions, the material, the cost.
@@ -72,5 +76,9 @@ std::string describeScene(const SceneInfo& info, const NodeParams& params);
 
 /// Warning text when the time step is too long for the asked Young's modulus, else "".
 std::string saturationWarning(const SceneInfo& info, const NodeParams& params);
+
+/// Warning text when ~region_radius was more cells than the solver allows on this lattice and
+/// the regions were clamped to the largest that fit, else "".
+std::string regionClampWarning(const SceneInfo& info, const NodeParams& params);
 
 }  // namespace deformable_flsm

@@ -45,8 +45,10 @@ namespace deformable_flsm {
 ///
 /// Threads: the simulation thread (SimulationLoop) steps the solver; the main thread (ros::spin)
 /// runs the publish timer, dynamic_reconfigure and the RViz feedback; a second spinner thread
-/// with its own queue serves ~drag, ~force and the services, so that a tf wait or a service
-/// waiting for the simulation never delays publishing.
+/// with its own queue serves ~drag and ~force, and a third the services, so that a service
+/// waiting for the simulation never delays publishing nor another client's commands. Commands
+/// never wait for tf: a frame tf does not know now is refused at once (see lookupTransform), so
+/// that a client commanding in a frame nobody publishes cannot starve the others.
 ///
 /// The node owns and wires the parts: StatePublisher (what goes out each tick), InteractiveDrag
 /// (the RViz mouse), Reconfigure (dynamic_reconfigure), ProblemReporter (the log); the commands'
@@ -73,11 +75,14 @@ class SimulatorNode {
   bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool onReleaseAll(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool onPinBox(PinBox::Request& req, PinBox::Response& res);
-  void onReconfigure(const FlsmConfig& config);
+  /// false (counted as invalid_params) when the change is refused: nothing changes.
+  bool onReconfigure(const FlsmConfig& config);
   /// Sends a command to the simulation thread; waits for its outcome when `wait`.
   CommandOutcome send(CommandBody body, bool wait);
   void rejected(const Rejection& why);
-  /// Starts the tf listener on first use (see kFirstTransformTimeout).
+  /// The transform at `stamp` if tf has it, else the latest one, else false: it never waits,
+  /// except once, when the first command in a foreign frame starts the tf listener (see
+  /// kFirstTransformTimeout).
   bool lookupTransform(const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
                        std::string& why);
   /// Starts the tf listener if it is not running; true when this call started it.
@@ -90,6 +95,8 @@ class SimulatorNode {
   ros::NodeHandle nh_, pnh_;
   ros::NodeHandle commandNh_;  ///< private namespace, served by commandSpinner_
   ros::CallbackQueue commandQueue_;
+  ros::NodeHandle serviceNh_;  ///< private namespace, served by serviceSpinner_
+  ros::CallbackQueue serviceQueue_;
   NodeParams params_;
   SceneInfo info_;
   std::shared_ptr<const Lattice> lattice_;
@@ -109,7 +116,7 @@ class SimulatorNode {
   ros::Subscriber dragSub_, forceSub_;
   ros::ServiceServer resetSrv_, releaseAllSrv_, pinBoxSrv_;
   ros::Timer publishTimer_;
-  std::unique_ptr<ros::AsyncSpinner> commandSpinner_;
+  std::unique_ptr<ros::AsyncSpinner> commandSpinner_, serviceSpinner_;
   std::unique_ptr<Reconfigure> reconfigure_;
   std::unique_ptr<InteractiveDrag> mouse_;
 };
