@@ -42,7 +42,10 @@ class StatePublisher {
   void publishTf(const Snapshot& s, const ros::Time& stamp);
   /// ~state: the loop's diagnostics and the command counts.
   void publishState(const Snapshot& s, const ros::Time& stamp);
-  /// ~mesh, ~surface, ~particles, ~lattice, to those that are due (LazyTopic::due()). Nothing
+  /// ~mesh, ~surface, ~particles, ~lattice, to those that are due (LazyTopic::due()): at rest
+  /// the clouds (~surface, ~particles) keep the rate with the cached message and a new stamp;
+  /// the markers (~mesh, ~lattice) go out once, then to new subscribers only, unless
+  /// ~republish_at_rest. Nothing
   /// non-finite goes out: a non-finite embedded mesh skips ~mesh and ~surface (logged).
   void publishHeavy(const Snapshot& s, const ros::Time& stamp);
 
@@ -59,6 +62,7 @@ class StatePublisher {
 
   std::vector<Eigen::Vector3d> vertices_;  ///< embedded render vertices
   std::uint64_t verticesSequence_ = 0;
+  bool verticesFinite_ = true;  ///< checked once per deform, not per resend at rest
   visualization_msgs::Marker marker_;
   sensor_msgs::PointCloud2 surfaceCloud_, particleCloud_;
   visualization_msgs::MarkerArray latticeMarkerArray_;
