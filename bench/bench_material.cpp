@@ -136,7 +136,7 @@ int main(int argc, char** argv) {
   // of cells at every resolution listed.
   const Bar slender{"slender bar 1 x 0.25 x 0.25 m, region radius 0.125 m", 4, 0.125};
   const Bar thick{"thick bar 1 x 0.5 x 0.5 m, region radius 0.25 m", 2, 0.25};
-  if (argc > 1 && std::strcmp(argv[1], "--resolutions") == 0) {  // the issue-6 table alone
+  if (argc > 1 && std::strcmp(argv[1], "--resolutions") == 0) {  // the resolution table alone
     for (const Bar* bar : {&slender, &thick})
       table(*bar, "physical: E and region radius, across resolutions at 1/240 s", true, {8, 12, 16, 24, 32}, {1.0 / 240});
     return 0;

@@ -1,4 +1,4 @@
-// Speed against accuracy (issue 5): runs the study's scenarios headless with FastLSM, naive LSM,
+// Speed against accuracy: runs the study's scenarios headless with FastLSM, naive LSM,
 // an explicit mass-spring lattice and (when built with Bullet) Bullet's soft body, and writes
 //   <out>/calibration.csv  the baselines' stiffness, matched to FastLSM's cantilever
 //   <out>/accuracy.csv     one row per run: error against the method's reference, Euler-Bernoulli
@@ -10,7 +10,7 @@
 //
 // --quick runs a small grid (coarse resolutions, few sub-steps) to check the pipeline; --repeats
 // (default 3) repeats every run that took under 2 s and reports the median time.
-// Definitions of every figure: README.md, section "Speed against accuracy".
+// Definitions of every figure: docs/study.md.
 
 #include "deformable_flsm/core/lattice.h"
 #include "study/mass_spring.h"

@@ -252,7 +252,7 @@ void Solver::step() {
 void Solver::regionPass(bool withDamping) {
   passDamping_ = withDamping;
   // Any point of the object keeps the sums O(object size) and gives the same goals up to
-  // round-off: the anchor costs nothing, where the centre of mass was a sweep per sub-step.
+  // round-off: the anchor costs nothing, where the centre of mass would be a sweep per sub-step.
   xref_ = x_[anchor_];
   summer_->apply(*this);
 }

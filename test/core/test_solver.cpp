@@ -15,7 +15,7 @@
 #include <utility>
 
 // Counts every allocation of this test binary, so that a test can assert that a solver step
-// makes none (issue 7: no allocation inside a step).
+// makes none (no allocation inside a step).
 namespace {
 std::atomic<long> gAllocations{0};
 }  // namespace
@@ -423,7 +423,7 @@ double cantileverSag(int resolution, double subStep) {
 
 }  // namespace
 
-// Issue 6: the same Young's modulus and region radius give the same material at every lattice
+// The same Young's modulus and region radius give the same material at every lattice
 // resolution and time step (bench_material prints the full table; 10% is the requirement).
 TEST(PhysicalMaterial, CantileverSagIndependentOfResolutionAndTimeStep) {
   const double coarse = cantileverSag(8, 1.0 / 120);

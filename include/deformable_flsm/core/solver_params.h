@@ -13,8 +13,8 @@ namespace deformable_flsm {
 enum class SolverKind {
   /// FastLSM separable summation: cost per particle independent of the region half-width w
   Fast,
-  /// Direct summation over each region's members, O(w^3) per particle (the seed's "SLSM");
-  /// kept as the oracle the fast solver is tested against
+  /// Direct summation over each region's members, O(w^3) per particle (plain lattice
+  /// shape matching); kept as the oracle the fast solver is tested against
   Naive,
 };
 
@@ -69,7 +69,7 @@ struct SolverParams {
   /// Threads a step uses (OpenMP); 0 for every hardware thread. Results do not depend on it:
   /// threads take whole blocks of z-slices, at whose starts every sliding window restarts, so
   /// each sum is the same sequence of additions (see SliceStreamSummer). Pays only on idle cores: with
-  /// another job on the second core, two threads were 1.3-1.7x slower than one.
+  /// another job on the second core, two threads are 1.3-1.7x slower than one (bench_solver).
   int threads = 1;
 
   /// Radius (m) of the sphere each particle is for contact with colliders; 0 means half the
