@@ -151,6 +151,9 @@ inline std::shared_ptr<const Lattice> buildLattice(const StudyObject& object, in
 enum class Scenario {
   /// the bar, clamped at x < L/20, sags under gravity (-z) to rest
   Cantilever,
+  /// the same bar and clamp, loaded along its axis towards the clamp (a column standing on
+  /// its clamped base): compression, to rest
+  Column,
   /// the bunny's base is pinned, its ear dragged by 30% of the object size, held, released
   EarDrag,
   /// as EarDrag, but 5 object sizes far and fast
@@ -164,6 +167,7 @@ enum class Scenario {
 inline const char* toString(Scenario s) {
   switch (s) {
     case Scenario::Cantilever: return "cantilever";
+    case Scenario::Column: return "column";
     case Scenario::EarDrag: return "ear-drag";
     case Scenario::DragFar: return "drag-5x";
     case Scenario::Plane: return "plane";
@@ -203,15 +207,23 @@ constexpr double kBlowUpSizes = 100.0;
 /// A stress run has recovered when its rest-shape error is below this fraction of the size.
 constexpr double kRecoveredTolerance = 0.01;
 
-/// Body load of a scenario: only the cantilever has weight (kBarLoad); the others are
-/// weightless so that the rest shape is what they must return to.
+/// Body load of the column (m/s^2, along -x, towards the clamp): the top of a free column of
+/// height H shortens by rho g H^2 / (2 E) (nu = 0), about 0.9% of L for this bar.
+constexpr double kColumnLoad = 1.0;
+
+/// Body load of a scenario: only the cantilever (kBarLoad, across the bar) and the column
+/// (kColumnLoad, along it) have weight; the others are weightless so that the rest shape is
+/// what they must return to.
 inline Eigen::Vector3d scenarioGravity(Scenario s) {
-  return s == Scenario::Cantilever ? Eigen::Vector3d(0.0, 0.0, -kBarLoad) : Eigen::Vector3d::Zero();
+  if (s == Scenario::Cantilever) return Eigen::Vector3d(0.0, 0.0, -kBarLoad);
+  if (s == Scenario::Column) return Eigen::Vector3d(-kColumnLoad, 0.0, 0.0);
+  return Eigen::Vector3d::Zero();
 }
 
 inline double scenarioDuration(Scenario s) {
   switch (s) {
-    case Scenario::Cantilever: return kCantileverDuration;
+    case Scenario::Cantilever:
+    case Scenario::Column: return kCantileverDuration;
     case Scenario::EarDrag: return kEarDragEnd;
     case Scenario::DragFar: return kDragFarEnd;
     case Scenario::Plane:
@@ -230,7 +242,8 @@ inline Setting scenarioSetting(Scenario s, const StudyObject& object, int resolu
                                                                                               : kAccuracyFrameStep;
   st.youngsModulus = object.youngsModulus;
   st.regionRadius = object.regionRadius;
-  st.ambientDamping = s == Scenario::Cantilever ? kCantileverAmbientDamping : defaultAmbientDamping();
+  st.ambientDamping =
+      (s == Scenario::Cantilever || s == Scenario::Column) ? kCantileverAmbientDamping : defaultAmbientDamping();
   st.gravity = scenarioGravity(s);
   return st;
 }
@@ -329,7 +342,8 @@ inline RunRecord runScenario(Scenario scenario, const StudyObject& object, const
   Eigen::Vector3d earStart = Eigen::Vector3d::Zero();
   double dragDistance = 0.0, ramp = 0.0, holdUntil = 0.0;
   switch (scenario) {
-    case Scenario::Cantilever: {
+    case Scenario::Cantilever:
+    case Scenario::Column: {
       std::vector<std::uint32_t> clamp;
       const double cut = object.mesh.boundsMin().x() + kBarClampFraction * (object.mesh.boundsMax().x() - object.mesh.boundsMin().x());
       for (std::size_t i = 0; i < x0.size(); ++i)

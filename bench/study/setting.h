@@ -16,6 +16,9 @@ namespace study {
 
 /// Mass density of every study object (kg/m^3).
 constexpr double kStudyDensity = 1000.0;
+/// Poisson's ratio of every study material (FastLSM, the FEM oracle and Bullet's deformable body
+/// take it; the mass-spring lattice and the legacy soft body have no such parameter).
+constexpr double kStudyPoissonRatio = 0.3;
 /// The bunny file's units to metres in the study's programs (the ~2-unit bunny becomes ~30 cm).
 constexpr double kStudyBunnyScale = 0.1;
 
@@ -29,6 +32,8 @@ struct Setting {
   double frameStep = 1.0 / 60.0;
   /// Young's modulus of the object (Pa).
   double youngsModulus = 1e4;
+  /// Poisson's ratio of the object.
+  double poissonRatio = kStudyPoissonRatio;
   /// Reach of a shape-matching region (m), the same at every resolution.
   double regionRadius = 0.01;
   /// Rate (1/s) of drag towards rest in the world frame (SolverParams::ambientDamping); every
@@ -56,6 +61,7 @@ inline SolverParams flsmParams(const Setting& setting, double latticeSpacing, So
   p.kind = kind;
   p.density = kStudyDensity;
   p.youngsModulus = setting.youngsModulus;
+  p.poissonsRatio = setting.poissonRatio;
   p.stiffness = 1.0;
   p.regionHalfWidth = regionHalfWidthForRadius(setting.regionRadius, latticeSpacing);
   p.ambientDamping = setting.ambientDamping;

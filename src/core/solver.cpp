@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <numeric>
 #include <stdexcept>
@@ -33,6 +34,16 @@ constexpr double kMaxRegionWeight = 4.0;
 /// Inertia eigenvalues below this fraction of the largest are treated as zero (a collinear
 /// region cannot spin about its own line), so that omega = I^+ L stays finite and exact.
 constexpr double kInertiaRankTolerance = 1e-10;
+/// Symplectic Euler on u'' = -omega^2 u is stable for (omega h)^2 < 4.
+constexpr double kSymplecticEulerLimit = 4.0;
+/// Fraction of the stability limit the cap on alpha allows (physical mode): (omega h)^2 <= 2 for the
+/// stiffest mode of the linearised update. Half, for what the linearisation does not see (large
+/// rotations, drags, contact) and because the bound is on the linearised stiffness at rest.
+constexpr double kStabilityMargin = 0.5;
+/// Largest volumetric strain |e_i| the Poisson term acts on: the linear law is meant for small
+/// strain; beyond, its force stays bounded (a region crushed to a point or stretched tenfold is
+/// brought back by shape matching, as in classic FastLSM).
+constexpr double kMaxVolumetricStrain = 0.5;
 
 /// omega = I^+ L through the eigen-decomposition: the general case of solveInertia().
 [[gnu::noinline]] Eigen::Vector3d solveInertiaByEigen(const Eigen::Matrix3d& I, const Eigen::Vector3d& L) {
@@ -62,6 +73,16 @@ int resolveThreadCount(int requested) {
   return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
 }
 
+/// A rigid transform's rotation is orthonormal with determinant 1 up to round-off; looser than
+/// this is a scaled, sheared or mirrored frame, which a rigid body cannot have.
+constexpr double kRigidTolerance = 1e-6;
+
+bool isRigid(const Eigen::Isometry3d& T) {
+  const Eigen::Matrix3d R = T.linear();
+  return T.matrix().allFinite() && (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < kRigidTolerance &&
+         std::abs(R.determinant() - 1.0) < kRigidTolerance;
+}
+
 Eigen::Vector3d centroidOf(const std::vector<Eigen::Vector3d>& x,
                            const std::vector<std::uint32_t>& particles) {
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
@@ -82,10 +103,7 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
   const Lattice& L = *lattice_;
   const std::size_t n = L.size();
   threads_ = resolveThreadCount(params_.threads);
-  if (params_.kind == SolverKind::Fast)
-    summer_ = std::make_unique<SliceStreamSummer>(L, threads_);
-  else
-    summer_ = std::make_unique<NaiveSummer>(L);
+  makeSummers();
 
   const auto& x0 = L.restPositions();
   const auto& m = L.masses();
@@ -136,31 +154,83 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
 }
 
 // Region weights (physical mode only; classic FastLSM has beta_r = 1). Under a uniform strain eps
-// region r holds k/2 beta_r sum_{i in r} m~_i q_i^T eps^2 q_i, q_i = x0_i - c0_r. An interior region
-// has sum m~ |q|^2 = 3 m dx^2 sigma^2 with sigma^2 = w(w+1)/3 (the calibration behind
-// youngsModulus); a region clipped by the surface has less, which makes material near the surface
-// softer than inside, the more so the coarser the lattice. beta_r = m_r dx^2 w(w+1) / sum m~ |q|^2
-// gives every region the energy of the volume its centre cell stands for (m_r / rho).
+// region r holds k/2 beta_r sum_{i in r} m~_i q_i^T eps^2 q_i, q_i = x0_i - c0_r, i.e.
+// k/2 beta_r tr(eps P_r eps) with P_r = sum m~ q q^T the region's second moment. An interior region
+// has P_r = m dx^2 sigma^2 I, sigma^2 = w(w+1)/3 (the calibration behind youngsModulus); a region
+// clipped by the surface has less along the clipped axes, which makes material near the surface
+// softer than inside. beta_r = m_r dx^2 sigma^2 / p_max, p_max the largest eigenvalue of P_r,
+// restores the energy along the region's best-resolved axis (the length of a bar) and never
+// inflates a region for the axes the surface cuts short (a trace-based weight did: clipped across
+// a slender section it made the bar up to 1.6x too stiff in stretching). Capped at
+// kMaxRegionWeight for regions resolved along no axis (a lone particle).
 // The forces f_i = k m~_i sum_{r contains i} beta_r (T_r x0_i - x_i) still sum to zero, with zero
 // torque, over every region: momentum is conserved as in classic shape matching. Per particle
 // that is v += alpha s_i (g_i - x_i) / h with g_i the beta-weighted mean goal,
 // s_i = (sum_r beta_r) / n_i.
+//
+// Poisson's ratio: shape matching alone is a material with lambda = 0 (its mu is 2 mu = E / (1 + nu)
+// through requestedAlpha()). With nu > 0 computeVolumetricForces() adds lambda / 2 (tr eps)^2 per
+// cell on the lattice's own stencil (so that a bent section feels the volumetric strain varying
+// across it, which a region-wide fit would average away).
+//
+// The cap on alpha follows the stability of the sub-step. Linearised about rest, shape matching's
+// update is symplectic Euler on M u'' = -K u with (omega h)^2 <= alpha s_i for the modes a particle
+// takes part in (Gershgorin on M^-1 K h^2 = alpha (I - goal operator) scaled by s_i), and the
+// Poisson term adds (omega h)^2 <= alpha Lambda_i (its own Gershgorin row sum, see below).
+// Symplectic Euler is stable for omega h < 2: alpha (s_i + Lambda_i) < 4 for every particle.
+// kStabilityMargin keeps a factor from that edge for what linearisation does not see (large
+// rotations, contact, drags).
 void Solver::computeRegionWeights() {
   const Lattice& L = *lattice_;
   const std::size_t n = L.size();
   regionWeight_.assign(n, 1.0);
-  if (params_.youngsModulus > 0.0) {
+  const bool physical = params_.youngsModulus > 0.0;
+  volumetric_ = physical && params_.poissonsRatio > 0.0;
+  if (physical) {
     const auto& mt = L.regionMassFractions();
-    std::vector<double> second(n), secondSum;
-    for (std::size_t i = 0; i < n; ++i) second[i] = mt[i] * restCentered_[i].squaredNorm();
-    summer_->gather(second, 1, secondSum);
+    std::vector<double> second(6 * n), secondSum;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d& q = restCentered_[i];
+      double* d = &second[6 * i];
+      d[0] = mt[i] * q.x() * q.x();
+      d[1] = mt[i] * q.y() * q.y();
+      d[2] = mt[i] * q.z() * q.z();
+      d[3] = mt[i] * q.x() * q.y();
+      d[4] = mt[i] * q.x() * q.z();
+      d[5] = mt[i] * q.y() * q.z();
+    }
+    summer_->gather(second, 6, secondSum);
     const double w = params_.regionHalfWidth;
-    const double interior = L.spacing() * L.spacing() * w * (w + 1.0);
+    const double interior = L.spacing() * L.spacing() * w * (w + 1.0) / 3.0;
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
     for (std::size_t r = 0; r < n; ++r) {
-      const double Q = secondSum[r] - regionMass_[r] * regionRestCenter_[r].squaredNorm();
+      const double* S = &secondSum[6 * r];
+      const Eigen::Vector3d& c0 = regionRestCenter_[r];
+      const double M = regionMass_[r];
+      Eigen::Matrix3d P;
+      P << S[0], S[3], S[4], S[3], S[1], S[5], S[4], S[5], S[2];
+      P -= M * c0 * c0.transpose();
+      eig.computeDirect(P);
+      const double pmax = eig.eigenvalues().maxCoeff();
       const double target = L.masses()[r] * interior;
-      // Q <= 0 only for a region of one particle, which has no shape to keep.
-      if (Q > 1e-12 * target) regionWeight_[r] = std::min(kMaxRegionWeight, target / Q);
+      // pmax <= 0 only for a region of one particle, which has no shape to keep.
+      if (pmax > 1e-12 * target) regionWeight_[r] = std::min(kMaxRegionWeight, target / pmax);
+    }
+  }
+  if (volumetric_) {
+    stencil_.resize(n);
+    stencilForce_.resize(n);
+    volumetricAccel_.assign(n, Eigen::Vector3d::Zero());
+    for (std::size_t i = 0; i < n; ++i) {
+      VolumetricStencil& st = stencil_[i];
+      for (int a = 0; a < 3; ++a) {
+        const std::int32_t p = L.neighbor(i, a, true), m = L.neighbor(i, a, false);
+        const auto self = static_cast<std::uint32_t>(i);
+        st.plus[a] = p != Lattice::kNone ? static_cast<std::uint32_t>(p) : self;
+        st.minus[a] = m != Lattice::kNone ? static_cast<std::uint32_t>(m) : self;
+        const int span = (p != Lattice::kNone) + (m != Lattice::kNone);
+        st.invDistance[a] = span == 0 ? 0.0 : 1.0 / (span * L.spacing());
+      }
     }
   }
   std::vector<double> weightSum;
@@ -173,9 +243,74 @@ void Solver::computeRegionWeights() {
     stiffnessFactor_[i] = weightSum[i] * invCount_[i];
     maxFactor = std::max(maxFactor, stiffnessFactor_[i]);
   }
-  // alpha s_i <= stiffness for every particle
-  alphaCap_ = params_.stiffness / maxFactor;
-  alpha_ = std::min(alphaCap_, params_.requestedAlpha(L.spacing()));
+  const double requested = params_.requestedAlpha(L.spacing());
+  if (!physical) {
+    // classic FastLSM: alpha = stiffness, s_i = 1
+    alphaCap_ = params_.stiffness / maxFactor;
+    alpha_ = std::min(alphaCap_, requested);
+    return;
+  }
+  // Gershgorin row sums of the Poisson term's h^2 M^-1 K at rest, per unit alpha: with
+  // lambda_eff = lambda alpha / requested (the cap softens both terms alike, nu is kept),
+  // h^2 lambda_eff V_i' |dE/dx| sums to alpha Lambda_j, Lambda_j = lambda h^2 / (requested m_j)
+  // max_a sum_{i' : j in the stencil of i' along a} V_i' / d_i'a * sum_b 2 / d_i'b.
+  std::vector<double> lambdaRow(3 * n, 0.0);
+  if (volumetric_) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const VolumetricStencil& st = stencil_[i];
+      const double span = 2.0 * (st.invDistance[0] + st.invDistance[1] + st.invDistance[2]);
+      const double V = L.masses()[i] / params_.density;
+      for (int a = 0; a < 3; ++a) {
+        if (st.invDistance[a] == 0.0) continue;
+        lambdaRow[3 * st.plus[a] + a] += V * st.invDistance[a] * span;
+        lambdaRow[3 * st.minus[a] + a] += V * st.invDistance[a] * span;
+      }
+    }
+  }
+  const double h = params_.substepLength();
+  const double lambdaScale = params_.lameLambda() * h * h / requested;
+  double maxBound = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double row = std::max({lambdaRow[3 * i], lambdaRow[3 * i + 1], lambdaRow[3 * i + 2]});
+    maxBound = std::max(maxBound, stiffnessFactor_[i] + lambdaScale * row / L.masses()[i]);
+  }
+  // alpha (s_i + Lambda_i) <= stiffness * margin * 4 for every particle
+  alphaCap_ = params_.stiffness * kStabilityMargin * kSymplecticEulerLimit / maxBound;
+  alpha_ = std::min(alphaCap_, requested);
+  if (volumetric_) {
+    const double lambdaEff = params_.lameLambda() * alpha_ / requested;
+    for (std::size_t i = 0; i < n; ++i) stencil_[i].weight = lambdaEff * L.masses()[i] / params_.density;
+  }
+}
+
+// Poisson term on the lattice stencil: E_vol = sum_i lambda/2 V_i e_i^2 with e_i the trace of the
+// Green strain (F^T F - I) / 2 at particle i, F_i's column a the central (one-sided at the surface)
+// difference of the neighbours along a. Rotation invariant, so the forces conserve linear and
+// angular momentum exactly; f_j = -sum_{i,a} G_ia ([plus(i,a) = j] - [minus(i,a) = j]),
+// G_ia = lambda V_i e_i F_ia / d_ia.
+void Solver::computeVolumetricForces() {
+  const std::size_t n = x_.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const VolumetricStencil& st = stencil_[i];
+    Eigen::Vector3d F[3];
+    double e = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      F[a] = (x_[st.plus[a]] - x_[st.minus[a]]) * st.invDistance[a];
+      if (st.invDistance[a] > 0.0) e += 0.5 * (F[a].squaredNorm() - 1.0);
+    }
+    e = std::clamp(e, -kMaxVolumetricStrain, kMaxVolumetricStrain);
+    for (int a = 0; a < 3; ++a) stencilForce_[i][a] = (st.weight * e * st.invDistance[a]) * F[a];
+  }
+  std::fill(volumetricAccel_.begin(), volumetricAccel_.end(), Eigen::Vector3d::Zero());
+  for (std::size_t i = 0; i < n; ++i) {
+    const VolumetricStencil& st = stencil_[i];
+    for (int a = 0; a < 3; ++a) {
+      volumetricAccel_[st.plus[a]] -= stencilForce_[i][a];
+      volumetricAccel_[st.minus[a]] += stencilForce_[i][a];
+    }
+  }
+  const auto& m = lattice_->masses();
+  for (std::size_t i = 0; i < n; ++i) volumetricAccel_[i] /= m[i];
 }
 
 void Solver::setParams(const SolverParams& params) {
@@ -187,14 +322,12 @@ void Solver::setParams(const SolverParams& params) {
     throw std::invalid_argument("solver: density cannot change at run time (it defines the particle "
                                 "masses); restart with the new value");
   const int threads = resolveThreadCount(params.threads);
-  if (params.kind != params_.kind || threads != threads_) {
-    threads_ = threads;
-    if (params.kind == SolverKind::Fast)
-      summer_ = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
-    else
-      summer_ = std::make_unique<NaiveSummer>(*lattice_);
-  }
+  const bool rebuild = params.kind != params_.kind || threads != threads_;
   params_ = params;
+  if (rebuild) {
+    threads_ = threads;
+    makeSummers();
+  }
   computeRegionWeights();
 }
 
@@ -208,11 +341,13 @@ void Solver::reset() {
   std::fill(rotations_.begin(), rotations_.end(), Eigen::Quaterniond::Identity());
   pinPosition_ = x_;
   drags_.clear();
+  dragFrames_.clear();
   markHardDrags();
   forces_.clear();
   std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
   impulsePending_ = false;
   frameRotation_.setIdentity();
+  for (ContactBody& body : contactBodies_) body.wrench = ContactWrench();
   time_ = 0.0;
   substeps_ = 0;
 }
@@ -227,9 +362,73 @@ void Solver::setVelocities(const std::vector<Eigen::Vector3d>& v) {
   v_ = v;
 }
 
+void Solver::makeSummers() {
+  singleSummer_.reset();
+  governor_ = ThreadGovernor();
+  if (params_.kind == SolverKind::Fast) {
+    if (threads_ > 1) {
+      // Each used only when the governor says so, possibly first in the middle of a run: no
+      // allocation then.
+      const int Kg = kShapeChannels + kDampingChannels, Ks = kTransformChannels + kVelocityFieldChannels;
+      auto threaded = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
+      threaded->reserve(Kg, Ks);
+      summer_ = std::move(threaded);
+      auto single = std::make_unique<SliceStreamSummer>(*lattice_, 1);
+      single->reserve(Kg, Ks);
+      singleSummer_ = std::move(single);
+    } else {
+      summer_ = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
+    }
+  } else {
+    summer_ = std::make_unique<NaiveSummer>(*lattice_);
+  }
+  activeSummer_ = summer_.get();
+}
+
+Eigen::Vector3d Drag::centroidTarget() const {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& o : offsets) c += o;
+  if (!offsets.empty()) c /= static_cast<double>(offsets.size());
+  return pose * c;
+}
+
 void Solver::step() {
   const double h = params_.timeStep / params_.substeps;
-  for (int s = 0; s < params_.substeps; ++s) substep(h);
+  // With threads, each step runs on the threads or on one thread, whichever has been faster
+  // lately (ThreadGovernor): the same sums in the same order either way, so the results do not
+  // depend on the choice.
+  const bool timed = singleSummer_ != nullptr;
+  activeSummer_ = timed && !governor_.threaded() ? singleSummer_.get() : summer_.get();
+  const auto t0 = timed ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point();
+  beginContactStep();
+  for (int s = 0; s < params_.substeps; ++s) {
+    interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
+    substep(h);
+  }
+  endContactStep();
+  if (timed) {
+    governor_.record(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    activeSummer_ = summer_.get();
+  }
+  for (auto& entry : drags_) entry.second.reached = entry.second.pose;
+}
+
+// A drag frame moved by moveDrag() between two steps goes there over the sub-steps of the next
+// step: translation linearly and rotation along the shortest arc (slerp), i.e. at a constant
+// linear and angular velocity, the velocity a body moving from one pose to the next has.
+void Solver::interpolateDragFrames(double s) {
+  std::size_t k = 0;
+  for (const auto& entry : drags_) {
+    const Drag& drag = entry.second;
+    Eigen::Isometry3d& frame = dragFrames_[k++];
+    if (s >= 1.0) {
+      frame = drag.pose;
+      continue;
+    }
+    const Eigen::Quaterniond from(drag.reached.linear()), to(drag.pose.linear());
+    frame.linear() = from.slerp(s, to).toRotationMatrix();
+    frame.translation() = drag.reached.translation() + s * (drag.pose.translation() - drag.reached.translation());
+  }
 }
 
 // One pass over the regions computes the goal positions and, when damping is on, the damping
@@ -254,7 +453,7 @@ void Solver::regionPass(bool withDamping) {
   // Any point of the object keeps the sums O(object size) and gives the same goals up to
   // round-off: the anchor costs nothing, where the centre of mass would be a sweep per sub-step.
   xref_ = x_[anchor_];
-  summer_->apply(*this);
+  activeSummer_->apply(*this);
 }
 
 int Solver::gatherChannels() const { return passDamping_ ? kShapeChannels + kDampingChannels : kShapeChannels; }
@@ -383,11 +582,13 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
       (*goalsOut_)[i] = g;
       continue;
     }
-    // v <- (v + alpha s_i (g - x) / h + h (gravity + f / m) + kd (v_rigid - v)) keep;  x <- x + h v
+    // v <- v_obj + keep (v - v_obj) + alpha s_i (g - x) / h + h (gravity + f / m) + kd (v_rigid - v);
+    // x <- x + h v
     // (a pinned or hard-dragged particle is left to finishSubstep())
     if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
     Eigen::Vector3d a = params_.gravity;
     if (k.forced) a += forceAccel_[i];
+    if (volumetric_) a += volumetricAccel_[i];
     Eigen::Vector3d dv = k.pull * stiffnessFactor_[i] * (g - x_[i]) + k.h * a;
     if (passDamping_) {
       const Eigen::Vector3d p = x_[i] - xref_;
@@ -395,9 +596,47 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
           (Eigen::Vector3d(s[12], s[13], s[14]) + Eigen::Vector3d(s[15], s[16], s[17]).cross(p)) * invCount_[i];
       dv += k.kd * (target - v_[i]);
     }
-    v_[i] = (v_[i] + dv) * k.keep;
+    if (k.ambient) {
+      // ambient damping of the motion relative to the object's rigid motion (computeRigidMotion())
+      const Eigen::Vector3d rigid = rigidVelocity_ + rigidSpin_.cross(x_[i] - xref_);
+      v_[i] = rigid + k.keep * (v_[i] - rigid) + dv;
+    } else {
+      v_[i] += dv;
+    }
     x_[i] += k.h * v_[i];
   }
+}
+
+// Ambient damping is mass-proportional (Rayleigh) damping, C = c M, of the motion relative to the
+// object's own rigid motion: every vibration mode of angular frequency omega gets the damping
+// ratio c / (2 omega), and a falling, thrown or spinning object keeps its momentum (a vibration
+// mode of a free object has neither linear nor angular momentum, so its rigid part is zero).
+// The rigid motion keeps the object's linear and angular momentum: v_obj(x) = V + W x (x - xref),
+// V the centre-of-mass velocity moved to xref, W = I^+ L about the centre of mass. A pinned object
+// is held by the world: its rigid motion is the world's, zero (drag towards rest, as before).
+void Solver::computeRigidMotion() {
+  rigidVelocity_.setZero();
+  rigidSpin_.setZero();
+  if (pinnedCount_ > 0) return;
+  const auto& m = lattice_->masses();
+  xref_ = x_[anchor_];
+  double M = 0.0;
+  Eigen::Vector3d mx = Eigen::Vector3d::Zero(), mv = Eigen::Vector3d::Zero(), l = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d mxx = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < x_.size(); ++i) {
+    const Eigen::Vector3d p = x_[i] - xref_;
+    M += m[i];
+    mx += m[i] * p;
+    mv += m[i] * v_[i];
+    l += m[i] * p.cross(v_[i]);
+    mxx.noalias() += m[i] * p * p.transpose();
+  }
+  const Eigen::Vector3d c = mx / M, V = mv / M;
+  const Eigen::Vector3d L = l - c.cross(mv);                 // about the centre of mass
+  const Eigen::Matrix3d P = mxx - M * c * c.transpose();     // second moment about it
+  const Eigen::Matrix3d I = P.trace() * Eigen::Matrix3d::Identity() - P;
+  rigidSpin_ = solveInertia(I, L);
+  rigidVelocity_ = V - rigidSpin_.cross(c);
 }
 
 void Solver::accumulateForces(double h) {
@@ -415,8 +654,10 @@ void Solver::accumulateForces(double h) {
     for (std::uint32_t p : f.particles) forceAccel_[p] += a;
     forcedParticles_.insert(forcedParticles_.end(), f.particles.begin(), f.particles.end());
   }
+  std::size_t k = 0;
   for (const auto& entry : drags_) {
     const Drag& drag = entry.second;
+    const Eigen::Isometry3d& frame = dragFrames_[k++];
     if (drag.stiffness <= 0.0) continue;
     double M = 0.0;
     for (std::uint32_t p : drag.particles) M += m[p];
@@ -424,7 +665,7 @@ void Solver::accumulateForces(double h) {
     const double k = drag.stiffness / M;
     for (std::size_t e = 0; e < drag.particles.size(); ++e) {
       const std::uint32_t p = drag.particles[e];
-      forceAccel_[p] += k * (drag.target + drag.offsets[e] - x_[p]);
+      forceAccel_[p] += k * (frame * drag.offsets[e] - x_[p]);
     }
     forcedParticles_.insert(forcedParticles_.end(), drag.particles.begin(), drag.particles.end());
   }
@@ -432,8 +673,9 @@ void Solver::accumulateForces(double h) {
 
 // One sub-step of FastLSM dynamics (Rivers & James 2007, eq. 7):
 //   v <- v + alpha (g - x) / h + h f / m,   damping,   x <- x + h v.
-// Shape matching and region damping both act on the state at the start of the sub-step:
-//   v <- (v + alpha s_i (g - x) / h + h f / m + kd (v_rigid(v) - v)) keep
+// Shape matching and both dampings act on the state at the start of the sub-step:
+//   v <- v_obj + keep (v - v_obj) + alpha s_i (g - x) / h + h f / m + kd (v_rigid(v) - v)
+// with v_obj the object's rigid motion (zero when pinned, see computeRigidMotion()).
 // The update of each particle is the last step of the region pass (particleResult()), done as
 // soon as its goal is known: the state is read and written in one sweep over the lattice.
 void Solver::substep(double h) {
@@ -449,9 +691,13 @@ void Solver::substep(double h) {
   step_.kd = 1.0 - std::exp(-params_.damping * h);
   step_.pull = alpha_ / h;
   step_.keep = std::exp(-params_.ambientDamping * h);
+  step_.ambient = params_.ambientDamping > 0.0;
   step_.forced = !forcedParticles_.empty();
+  if (step_.ambient) computeRigidMotion();
+  if (volumetric_) computeVolumetricForces();
   regionPass(step_.kd > 0.0);
   step_.integrate = false;
+  contactPass(h);
   finishSubstep(h);
   for (TimedForce& f : forces_) f.remaining -= h;
   forces_.erase(std::remove_if(forces_.begin(), forces_.end(),
@@ -464,13 +710,15 @@ void Solver::substep(double h) {
 // The particles particleResult() leaves alone: hard-dragged ones follow their target (the
 // velocity that reaches it in one sub-step), pinned ones stay.
 void Solver::finishSubstep(double h) {
+  std::size_t k = 0;
   for (const auto& entry : drags_) {
     const Drag& drag = entry.second;
+    const Eigen::Isometry3d& frame = dragFrames_[k++];
     if (drag.stiffness > 0.0) continue;
     for (std::size_t e = 0; e < drag.particles.size(); ++e) {
       const std::uint32_t p = drag.particles[e];
       if (pinned_[p] != 0) continue;
-      v_[p] = (drag.target + drag.offsets[e] - x_[p]) / h;
+      v_[p] = (frame * drag.offsets[e] - x_[p]) / h;
       x_[p] += h * v_[p];
     }
   }
@@ -511,6 +759,7 @@ void Solver::setPinned(std::uint32_t particle, bool pinned) {
     pinPosition_[particle] = x_[particle];
     v_[particle].setZero();
   }
+  if (pinned != (pinned_[particle] != 0)) pinned ? ++pinnedCount_ : --pinnedCount_;
   pinned_[particle] = pinned ? 1 : 0;
   pinnedListStale_ = true;
 }
@@ -521,19 +770,41 @@ std::size_t Solver::pinnedCount() const {
 
 void Solver::grab(const std::string& id, const std::vector<std::uint32_t>& particles,
                   const Eigen::Vector3d& target, double stiffness) {
+  if (!target.allFinite()) throw std::invalid_argument("solver: drag target must be finite");
   if (particles.empty()) throw std::invalid_argument("solver: a drag needs at least one particle");
   for (std::uint32_t p : particles)
     if (p >= x_.size()) throw std::out_of_range("solver: particle index out of range");
-  if (!target.allFinite() || !std::isfinite(stiffness) || stiffness < 0.0)
-    throw std::invalid_argument("solver: drag target must be finite and stiffness >= 0");
+  // The drag frame sits at the centroid, unrotated: offsets are relative to the centroid, and
+  // the frame glides from there to `target` over the first step.
+  const Eigen::Isometry3d frame(Eigen::Translation3d(centroidOf(x_, particles)));
+  addDrag(id, particles, frame, Eigen::Isometry3d(Eigen::Translation3d(target)), stiffness);
+}
+
+void Solver::attach(const std::string& id, const std::vector<std::uint32_t>& particles,
+                    const Eigen::Isometry3d& frame, double stiffness) {
+  if (!isRigid(frame))
+    throw std::invalid_argument("solver: the frame to attach to must be finite and rigid (a rotation "
+                                "and a translation)");
+  addDrag(id, particles, frame, frame, stiffness);
+}
+
+void Solver::addDrag(const std::string& id, const std::vector<std::uint32_t>& particles,
+                     const Eigen::Isometry3d& frame, const Eigen::Isometry3d& pose, double stiffness) {
+  if (particles.empty()) throw std::invalid_argument("solver: a drag needs at least one particle");
+  for (std::uint32_t p : particles)
+    if (p >= x_.size()) throw std::out_of_range("solver: particle index out of range");
+  if (!std::isfinite(stiffness) || stiffness < 0.0)
+    throw std::invalid_argument("solver: drag stiffness must be finite and >= 0");
   Drag drag;
   drag.particles = particles;
-  const Eigen::Vector3d c = centroidOf(x_, particles);
+  const Eigen::Isometry3d toFrame = frame.inverse(Eigen::Isometry);
   drag.offsets.reserve(particles.size());
-  for (std::uint32_t p : particles) drag.offsets.push_back(x_[p] - c);
-  drag.target = target;
+  for (std::uint32_t p : particles) drag.offsets.push_back(toFrame * x_[p]);
+  drag.pose = pose;
+  drag.reached = frame;
   drag.stiffness = stiffness;
   drags_[id] = std::move(drag);
+  dragFrames_.resize(drags_.size());
   markHardDrags();
   reserveForcedParticles();
 }
@@ -547,22 +818,34 @@ void Solver::reserveForcedParticles() {
   forcedParticles_.reserve(total);
 }
 
+bool Solver::moveDrag(const std::string& id, const Eigen::Isometry3d& pose) {
+  auto it = drags_.find(id);
+  if (it == drags_.end()) return false;
+  if (!isRigid(pose))
+    throw std::invalid_argument("solver: a drag pose must be finite and rigid (a rotation and a "
+                                "translation)");
+  it->second.pose = pose;
+  return true;
+}
+
 bool Solver::moveDrag(const std::string& id, const Eigen::Vector3d& target) {
   auto it = drags_.find(id);
   if (it == drags_.end()) return false;
   if (!target.allFinite()) throw std::invalid_argument("solver: drag target must be finite");
-  it->second.target = target;
+  it->second.pose.translation() = target;
   return true;
 }
 
 bool Solver::release(const std::string& id) {
   const bool found = drags_.erase(id) > 0;
+  dragFrames_.resize(drags_.size());
   markHardDrags();
   return found;
 }
 
 void Solver::releaseAll() {
   drags_.clear();
+  dragFrames_.clear();
   markHardDrags();
 }
 

@@ -8,12 +8,12 @@ namespace deformable_flsm {
 
 namespace {
 
-/// Largest region half-width accepted: (2w+1)^3 = 9261 cells per region at w = 10, beyond any
-/// useful stiffness and a likely typo.
-constexpr int kMaxRegionHalfWidth = 10;
 /// Largest time step accepted (s); beyond it even a stiff lattice is a slideshow.
 constexpr double kMaxTimeStep = 0.1;
 constexpr int kMaxSubsteps = 1000;
+/// Largest Poisson's ratio accepted: lambda / mu = 2 nu / (1 - 2 nu) grows without bound towards
+/// 0.5, and with it the volumetric stiffness the sub-step must resolve (9 mu at 0.45).
+constexpr double kMaxPoissonsRatio = 0.45;
 /// More threads than any machine this runs on has cores; beyond it is a typo.
 constexpr int kMaxThreads = 256;
 
@@ -58,7 +58,8 @@ double SolverParams::requestedAlpha(double spacing) const {
   if (youngsModulus <= 0.0) return stiffness;
   const double h = substepLength();
   const double w = regionHalfWidth;
-  return 3.0 * youngsModulus * h * h / (density * spacing * spacing * w * (w + 1.0));
+  // shape matching carries the shear modulus: 2 mu = k rho dx^2 w (w + 1) / 3, k = alpha / h^2
+  return 3.0 * 2.0 * shearModulus() * h * h / (density * spacing * spacing * w * (w + 1.0));
 }
 
 void SolverParams::validate() const {
@@ -69,6 +70,12 @@ void SolverParams::validate() const {
     fail("stiffness", str(stiffness), "expected a fraction in (0, 1]");
   if (!std::isfinite(youngsModulus) || youngsModulus < 0.0)
     fail("youngs_modulus", str(youngsModulus), "expected a finite modulus >= 0 (Pa; 0 uses stiffness)");
+  if (!std::isfinite(poissonsRatio) || poissonsRatio < 0.0 || poissonsRatio > kMaxPoissonsRatio)
+    fail("poissons_ratio", str(poissonsRatio), "expected a ratio from 0 to " + str(kMaxPoissonsRatio));
+  if (youngsModulus <= 0.0 && poissonsRatio != 0.0)
+    fail("poissons_ratio", str(poissonsRatio),
+         "needs youngs_modulus > 0 (with youngs_modulus 0, alpha = stiffness is a bare shape-matching "
+         "fraction with no Poisson effect): set youngs_modulus or poissons_ratio 0");
   if (!std::isfinite(damping) || damping < 0.0)
     fail("damping", str(damping), "expected a finite rate >= 0 (1/s)");
   if (!std::isfinite(ambientDamping) || ambientDamping < 0.0)
@@ -86,6 +93,9 @@ void SolverParams::validate() const {
          "expected 0 (all hardware threads) or a count from 1 to " + std::to_string(kMaxThreads));
   if (!std::isfinite(density) || density <= 0.0)
     fail("density", str(density), "expected a finite density > 0 (kg/m^3)");
+  if (!std::isfinite(contactRadius) || contactRadius < 0.0)
+    fail("contact_radius", str(contactRadius),
+         "expected a finite radius >= 0 (m; 0 uses half the lattice spacing)");
 }
 
 }  // namespace deformable_flsm

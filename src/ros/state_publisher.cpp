@@ -1,5 +1,6 @@
 #include "deformable_flsm/ros/state_publisher.h"
 
+#include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/ros/mesh_messages.h"
 
 #include <geometry_msgs/TransformStamped.h>
@@ -51,7 +52,8 @@ void StatePublisher::publishTf(const Snapshot& s, const ros::Time& stamp) {
   tfBroadcaster_.sendTransform(t);
 }
 
-void StatePublisher::publishState(const Snapshot& s, const ros::Time& stamp) {
+void StatePublisher::publishState(const Snapshot& s, const ros::Time& stamp,
+                                  std::uint64_t colliderFrameMisses) {
   const LoopDiagnostics& d = s.diag;
   SimulationState& m = state_;
   m.header.stamp = stamp;
@@ -64,6 +66,7 @@ void StatePublisher::publishState(const Snapshot& s, const ros::Time& stamp) {
   m.max_displacement = d.maxDisplacement;
   m.max_speed = d.maxSpeed;
   m.shape_error = d.shapeError;
+  m.mass = lattice_.totalMass();
   m.particles = static_cast<std::uint32_t>(lattice_.size());
   m.pinned_particles = static_cast<std::uint32_t>(d.pinned);
   m.active_drags = static_cast<std::uint32_t>(d.drags);
@@ -84,6 +87,8 @@ void StatePublisher::publishState(const Snapshot& s, const ros::Time& stamp) {
     m.reject_counts.push_back(entry.second);
   }
   m.last_rejection = counts.lastRejection;
+  m.colliders = static_cast<std::uint32_t>(s.colliders.size());
+  m.collider_frame_misses = colliderFrameMisses;
   statePub_.publish(m);
 }
 
@@ -96,6 +101,8 @@ void StatePublisher::publishHeavy(const Snapshot& s, const ros::Time& stamp) {
   if ((meshDue && mesh_.stale(s)) || (surfaceDue && surface_.stale(s))) {
     if (verticesSequence_ != s.sequence) {
       embedding_.deform(s.positions, s.rotations, vertices_);
+      // The embedded surface may dip below a collider the particles rest on: not on screen.
+      projectOutOfColliders(vertices_, s.colliders, 0.0);
       verticesSequence_ = s.sequence;
       verticesFinite_ = allFinite(vertices_);
     }

@@ -73,6 +73,9 @@ class SliceStreamSummer : public RegionSummer {
   void gather(const double* in, int K, double* out) override;
   void scatter(const double* in, int K, double* out) override;
   void apply(RegionKernel& kernel) override;
+  /// Makes room for passes of up to Kg gathered and Ks scattered channels now, so that the
+  /// first apply() with them does not allocate (apply() otherwise grows on first use).
+  void reserve(int Kg, int Ks) { reserveSliceScratch(Kg, Ks); }
   /// Bands of rows apply() sweeps one after the other (1: whole slices).
   std::size_t bandCount() const { return bandY_.size() - 1; }
   /// Particles in the widest slice of a band's data rows (its rows and the halo): the largest

@@ -13,8 +13,8 @@ namespace deformable_flsm {
 enum class SolverKind {
   /// FastLSM separable summation: cost per particle independent of the region half-width w
   Fast,
-  /// Direct summation over each region's members, O(w^3) per particle (plain lattice
-  /// shape matching); kept as the oracle the fast solver is tested against
+  /// Direct summation over each region's members, O(w^3) per particle (the seed's "SLSM");
+  /// kept as the oracle the fast solver is tested against
   Naive,
 };
 
@@ -23,39 +23,62 @@ SolverKind parseSolverKind(const std::string& name);
 /// "fast" or "naive".
 const char* toString(SolverKind kind);
 
+/// Largest region half-width w (cells) the solver accepts: (2w+1)^3 = 9261 cells per region at
+/// w = 10, beyond any useful stiffness.
+constexpr int kMaxRegionHalfWidth = 10;
+
 /// Region half-width w (cells) for a region radius in metres: the nearest whole number of cells,
 /// at least 1, so that regions keep their physical size whatever the lattice spacing.
-/// @throws std::invalid_argument for a non-positive or non-finite radius or spacing
+/// @throws std::invalid_argument for a non-positive or non-finite radius or spacing, or a
+///         radius of more than kMaxRegionHalfWidth cells
 int regionHalfWidthForRadius(double radius, double spacing);
 
 struct SolverParams {
   /// Region half-width w in lattice cells: a region spans up to (2w+1)^3 cells. Larger is stiffer.
   int regionHalfWidth = 2;
   /// Fraction alpha in (0, 1] of the way to the goal positions taken per sub-step:
-  /// v += alpha (g - x) / h (Rivers & James 2007, eq. 7). Used as is when youngsModulus is 0;
-  /// otherwise it is the cap on the alpha that youngsModulus asks for (alpha > 1 overshoots).
+  /// v += alpha (g - x) / h (Rivers & James 2007, eq. 7). Used as is when youngsModulus is 0
+  /// (classic mode). In physical mode (youngsModulus > 0) it scales the cap on alpha, which
+  /// follows the stability of the sub-step (Solver::alpha()): 1 allows the full documented margin.
   /// alpha alone changes meaning with the time step and the lattice: prefer youngsModulus.
   double stiffness = 1.0;
   /// Young's modulus E (Pa) of the material; 0 to use `stiffness` as alpha directly.
   ///
-  /// Shape matching's impulses are the gradient of E_sm = k/2 sum_r sum_{i in r} m~_i |T_r x0_i - x_i|^2
-  /// with k = alpha / h^2 (h the sub-step). For a small uniform strain eps, an interior region
-  /// of (2w+1)^3 cells of spacing dx holds k/2 m dx^2 sigma^2 tr(eps^2), sigma^2 = w(w+1)/3, one
-  /// region per cell: the energy density of linear elasticity with shear modulus
-  /// mu = k rho dx^2 sigma^2 / 2 and lambda = 0, i.e. E = 2 mu = k rho dx^2 w(w+1)/3 and
-  /// Poisson's ratio 0. So alpha = 3 E h^2 / (rho dx^2 w(w+1)): the same E gives the same
+  /// Shape matching's impulses are the gradient of E_sm = k/2 sum_r beta_r sum_{i in r} m~_i
+  /// |T_r x0_i - x_i|^2 with k = alpha / h^2 (h the sub-step). For a small uniform strain eps, an
+  /// interior region of (2w+1)^3 cells of spacing dx holds k/2 m dx^2 sigma^2 tr(eps^2),
+  /// sigma^2 = w(w+1)/3, one region per cell: the energy density of linear elasticity with shear
+  /// modulus mu = k rho dx^2 sigma^2 / 2 and lambda = 0. So alpha = 6 mu h^2 / (rho dx^2 w(w+1))
+  /// with mu = E / (2 (1 + nu)), and poissonsRatio adds lambda: the same E and nu give the same
   /// material at every time step and lattice spacing, as long as alpha stays under its cap
   /// (Solver::stiffnessSaturated() tells when the step is too long for E).
+  ///
+  /// Accuracy against linear elasticity (FEM on the same voxels, bench_material): within 10 % for
+  /// bending, compression and stretching when the region radius w dx is at most half the
+  /// thinnest section; wider regions make bending stiffer (w = 3 on a section of 4 cells: 0.71
+  /// of the deflection). Choose w (or region_radius) from the thinnest feature of the object.
   double youngsModulus = 0.0;
+  /// Poisson's ratio nu of the material, in [0, 0.45] (physical mode only: with youngsModulus 0
+  /// it must stay 0). Shape matching penalises every non-rigid deformation alike, the energy of
+  /// a material with Lame parameters (mu, lambda = 0), i.e. nu = 0; nu > 0 takes
+  /// mu = E / (2 (1 + nu)) for shape matching and adds lambda / 2 (tr eps)^2 per cell,
+  /// lambda = E nu / ((1 + nu)(1 - 2 nu)), with tr eps the trace of the Green strain on the
+  /// lattice stencil of each particle (see Solver). Lateral strain in uniaxial stress is -nu eps
+  /// within 0.04; the volumetric stiffness needs shorter sub-steps as nu grows (lambda = 9 mu at
+  /// 0.45), see Solver::alpha(). 0 by default: classic shape matching's material.
+  double poissonsRatio = 0.0;
   /// Rate (1/s) at which each region's deviation from rigid motion is damped; 0 for none.
   /// Momentum-conserving: linear and angular momentum of every region are kept. Bending modes
   /// longer than a region look nearly rigid inside each region and are damped far more slowly
   /// than this rate, hence a default well above the wobble one wants to see.
   double damping = 10.0;
-  /// Rate (1/s) of drag towards rest in the world frame, as by a surrounding medium (air):
-  /// v <- v exp(-ambientDamping h). It settles the long, slow modes (a cantilever's first bending
-  /// mode looks rigid inside every region, so region damping hardly reaches it); it does not
-  /// conserve momentum (the medium takes it). 0 for none.
+  /// Ambient damping c (1/s): mass-proportional Rayleigh damping, C = c M, of the motion relative
+  /// to the object's own rigid motion (its best rigid fit keeping linear and angular momentum).
+  /// Every vibration mode of angular frequency omega gets the damping ratio zeta = c / (2 omega):
+  /// for a damping ratio zeta of the first mode, c = 2 zeta omega_1. It settles the long, slow
+  /// modes (a cantilever's first bending mode looks rigid inside every region, so region damping
+  /// hardly reaches it); a falling, thrown or spinning object keeps its momentum. A pinned object
+  /// is held by the world, so its motion is damped relative to rest. 0 for none.
   double ambientDamping = 0.5;
   /// Gravitational acceleration (m/s^2).
   Eigen::Vector3d gravity = Eigen::Vector3d(0.0, 0.0, -9.81);
@@ -68,8 +91,10 @@ struct SolverParams {
   SolverKind kind = SolverKind::Fast;
   /// Threads a step uses (OpenMP); 0 for every hardware thread. Results do not depend on it:
   /// threads take whole blocks of z-slices, at whose starts every sliding window restarts, so
-  /// each sum is the same sequence of additions (see SliceStreamSummer). Pays only on idle cores: with
-  /// another job on the second core, two threads are 1.3-1.7x slower than one (bench_solver).
+  /// each sum is the same sequence of additions (see SliceStreamSummer). Threads pay only on idle
+  /// cores (with another job on the second core two threads took 2 to 9 times one thread's
+  /// time), so with more than one the solver times its steps and runs each on the threads or on
+  /// one thread, whichever has been faster lately (ThreadGovernor, Solver::threadGovernor()).
   int threads = 1;
 
   /// Radius (m) of the sphere each particle is for contact with colliders; 0 means half the
@@ -84,6 +109,12 @@ struct SolverParams {
   /// The alpha that youngsModulus asks for on a lattice of the given spacing (m), before the cap;
   /// `stiffness` when youngsModulus is 0.
   double requestedAlpha(double spacing) const;
+  /// Shear modulus mu = E / (2 (1 + nu)) (Pa); 0 in classic mode.
+  double shearModulus() const { return youngsModulus / (2.0 * (1.0 + poissonsRatio)); }
+  /// Lame's first parameter lambda = E nu / ((1 + nu)(1 - 2 nu)) (Pa); 0 in classic mode.
+  double lameLambda() const {
+    return youngsModulus * poissonsRatio / ((1.0 + poissonsRatio) * (1.0 - 2.0 * poissonsRatio));
+  }
 };
 
 }  // namespace deformable_flsm

@@ -1,0 +1,154 @@
+#include "deformable_flsm/core/fem_oracle.h"
+
+#include "fixtures.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+
+using deformable_flsm::FemMaterial;
+using deformable_flsm::FemOracle;
+using deformable_flsm::FemSolution;
+using deformable_flsm::Voxelization;
+using deformable_flsm::test::makeBox;
+namespace analytic = deformable_flsm::analytic;
+
+namespace {
+
+constexpr double kBig = 1e3;  // a box bound beyond every test object (m)
+
+/// A box of nx x ny x nz cells of edge h whose lower corner is at `origin`.
+Voxelization box(int nx, int ny, int nz, double h, const Eigen::Vector3d& origin = Eigen::Vector3d::Zero()) {
+  Voxelization v = makeBox(nx, ny, nz, h);
+  v.origin = origin;
+  return v;
+}
+
+/// The node nearest to `p` (m).
+std::size_t nodeAt(const FemOracle& fem, const Eigen::Vector3d& p) {
+  std::size_t best = 0;
+  for (std::size_t n = 1; n < fem.nodePositions().size(); ++n)
+    if ((fem.nodePositions()[n] - p).squaredNorm() < (fem.nodePositions()[best] - p).squaredNorm()) best = n;
+  return best;
+}
+
+/// Cantilever of free length 1 m and square section t = 0.1 m with `across` cells across,
+/// clamped over two cells behind x = 0, under gravity: FEM tip deflection at the section's
+/// centre line (m).
+double cantileverTip(int across, int subdivision, double nu) {
+  const double t = 0.1, h = t / across;
+  const int along = static_cast<int>(std::lround(1.0 / h));
+  FemOracle fem(box(along + 2, across, across, h, Eigen::Vector3d(-2 * h, 0, 0)), FemMaterial{1e6, nu, 1000.0},
+                subdivision);
+  fem.clampCellsInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(0.0, kBig, kBig));
+  const FemSolution u = fem.solveStatic(Eigen::Vector3d(0, 0, -9.81));
+  return -u.nodeDisplacements[nodeAt(fem, Eigen::Vector3d(1.0, t / 2, t / 2))].z();
+}
+
+}  // namespace
+
+// A linear displacement field is exact for trilinear elements (the patch test): a bar stretched
+// by 1 % with symmetry planes x = 0, y = 0, z = 0 and free sides contracts by nu eps, everywhere
+// to round-off, and the cell centres carry the same field.
+TEST(FemOracle, UniaxialStretchIsExactWithLateralStrainMinusNuEps) {
+  const double eps = 0.01, L = 0.4;
+  for (double nu : {0.0, 0.25, 0.45}) {
+    FemOracle fem(box(4, 2, 3, 0.1), FemMaterial{2e5, nu, 1000.0});
+    fem.prescribeInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(1e-9, kBig, kBig), 0, 0.0);
+    fem.prescribeInBox(Eigen::Vector3d(L - 1e-9, -kBig, -kBig), Eigen::Vector3d::Constant(kBig), 0, eps * L);
+    fem.prescribeInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(kBig, 1e-9, kBig), 1, 0.0);
+    fem.prescribeInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(kBig, kBig, 1e-9), 2, 0.0);
+    const FemSolution u = fem.solveStatic(Eigen::Vector3d::Zero());
+    const double lateral = analytic::uniaxialLateralStrain(eps, nu);
+    for (std::size_t n = 0; n < fem.nodePositions().size(); ++n) {
+      const Eigen::Vector3d& x = fem.nodePositions()[n];
+      const Eigen::Vector3d exact(eps * x.x(), lateral * x.y(), lateral * x.z());
+      ASSERT_LT((u.nodeDisplacements[n] - exact).norm(), 1e-12) << "nu " << nu << " node " << n;
+    }
+    const Voxelization v = box(4, 2, 3, 0.1);
+    for (std::size_t c = 0; c < v.cells.size(); ++c) {
+      const Eigen::Vector3d x = v.cellCenter(v.cells[c]);
+      ASSERT_LT((u.cellDisplacements[c] - Eigen::Vector3d(eps * x.x(), lateral * x.y(), lateral * x.z())).norm(), 1e-12);
+    }
+    // energy of uniaxial stress: E eps^2 / 2 per volume
+    EXPECT_NEAR(u.strainEnergy, 0.5 * 2e5 * eps * eps * (0.4 * 0.2 * 0.3), 1e-9 * u.strainEnergy);
+  }
+}
+
+// A column standing on a frictionless base under its own weight, nu = 0: one-dimensional, and
+// linear elements are exact at the nodes in one dimension, so the top moves by rho g H^2 / 2E to
+// round-off at every refinement.
+TEST(FemOracle, ColumnUnderOwnWeightMatchesAnalyticTopDisplacement) {
+  const double H = 1.0, E = 5e4, rho = 800.0, g = 9.81;
+  for (int s : {1, 2}) {
+    FemOracle fem(box(2, 2, 10, 0.1), FemMaterial{E, 0.0, rho}, s);
+    fem.prescribeInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(kBig, kBig, 1e-9), 2, 0.0);
+    fem.prescribeInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(1e-9, kBig, kBig), 0, 0.0);
+    fem.prescribeInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(kBig, 1e-9, kBig), 1, 0.0);
+    const FemSolution u = fem.solveStatic(Eigen::Vector3d(0, 0, -g));
+    const double top = -u.nodeDisplacements[nodeAt(fem, Eigen::Vector3d(0.1, 0.1, H))].z();
+    EXPECT_NEAR(top, analytic::columnSelfWeightTop(H, E, rho, g), 1e-9 * top) << "subdivision " << s;
+    // and half-way up: rho g (H z - z^2 / 2) / E
+    const double mid = -u.nodeDisplacements[nodeAt(fem, Eigen::Vector3d(0.2, 0.2, 0.5))].z();
+    EXPECT_NEAR(mid, rho * g * (H * 0.5 - 0.125) / E, 1e-9 * mid);
+  }
+}
+
+// Trilinear elements are stiff in bending (parasitic shear), by an error that falls with the
+// square of the element size across the section: the tip deflection under self weight must rise
+// towards Euler-Bernoulli + Timoshenko's shear term with every refinement, and be within 3 %
+// of it with 8 elements across (L/t = 10, where the clamp's own 3D effects are ~1 %).
+TEST(FemOracle, CantileverConvergesToEulerBernoulliWithShear) {
+  for (double nu : {0.0, 0.3}) {
+    const double exact = analytic::cantileverSelfWeightTip(1.0, 0.1, 0.1, 1e6, nu, 1000.0, 9.81);
+    const double two = cantileverTip(2, 1, nu), four = cantileverTip(2, 2, nu), eight = cantileverTip(4, 2, nu);
+    EXPECT_LT(two, four) << "nu " << nu;
+    EXPECT_LT(four, eight) << "nu " << nu;
+    EXPECT_LT(eight, 1.01 * exact) << "nu " << nu;
+    EXPECT_NEAR(eight / exact, 1.0, 0.03) << "nu " << nu << ": 2 / 4 / 8 across give " << two / exact << " / "
+                                          << four / exact << " / " << eight / exact << " of the analytic tip";
+    // the error falls about as the square of the element size: 4x from 2 to 4 elements across,
+    // allow down to 2.5x
+    EXPECT_GT((exact - two) / (exact - four), 2.5) << "nu " << nu;
+  }
+}
+
+// The first bending frequency of a clamped bar (lumped mass, inverse iteration) tends to the
+// Euler-Bernoulli value; rotary inertia and shear lower it by ~1 % at L/t = 10.
+TEST(FemOracle, CantileverFirstFrequencyConvergesToEulerBernoulli) {
+  const double t = 0.1, E = 1e6, rho = 1000.0;
+  const double exact = analytic::cantileverFirstBendingFrequency(1.0, t, E, rho);
+  double previous = 0.0;
+  for (int s : {1, 2, 4}) {
+    FemOracle fem(box(22, 2, 2, 0.05, Eigen::Vector3d(-0.1, 0, 0)), FemMaterial{E, 0.0, rho}, s);
+    fem.clampCellsInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(0.0, kBig, kBig));
+    const double omega = fem.lowestAngularFrequency();
+    if (previous > 0.0) EXPECT_LT(omega, previous) << "refinement must soften the locking elements";
+    previous = omega;
+  }
+  EXPECT_NEAR(previous / exact, 1.0, 0.03);
+}
+
+TEST(FemOracle, ClampedCellsAreTheCellsPinBoxPins) {
+  FemOracle fem(box(6, 2, 2, 0.1), FemMaterial{1e5, 0.2, 1000.0}, 3);
+  EXPECT_EQ(fem.elementCount(), 24u * 27u);
+  EXPECT_EQ(fem.clampCellsInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(0.16, kBig, kBig)), 8u);
+  const FemSolution u = fem.solveStatic(Eigen::Vector3d(0, 0, -9.81));
+  for (std::size_t n = 0; n < fem.nodePositions().size(); ++n)
+    if (fem.nodePositions()[n].x() <= 0.2 + 1e-12) ASSERT_EQ(u.nodeDisplacements[n], Eigen::Vector3d::Zero());
+  EXPECT_GT(-u.cellDisplacements.back().z(), 0.0);
+}
+
+TEST(FemOracle, RefusesBadInputWithAMessage) {
+  EXPECT_THROW(FemOracle(box(2, 2, 2, 0.1), FemMaterial{1e5, 0.5, 1000.0}), std::invalid_argument);
+  EXPECT_THROW(FemOracle(box(2, 2, 2, 0.1), FemMaterial{-1.0, 0.3, 1000.0}), std::invalid_argument);
+  EXPECT_THROW(FemOracle(box(2, 2, 2, 0.1), FemMaterial{1e5, 0.3, 1000.0}, 0), std::invalid_argument);
+  FemOracle free(box(2, 2, 2, 0.1), FemMaterial{1e5, 0.3, 1000.0});
+  try {
+    free.solveStatic(Eigen::Vector3d(0, 0, -9.81));
+    FAIL() << "an unconstrained object has no static solution";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("rigid motion"), std::string::npos) << e.what();
+  }
+}
