@@ -16,7 +16,7 @@
 #include <utility>
 
 // Counts every allocation of this test binary, so that a test can assert that a solver step
-// makes none (issue 7: no allocation inside a step).
+// makes none (no allocation inside a step).
 namespace {
 std::atomic<long> gAllocations{0};
 }  // namespace
