@@ -451,7 +451,7 @@ void Solver::interpolateDragFrames(double s) {
 void Solver::regionPass(bool withDamping) {
   passDamping_ = withDamping;
   // Any point of the object keeps the sums O(object size) and gives the same goals up to
-  // round-off: the anchor costs nothing, where the centre of mass was a sweep per sub-step.
+  // round-off: the anchor costs nothing, where the centre of mass would be a sweep per sub-step.
   xref_ = x_[anchor_];
   activeSummer_->apply(*this);
 }

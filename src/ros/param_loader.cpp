@@ -225,6 +225,7 @@ NodeParams ParamLoader::loadNodeParams() const {
   SolverParams& s = p.solver;
   s.stiffness = getDouble("stiffness", s.stiffness);
   p.youngsModulus = getDouble("youngs_modulus", p.youngsModulus);
+  p.poissonsRatio = getDouble("poissons_ratio", p.poissonsRatio);
   const std::string material = getString("material", toString(p.material));
   if (!parseMaterial(material, p.material)) {
     throw ParamError("~material is '" + material + "': it must be 'youngs' (the stiffness from "
@@ -264,10 +265,10 @@ std::vector<std::string> ParamLoader::unknownParams() const {
   static const char* const kKnown[] = {
       "mesh", "mesh_scale", "mesh_rpy", "frame_id", "object_frame_id", "spacing", "resolution",
       "particle_budget", "max_particles", "region_radius", "region_half_width", "stiffness",
-      "youngs_modulus", "material", "damping", "ambient_damping", "gravity", "time_step", "substeps",
-      "density", "solver", "publish_rate", "republish_at_rest", "real_time_factor", "pinned",
-      "render_triangle_budget", "threads", "gravity_x", "gravity_y", "gravity_z", "ground",
-      "ground_clearance", "colliders", "contact_radius"};
+      "youngs_modulus", "poissons_ratio", "material", "damping", "ambient_damping", "gravity",
+      "time_step", "substeps", "density", "solver", "publish_rate", "republish_at_rest",
+      "real_time_factor", "pinned", "render_triangle_budget", "threads", "gravity_x", "gravity_y",
+      "gravity_z", "ground", "ground_clearance", "colliders", "contact_radius"};
   std::vector<std::string> all, unknown;
   ros::param::getParamNames(all);
   const std::string prefix = pnh_.getNamespace() + "/";

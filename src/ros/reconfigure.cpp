@@ -26,6 +26,7 @@ FlsmConfig Reconfigure::configFrom(const NodeParams& params) {
   FlsmConfig config;
   config.material = toString(params.material);
   config.youngs_modulus = params.youngsModulus;
+  config.poissons_ratio = params.poissonsRatio;
   config.stiffness = params.solver.stiffness;
   config.damping = params.solver.damping;
   config.ambient_damping = params.solver.ambientDamping;
@@ -40,6 +41,7 @@ FlsmConfig Reconfigure::configFrom(const NodeParams& params) {
 bool Reconfigure::apply(const FlsmConfig& config, NodeParams& params) {
   if (!parseMaterial(config.material, params.material)) return false;
   params.youngsModulus = config.youngs_modulus;
+  params.poissonsRatio = config.poissons_ratio;
   SolverParams& s = params.solver;
   s.stiffness = config.stiffness;
   s.damping = config.damping;

@@ -284,6 +284,7 @@ bool SimulatorNode::onReconfigure(const FlsmConfig& config) {
   }
   params_.material = changed.material;
   params_.youngsModulus = changed.youngsModulus;
+  params_.poissonsRatio = changed.poissonsRatio;
   params_.solver = p;
   send(ParamsCommand{p}, false);
   if (config.publish_rate != params_.publishRate) {

@@ -16,7 +16,7 @@
 #include <utility>
 
 // Counts every allocation of this test binary, so that a test can assert that a solver step
-// makes none (issue 7: no allocation inside a step).
+// makes none (no allocation inside a step).
 namespace {
 std::atomic<long> gAllocations{0};
 }  // namespace
@@ -366,8 +366,11 @@ TEST(Solver, PinnedParticlesHoldTheCantileverUnderGravity) {
   EXPECT_EQ(s.pinnedCount(), pinned);
   for (int i = 0; i < 240; ++i) s.step();
   const auto& x0 = s.lattice().restPositions();
-  for (std::size_t i = 0; i < x0.size(); ++i)
-    if (s.isPinned(static_cast<std::uint32_t>(i))) EXPECT_EQ(s.positions()[i], x0[i]);
+  for (std::size_t i = 0; i < x0.size(); ++i) {
+    if (s.isPinned(static_cast<std::uint32_t>(i))) {
+      EXPECT_EQ(s.positions()[i], x0[i]);
+    }
+  }
   deformable_flsm::FemOracle fem(makeBox(12, 4, 4, h), deformable_flsm::FemMaterial{E, 0.0, p.density}, 2);
   fem.fixNodesInBox(Eigen::Vector3d::Constant(-1), Eigen::Vector3d(0.015 + 1e-9, 1, 1));
   const deformable_flsm::FemSolution u = fem.solveStatic(p.gravity);

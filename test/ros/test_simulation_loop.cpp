@@ -39,8 +39,9 @@ SolverParams weightless() {
   SolverParams p;
   p.gravity.setZero();
   p.regionHalfWidth = 1;
-  // A free box keeps the momentum a drag gives it; strong air drag lets the rest tests finish
-  // in a second or two (these tests are about the loop, not about damping).
+  // Strong ambient damping lets the rest tests finish in a second or two (these tests are about
+  // the loop, not about damping); a free box keeps the momentum a drag gives it (see
+  // Rig::holdByFarCorner()).
   p.ambientDamping = 5.0;
   return p;
 }
@@ -54,6 +55,10 @@ struct Rig {
     stats = std::make_shared<CommandStats>();
     loop = std::make_unique<SimulationLoop>(std::move(s), settings, stats);
   }
+  /// Pins the particle farthest from particle 0 (before start()): ambient damping acts on the
+  /// motion relative to a free object's rigid motion, so a free box would keep the momentum a drag
+  /// or a kick gives it and never rest; held by the world, it comes to rest.
+  void holdByFarCorner() { solver->setPinned(static_cast<std::uint32_t>(solver->lattice().size() - 1), true); }
   /// Submits and waits for the outcome (the loop must be running).
   CommandOutcome run(CommandBody body) {
     Command c{std::move(body), std::make_shared<std::promise<CommandOutcome>>()};
@@ -100,6 +105,7 @@ TEST(SimulationLoop, FirstSnapshotIsTheRestState) {
 
 TEST(SimulationLoop, HardGrabHoldsTheParticleAtTheTargetAndReleaseReturnsToRest) {
   Rig rig(quickIdle());
+  rig.holdByFarCorner();
   rig.loop->start();
   const Eigen::Vector3d target = rig.loop->lattice().restPositions()[0] + Eigen::Vector3d(-0.01, 0, 0);
   GrabCommand g;
@@ -114,7 +120,7 @@ TEST(SimulationLoop, HardGrabHoldsTheParticleAtTheTargetAndReleaseReturnsToRest)
     return s.diag.steps > 2 && s.drags.size() == 1 && (s.positions[0] - target).norm() < 1e-9;
   }));
   EXPECT_TRUE(rig.run(ReleaseCommand{"a"}).accepted);
-  // Back to the rest shape (it may have drifted as a whole: the drag gave it momentum).
+  // Back to the rest shape.
   EXPECT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.idle; }, 20.0));
   EXPECT_LT(rig.loop->acquire().diag.shapeError, 1e-3 * rig.loop->lattice().objectSize());
 }
@@ -299,6 +305,7 @@ TEST(SimulationLoop, FullQueueRejectsAndAnswers) {
 
 TEST(SimulationLoop, RestsWhenStillAndWakesOnACommand) {
   Rig rig(quickIdle());
+  rig.holdByFarCorner();
   rig.loop->start();
   ASSERT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.idle; }, 5.0));
   const std::uint64_t steps = rig.loop->acquire().diag.steps;

@@ -80,17 +80,22 @@ struct NodeParams {
   /// ~youngs_modulus (Pa): the material with Material::Youngs; a firm jelly by default. The
   /// solver receives it in solver.youngsModulus (0 there under Material::Classic).
   double youngsModulus = 14000.0;
+  /// ~poissons_ratio: Poisson's ratio with Material::Youngs, [0, 0.45]; solver.poissonsRatio
+  /// (0 there under Material::Classic, which has no Poisson effect).
+  double poissonsRatio = 0.0;
   /// ~stiffness, ~damping, ~ambient_damping, ~gravity, ~time_step, ~substeps, ~density,
-  /// ~solver, ~threads, ~contact_radius; youngsModulus from ~material and ~youngs_modulus (see
-  /// applyMaterial()); regionHalfWidth is set by resolveRegionHalfWidth()
+  /// ~solver, ~threads, ~contact_radius; youngsModulus and poissonsRatio from ~material,
+  /// ~youngs_modulus and ~poissons_ratio (see applyMaterial()); regionHalfWidth is set by
+  /// resolveRegionHalfWidth()
   SolverParams solver;
 
   // --- running and publishing -------------------------------------------------------------
   /// ~publish_rate: rate of every published topic and of tf (Hz, (0, kMaxPublishRate])
   double publishRate = 30.0;
-  /// ~republish_at_rest: at rest, keep sending ~mesh, ~surface, ~particles and ~lattice at
-  /// ~publish_rate (copies of the last state) instead of once; for consumers that expect a
-  /// steady stream (rate monitors, bag recording). Costs ~7 % of a core for the bunny's 5 MB mesh.
+  /// ~republish_at_rest: at rest, keep sending the markers ~mesh and ~lattice at ~publish_rate
+  /// (copies of the last state) instead of once; for consumers that expect a steady stream
+  /// (rate monitors, bag recording). Costs ~7 % of a core for the bunny's 5 MB mesh. The
+  /// clouds ~surface, ~particles, ~state and tf keep the rate at rest in any case.
   bool republishAtRest = false;
   /// ~real_time_factor: simulated seconds per wall-clock second ((0, kMaxRealTimeFactor])
   double realTimeFactor = 1.0;
@@ -113,7 +118,10 @@ struct NodeParams {
   void validate() const;
   /// solver.youngsModulus from material and youngsModulus: the modulus, or 0 (alpha =
   /// stiffness) under Material::Classic.
-  void applyMaterial() { solver.youngsModulus = material == Material::Youngs ? youngsModulus : 0.0; }
+  void applyMaterial() {
+    solver.youngsModulus = material == Material::Youngs ? youngsModulus : 0.0;
+    solver.poissonsRatio = material == Material::Youngs ? poissonsRatio : 0.0;
+  }
 
   /// Region half-width w for a lattice of the given spacing: from regionRadius (rounded to
   /// whole cells), from regionHalfWidth, or 2. A radius of more cells than the solver accepts
