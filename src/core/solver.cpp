@@ -168,8 +168,8 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
 // that is v += alpha s_i (g_i - x_i) / h with g_i the beta-weighted mean goal,
 // s_i = (sum_r beta_r) / n_i.
 //
-// Poisson's ratio: shape matching alone is a material with lambda = 0 (its mu is 2 mu = E / (1 + nu)
-// through requestedAlpha()). With nu > 0 computeVolumetricForces() adds lambda / 2 (tr eps)^2 per
+// Poisson's ratio: shape matching alone is a material with lambda = 0; it carries the shear
+// modulus (2 mu = E / (1 + nu), through requestedAlpha()). With nu > 0 computeVolumetricForces() adds lambda / 2 (tr eps)^2 per
 // cell on the lattice's own stencil (so that a bent section feels the volumetric strain varying
 // across it, which a region-wide fit would average away).
 //
