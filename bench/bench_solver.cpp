@@ -13,8 +13,9 @@
 // spell). Threads pay only on idle cores: a sub-step's region pass ends when every thread's chunk
 // is done, and a worker that another process has descheduled holds it up for a time slice (the
 // chunk boundaries follow a slower thread, and the blocks near them go to whichever thread is
-// free first; a descheduled one they cannot help). Run it on a quiet machine; SolverParams::threads
-// defaults to 1 for that reason.
+// free first; a descheduled one they cannot help), which is why a threaded solver times its steps
+// and runs them on one thread while that is faster (ThreadGovernor). The last table repeats the
+// threads' figures with a busy loop of the benchmark's own in another process.
 //
 //   bench_solver [--mesh PATH] [--particles N] [--steps N] [--repeats N] [--max-naive-w W]
 
@@ -31,7 +32,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <csignal>
 #include <malloc.h>
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <memory>
 #include <string>
 #include <thread>
@@ -123,6 +128,38 @@ double ratioMedian(const Timed& a, const Timed& b) {
   std::vector<double> r;
   for (std::size_t i = 0; i < a.samples.size() && i < b.samples.size(); ++i) r.push_back(a.samples[i] / b.samples[i]);
   return median(r);
+}
+
+/// Another process spinning on a core while it lives: the machine as a busy neighbour leaves it.
+class BusyLoop {
+ public:
+  BusyLoop() : pid_(fork()) {
+    if (pid_ == 0) {
+      volatile unsigned long spin = 0;
+      for (;;) spin = spin + 1;
+    }
+    // Let the scheduler place it before the measurement.
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ~BusyLoop() {
+    if (pid_ > 0) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+  }
+  BusyLoop(const BusyLoop&) = delete;
+  BusyLoop& operator=(const BusyLoop&) = delete;
+
+ private:
+  pid_t pid_;
+};
+
+/// The share of a solver's steps that its governor ran on the threads (1 without one).
+double threadedShare(const Solver& s) {
+  const ThreadGovernor* g = s.threadGovernor();
+  if (!g) return 1.0;
+  const double n = double(g->threadedSteps() + g->singleSteps());
+  return n > 0.0 ? double(g->threadedSteps()) / n : 1.0;
 }
 
 }  // namespace
@@ -242,23 +279,34 @@ int main(int argc, char** argv) {
                   median(t.samples), ratioMedian(t, *boxes[0]), SliceStreamSummer(*t.lattice).bandCount());
     }
   }
-  // Threads: every hardware thread against one, at the benchmark's size and at 50k particles.
+  // Threads: every hardware thread against one, at the benchmark's size and at 50k particles,
+  // on the machine as it is (quiet, one hopes) and with a busy loop of our own in another
+  // process (one core taken), in the same rounds. The threaded solvers choose per step between
+  // their threads and one thread (ThreadGovernor); the busy entries keep their own solvers, so
+  // that each governor sees one condition, as a long-running node would.
   const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
   std::printf("\nfast, w=2: %u threads against 1 (same results required; speed-up: median of the ratios within a\n"
               "round; fastest: the fastest run of one thread against the fastest of all, what the threads give\n"
               "when the machine leaves both cores alone; machine: %u independent one-thread solvers, each of 1/%u\n"
               "of the particles, stepped at once against one after the other in the same rounds: what this\n"
               "machine's cores give just then to the same work when nothing waits for anything; of machine:\n"
-              "the median of the speed-up / machine ratios within a round)\n%10s %14s %14s %9s %9s %9s %10s %22s\n",
+              "the median of the speed-up / machine ratios within a round; threaded: the share of the steps\n"
+              "the governor ran on the threads)\n%10s %14s %14s %9s %9s %9s %10s %9s %22s\n",
               hw, hw, hw, "particles", "1: ns/p-step", "all: ns/p-step", "speed-up", "fastest", "machine", "of machine",
-              "max position difference");
+              "threaded", "max position difference");
+  struct BusyRow {
+    std::size_t particles;
+    double one, all, cost, threaded, diff, msThreads, msOne;
+  };
+  std::vector<BusyRow> busyRows;
   for (std::size_t target : {args.particles, std::size_t{50000}}) {
     const Voxelization v = target == args.particles ? vox : voxelizeNear(mesh, target);
     auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
     SolverParams p;
     p.substeps = 1;
-    const int steps = std::max(5, static_cast<int>(1e8 / (400.0 * double(lat->size()))));
-    Timed one(lat, p, steps);
+    // At least 20 steps a run: the governor's probes are a few steps in a hundred.
+    const int steps = std::max(20, static_cast<int>(1e8 / (400.0 * double(lat->size()))));
+    Timed one(lat, p, steps), oneBusy(lat, p, steps);
     // The machine's ceiling: hw independent one-thread solvers of 1/hw of the particles each (the
     // same state and work in all as the one lattice), one after the other, then at once.
     const Voxelization part = voxelizeNear(mesh, lat->size() / hw);
@@ -266,7 +314,7 @@ int main(int argc, char** argv) {
     std::vector<std::unique_ptr<Timed>> apart;
     for (unsigned k = 0; k < hw; ++k) apart.push_back(std::make_unique<Timed>(partLattice, p, steps));
     p.threads = static_cast<int>(hw);
-    Timed all(lat, p, steps);
+    Timed all(lat, p, steps), allBusy(lat, p, steps);
     std::vector<double> machine, ofMachine;
     for (int r = 0; r < 3 * args.repeats; ++r) {
       one.run();
@@ -281,13 +329,33 @@ int main(int argc, char** argv) {
       const auto t2 = std::chrono::steady_clock::now();
       machine.push_back(std::chrono::duration<double>(t1 - t0).count() / std::chrono::duration<double>(t2 - t1).count());
       ofMachine.push_back(one.samples.back() / all.samples.back() / machine.back());
+      {
+        const BusyLoop busy;
+        oneBusy.run();
+        allBusy.run();
+      }
     }
     double diff = 0.0;
     for (std::size_t i = 0; i < lat->size(); ++i)
       diff = std::max(diff, (one.solver->positions()[i] - all.solver->positions()[i]).norm());
-    std::printf("%10zu %14.1f %14.1f %8.2fx %8.2fx %8.2fx %9.0f%% %22.3g\n", lat->size(), median(one.samples),
+    std::printf("%10zu %14.1f %14.1f %8.2fx %8.2fx %8.2fx %9.0f%% %8.0f%% %22.3g\n", lat->size(), median(one.samples),
                 median(all.samples), ratioMedian(one, all), fastest(one.samples) / fastest(all.samples),
-                median(machine), 100.0 * median(ofMachine), diff);
+                median(machine), 100.0 * median(ofMachine), 100.0 * threadedShare(*all.solver), diff);
+    double busyDiff = 0.0;
+    for (std::size_t i = 0; i < lat->size(); ++i)
+      busyDiff = std::max(busyDiff, (oneBusy.solver->positions()[i] - allBusy.solver->positions()[i]).norm());
+    const ThreadGovernor* g = allBusy.solver->threadGovernor();
+    busyRows.push_back({lat->size(), median(oneBusy.samples), median(allBusy.samples), ratioMedian(allBusy, oneBusy),
+                        threadedShare(*allBusy.solver), busyDiff, g ? 1e3 * g->recentSeconds(true) : 0.0,
+                        g ? 1e3 * g->recentSeconds(false) : 0.0});
   }
+  std::printf("\nthe same with another process spinning on one core (started before and stopped after each\n"
+              "entry's run, in the same rounds as above; cost: median of the all / 1 time ratios within a round;\n"
+              "governor: the threaded solver's recent median step on the threads and on one thread)\n"
+              "%10s %14s %14s %9s %9s %22s %22s\n",
+              "particles", "1: ns/p-step", "all: ns/p-step", "cost", "threaded", "governor: threads/one", "max position difference");
+  for (const BusyRow& b : busyRows)
+    std::printf("%10zu %14.1f %14.1f %8.2fx %8.0f%% %11.2f / %.2f ms %22.3g\n", b.particles, b.one, b.all, b.cost,
+                100.0 * b.threaded, b.msThreads, b.msOne, b.diff);
   return 0;
 }

@@ -2,7 +2,8 @@
 """Summarises the JUnit XML results of `scripts/flsm test`.
 
 Input: a manifest, one suite per line: "<suite name>\t<exit code>\t<path>", where path is a
-gtest XML file or a directory of rostest XML files. Prints one line per suite and, last, exactly
+gtest XML file, a directory of rostest XML files, or the .log of a check script (one test case
+that passed when the script exited with 0). Prints one line per suite and, last, exactly
 "N passed, M failed" counted per test case. A suite with no result (it did not build, crashed
 before writing one, or timed out) counts as one failed test case, and so does a suite whose
 process failed while its XML shows no failure. Exit status 1 if anything failed.
@@ -56,6 +57,14 @@ def failed_test_nodes(summary):
 
 def summarise(name, code, path):
     """Returns (passed, failed, report line, failure names)."""
+    if path.endswith('.log'):
+        # A check script: one test case, its exit code (its output is in the log).
+        ok = code == 0
+        reason = '' if ok else '   exit code %d%s, see %s' % (
+            code, ' (timed out)' if code == 124 else '', path)
+        line = '%s %-32s %4d passed, %3d failed%s' % ('OK  ' if ok else 'FAIL', name,
+                                                       int(ok), int(not ok), reason)
+        return int(ok), int(not ok), line, [] if ok else [name + ' [exit code %d]' % code]
     files, summaries = result_files(path)
     passed = failed = skipped = 0
     names = []

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""measure_node: the figures of flsm_node that README.md reports, measured on this machine.
+"""measure_node: the figures of flsm_node that docs/performance.md reports, measured on this machine.
 
     ./scripts/flsm measure [--rviz] [--seconds N] [--params file.yaml]
 

@@ -16,6 +16,8 @@ int main(int argc, char** argv) {
     }
     Scene scene = buildScene(params, loadMeshParam(params));
     ROS_INFO_STREAM("flsm_node: mesh '" << params.mesh << "'\n" << describeScene(scene.info, params));
+    const std::string clamped = regionClampWarning(scene.info, params);
+    if (!clamped.empty()) ROS_WARN("flsm_node: %s", clamped.c_str());
     SimulatorNode node(nh, pnh, params, std::move(scene));
     ros::spin();
   } catch (const std::exception& e) {

@@ -14,7 +14,7 @@
 //
 // --quick runs a small grid (coarse resolutions, few sub-steps) to check the pipeline; --repeats
 // (default 3) repeats every run that took under 2 s and reports the median time.
-// Definitions of every figure: README.md, section "Speed against accuracy".
+// Definitions of every figure: docs/study.md.
 
 #include "deformable_flsm/core/fem_oracle.h"
 #include "deformable_flsm/core/lattice.h"

@@ -12,7 +12,9 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <functional>
+#include <limits>
 #include <sstream>
 #include <system_error>
 #include <unordered_map>
@@ -84,6 +86,15 @@ Eigen::Vector3d TriMesh::boundsMax() const {
   return hi;
 }
 
+namespace {
+/// glmark2's ".jobj" (its jellyfish): "v x y z" vertex lines and "i n" index lines, three per
+/// triangle; assimp does not know it.
+bool isJobj(const std::string& path);
+TriMesh readJobj(const std::string& path);
+/// Every other format, through assimp.
+TriMesh readWithAssimp(const std::string& path);
+}  // namespace
+
 TriMesh loadMesh(const std::string& path, double scale) {
   if (!std::isfinite(scale) || scale <= 0.0) {
     std::ostringstream message;
@@ -99,6 +110,68 @@ TriMesh loadMesh(const std::string& path, double scale) {
     throw MeshError("mesh file '" + path + "' is a directory, not a mesh file");
   }
 
+  TriMesh mesh = isJobj(path) ? readJobj(path) : readWithAssimp(path);
+
+  // Validate before welding too: a mesh collapsed to a point would otherwise lose all its
+  // triangles to welding and be reported as having none, which hides the real problem.
+  validateMesh(mesh, path);
+  weldVertices(mesh);
+  if (mesh.triangles.empty()) {
+    throw MeshError("mesh file '" + path +
+                    "': every triangle is degenerate (two corners at the same position); repair "
+                    "or re-export the mesh");
+  }
+  for (Eigen::Vector3d& v : mesh.vertices) v *= scale;
+  // Scaling can overflow to infinity or underflow to a point.
+  validateMesh(mesh, path);
+  return mesh;
+}
+
+namespace {
+
+bool isJobj(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".jobj";
+}
+
+TriMesh readJobj(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw MeshError("cannot open mesh file '" + path + "'");
+  TriMesh mesh;
+  std::vector<std::uint32_t> indices;
+  std::string line, tag;
+  std::size_t lineNumber = 0;
+  while (std::getline(in, line)) {
+    ++lineNumber;
+    std::istringstream fields(line);
+    if (!(fields >> tag)) continue;
+    if (tag == "v") {
+      Eigen::Vector3d p;
+      if (!(fields >> p.x() >> p.y() >> p.z()))
+        throw MeshError("mesh file '" + path + "', line " + std::to_string(lineNumber) +
+                        ": a vertex needs three numbers");
+      mesh.vertices.push_back(p);
+    } else if (tag == "i") {
+      long long index = -1;
+      if (!(fields >> index) || index < 0 || index > std::numeric_limits<std::uint32_t>::max())
+        throw MeshError("mesh file '" + path + "', line " + std::to_string(lineNumber) +
+                        ": an index must be a number >= 0");
+      indices.push_back(static_cast<std::uint32_t>(index));
+    }  // vn, vt, vc: normals, texture coordinates and colours are not needed
+  }
+  if (indices.size() % 3 != 0)
+    throw MeshError("mesh file '" + path + "': " + std::to_string(indices.size()) +
+                    " indices, not a whole number of triangles");
+  for (std::size_t t = 0; t + 2 < indices.size(); t += 3)
+    mesh.triangles.push_back({indices[t], indices[t + 1], indices[t + 2]});
+  if (mesh.triangles.empty())
+    throw MeshError("mesh file '" + path + "' has no triangles ('i' index lines)");
+  return mesh;
+}
+
+TriMesh readWithAssimp(const std::string& path) {
   Assimp::Importer importer;
   const aiScene* scene = importer.ReadFile(path, kImportFlags);
   if (scene == nullptr || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0) {
@@ -136,21 +209,10 @@ TriMesh loadMesh(const std::string& path, double scale) {
                     "' has no triangles (only points, lines or nothing); export the surface as a "
                     "triangle or polygon mesh");
   }
-
-  // Validate before welding too: a mesh collapsed to a point would otherwise lose all its
-  // triangles to welding and be reported as having none, which hides the real problem.
-  validateMesh(mesh, path);
-  weldVertices(mesh);
-  if (mesh.triangles.empty()) {
-    throw MeshError("mesh file '" + path +
-                    "': every triangle is degenerate (two corners at the same position); repair "
-                    "or re-export the mesh");
-  }
-  for (Eigen::Vector3d& v : mesh.vertices) v *= scale;
-  // Scaling can overflow to infinity or underflow to a point.
-  validateMesh(mesh, path);
   return mesh;
 }
+
+}  // namespace
 
 void validateMesh(const TriMesh& mesh, const std::string& name) {
   if (mesh.triangles.empty()) {

@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <numeric>
 #include <stdexcept>
@@ -72,6 +73,16 @@ int resolveThreadCount(int requested) {
   return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
 }
 
+/// A rigid transform's rotation is orthonormal with determinant 1 up to round-off; looser than
+/// this is a scaled, sheared or mirrored frame, which a rigid body cannot have.
+constexpr double kRigidTolerance = 1e-6;
+
+bool isRigid(const Eigen::Isometry3d& T) {
+  const Eigen::Matrix3d R = T.linear();
+  return T.matrix().allFinite() && (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < kRigidTolerance &&
+         std::abs(R.determinant() - 1.0) < kRigidTolerance;
+}
+
 Eigen::Vector3d centroidOf(const std::vector<Eigen::Vector3d>& x,
                            const std::vector<std::uint32_t>& particles) {
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
@@ -92,10 +103,7 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
   const Lattice& L = *lattice_;
   const std::size_t n = L.size();
   threads_ = resolveThreadCount(params_.threads);
-  if (params_.kind == SolverKind::Fast)
-    summer_ = std::make_unique<SliceStreamSummer>(L, threads_);
-  else
-    summer_ = std::make_unique<NaiveSummer>(L);
+  makeSummers();
 
   const auto& x0 = L.restPositions();
   const auto& m = L.masses();
@@ -314,14 +322,12 @@ void Solver::setParams(const SolverParams& params) {
     throw std::invalid_argument("solver: density cannot change at run time (it defines the particle "
                                 "masses); restart with the new value");
   const int threads = resolveThreadCount(params.threads);
-  if (params.kind != params_.kind || threads != threads_) {
-    threads_ = threads;
-    if (params.kind == SolverKind::Fast)
-      summer_ = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
-    else
-      summer_ = std::make_unique<NaiveSummer>(*lattice_);
-  }
+  const bool rebuild = params.kind != params_.kind || threads != threads_;
   params_ = params;
+  if (rebuild) {
+    threads_ = threads;
+    makeSummers();
+  }
   computeRegionWeights();
 }
 
@@ -335,11 +341,13 @@ void Solver::reset() {
   std::fill(rotations_.begin(), rotations_.end(), Eigen::Quaterniond::Identity());
   pinPosition_ = x_;
   drags_.clear();
+  dragFrames_.clear();
   markHardDrags();
   forces_.clear();
   std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
   impulsePending_ = false;
   frameRotation_.setIdentity();
+  for (ContactBody& body : contactBodies_) body.wrench = ContactWrench();
   time_ = 0.0;
   substeps_ = 0;
 }
@@ -354,9 +362,73 @@ void Solver::setVelocities(const std::vector<Eigen::Vector3d>& v) {
   v_ = v;
 }
 
+void Solver::makeSummers() {
+  singleSummer_.reset();
+  governor_ = ThreadGovernor();
+  if (params_.kind == SolverKind::Fast) {
+    if (threads_ > 1) {
+      // Each used only when the governor says so, possibly first in the middle of a run: no
+      // allocation then.
+      const int Kg = kShapeChannels + kDampingChannels, Ks = kTransformChannels + kVelocityFieldChannels;
+      auto threaded = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
+      threaded->reserve(Kg, Ks);
+      summer_ = std::move(threaded);
+      auto single = std::make_unique<SliceStreamSummer>(*lattice_, 1);
+      single->reserve(Kg, Ks);
+      singleSummer_ = std::move(single);
+    } else {
+      summer_ = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
+    }
+  } else {
+    summer_ = std::make_unique<NaiveSummer>(*lattice_);
+  }
+  activeSummer_ = summer_.get();
+}
+
+Eigen::Vector3d Drag::centroidTarget() const {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& o : offsets) c += o;
+  if (!offsets.empty()) c /= static_cast<double>(offsets.size());
+  return pose * c;
+}
+
 void Solver::step() {
   const double h = params_.timeStep / params_.substeps;
-  for (int s = 0; s < params_.substeps; ++s) substep(h);
+  // With threads, each step runs on the threads or on one thread, whichever has been faster
+  // lately (ThreadGovernor): the same sums in the same order either way, so the results do not
+  // depend on the choice.
+  const bool timed = singleSummer_ != nullptr;
+  activeSummer_ = timed && !governor_.threaded() ? singleSummer_.get() : summer_.get();
+  const auto t0 = timed ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point();
+  beginContactStep();
+  for (int s = 0; s < params_.substeps; ++s) {
+    interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
+    substep(h);
+  }
+  endContactStep();
+  if (timed) {
+    governor_.record(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    activeSummer_ = summer_.get();
+  }
+  for (auto& entry : drags_) entry.second.reached = entry.second.pose;
+}
+
+// A drag frame moved by moveDrag() between two steps goes there over the sub-steps of the next
+// step: translation linearly and rotation along the shortest arc (slerp), i.e. at a constant
+// linear and angular velocity, the velocity a body moving from one pose to the next has.
+void Solver::interpolateDragFrames(double s) {
+  std::size_t k = 0;
+  for (const auto& entry : drags_) {
+    const Drag& drag = entry.second;
+    Eigen::Isometry3d& frame = dragFrames_[k++];
+    if (s >= 1.0) {
+      frame = drag.pose;
+      continue;
+    }
+    const Eigen::Quaterniond from(drag.reached.linear()), to(drag.pose.linear());
+    frame.linear() = from.slerp(s, to).toRotationMatrix();
+    frame.translation() = drag.reached.translation() + s * (drag.pose.translation() - drag.reached.translation());
+  }
 }
 
 // One pass over the regions computes the goal positions and, when damping is on, the damping
@@ -379,9 +451,9 @@ void Solver::step() {
 void Solver::regionPass(bool withDamping) {
   passDamping_ = withDamping;
   // Any point of the object keeps the sums O(object size) and gives the same goals up to
-  // round-off: the anchor costs nothing, where the centre of mass was a sweep per sub-step.
+  // round-off: the anchor costs nothing, where the centre of mass would be a sweep per sub-step.
   xref_ = x_[anchor_];
-  summer_->apply(*this);
+  activeSummer_->apply(*this);
 }
 
 int Solver::gatherChannels() const { return passDamping_ ? kShapeChannels + kDampingChannels : kShapeChannels; }
@@ -582,8 +654,10 @@ void Solver::accumulateForces(double h) {
     for (std::uint32_t p : f.particles) forceAccel_[p] += a;
     forcedParticles_.insert(forcedParticles_.end(), f.particles.begin(), f.particles.end());
   }
+  std::size_t k = 0;
   for (const auto& entry : drags_) {
     const Drag& drag = entry.second;
+    const Eigen::Isometry3d& frame = dragFrames_[k++];
     if (drag.stiffness <= 0.0) continue;
     double M = 0.0;
     for (std::uint32_t p : drag.particles) M += m[p];
@@ -591,7 +665,7 @@ void Solver::accumulateForces(double h) {
     const double k = drag.stiffness / M;
     for (std::size_t e = 0; e < drag.particles.size(); ++e) {
       const std::uint32_t p = drag.particles[e];
-      forceAccel_[p] += k * (drag.target + drag.offsets[e] - x_[p]);
+      forceAccel_[p] += k * (frame * drag.offsets[e] - x_[p]);
     }
     forcedParticles_.insert(forcedParticles_.end(), drag.particles.begin(), drag.particles.end());
   }
@@ -623,6 +697,7 @@ void Solver::substep(double h) {
   if (volumetric_) computeVolumetricForces();
   regionPass(step_.kd > 0.0);
   step_.integrate = false;
+  contactPass(h);
   finishSubstep(h);
   for (TimedForce& f : forces_) f.remaining -= h;
   forces_.erase(std::remove_if(forces_.begin(), forces_.end(),
@@ -635,13 +710,15 @@ void Solver::substep(double h) {
 // The particles particleResult() leaves alone: hard-dragged ones follow their target (the
 // velocity that reaches it in one sub-step), pinned ones stay.
 void Solver::finishSubstep(double h) {
+  std::size_t k = 0;
   for (const auto& entry : drags_) {
     const Drag& drag = entry.second;
+    const Eigen::Isometry3d& frame = dragFrames_[k++];
     if (drag.stiffness > 0.0) continue;
     for (std::size_t e = 0; e < drag.particles.size(); ++e) {
       const std::uint32_t p = drag.particles[e];
       if (pinned_[p] != 0) continue;
-      v_[p] = (drag.target + drag.offsets[e] - x_[p]) / h;
+      v_[p] = (frame * drag.offsets[e] - x_[p]) / h;
       x_[p] += h * v_[p];
     }
   }
@@ -693,19 +770,41 @@ std::size_t Solver::pinnedCount() const {
 
 void Solver::grab(const std::string& id, const std::vector<std::uint32_t>& particles,
                   const Eigen::Vector3d& target, double stiffness) {
+  if (!target.allFinite()) throw std::invalid_argument("solver: drag target must be finite");
   if (particles.empty()) throw std::invalid_argument("solver: a drag needs at least one particle");
   for (std::uint32_t p : particles)
     if (p >= x_.size()) throw std::out_of_range("solver: particle index out of range");
-  if (!target.allFinite() || !std::isfinite(stiffness) || stiffness < 0.0)
-    throw std::invalid_argument("solver: drag target must be finite and stiffness >= 0");
+  // The drag frame sits at the centroid, unrotated: offsets are relative to the centroid, and
+  // the frame glides from there to `target` over the first step.
+  const Eigen::Isometry3d frame(Eigen::Translation3d(centroidOf(x_, particles)));
+  addDrag(id, particles, frame, Eigen::Isometry3d(Eigen::Translation3d(target)), stiffness);
+}
+
+void Solver::attach(const std::string& id, const std::vector<std::uint32_t>& particles,
+                    const Eigen::Isometry3d& frame, double stiffness) {
+  if (!isRigid(frame))
+    throw std::invalid_argument("solver: the frame to attach to must be finite and rigid (a rotation "
+                                "and a translation)");
+  addDrag(id, particles, frame, frame, stiffness);
+}
+
+void Solver::addDrag(const std::string& id, const std::vector<std::uint32_t>& particles,
+                     const Eigen::Isometry3d& frame, const Eigen::Isometry3d& pose, double stiffness) {
+  if (particles.empty()) throw std::invalid_argument("solver: a drag needs at least one particle");
+  for (std::uint32_t p : particles)
+    if (p >= x_.size()) throw std::out_of_range("solver: particle index out of range");
+  if (!std::isfinite(stiffness) || stiffness < 0.0)
+    throw std::invalid_argument("solver: drag stiffness must be finite and >= 0");
   Drag drag;
   drag.particles = particles;
-  const Eigen::Vector3d c = centroidOf(x_, particles);
+  const Eigen::Isometry3d toFrame = frame.inverse(Eigen::Isometry);
   drag.offsets.reserve(particles.size());
-  for (std::uint32_t p : particles) drag.offsets.push_back(x_[p] - c);
-  drag.target = target;
+  for (std::uint32_t p : particles) drag.offsets.push_back(toFrame * x_[p]);
+  drag.pose = pose;
+  drag.reached = frame;
   drag.stiffness = stiffness;
   drags_[id] = std::move(drag);
+  dragFrames_.resize(drags_.size());
   markHardDrags();
   reserveForcedParticles();
 }
@@ -719,22 +818,34 @@ void Solver::reserveForcedParticles() {
   forcedParticles_.reserve(total);
 }
 
+bool Solver::moveDrag(const std::string& id, const Eigen::Isometry3d& pose) {
+  auto it = drags_.find(id);
+  if (it == drags_.end()) return false;
+  if (!isRigid(pose))
+    throw std::invalid_argument("solver: a drag pose must be finite and rigid (a rotation and a "
+                                "translation)");
+  it->second.pose = pose;
+  return true;
+}
+
 bool Solver::moveDrag(const std::string& id, const Eigen::Vector3d& target) {
   auto it = drags_.find(id);
   if (it == drags_.end()) return false;
   if (!target.allFinite()) throw std::invalid_argument("solver: drag target must be finite");
-  it->second.target = target;
+  it->second.pose.translation() = target;
   return true;
 }
 
 bool Solver::release(const std::string& id) {
   const bool found = drags_.erase(id) > 0;
+  dragFrames_.resize(drags_.size());
   markHardDrags();
   return found;
 }
 
 void Solver::releaseAll() {
   drags_.clear();
+  dragFrames_.clear();
   markHardDrags();
 }
 

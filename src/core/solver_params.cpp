@@ -8,9 +8,6 @@ namespace deformable_flsm {
 
 namespace {
 
-/// Largest region half-width accepted: (2w+1)^3 = 9261 cells per region at w = 10, beyond any
-/// useful stiffness and a likely typo.
-constexpr int kMaxRegionHalfWidth = 10;
 /// Largest time step accepted (s); beyond it even a stiff lattice is a slideshow.
 constexpr double kMaxTimeStep = 0.1;
 constexpr int kMaxSubsteps = 1000;
@@ -96,6 +93,9 @@ void SolverParams::validate() const {
          "expected 0 (all hardware threads) or a count from 1 to " + std::to_string(kMaxThreads));
   if (!std::isfinite(density) || density <= 0.0)
     fail("density", str(density), "expected a finite density > 0 (kg/m^3)");
+  if (!std::isfinite(contactRadius) || contactRadius < 0.0)
+    fail("contact_radius", str(contactRadius),
+         "expected a finite radius >= 0 (m; 0 uses half the lattice spacing)");
 }
 
 }  // namespace deformable_flsm

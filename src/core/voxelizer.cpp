@@ -26,9 +26,11 @@ namespace {
 
 /// Sub-cell samples per axis for the fill fraction of a surface cell (64 samples per cell).
 constexpr int kSubSamples = 4;
-/// Slack in dims = ceil(extent / h - kDimsSlack): a mesh exactly n cells long gets n cells even
-/// when extent / h rounds to n + 1 ulp.
-constexpr double kDimsSlack = 1e-9;
+/// Slack in dims = ceil(extent / h - kDimsSlack), in cells: a mesh n cells long gets n cells even
+/// when extent / h is a little above n, by 1 ulp in double (0.1 / 0.025) or by single precision's
+/// rounding of the mesh file's vertices (0.1f / 0.025 = 4 + 6e-8). A sliver of at most 1e-6 of a
+/// cell beyond the lattice is lost from the cells' fill fractions.
+constexpr double kDimsSlack = 1e-6;
 /// Largest lattice (all cells, occupied or not) voxelize() will allocate, about 134 MB of flags.
 constexpr double kMaxLatticeCells = double(1 << 27);
 /// Largest number of cells along one axis; Lattice packs a cell index into 21 bits per axis.

@@ -83,9 +83,10 @@ bool CommandValidator::particleIndex(std::int32_t particle, Rejection& why) cons
 
 bool CommandValidator::drag(const DragCommand& msg, CommandBody& out, Rejection& why) const {
   if (msg.action != DragCommand::GRAB && msg.action != DragCommand::MOVE &&
-      msg.action != DragCommand::RELEASE)
+      msg.action != DragCommand::RELEASE && msg.action != DragCommand::ATTACH)
     return refuse(why, "bad_action", "drag action " + std::to_string(msg.action) +
-                                         " unknown: use GRAB (0), MOVE (1) or RELEASE (2)");
+                                         " unknown: use GRAB (0), MOVE (1), RELEASE (2) or "
+                                         "ATTACH (3)");
   if (!validId(msg.id))
     return refuse(why, "bad_id", "drag id '" + msg.id + "': use 1 to " +
                                      std::to_string(CommandLimits::kMaxIdLength) +
@@ -102,8 +103,10 @@ bool CommandValidator::drag(const DragCommand& msg, CommandBody& out, Rejection&
                                          ": every field must be finite");
   Eigen::Isometry3d T;
   if (!toSimFrame(msg.header, T, why)) return false;
+  const bool attach = msg.action == DragCommand::ATTACH;
   const Eigen::Vector3d simTarget = T * target;
-  if (!reachable(simTarget, "drag target", why)) return false;
+  // ATTACH has no target: the frame carries the particles.
+  if (!attach && !reachable(simTarget, "drag target", why)) return false;
   if (msg.action == DragCommand::MOVE) {
     out = MoveCommand{msg.id, simTarget};
     return true;
@@ -129,7 +132,17 @@ bool CommandValidator::drag(const DragCommand& msg, CommandBody& out, Rejection&
                                             str(msg.stiffness) +
                                             " N/m: use 0 for a hard drag or > 0 for a spring");
   grab.stiffness = msg.stiffness;
-  out = grab;
+  if (!attach) {
+    out = grab;
+    return true;
+  }
+  AttachCommand a;
+  a.grab = grab;
+  // The simulation frame itself does not move: nothing to follow.
+  if (!(msg.header.frame_id.empty() || msg.header.frame_id == simFrame_))
+    a.frame = msg.header.frame_id;
+  a.pose = T;
+  out = a;
   return true;
 }
 

@@ -126,6 +126,16 @@ void NodeParams::validate() const {
              realTimeFactor > kMaxRealTimeFactor) {
     why << "~real_time_factor is " << realTimeFactor << ": it must be in (0, "
         << kMaxRealTimeFactor << "] (simulated seconds per wall-clock second)";
+  } else if (material == Material::Youngs && (!std::isfinite(youngsModulus) || youngsModulus <= 0.0)) {
+    why << "~youngs_modulus is " << youngsModulus << ": it must be a finite modulus > 0 (Pa) "
+        << "with ~material youngs (a firm jelly is ~1e4, rubber ~1e6); to give alpha per "
+        << "sub-step directly as ~stiffness instead, set ~material to classic";
+  } else if (!std::isfinite(solver.contactRadius) || solver.contactRadius < 0.0) {
+    why << "~contact_radius is " << solver.contactRadius
+        << ": it must be a finite radius > 0 (m), or 0 for half the lattice spacing";
+  } else if (!std::isfinite(groundClearance) || groundClearance < 0.0) {
+    why << "~ground_clearance is " << groundClearance
+        << ": it must be a finite gap >= 0 (m) between the object and the ground";
   } else if (renderTriangleBudget < 0) {
     why << "~render_triangle_budget is " << renderTriangleBudget
         << ": it must be a number of triangles >= 1, or 0 to render the mesh as loaded";
@@ -138,8 +148,21 @@ void NodeParams::validate() const {
                          "finite numbers (m) with min <= max");
       }
     }
+    for (std::size_t c = 0; c < colliders.size(); ++c) {
+      if (ground && colliders[c].id == ColliderLimits::kGroundId) {
+        throw ParamError("~colliders entry " + std::to_string(c) + " ('ground'): the id 'ground' "
+                         "is the ground's (~ground is true): rename the entry or set ~ground "
+                         "to false");
+      }
+    }
+    if (colliders.size() + (ground ? 1 : 0) > ColliderLimits::kMaxColliders) {
+      throw ParamError("~colliders and ~ground make " +
+                       std::to_string(colliders.size() + (ground ? 1 : 0)) +
+                       " colliders: at most " + std::to_string(ColliderLimits::kMaxColliders));
+    }
     // The solver's own ranges (stiffness, damping, time step, ...); w is checked once known.
     SolverParams s = solver;
+    s.youngsModulus = material == Material::Youngs ? youngsModulus : 0.0;
     s.regionHalfWidth = regionHalfWidth > 0 ? regionHalfWidth : s.regionHalfWidth;
     try {
       s.validate();
@@ -151,14 +174,37 @@ void NodeParams::validate() const {
   throw ParamError(why.str());
 }
 
-int NodeParams::resolveRegionHalfWidth(double latticeSpacing) const {
+int NodeParams::resolveRegionHalfWidth(double latticeSpacing, int* askedCells) const {
+  if (askedCells) *askedCells = 0;
   if (regionHalfWidth > 0) return regionHalfWidth;
   if (regionRadius <= 0.0) return SolverParams().regionHalfWidth;
+  if (std::isfinite(latticeSpacing) && latticeSpacing > 0.0 &&
+      std::round(regionRadius / latticeSpacing) > kMaxRegionHalfWidth) {
+    // The same radius in metres is more cells on a finer lattice (a smaller object at the same
+    // particle budget): take the largest regions the solver allows rather than refuse to start.
+    if (askedCells) *askedCells = static_cast<int>(std::round(regionRadius / latticeSpacing));
+    return kMaxRegionHalfWidth;
+  }
   try {
     return regionHalfWidthForRadius(regionRadius, latticeSpacing);
   } catch (const std::invalid_argument& e) {
     throw ParamError(std::string("~") + e.what());
   }
+}
+
+const char* toString(NodeParams::Material material) {
+  return material == NodeParams::Material::Youngs ? "youngs" : "classic";
+}
+
+bool parseMaterial(const std::string& name, NodeParams::Material& material) {
+  if (name == "youngs") {
+    material = NodeParams::Material::Youngs;
+  } else if (name == "classic") {
+    material = NodeParams::Material::Classic;
+  } else {
+    return false;
+  }
+  return true;
 }
 
 NodeParams ParamLoader::loadNodeParams() const {
@@ -178,7 +224,13 @@ NodeParams ParamLoader::loadNodeParams() const {
   p.regionHalfWidth = getInt("region_half_width", p.regionHalfWidth);
   SolverParams& s = p.solver;
   s.stiffness = getDouble("stiffness", s.stiffness);
-  s.youngsModulus = getDouble("youngs_modulus", s.youngsModulus);
+  p.youngsModulus = getDouble("youngs_modulus", p.youngsModulus);
+  p.poissonsRatio = getDouble("poissons_ratio", p.poissonsRatio);
+  const std::string material = getString("material", toString(p.material));
+  if (!parseMaterial(material, p.material)) {
+    throw ParamError("~material is '" + material + "': it must be 'youngs' (the stiffness from "
+                     "~youngs_modulus) or 'classic' (alpha = ~stiffness per sub-step)");
+  }
   s.damping = getDouble("damping", s.damping);
   s.ambientDamping = getDouble("ambient_damping", s.ambientDamping);
   s.gravity = getVector3("gravity", s.gravity);
@@ -186,6 +238,7 @@ NodeParams ParamLoader::loadNodeParams() const {
   s.substeps = getInt("substeps", s.substeps);
   s.density = getDouble("density", s.density);
   s.threads = getInt("threads", s.threads);
+  s.contactRadius = getDouble("contact_radius", s.contactRadius);
   const std::string kind = getString("solver", toString(s.kind));
   try {
     s.kind = parseSolverKind(kind);
@@ -199,7 +252,11 @@ NodeParams ParamLoader::loadNodeParams() const {
   p.realTimeFactor = getDouble("real_time_factor", p.realTimeFactor);
   p.pinned = getBoxes("pinned");
   p.renderTriangleBudget = getInt("render_triangle_budget", p.renderTriangleBudget);
+  p.ground = getBool("ground", p.ground);
+  p.groundClearance = getDouble("ground_clearance", p.groundClearance);
+  p.colliders = getColliders("colliders", p.frameId);
   p.validate();
+  p.applyMaterial();
   return p;
 }
 
@@ -208,9 +265,10 @@ std::vector<std::string> ParamLoader::unknownParams() const {
   static const char* const kKnown[] = {
       "mesh", "mesh_scale", "mesh_rpy", "frame_id", "object_frame_id", "spacing", "resolution",
       "particle_budget", "max_particles", "region_radius", "region_half_width", "stiffness",
-      "youngs_modulus", "damping", "ambient_damping", "gravity", "time_step", "substeps",
-      "density", "solver", "publish_rate", "republish_at_rest", "real_time_factor", "pinned",
-      "render_triangle_budget", "threads", "gravity_x", "gravity_y", "gravity_z"};
+      "youngs_modulus", "poissons_ratio", "material", "damping", "ambient_damping", "gravity",
+      "time_step", "substeps", "density", "solver", "publish_rate", "republish_at_rest",
+      "real_time_factor", "pinned", "render_triangle_budget", "threads", "gravity_x", "gravity_y",
+      "gravity_z", "ground", "ground_clearance", "colliders", "contact_radius"};
   std::vector<std::string> all, unknown;
   ros::param::getParamNames(all);
   const std::string prefix = pnh_.getNamespace() + "/";
@@ -314,6 +372,16 @@ std::vector<Box> ParamLoader::getBoxes(const std::string& name) const {
     boxes.push_back(box);
   }
   return boxes;
+}
+
+std::vector<ColliderSpec> ParamLoader::getColliders(const std::string& name,
+                                                    const std::string& simFrame) const {
+  if (!pnh_.hasParam(name)) {
+    return {};
+  }
+  XmlRpc::XmlRpcValue value;
+  pnh_.getParam(name, value);
+  return parseColliderList(value, simFrame);
 }
 
 std::string resolveMeshPath(const std::string& url) {

@@ -33,9 +33,11 @@ void ProblemReporter::warnAboutScene() const {
                lattice_.restMax().z());
     }
   }
-  if (info_.pinned == 0 && !params_.solver.gravity.isZero(0.0)) {
-    ROS_WARN("flsm_node: gravity is on and no particle is pinned: with no ground, the object "
-             "falls forever. Pin a box (~pinned) or set ~gravity to [0, 0, 0].");
+  if (info_.pinned == 0 && !params_.ground && params_.colliders.empty() &&
+      !params_.solver.gravity.isZero(0.0)) {
+    ROS_WARN("flsm_node: gravity is on, no particle is pinned and there is no collider: the "
+             "object falls forever. Set ~ground to true, pin a box (~pinned) or set ~gravity to "
+             "[0, 0, 0].");
   }
 }
 

@@ -9,17 +9,24 @@ Reconfigure::Reconfigure(const ros::NodeHandle& pnh, const NodeParams& params, O
   // Start from the loaded parameters, then listen. The first callback (setCallback calls it at
   // once) only echoes them and is skipped.
   server_ = std::make_unique<dynamic_reconfigure::Server<FlsmConfig>>(mutex_, pnh);
-  FlsmConfig config = configFrom(params);
-  server_->updateConfig(config);
+  current_ = configFrom(params);
+  server_->updateConfig(current_);
   server_->setCallback([this](FlsmConfig& c, std::uint32_t /*level*/) {
-    if (ready_) onChange_(c);
+    if (!ready_) return;
+    if (onChange_(c)) {
+      current_ = c;
+    } else {
+      c = current_;  // what the server keeps and answers with
+    }
   });
   ready_ = true;
 }
 
 FlsmConfig Reconfigure::configFrom(const NodeParams& params) {
   FlsmConfig config;
-  config.youngs_modulus = params.solver.youngsModulus;
+  config.material = toString(params.material);
+  config.youngs_modulus = params.youngsModulus;
+  config.poissons_ratio = params.poissonsRatio;
   config.stiffness = params.solver.stiffness;
   config.damping = params.solver.damping;
   config.ambient_damping = params.solver.ambientDamping;
@@ -31,13 +38,17 @@ FlsmConfig Reconfigure::configFrom(const NodeParams& params) {
   return config;
 }
 
-SolverParams Reconfigure::solverParams(const FlsmConfig& config, SolverParams base) {
-  base.youngsModulus = config.youngs_modulus;
-  base.stiffness = config.stiffness;
-  base.damping = config.damping;
-  base.ambientDamping = config.ambient_damping;
-  base.gravity = Eigen::Vector3d(config.gravity_x, config.gravity_y, config.gravity_z);
-  return base;
+bool Reconfigure::apply(const FlsmConfig& config, NodeParams& params) {
+  if (!parseMaterial(config.material, params.material)) return false;
+  params.youngsModulus = config.youngs_modulus;
+  params.poissonsRatio = config.poissons_ratio;
+  SolverParams& s = params.solver;
+  s.stiffness = config.stiffness;
+  s.damping = config.damping;
+  s.ambientDamping = config.ambient_damping;
+  s.gravity = Eigen::Vector3d(config.gravity_x, config.gravity_y, config.gravity_z);
+  params.applyMaterial();
+  return true;
 }
 
 }  // namespace deformable_flsm

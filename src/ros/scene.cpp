@@ -67,7 +67,8 @@ Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps
   const Voxelization voxels = chooseLattice(params, mesh, info);
 
   SolverParams solverParams = params.solver;
-  solverParams.regionHalfWidth = params.resolveRegionHalfWidth(voxels.spacing);
+  solverParams.regionHalfWidth =
+      params.resolveRegionHalfWidth(voxels.spacing, &info.regionAskedCells);
   info.regionHalfWidth = solverParams.regionHalfWidth;
   try {
     scene.lattice = std::make_shared<const Lattice>(voxels, solverParams.density,
@@ -83,6 +84,23 @@ Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps
   info.requestedAlpha = solverParams.requestedAlpha(L.spacing());
   info.alpha = solver.alpha();
   info.substepsForModulus = substepsForModulus(solver);
+
+  // Colliders before the measurement, so that it includes their cost (reset() keeps them).
+  info.contactRadius = solver.contactRadius();
+  try {
+    if (params.ground) {
+      const Collider ground = groundCollider(L, mesh, solverParams.gravity, info.contactRadius,
+                                             params.groundClearance);
+      info.groundHeight = ground.pose.translation().dot(ground.pose.linear().col(2));
+      solver.setCollider(ColliderLimits::kGroundId, ground);
+    }
+    for (const ColliderSpec& spec : params.colliders) {
+      if (spec.followFrame.empty()) solver.setCollider(spec.id, spec.collider);
+    }
+  } catch (const std::exception& e) {  // invalid_argument, MeshError
+    throw ParamError(std::string("a collider cannot be used: ") + e.what());
+  }
+  info.colliders = solver.colliders().size();
 
   // The cost of a step, measured on this machine with this lattice, then back to rest.
   if (measureSteps > 0) {
@@ -138,7 +156,10 @@ std::string describeScene(const SceneInfo& info, const NodeParams& params) {
                 "regions: %zu (one per particle), half-width w = %d cells (%.4g m)%s; object "
                 "%.4g m across, %.4g kg",
                 info.particles, info.regionHalfWidth, info.regionHalfWidth * info.spacing,
-                params.regionRadius > 0.0 ? " from ~region_radius" : "", info.objectSize,
+                params.regionRadius > 0.0
+                    ? (info.regionAskedCells > 0 ? " from ~region_radius, clamped" : " from ~region_radius")
+                    : "",
+                info.objectSize,
                 info.totalMass);
   out << buf << "\n";
   if (s.youngsModulus > 0.0) {
@@ -149,8 +170,8 @@ std::string describeScene(const SceneInfo& info, const NodeParams& params) {
                   info.substepsForModulus > 0 ? "saturated: softer than asked, see the warning"
                                               : "as asked");
   } else {
-    std::snprintf(buf, sizeof buf, "material: alpha = ~stiffness = %.3g per sub-step (no "
-                  "~youngs_modulus), density %.4g kg/m^3", s.stiffness, s.density);
+    std::snprintf(buf, sizeof buf, "material: alpha = ~stiffness = %.3g per sub-step "
+                  "(~material classic), density %.4g kg/m^3", s.stiffness, s.density);
   }
   out << buf << "\n";
   std::snprintf(buf, sizeof buf,
@@ -169,6 +190,10 @@ std::string describeScene(const SceneInfo& info, const NodeParams& params) {
                   info.loadedTriangles, params.renderTriangleBudget, 100.0 * info.simplifyError);
     out << buf;
   }
+  std::snprintf(buf, sizeof buf, "\ncolliders: %zu (%s), particles collide as spheres of "
+                "radius %.3g m", params.colliders.size() + (params.ground ? 1 : 0),
+                params.ground ? "with the ground" : "no ground", info.contactRadius);
+  out << buf;
   out << "\npinned: " << info.pinned << " particles";
   for (std::size_t b = 0; b < info.pinnedPerBox.size(); ++b) {
     out << (b == 0 ? " (" : ", ") << "box " << b << ": " << info.pinnedPerBox[b];
@@ -189,6 +214,20 @@ std::string saturationWarning(const SceneInfo& info, const NodeParams& params) {
                 s.youngsModulus, info.requestedAlpha, info.alpha, s.stiffness,
                 info.requestedAlpha / info.alpha, s.substepLength(), info.substepsForModulus,
                 s.substeps);
+  return buf;
+}
+
+std::string regionClampWarning(const SceneInfo& info, const NodeParams& params) {
+  if (info.regionAskedCells == 0) return "";
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "~region_radius %.4g m is %d cells on this lattice (spacing %.4g m), more than "
+                "the %d the solver allows: using %d cells (%.4g m), the largest that fits. Set "
+                "~region_radius to at most %.4g m, or use a coarser lattice (a larger ~spacing, a "
+                "smaller ~resolution or ~particle_budget), to silence this warning.",
+                params.regionRadius, info.regionAskedCells, info.spacing, kMaxRegionHalfWidth,
+                info.regionHalfWidth, info.regionHalfWidth * info.spacing,
+                kMaxRegionHalfWidth * info.spacing);
   return buf;
 }
 

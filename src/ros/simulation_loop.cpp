@@ -1,5 +1,7 @@
 #include "deformable_flsm/ros/simulation_loop.h"
 
+#include "deformable_flsm/ros/collider_params.h"
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -27,6 +29,21 @@ std::string num(double v) {
   return os.str();
 }
 
+/// A pose moved along a constant velocity for dt: the origin by v dt, the axes turned by w dt.
+Eigen::Isometry3d advance(const Eigen::Isometry3d& pose, const Eigen::Vector3d& v,
+                          const Eigen::Vector3d& w, double dt) {
+  Eigen::Isometry3d next = pose;
+  next.translation() += v * dt;
+  const double angle = w.norm() * dt;
+  if (angle > 0.0) {
+    next.linear() = (Eigen::AngleAxisd(angle, w.normalized()) * pose.linear()).eval();
+  }
+  return next;
+}
+
+/// Changes of a followed collider's pose below these do not wake a resting simulation (m, rad).
+constexpr double kStillPoseChange = 1e-7;
+
 CommandOutcome accepted(std::string message, std::size_t particles = 0) {
   CommandOutcome o;
   o.accepted = true;
@@ -53,6 +70,9 @@ SimulationLoop::SimulationLoop(std::unique_ptr<Solver> solver, const LoopSetting
   centerOfMass_ = restCenterOfMass_;
   diag_.requestedRealTimeFactor = settings_.realTimeFactor;
   queue_.reserve(CommandLimits::kQueueCapacity);
+  if (!(settings_.restFraction >= 0.0))
+    throw std::invalid_argument("SimulationLoop: rest fraction must be >= 0");
+  stillFrom_ = solver_->positions();
 }
 
 SimulationLoop::~SimulationLoop() { stop(); }
@@ -103,10 +123,41 @@ bool SimulationLoop::submit(Command command) {
   return false;
 }
 
+void SimulationLoop::setFrameSource(FrameSource source) { frameSource_ = std::move(source); }
+
 void SimulationLoop::setRealTimeFactor(double realTimeFactor) {
   if (!(realTimeFactor > 0.0) || !std::isfinite(realTimeFactor))
     throw std::invalid_argument("real-time factor must be finite and > 0");
   realTimeFactor_.store(realTimeFactor);
+  {
+    std::lock_guard<std::mutex> lock(queueMutex_);
+    wakeRequested_ = true;
+  }
+  wakeUp_.notify_one();
+}
+
+void SimulationLoop::addFollowedCollider(const std::string& id, const Collider& collider) {
+  collider.validate();
+  Followed f;
+  f.collider = collider;
+  followed_[id] = f;
+}
+
+void SimulationLoop::setColliderMotion(const std::string& id, const ColliderMotion& motion) {
+  bool wake = false;
+  {
+    std::lock_guard<std::mutex> lock(motionMutex_);
+    auto last = postedMotions_.find(id);
+    wake = last == postedMotions_.end() || !motion.linearVelocity.isZero(0.0) ||
+           !motion.angularVelocity.isZero(0.0) ||
+           (motion.pose.translation() - last->second.pose.translation()).norm() >
+               kStillPoseChange ||
+           Eigen::AngleAxisd(motion.pose.linear().transpose() * last->second.pose.linear())
+                   .angle() > kStillPoseChange;
+    postedMotions_[id] = motion;
+    motions_[id] = motion;
+  }
+  if (!wake) return;
   {
     std::lock_guard<std::mutex> lock(queueMutex_);
     wakeRequested_ = true;
@@ -160,14 +211,14 @@ void SimulationLoop::run() {
       if (!acted && !woken) continue;  // only rejected commands: rest on
       // Awake: the time spent resting is not owed.
       idle_ = false;
-      stillFor_ = 0.0;
+      restartStillness();
       last = Clock::now();
       owed = 0.0;
       restartWindow(last);
       diag_.idle = false;
       writeSnapshot();
     } else if (acted) {
-      stillFor_ = 0.0;
+      restartStillness();
     }
 
     const Clock::time_point now = Clock::now();
@@ -188,6 +239,8 @@ void SimulationLoop::run() {
       steps = 1;
     }
     for (std::int64_t s = 0; s < steps; ++s) {
+      followColliders(dt);
+      followFrames();
       timedStep();
       owed -= dt;
     }
@@ -210,7 +263,20 @@ void SimulationLoop::ensureFinite() {
   // command is range-checked); if it does, never let NaN reach a subscriber.
   solver_->reset();
   ++diag_.solverResets;
-  stillFor_ = 0.0;
+  restartStillness();
+}
+
+void SimulationLoop::followFrames() {
+  if (!frameSource_) return;
+  for (const auto& entry : attachedFrames_) {
+    Eigen::Isometry3d pose;
+    if (!frameSource_(entry.second, pose)) continue;  // unknown or stale: hold
+    // The source gives rigid, finite frames; should one not be, holding beats a crash.
+    try {
+      solver_->moveDrag(entry.first, pose);
+    } catch (const std::invalid_argument&) {
+    }
+  }
 }
 
 void SimulationLoop::timedStep() {
@@ -244,21 +310,31 @@ void SimulationLoop::restartWindow(Clock::time_point now) {
 }
 
 void SimulationLoop::updateStillness(double simulated) {
+  const std::vector<Eigen::Vector3d>& x = solver_->positions();
   double maxSpeed2 = 0.0;
   for (const Eigen::Vector3d& v : solver_->velocities()) maxSpeed2 = std::max(maxSpeed2, v.squaredNorm());
   diag_.maxSpeed = std::sqrt(maxSpeed2);
   diag_.kineticEnergy = solver_->kineticEnergy();
-  const double vIdle = settings_.idleSpeed;
-  const bool still = diag_.maxSpeed < vIdle &&
-                     diag_.kineticEnergy < 0.5 * lattice_->totalMass() * vIdle * vIdle &&
-                     !solver_->hasPendingCommands();
-  stillFor_ = still ? stillFor_ + simulated : 0.0;
+  double moved2 = 0.0;
+  for (std::size_t i = 0; i < x.size(); ++i)
+    moved2 = std::max(moved2, (x[i] - stillFrom_[i]).squaredNorm());
+  const double limit = settings_.restFraction * lattice_->objectSize();
+  if (moved2 > limit * limit || solver_->hasPendingCommands() || collidersMoving_) {
+    restartStillness();
+  } else {
+    stillFor_ += simulated;
+  }
   if (settings_.idleHold > 0.0 && stillFor_ >= settings_.idleHold) {
     std::lock_guard<std::mutex> lock(queueMutex_);
     // A command that came in during the step keeps the loop awake.
     if (queue_.empty() && !wakeRequested_) idle_ = true;
   }
   diag_.idle = idle_;
+}
+
+void SimulationLoop::restartStillness() {
+  stillFor_ = 0.0;
+  std::copy(solver_->positions().begin(), solver_->positions().end(), stillFrom_.begin());
 }
 
 void SimulationLoop::writeSnapshot() {
@@ -276,9 +352,12 @@ void SimulationLoop::writeSnapshot() {
     d.id = entry.first;
     for (std::uint32_t p : entry.second.particles) d.centroid += s.positions[p];
     d.centroid /= static_cast<double>(entry.second.particles.size());
-    d.target = entry.second.target;
+    d.target = entry.second.centroidTarget();
     s.drags.push_back(std::move(d));
   }
+  s.colliders = solver.colliders();
+  s.wrenches.clear();
+  for (const auto& entry : s.colliders) s.wrenches[entry.first] = solver.contactWrench(entry.first);
   const Eigen::Isometry3d rigid = solver.rigidFrame();
   s.objectFrame = rigid * Eigen::Translation3d(restCenterOfMass_);
 
@@ -310,6 +389,8 @@ bool SimulationLoop::apply(Command& command) {
         using T = std::decay_t<decltype(c)>;
         if constexpr (std::is_same_v<T, GrabCommand>) {
           return grab(c);
+        } else if constexpr (std::is_same_v<T, AttachCommand>) {
+          return grab(c.grab, &c);
         } else if constexpr (std::is_same_v<T, MoveCommand>) {
           return move(c);
         } else if constexpr (std::is_same_v<T, ReleaseCommand>) {
@@ -318,16 +399,25 @@ bool SimulationLoop::apply(Command& command) {
           return force(c);
         } else if constexpr (std::is_same_v<T, ResetCommand>) {
           solver_->reset();
-          stillFor_ = 0.0;
+          attachedFrames_.clear();
+          restartStillness();
           return accepted("reset to rest; pins kept, drags and forces released");
         } else if constexpr (std::is_same_v<T, ReleaseAllCommand>) {
           const std::size_t n = solver_->drags().size();
           solver_->releaseAll();
+          attachedFrames_.clear();
           return accepted("released " + std::to_string(n) + " drag(s)");
         } else if constexpr (std::is_same_v<T, PinBoxCommand>) {
           return pinBox(c);
-        } else {
+        } else if constexpr (std::is_same_v<T, ParamsCommand>) {
           return setParams(c);
+        } else if constexpr (std::is_same_v<T, SetColliderCommand>) {
+          return setCollider(c);
+        } else if constexpr (std::is_same_v<T, MoveColliderCommand>) {
+          return moveCollider(c);
+        } else {
+          static_assert(std::is_same_v<T, RemoveColliderCommand>, "a command is not handled");
+          return removeCollider(c);
         }
       },
       command.body);
@@ -350,7 +440,7 @@ double SimulationLoop::massOf(const std::vector<std::uint32_t>& particles) const
   return m;
 }
 
-CommandOutcome SimulationLoop::grab(const GrabCommand& c) {
+CommandOutcome SimulationLoop::grab(const GrabCommand& c, const AttachCommand* attach) {
   const std::size_t n = lattice_->size();
   if (c.particle >= static_cast<std::int64_t>(n))
     return reject("bad_index", "drag '" + c.id + "': particle " + std::to_string(c.particle) +
@@ -372,19 +462,42 @@ CommandOutcome SimulationLoop::grab(const GrabCommand& c) {
                         " kg of particles at sub-step " + num(h) + " s: at most " + num(limit) +
                         " N/m (or 0 for a hard drag)");
   }
-  solver_->grab(c.id, particles, c.target, c.stiffness);
+  if (attach == nullptr) {
+    solver_->grab(c.id, particles, c.target, c.stiffness);
+    attachedFrames_.erase(c.id);
+    return accepted("drag '" + c.id + "' holds " + std::to_string(particles.size()) +
+                        " particle(s)",
+                    particles.size());
+  }
+  try {
+    solver_->attach(c.id, particles, attach->pose, c.stiffness);
+  } catch (const std::invalid_argument& e) {
+    return reject("bad_frame", "attach '" + c.id + "' to frame '" + attach->frame + "': " + e.what());
+  }
+  if (attach->frame.empty())
+    attachedFrames_.erase(c.id);
+  else
+    attachedFrames_[c.id] = attach->frame;
   return accepted("drag '" + c.id + "' holds " + std::to_string(particles.size()) +
-                      " particle(s)",
+                      " particle(s)" +
+                      (attach->frame.empty() ? std::string(" where they are")
+                                             : " attached to frame '" + attach->frame + "'"),
                   particles.size());
 }
 
 CommandOutcome SimulationLoop::move(const MoveCommand& c) {
+  const auto attached = attachedFrames_.find(c.id);
+  if (attached != attachedFrames_.end())
+    return reject("attached_drag", "move of drag '" + c.id + "': it follows frame '" +
+                                       attached->second +
+                                       "'; RELEASE it, or ATTACH it to another frame");
   if (!solver_->moveDrag(c.id, c.target))
     return reject("unknown_drag", "move of drag '" + c.id + "': no such drag (grab first)");
   return accepted("drag '" + c.id + "' moved");
 }
 
 CommandOutcome SimulationLoop::release(const ReleaseCommand& c) {
+  attachedFrames_.erase(c.id);
   if (!solver_->release(c.id))
     return reject("unknown_drag", "release of drag '" + c.id + "': no such drag");
   return accepted("drag '" + c.id + "' released");
@@ -448,6 +561,105 @@ CommandOutcome SimulationLoop::setParams(const ParamsCommand& c) {
     return reject("invalid_params", e.what());
   }
   return accepted("solver parameters set");
+}
+
+CommandOutcome SimulationLoop::setCollider(const SetColliderCommand& c) {
+  const bool known = solver_->colliders().count(c.id) > 0 || followed_.count(c.id) > 0;
+  std::size_t count = solver_->colliders().size();
+  for (const auto& entry : followed_) count += entry.second.inSolver ? 0 : 1;
+  if (!known && count >= ColliderLimits::kMaxColliders)
+    return reject("too_many_colliders", "collider '" + c.id + "': already " +
+                                            std::to_string(ColliderLimits::kMaxColliders) +
+                                            " colliders; remove one first");
+  try {
+    c.collider.validate();
+    if (c.followFrame.empty()) {
+      solver_->setCollider(c.id, c.collider);
+    } else {
+      // In the solver from its first sampled pose on (followColliders()).
+      solver_->removeCollider(c.id);
+    }
+  } catch (const std::exception& e) {  // invalid_argument, or MeshError for an open mesh
+    return reject("bad_collider", "collider '" + c.id + "': " + e.what());
+  }
+  if (c.followFrame.empty()) {
+    followed_.erase(c.id);
+    return accepted("collider '" + c.id + "' " + (known ? "replaced" : "added"));
+  }
+  // Its motions come from the node's follower, which learnt of the new frame and offset before
+  // this command was sent: a motion already waiting is this collider's.
+  Followed f;
+  f.collider = c.collider;
+  followed_[c.id] = f;
+  return accepted("collider '" + c.id + "' follows frame '" + c.followFrame +
+                  "' from its first transform on");
+}
+
+CommandOutcome SimulationLoop::moveCollider(const MoveColliderCommand& c) {
+  if (followed_.count(c.id) > 0)
+    return reject("collider_follows_frame",
+                  "move of collider '" + c.id + "': it follows a tf frame; move the frame, or "
+                  "ADD it again without follow_frame");
+  try {
+    if (!solver_->moveCollider(c.id, c.pose, c.linearVelocity, c.angularVelocity))
+      return reject("unknown_collider",
+                    "move of collider '" + c.id + "': no such collider (ADD it first)");
+  } catch (const std::invalid_argument& e) {
+    return reject("non_finite", "move of collider '" + c.id + "': " + e.what());
+  }
+  return accepted("collider '" + c.id + "' moved");
+}
+
+CommandOutcome SimulationLoop::removeCollider(const RemoveColliderCommand& c) {
+  const bool followed = followed_.erase(c.id) > 0;
+  if (!solver_->removeCollider(c.id) && !followed)
+    return reject("unknown_collider", "removal of collider '" + c.id + "': no such collider");
+  return accepted("collider '" + c.id + "' removed");
+}
+
+void SimulationLoop::followColliders(double dt) {
+  collidersMoving_ = false;
+  if (followed_.empty()) return;
+  {
+    std::lock_guard<std::mutex> lock(motionMutex_);
+    incomingMotions_.swap(motions_);
+    motions_.clear();
+  }
+  for (auto& entry : followed_) {
+    Followed& f = entry.second;
+    const auto sample = incomingMotions_.find(entry.first);
+    if (sample != incomingMotions_.end()) {
+      f.motion = sample->second;
+      f.sinceSample = 0.0;
+    } else if (!f.inSolver) {
+      continue;  // its frame has not been seen yet
+    } else if (f.sinceSample > kMaxExtrapolation) {
+      // No news for a while: hold still where the last sample led.
+      f.motion.linearVelocity.setZero();
+      f.motion.angularVelocity.setZero();
+    }
+    const ColliderMotion& m = f.motion;
+    try {
+      if (!f.inSolver) {
+        Collider c = f.collider;
+        c.pose = m.pose;
+        c.linearVelocity = m.linearVelocity;
+        c.angularVelocity = m.angularVelocity;
+        solver_->setCollider(entry.first, c);
+        f.inSolver = true;
+      } else {
+        solver_->moveCollider(entry.first, m.pose, m.linearVelocity, m.angularVelocity);
+      }
+    } catch (const std::invalid_argument&) {
+      continue;  // a non-finite sample (the node sends none): the collider stays where it was
+    }
+    collidersMoving_ = collidersMoving_ || !m.linearVelocity.isZero(0.0) ||
+                       !m.angularVelocity.isZero(0.0);
+    // Where the next step starts if no sample comes before it.
+    f.motion.pose = advance(m.pose, m.linearVelocity, m.angularVelocity, dt);
+    f.sinceSample += dt;
+  }
+  incomingMotions_.clear();
 }
 
 }  // namespace deformable_flsm

@@ -6,6 +6,7 @@
 #include <tf2_eigen/tf2_eigen.h>
 
 #include <chrono>
+#include <cmath>
 #include <future>
 #include <utility>
 
@@ -13,23 +14,24 @@ namespace deformable_flsm {
 
 namespace {
 
-/// Incoming commands: enough for a burst between two drains of the spinner thread; the
-/// simulation's own queue (CommandLimits::kQueueCapacity) is the bound that is counted.
-constexpr std::uint32_t kCommandQueue = 100;
+/// Incoming commands. Their callback never waits (tf is not waited for, services have their
+/// own thread), so this queue only has to hold what arrives while it validates a message
+/// (microseconds) or, once, while the first foreign frame starts the tf listener: 1000 holds
+/// a second of several floods at a few hundred messages per second. Beyond it roscpp would drop
+/// the oldest uncounted; the simulation's own queue (CommandLimits::kQueueCapacity) is counted.
+constexpr std::uint32_t kCommandQueue = 1000;
 /// How long a service waits for the simulation thread to apply its command (s).
 constexpr double kServiceTimeout = 2.0;
-/// How long a command waits for its transform (s). The tf listener is started by the first
-/// command in a frame other than ~frame_id (so that a node nobody commands in other frames
-/// does not receive its own tf 30 times a second); that first lookup waits longer, for the
-/// listener to hear the frame.
-constexpr double kTransformTimeout = 0.1;
+/// Commands do not wait for tf. The tf listener is started by the first command in a frame
+/// other than ~frame_id (so that a node nobody commands in other frames does not receive its
+/// own tf 30 times a second); that first lookup alone waits, for the listener to hear the
+/// frames, up to this long (s).
 constexpr double kFirstTransformTimeout = 1.0;
-/// The simulation rests when every particle is slower than this many object sizes per second
-/// (1 mm/s for the 30 cm bunny: a 2 Hz wobble of 0.08 mm, invisible) ...
-constexpr double kIdleSpeedPerSize = 3e-3;
-/// ... for this long (s of simulated time) with nothing acting on it.
-constexpr double kIdleHold = 1.0;
 constexpr double kRejectPeriod = 1.0;  // s between two rejection warnings
+/// A frame that drags are attached to whose newest transform is older than this (s) is stale:
+/// its drags hold still (as colliders that follow a frame do, ColliderFollower::kStaleAfter).
+constexpr double kAttachStaleAfter = 0.5;
+constexpr double kAttachWarnPeriod = 5.0;  // s between two warnings about attached frames
 
 Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return {p.x, p.y, p.z}; }
 
@@ -37,7 +39,7 @@ Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return {p.x, p.y, p.z};
 
 SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh,
                              const NodeParams& params, Scene scene)
-    : nh_(nh), pnh_(pnh), commandNh_(pnh), params_(params), info_(scene.info),
+    : nh_(nh), pnh_(pnh), commandNh_(pnh), serviceNh_(pnh), params_(params), info_(scene.info),
       lattice_(scene.lattice), renderMesh_(std::move(scene.renderMesh)),
       embedding_(std::move(scene.embedding)), stats_(std::make_shared<CommandStats>()) {
   stats_->setRejectHook([](const std::string& reason, const std::string& detail) {
@@ -47,8 +49,7 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
 
   LoopSettings settings;
   settings.realTimeFactor = params_.realTimeFactor;
-  settings.idleSpeed = kIdleSpeedPerSize * lattice_->objectSize();
-  settings.idleHold = kIdleHold;
+  // Rest (LoopSettings::restFraction, idleHold): the defaults, relative to the object size.
   loop_ = std::make_unique<SimulationLoop>(std::move(scene.solver), settings, stats_);
 
   validator_ = std::make_unique<CommandValidator>(
@@ -60,34 +61,46 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   publisher_ = std::make_unique<StatePublisher>(pnh_, params_, *lattice_, renderMesh_, *embedding_, *stats_);
   reporter_ = std::make_unique<ProblemReporter>(params_, info_, *lattice_);
   advertise();
+  colliders_ = std::make_unique<ColliderTopics>(
+      pnh_, commandNh_, params_, *loop_, stats_, tfBuffer_, [this] { startTfListener(); },
+      [this](const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
+             std::string& why) { return lookupTransform(frame, stamp, T, why); },
+      [this](CommandBody body) { send(std::move(body), false); }, lattice_->objectSize());
   reconfigure_ = std::make_unique<Reconfigure>(pnh_, params_,
-                                               [this](const FlsmConfig& c) { onReconfigure(c); });
+                                               [this](const FlsmConfig& c) { return onReconfigure(c); });
   mouse_ = std::make_unique<InteractiveDrag>(pnh_, params_.frameId, *lattice_, renderMesh_,
                                              [this](const DragCommand& d) { return onMouseDrag(d); });
 
   reporter_->warnAboutScene();
+  loop_->setFrameSource([this](const std::string& frame, Eigen::Isometry3d& T) {
+    return attachedFrame(frame, T);
+  });
   loop_->start();
   publishTimer_ = pnh_.createTimer(ros::Duration(1.0 / params_.publishRate),
                                    &SimulatorNode::onPublishTimer, this);
   commandSpinner_ = std::make_unique<ros::AsyncSpinner>(1, &commandQueue_);
   commandSpinner_->start();
+  serviceSpinner_ = std::make_unique<ros::AsyncSpinner>(1, &serviceQueue_);
+  serviceSpinner_->start();
 }
 
 SimulatorNode::~SimulatorNode() {
   publishTimer_.stop();
   loop_->stop();  // answers services still waiting, so the spinner can stop
   commandSpinner_->stop();
+  serviceSpinner_->stop();
   mouse_.reset();
 }
 
 void SimulatorNode::advertise() {
-  // Commands and services on their own queue and thread (see the class comment).
+  // Commands and services on queues and threads of their own (see the class comment).
   commandNh_.setCallbackQueue(&commandQueue_);
   dragSub_ = commandNh_.subscribe("drag", kCommandQueue, &SimulatorNode::onDrag, this);
   forceSub_ = commandNh_.subscribe("force", kCommandQueue, &SimulatorNode::onForce, this);
-  resetSrv_ = commandNh_.advertiseService("reset", &SimulatorNode::onReset, this);
-  releaseAllSrv_ = commandNh_.advertiseService("release_all", &SimulatorNode::onReleaseAll, this);
-  pinBoxSrv_ = commandNh_.advertiseService("pin_box", &SimulatorNode::onPinBox, this);
+  serviceNh_.setCallbackQueue(&serviceQueue_);
+  resetSrv_ = serviceNh_.advertiseService("reset", &SimulatorNode::onReset, this);
+  releaseAllSrv_ = serviceNh_.advertiseService("release_all", &SimulatorNode::onReleaseAll, this);
+  pinBoxSrv_ = serviceNh_.advertiseService("pin_box", &SimulatorNode::onPinBox, this);
 }
 
 // --------------------------------------------------------------------------------------------
@@ -98,7 +111,8 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
   const ros::Time stamp = ros::Time::now();
   const Snapshot& s = loop_->acquire();
   publisher_->publishTf(s, stamp);
-  publisher_->publishState(s, stamp);
+  colliders_->publish(s, stamp);
+  publisher_->publishState(s, stamp, colliders_->frameMisses());
   reporter_->report(s.diag);
   mouse_->follow(s.objectFrame);
   publisher_->publishHeavy(s, stamp);
@@ -126,20 +140,61 @@ CommandOutcome SimulatorNode::send(CommandBody body, bool wait) {
   return result.get();
 }
 
+bool SimulatorNode::startTfListener() {
+  std::lock_guard<std::mutex> lock(tfListenerMutex_);
+  if (tfListener_) return false;
+  tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_);
+  return true;
+}
+
+bool SimulatorNode::attachedFrame(const std::string& frame, Eigen::Isometry3d& simFromFrame) {
+  geometry_msgs::TransformStamped t;
+  try {
+    // The latest transform, no timeout: the simulation thread never waits for tf. (The ATTACH
+    // that named the frame started the listener when it looked the frame up.)
+    t = tfBuffer_.lookupTransform(params_.frameId, frame, ros::Time(0));
+  } catch (const tf2::TransformException& e) {
+    ROS_WARN_THROTTLE(kAttachWarnPeriod,
+                      "flsm_node: frame '%s', which a drag is attached to, is not known now (%s): "
+                      "the drag holds still until it is",
+                      frame.c_str(), e.what());
+    return false;
+  }
+  const double age = (ros::Time::now() - t.header.stamp).toSec();
+  if (!t.header.stamp.isZero() && age > kAttachStaleAfter) {  // a static transform never is
+    ROS_WARN_THROTTLE(kAttachWarnPeriod,
+                      "flsm_node: the newest transform of frame '%s', which a drag is attached "
+                      "to, is %.2f s old: the drag holds still until the frame moves again",
+                      frame.c_str(), age);
+    return false;
+  }
+  // tf accepts quaternions normalised to within 1 %: the drag needs an exact rotation.
+  const geometry_msgs::Quaternion& r = t.transform.rotation;
+  const geometry_msgs::Vector3& p = t.transform.translation;
+  Eigen::Quaterniond q(r.w, r.x, r.y, r.z);
+  if (!(q.norm() > 0.0)) return false;
+  q.normalize();
+  simFromFrame = Eigen::Translation3d(p.x, p.y, p.z) * q;
+  return simFromFrame.matrix().allFinite();
+}
+
 bool SimulatorNode::lookupTransform(const std::string& frame, const ros::Time& stamp,
                                     Eigen::Isometry3d& T, std::string& why) {
-  double timeout = kTransformTimeout;
-  {
-    std::lock_guard<std::mutex> lock(tfListenerMutex_);
-    if (!tfListener_) {
-      tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_);
-      timeout = kFirstTransformTimeout;
-    }
+  if (startTfListener()) {
+    // Once: let the new listener hear the frames (tf_static at once, tf within a period).
+    tfBuffer_.canTransform(params_.frameId, frame, ros::Time(0), ros::Duration(kFirstTransformTimeout));
+  }
+  // Never wait: at the command's stamp if tf has it, else the latest transform (a command
+  // stamped a little ahead of the last tf message), else refused. Waiting here would hold up
+  // every other client's commands for as long as one client names a frame nobody publishes.
+  std::string atStamp;
+  ros::Time when = stamp;
+  if (stamp.isZero() || !tfBuffer_.canTransform(params_.frameId, frame, stamp, &atStamp)) {
+    when = ros::Time(0);
+    if (!tfBuffer_.canTransform(params_.frameId, frame, when, &why)) return false;
   }
   try {
-    const geometry_msgs::TransformStamped t = tfBuffer_.lookupTransform(
-        params_.frameId, frame, stamp, ros::Duration(timeout));
-    T = tf2::transformToEigen(t);
+    T = tf2::transformToEigen(tfBuffer_.lookupTransform(params_.frameId, frame, when));
     return true;
   } catch (const tf2::TransformException& e) {
     why = e.what();
@@ -203,15 +258,33 @@ bool SimulatorNode::onPinBox(PinBox::Request& req, PinBox::Response& res) {
   return true;
 }
 
-void SimulatorNode::onReconfigure(const FlsmConfig& config) {
-  SolverParams p = Reconfigure::solverParams(config, params_.solver);
+bool SimulatorNode::onReconfigure(const FlsmConfig& config) {
+  NodeParams changed = params_;
+  if (!Reconfigure::apply(config, changed)) {
+    stats_->reject("invalid_params", "material '" + config.material +
+                                         "': use 'youngs' or 'classic'; nothing changed");
+    return false;
+  }
+  if (changed.material == NodeParams::Material::Youngs &&
+      !(std::isfinite(changed.youngsModulus) && changed.youngsModulus > 0.0)) {
+    // dynamic_reconfigure has clamped anything below the range to its minimum, 0.
+    stats_->reject("invalid_params",
+                   "youngs_modulus " + std::to_string(changed.youngsModulus) +
+                       ": it must be > 0 Pa (a value below 0 arrives clamped to 0); the material "
+                       "is unchanged. For alpha = stiffness per sub-step, set material classic");
+    return false;
+  }
+  SolverParams p = changed.solver;
   p.regionHalfWidth = info_.regionHalfWidth;
   try {
     p.validate();
   } catch (const std::invalid_argument& e) {
-    stats_->reject("invalid_params", e.what());
-    return;
+    stats_->reject("invalid_params", std::string(e.what()) + "; nothing changed");
+    return false;
   }
+  params_.material = changed.material;
+  params_.youngsModulus = changed.youngsModulus;
+  params_.poissonsRatio = changed.poissonsRatio;
   params_.solver = p;
   send(ParamsCommand{p}, false);
   if (config.publish_rate != params_.publishRate) {
@@ -222,6 +295,7 @@ void SimulatorNode::onReconfigure(const FlsmConfig& config) {
     params_.realTimeFactor = config.real_time_factor;
     loop_->setRealTimeFactor(params_.realTimeFactor);
   }
+  return true;
 }
 
 }  // namespace deformable_flsm

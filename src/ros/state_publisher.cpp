@@ -1,5 +1,6 @@
 #include "deformable_flsm/ros/state_publisher.h"
 
+#include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/ros/mesh_messages.h"
 
 #include <geometry_msgs/TransformStamped.h>
@@ -18,6 +19,10 @@ constexpr const char kMarkerNamespace[] = "flsm_mesh";
 /// Only the newest state matters to a subscriber.
 constexpr std::uint32_t kStateQueue = 1;
 constexpr double kWarnPeriod = 5.0;  // s between two warnings of the same kind
+/// ~surface and ~particles keep ~publish_rate while the simulation rests: consumers of point
+/// clouds (filters, rate monitors, bag recording) expect a steady stream, and a resend of the
+/// cached cloud costs a copy onto the wire only.
+constexpr bool kCloudsAtRest = true;
 
 bool allFinite(const std::vector<Eigen::Vector3d>& xs) {
   for (const Eigen::Vector3d& x : xs)
@@ -47,7 +52,8 @@ void StatePublisher::publishTf(const Snapshot& s, const ros::Time& stamp) {
   tfBroadcaster_.sendTransform(t);
 }
 
-void StatePublisher::publishState(const Snapshot& s, const ros::Time& stamp) {
+void StatePublisher::publishState(const Snapshot& s, const ros::Time& stamp,
+                                  std::uint64_t colliderFrameMisses) {
   const LoopDiagnostics& d = s.diag;
   SimulationState& m = state_;
   m.header.stamp = stamp;
@@ -60,6 +66,7 @@ void StatePublisher::publishState(const Snapshot& s, const ros::Time& stamp) {
   m.max_displacement = d.maxDisplacement;
   m.max_speed = d.maxSpeed;
   m.shape_error = d.shapeError;
+  m.mass = lattice_.totalMass();
   m.particles = static_cast<std::uint32_t>(lattice_.size());
   m.pinned_particles = static_cast<std::uint32_t>(d.pinned);
   m.active_drags = static_cast<std::uint32_t>(d.drags);
@@ -80,20 +87,27 @@ void StatePublisher::publishState(const Snapshot& s, const ros::Time& stamp) {
     m.reject_counts.push_back(entry.second);
   }
   m.last_rejection = counts.lastRejection;
+  m.colliders = static_cast<std::uint32_t>(s.colliders.size());
+  m.collider_frame_misses = colliderFrameMisses;
   statePub_.publish(m);
 }
 
 void StatePublisher::publishHeavy(const Snapshot& s, const ros::Time& stamp) {
-  const bool atRest = params_.republishAtRest;
-  const bool meshDue = mesh_.due(s, atRest);
-  const bool surfaceDue = surface_.due(s, atRest);
+  // The clouds keep the rate at rest (resent with a new stamp: no simulation, no rebuild);
+  // the markers only with ~republish_at_rest (the bunny's ~mesh is 5 MB a message).
+  const bool markersAtRest = params_.republishAtRest;
+  const bool meshDue = mesh_.due(s, markersAtRest);
+  const bool surfaceDue = surface_.due(s, kCloudsAtRest);
   if ((meshDue && mesh_.stale(s)) || (surfaceDue && surface_.stale(s))) {
     if (verticesSequence_ != s.sequence) {
       embedding_.deform(s.positions, s.rotations, vertices_);
+      // The embedded surface may dip below a collider the particles rest on: not on screen.
+      projectOutOfColliders(vertices_, s.colliders, 0.0);
       verticesSequence_ = s.sequence;
+      verticesFinite_ = allFinite(vertices_);
     }
   }
-  const bool verticesOk = !(meshDue || surfaceDue) || allFinite(vertices_);
+  const bool verticesOk = !(meshDue || surfaceDue) || verticesFinite_;
   if (!verticesOk) {
     ++nonFiniteSkips_;
     ROS_ERROR_THROTTLE(kWarnPeriod, "flsm_node: the embedded mesh is not finite; ~mesh and "
@@ -111,12 +125,12 @@ void StatePublisher::publishHeavy(const Snapshot& s, const ros::Time& stamp) {
     });
   }
   // Particle positions are finite: the simulation thread resets a non-finite state.
-  if (particles_.due(s, atRest)) {
+  if (particles_.due(s, kCloudsAtRest)) {
     particles_.publish(s, stamp, particleCloud_, [&](sensor_msgs::PointCloud2& cloud) {
       fillParticleCloud(s.positions, lattice_.restPositions(), params_.frameId, cloud);
     });
   }
-  if (latticeMarkers_.due(s, atRest)) {
+  if (latticeMarkers_.due(s, markersAtRest)) {
     latticeMarkers_.publish(s, stamp, latticeMarkerArray_, [&](visualization_msgs::MarkerArray& markers) {
       dragLines_.clear();
       for (const DragView& d : s.drags) dragLines_.emplace_back(d.centroid, d.target);

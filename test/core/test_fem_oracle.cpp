@@ -124,7 +124,9 @@ TEST(FemOracle, CantileverFirstFrequencyConvergesToEulerBernoulli) {
     FemOracle fem(box(22, 2, 2, 0.05, Eigen::Vector3d(-0.1, 0, 0)), FemMaterial{E, 0.0, rho}, s);
     fem.clampCellsInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(0.0, kBig, kBig));
     const double omega = fem.lowestAngularFrequency();
-    if (previous > 0.0) EXPECT_LT(omega, previous) << "refinement must soften the locking elements";
+    if (previous > 0.0) {
+      EXPECT_LT(omega, previous) << "refinement must soften the locking elements";
+    }
     previous = omega;
   }
   EXPECT_NEAR(previous / exact, 1.0, 0.03);
@@ -135,8 +137,11 @@ TEST(FemOracle, ClampedCellsAreTheCellsPinBoxPins) {
   EXPECT_EQ(fem.elementCount(), 24u * 27u);
   EXPECT_EQ(fem.clampCellsInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(0.16, kBig, kBig)), 8u);
   const FemSolution u = fem.solveStatic(Eigen::Vector3d(0, 0, -9.81));
-  for (std::size_t n = 0; n < fem.nodePositions().size(); ++n)
-    if (fem.nodePositions()[n].x() <= 0.2 + 1e-12) ASSERT_EQ(u.nodeDisplacements[n], Eigen::Vector3d::Zero());
+  for (std::size_t n = 0; n < fem.nodePositions().size(); ++n) {
+    if (fem.nodePositions()[n].x() <= 0.2 + 1e-12) {
+      ASSERT_EQ(u.nodeDisplacements[n], Eigen::Vector3d::Zero());
+    }
+  }
   EXPECT_GT(-u.cellDisplacements.back().z(), 0.0);
 }
 

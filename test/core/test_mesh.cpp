@@ -292,6 +292,34 @@ TEST(LoadMesh, StanfordBunnyFromGlmark2IsClosed) {
   EXPECT_NEAR((bunny.boundsMax() - bunny.boundsMin()).x(), 2.0, 1e-6);
 }
 
+TEST_F(MeshFileTest, Glmark2JobjIsReadFromItsIndexLines) {
+  // glmark2's own format: vertex lines (with normals, texture coordinates and colours beside
+  // them) and one index per line, three per triangle.
+  std::string jobj;
+  for (const auto& c : cubeCorners()) {
+    jobj += "v " + std::to_string(c.x()) + " " + std::to_string(c.y()) + " " +
+            std::to_string(c.z()) + "\nvn 0 0 1\nvt 0 0\nvc 1 1 1 1\n";
+  }
+  for (const auto& q : kCubeQuads)
+    for (int k : {0, 1, 2, 0, 2, 3}) jobj += "i " + std::to_string(q[k]) + "\n";
+  const TriMesh cube = loadMesh(write("cube.jobj", jobj), 2.0);
+  EXPECT_EQ(cube.vertices.size(), 8u);
+  EXPECT_EQ(cube.triangles.size(), 12u);
+  EXPECT_EQ(countBoundaryEdges(cube), 0u);
+  EXPECT_NEAR(std::abs(signedVolume(cube)), 8.0, 1e-9);  // the unit cube scaled by 2
+
+  expectMeshError([&] { loadMesh(write("short.jobj", "v 0 0 0\nv 1 0 0\ni 0\ni 1\n")); },
+                  {"short.jobj", "2 indices"});
+}
+
+TEST(LoadMesh, Glmark2JellyfishLoads) {
+  const char* const path = "/usr/share/glmark2/models/jellyfish.jobj";
+  if (!fs::exists(path)) GTEST_SKIP() << path << " missing (install glmark2-data)";
+  const TriMesh jellyfish = loadMesh(path);
+  EXPECT_GT(jellyfish.triangles.size(), 1000u);  // 13,200 index lines: 4400 triangles
+  EXPECT_LE(jellyfish.triangles.size(), 4400u);
+}
+
 TEST_F(MeshFileTest, MissingFileIsNamed) {
   const std::string path = (dir_ / "no_such_mesh.obj").string();
   expectMeshError([&] { loadMesh(path); }, {path, "does not exist"});

@@ -199,6 +199,33 @@ TEST(Voxelize, CubeGivesExactlyNCubedFullCells) {
   }
 }
 
+// By spacing too: a box of n cells per side gives n^3 cells, also when size / spacing is not
+// exactly n in floating point (0.1 / 0.025 is 4 + 1 ulp, 0.7 / 0.1 is 7 - 1 ulp; a mesh file's
+// single-precision 0.1f is 4 + 6e-8 cells of 0.025) and when the box does not start at the origin.
+TEST(Voxelize, BoxOfWholeCellsBySpacingGivesExactlyTheCells) {
+  struct Case {
+    Eigen::Vector3d lo, size;
+    double spacing;
+  };
+  for (const Case& c : {Case{Eigen::Vector3d::Zero(), Eigen::Vector3d::Constant(0.1), 0.025},
+                        Case{Eigen::Vector3d(0.3, -0.2, 0.7), Eigen::Vector3d::Constant(0.1), 0.025},
+                        Case{Eigen::Vector3d::Zero(), Eigen::Vector3d(0.1, 0.3, 0.7), 0.1},
+                        Case{Eigen::Vector3d(-0.35, 0.1, 0.05), Eigen::Vector3d(0.7, 0.3, 0.15), 0.05},
+                        Case{Eigen::Vector3d::Zero(), Eigen::Vector3d(1.0, 0.1, 0.1), 0.0125},
+                        // a mesh file in single precision: 0.1f is 0.1 + 1.5e-9, 4 + 6e-8 cells
+                        Case{Eigen::Vector3d::Zero(), Eigen::Vector3d::Constant(double(0.1f)), 0.025},
+                        Case{Eigen::Vector3d::Constant(double(-0.05f)), Eigen::Vector3d::Constant(double(0.05f) - double(-0.05f)), 0.025}}) {
+    const Eigen::Vector3i n = (c.size / c.spacing).array().round().cast<int>();
+    SCOPED_TRACE(testing::Message() << "box " << c.size.transpose() << " at spacing " << c.spacing);
+    VoxelizeOptions o;
+    o.spacing = c.spacing;
+    const Voxelization v = voxelize(test::boxMesh(c.lo, c.lo + c.size), o);
+    EXPECT_EQ(v.dims, n);
+    EXPECT_EQ(v.cells.size(), static_cast<std::size_t>(n.prod()));
+    for (const double f : v.fillFraction) EXPECT_NEAR(f, 1.0, 1e-12);
+  }
+}
+
 TEST(Voxelize, LatticeIsCentredOnTheBoundingBox) {
   // Extents 1 x 0.75 x 0.3 at h = 0.25: 4 x 3 x 2 cells (0.3 / 0.25 = 1.2 rounds up), and the
   // 0.2 of slack along z is split evenly below and above the box.

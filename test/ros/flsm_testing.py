@@ -17,13 +17,15 @@ from deformable_flsm.srv import PinBox
 
 
 class Counter(object):
-    """Counts the messages of one topic."""
+    """Counts the messages of one topic and keeps the last one."""
 
     def __init__(self, topic, msg_type):
         self.count = 0
+        self.last = None
         self.sub = rospy.Subscriber(topic, msg_type, self.on_msg, queue_size=50)
 
     def on_msg(self, msg):
+        self.last = msg
         self.count += 1
 
     def close(self):

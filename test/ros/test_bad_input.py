@@ -3,7 +3,7 @@
 magnitudes, zero and negative durations, bad boxes and a flood of commands. Every case must be
 rejected and counted in ~state under its reason, and afterwards the node must still publish
 finite data at its rate. A spring drag is held throughout, so that the node keeps stepping and
-publishing (a resting node does not republish unchanged data; test/ros/idle.test covers that).
+publishing (a resting node does not resend the ~mesh marker; test/ros/idle.test covers rest).
 """
 
 import math

@@ -122,9 +122,52 @@ TEST_F(Validator, MoveAndRelease) {
   EXPECT_EQ(std::get<ReleaseCommand>(out).id, "hand");
 }
 
+// ATTACH grabs like GRAB, with the point in the frame attached to, and carries that frame's pose
+// now (simulation frame <- frame) and its name; it needs no target, so a target out of reach
+// does not matter.
+TEST_F(Validator, AttachCarriesTheFrameAndItsPose) {
+  DragCommand m = grab();
+  m.action = DragCommand::ATTACH;
+  m.header.frame_id = "turned";
+  m.particle = -1;
+  m.point.x = 0.1;  // (0, 0.1, 0) in the simulation frame
+  m.count = 4;
+  m.target.x = 1e3;
+  CommandBody out;
+  Rejection why;
+  ASSERT_TRUE(validator_.drag(m, out, why)) << why.detail;
+  const AttachCommand& a = std::get<AttachCommand>(out);
+  EXPECT_EQ(a.frame, "turned");
+  EXPECT_EQ(a.grab.id, "hand");
+  EXPECT_EQ(a.grab.count, 4u);
+  EXPECT_TRUE(a.grab.point.isApprox(Eigen::Vector3d(0.0, 0.1, 0.0), 1e-12));
+  EXPECT_TRUE(a.pose.linear().isApprox(frames_["turned"].linear(), 1e-12));
+  EXPECT_LT(a.pose.translation().norm(), 1e-12);
+  // The simulation frame (empty or by name) does not move: nothing to follow.
+  for (const char* sim : {"", "world"}) {
+    m.header.frame_id = sim;
+    ASSERT_TRUE(validator_.drag(m, out, why)) << why.detail;
+    EXPECT_TRUE(std::get<AttachCommand>(out).frame.empty());
+  }
+  // A frame tf does not know is refused like any other command's.
+  m.header.frame_id = "nowhere";
+  EXPECT_EQ(dragReason(m), "unknown_frame");
+  m = grab();
+  m.action = DragCommand::ATTACH;
+  m.stiffness = -1.0;
+  EXPECT_EQ(dragReason(m), "bad_stiffness");
+  m.stiffness = 0.0;
+  m.particle = -1;
+  m.point.x = 10.0;
+  EXPECT_EQ(dragReason(m), "out_of_reach");
+  m.point.x = kNaN;
+  EXPECT_EQ(dragReason(m), "non_finite");
+}
+
 TEST_F(Validator, EveryBadDragFieldIsRefusedWithItsReason) {
   DragCommand m;
   m = grab(); m.action = 7;                   EXPECT_EQ(dragReason(m), "bad_action");
+  m = grab(); m.action = 4;                   EXPECT_EQ(dragReason(m), "bad_action");
   m = grab(); m.id = "";                      EXPECT_EQ(dragReason(m), "bad_id");
   m = grab(); m.id = std::string(65, 'a');    EXPECT_EQ(dragReason(m), "bad_id");
   m = grab(); m.id = "tab\there";             EXPECT_EQ(dragReason(m), "bad_id");

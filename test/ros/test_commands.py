@@ -298,6 +298,31 @@ class CommandsTest(unittest.TestCase):
         client.update_configuration({'real_time_factor': 1.0, 'publish_rate': 30.0})
         self.assertAlmostEqual(rate, 10.0, delta=2.0)
 
+    def test_reconfigure_never_switches_the_material_by_a_value(self):
+        # A typo (-5) is clamped by dynamic_reconfigure to its minimum, 0, which once meant
+        # "classic FastLSM, alpha = stiffness": now it is refused and nothing changes.
+        f = self.flsm
+        client = ReconfigureClient('/flsm_node', timeout=10.0)
+        config = client.get_configuration(timeout=10.0)
+        self.assertEqual(config['material'], 'youngs')
+        modulus, alpha = config['youngs_modulus'], f.state().alpha
+        refused = f.rejected('invalid_params')
+        answer = client.update_configuration({'youngs_modulus': -5.0})
+        self.assertEqual(answer['youngs_modulus'], modulus, 'the server did not keep the modulus')
+        self.assertIsNotNone(f.wait_state(lambda s: self.flsm.rejected('invalid_params') ==
+                                          refused + 1, 5.0), 'the negative modulus was not '
+                             'counted as invalid_params')
+        time.sleep(0.5)  # a change would have reached ~state by now
+        self.assertEqual(f.state().alpha, alpha, 'the material changed')
+        self.assertEqual(client.get_configuration(timeout=10.0)['youngs_modulus'], modulus)
+        # The classic model is its own switch: alpha = stiffness, and back.
+        client.update_configuration({'material': 'classic', 'stiffness': 0.5})
+        self.assertIsNotNone(f.wait_state(lambda s: abs(s.alpha - 0.5) < 1e-12, 5.0),
+                             'material classic did not give alpha = stiffness')
+        client.update_configuration({'material': 'youngs', 'stiffness': 1.0})
+        self.assertIsNotNone(f.wait_state(lambda s: abs(s.alpha - alpha) < 1e-12, 5.0),
+                             'material youngs did not restore alpha')
+
 
 if __name__ == '__main__':
     rostest.rosrun(PKG, 'commands', CommandsTest)

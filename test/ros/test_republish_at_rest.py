@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""flsm_node with ~republish_at_rest: true keeps its heavy topics at ~publish_rate at rest
-(copies of the last state) while the solver itself stays idle."""
+"""flsm_node with ~republish_at_rest: true keeps the markers ~mesh and ~lattice at ~publish_rate
+at rest too (copies of the last state), besides the clouds ~surface and ~particles that keep it
+in any case, while the solver itself stays idle."""
 
 import time
 import unittest

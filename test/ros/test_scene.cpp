@@ -63,9 +63,26 @@ TEST(BuildScene, RegionRadiusInMetresBecomesWholeCells) {
   p.regionRadius = 0.0;
   p.regionHalfWidth = 1;
   EXPECT_EQ(buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0).info.regionHalfWidth, 1);
-  p.regionHalfWidth = 0;
-  p.regionRadius = 5.0;  // 50 cells: beyond the solver's limit
-  EXPECT_THROW(buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0), ParamError);
+  EXPECT_EQ(regionClampWarning(buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0).info, p),
+            "");
+}
+
+TEST(BuildScene, RegionRadiusBeyondTheLimitIsClampedWithAWarning) {
+  // A radius that suits one mesh is too many cells on a smaller one (the same particle budget
+  // makes a finer lattice): the scene starts with the largest regions the solver allows.
+  NodeParams p = cubeParams();
+  p.regionRadius = 5.0;  // 50 cells of 0.1 m
+  const Scene s = buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0);
+  EXPECT_EQ(s.info.regionHalfWidth, kMaxRegionHalfWidth);
+  EXPECT_EQ(s.info.regionAskedCells, 50);
+  EXPECT_EQ(s.solver->params().regionHalfWidth, kMaxRegionHalfWidth);
+  const std::string w = regionClampWarning(s.info, p);
+  EXPECT_NE(w.find("50 cells"), std::string::npos) << w;
+  EXPECT_NE(w.find("at most 1 m"), std::string::npos) << w;  // 10 cells of 0.1 m
+  EXPECT_NE(describeScene(s.info, p).find("clamped"), std::string::npos);
+  // 10.4 cells rounds to 10: no clamp.
+  p.regionRadius = 1.04;
+  EXPECT_EQ(buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0).info.regionAskedCells, 0);
 }
 
 TEST(BuildScene, PinnedBoxesAreCountedPerBox) {
@@ -170,7 +187,9 @@ TEST(NodeParams, EveryInvalidValueIsNamed) {
       {[](NodeParams& p) { p.pinned.push_back(Box{Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 1)}); }, "~pinned"},
       {[&](NodeParams& p) { p.pinned.push_back(Box{Eigen::Vector3d(nan, 0, 0), Eigen::Vector3d(1, 1, 1)}); }, "~pinned"},
       {[](NodeParams& p) { p.solver.stiffness = 2.0; }, "stiffness"},
-      {[](NodeParams& p) { p.solver.youngsModulus = -1.0; }, "youngs_modulus"},
+      {[](NodeParams& p) { p.youngsModulus = -1.0; }, "~youngs_modulus is -1"},
+      {[](NodeParams& p) { p.youngsModulus = 0.0; }, "~material"},  // no longer "classic"
+      {[&](NodeParams& p) { p.youngsModulus = nan; }, "~youngs_modulus"},
       {[](NodeParams& p) { p.solver.damping = -1.0; }, "damping"},
       {[](NodeParams& p) { p.solver.timeStep = 0.0; }, "time_step"},
       {[](NodeParams& p) { p.solver.substeps = 0; }, "substeps"},
@@ -184,6 +203,24 @@ TEST(NodeParams, EveryInvalidValueIsNamed) {
     const std::string why = problem(p);
     EXPECT_NE(why.find(c.named), std::string::npos) << "expected '" << c.named << "' in: " << why;
   }
+}
+
+TEST(NodeParams, TheMaterialIsItsOwnSwitch) {
+  NodeParams p;
+  p.youngsModulus = 2e4;
+  p.solver.stiffness = 0.5;
+  p.applyMaterial();
+  EXPECT_EQ(p.solver.youngsModulus, 2e4);
+  p.material = NodeParams::Material::Classic;
+  p.youngsModulus = 0.0;  // not used by the classic model, so not checked
+  EXPECT_EQ(problem(p), "");
+  p.applyMaterial();
+  EXPECT_EQ(p.solver.youngsModulus, 0.0);  // the solver's alpha = stiffness
+  NodeParams::Material m = NodeParams::Material::Youngs;
+  EXPECT_TRUE(parseMaterial("classic", m));
+  EXPECT_EQ(m, NodeParams::Material::Classic);
+  EXPECT_FALSE(parseMaterial("", m));
+  EXPECT_STREQ(toString(NodeParams::Material::Youngs), "youngs");
 }
 
 }  // namespace

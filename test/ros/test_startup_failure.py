@@ -88,6 +88,18 @@ class StartupFailureTest(unittest.TestCase):
     def test_stiffness_above_one_is_refused(self):
         self.assert_fails_naming('flsm_stiff', ['stiffness', '(0, 1]'], '_stiffness:=1.5')
 
+    def test_non_positive_youngs_modulus_is_refused(self):
+        # 0 once meant "classic FastLSM": now that has its own switch, ~material.
+        self.assert_fails_naming('flsm_negative_modulus', ['~youngs_modulus is -5', '> 0',
+                                                           '~material'],
+                                 '_youngs_modulus:=-5.0')
+        self.assert_fails_naming('flsm_zero_modulus', ['~youngs_modulus is 0', '~material'],
+                                 '_youngs_modulus:=0.0')
+
+    def test_unknown_material_is_refused(self):
+        self.assert_fails_naming('flsm_bad_material', ["~material is 'rubber'", "'youngs'",
+                                                      "'classic'"], '_material:=rubber')
+
     def test_zero_substeps_is_refused(self):
         self.assert_fails_naming('flsm_substeps', ['substeps', '1 to'], '_substeps:=0')
 
@@ -106,11 +118,6 @@ class StartupFailureTest(unittest.TestCase):
     def test_lattice_over_max_particles_is_refused(self):
         self.assert_fails_naming('flsm_too_fine', ['~max_particles', 'resolution'],
                                  '_resolution:=60', '_max_particles:=1000')
-
-    def test_region_radius_beyond_ten_cells_is_refused(self):
-        self.assert_fails_naming('flsm_big_regions', ['region_radius', 'at most 10 cells',
-                                                     'use a radius of at most'],
-                                 '_resolution:=10', '_region_radius:=0.5', '_mesh_scale:=0.1')
 
 
 if __name__ == '__main__':

@@ -16,6 +16,8 @@
 
 namespace deformable_flsm {
 
+class MeshDistanceField;
+
 enum class ColliderType {
   /// the solid z <= 0 of the collider frame (outward normal +z): ground or wall
   HalfSpace,
@@ -46,8 +48,12 @@ struct ColliderShape {
   double halfLength = 0.0;
   /// Mesh: closed triangle mesh in the collider frame (non-empty)
   std::shared_ptr<const TriMesh> mesh;
+  /// Mesh: its signed distance field (mesh_distance_field.h). Solver::setCollider() builds it
+  /// when it is missing; give one to share it between colliders of the same mesh.
+  std::shared_ptr<const MeshDistanceField> distanceField;
 
-  /// @throws std::invalid_argument saying which field is wrong (NaN, negative, missing mesh).
+  /// @throws std::invalid_argument saying which field is wrong (NaN, negative, missing, empty
+  ///         or open mesh).
   void validate() const;
 };
 

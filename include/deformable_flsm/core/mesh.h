@@ -30,7 +30,8 @@ struct TriMesh {
   Eigen::Vector3d boundsMax() const;
 };
 
-/// Loads any format assimp reads (OBJ, STL, PLY, DAE, 3DS, OFF, ...), triangulated, all meshes of
+/// Loads any format assimp reads (OBJ, STL, PLY, DAE, 3DS, OFF, ...) and glmark2's ".jobj"
+/// (vertex and index lines), triangulated, all meshes of
 /// the scene merged with their node transforms applied, vertices welded by exact position (so
 /// STL's per-face corners join), and uniformly scaled by `scale`.
 /// @param[in] path   file to read

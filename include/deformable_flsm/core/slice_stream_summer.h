@@ -31,12 +31,11 @@ namespace deformable_flsm {
 /// other, so that the rings stay small whatever the lattice's cross-section (a slice of the
 /// 200k-particle bunny holds up to 5,252 particles, whose two rings at w = 2 take 10.6 MB): as
 /// few bands as keep every band-slice within kBandTarget (2560) particles, halo included, as
-/// even as that allows. Greedy bands of up to 4096 took a flat 100 x 100 x 20 box from 159 to
-/// 120 ns per particle-step and the bunny at 200k 10-20 % lower; these even ones save ~3 % more
-/// at both (interleaved A/B, six runs at 200k: 0.88-1.01, the gains in busy spells; two builds
-/// of the same code: 0.98-1.03). Slices that fit in 4096 stay whole: the 100k
-/// bunny's (up to ~3,300) cost 1.01-1.05x in bands of 2560, and bands much smaller cost more in
-/// halo than they save. A band computes the regions of its rows [y0, y1) from the data of rows
+/// even as that allows. Against whole slices, bands make a flat 100 x 100 x 20 box ~25 % cheaper
+/// per particle-step and the bunny at 200k 10-20 % (bench_solver); even bands are ~3 % cheaper
+/// than greedy ones of 4096. Slices that fit in 4096 stay whole: the 100k bunny's (up to
+/// ~3,300) cost 1.01-1.05x in bands of 2560, and bands much smaller cost more in halo than they
+/// save. A band computes the regions of its rows [y0, y1) from the data of rows
 /// [y0 - w, y1 + w) (the halo, generated twice), and the particle results of rows [y0 - w, y1 -
 /// w), which need the regions of rows [y0 - 2w, y1): the band below leaves its top 2w region
 /// rows in a boundary store. Regions and particle results are computed once; only the halo's
@@ -74,6 +73,9 @@ class SliceStreamSummer : public RegionSummer {
   void gather(const double* in, int K, double* out) override;
   void scatter(const double* in, int K, double* out) override;
   void apply(RegionKernel& kernel) override;
+  /// Makes room for passes of up to Kg gathered and Ks scattered channels now, so that the
+  /// first apply() with them does not allocate (apply() otherwise grows on first use).
+  void reserve(int Kg, int Ks) { reserveSliceScratch(Kg, Ks); }
   /// Bands of rows apply() sweeps one after the other (1: whole slices).
   std::size_t bandCount() const { return bandY_.size() - 1; }
   /// Particles in the widest slice of a band's data rows (its rows and the halo): the largest

@@ -7,6 +7,7 @@
 #include "deformable_flsm/core/fast_summation.h"
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/solver_params.h"
+#include "deformable_flsm/core/thread_governor.h"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -20,18 +21,31 @@
 
 namespace deformable_flsm {
 
-/// A drag: particles pulled so that their centroid goes to `target`, keeping their arrangement
-/// at the moment they were grabbed.
+/// A drag: particles pulled to targets that move rigidly with a frame, the drag's pose. Each
+/// particle keeps the offset it had in that frame when it was grabbed: its target is
+/// pose * offsets[i]. grab() puts the frame at the grabbed particles' centroid, unrotated, so
+/// that moving the pose's translation pulls the centroid there; attach() takes the frame of a
+/// body (a gripper, a robot link) so that the particles follow that body as it moves and turns.
 struct Drag {
   /// grabbed particle indices
   std::vector<std::uint32_t> particles;
-  /// per particle: its target is target + offsets[i] (m)
+  /// per particle: where it was in the drag frame when grabbed (m); its target is
+  /// pose * offsets[i]
   std::vector<Eigen::Vector3d> offsets;
-  /// where the centroid of the grabbed particles is pulled to (m, simulation frame)
-  Eigen::Vector3d target = Eigen::Vector3d::Zero();
-  /// 0 for a hard constraint (the particles follow the target exactly); otherwise the stiffness
-  /// (N/m) of a spring from each particle to its target, scaled by the particle's mass share
+  /// the drag frame in the simulation frame at the end of the next step()
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  /// the drag frame the last step() ended at; the sub-steps of the next step() move the frame
+  /// from here to `pose` (translation linearly, rotation by slerp), so that a frame moving
+  /// steadily drags the particles at its own velocity instead of in one jump per step
+  Eigen::Isometry3d reached = Eigen::Isometry3d::Identity();
+  /// 0 for a hard constraint (the particles follow their targets exactly); otherwise the
+  /// stiffness (N/m) of a spring from each particle to its target, scaled by the particle's mass
+  /// share
   double stiffness = 0.0;
+
+  /// Where the grabbed particles' centroid is pulled to (m, simulation frame): pose applied to
+  /// the centroid of the offsets (for grab(), the pose's translation).
+  Eigen::Vector3d centroidTarget() const;
 };
 
 /// A force spread over a set of particles in proportion to their masses, so that all of them
@@ -58,6 +72,10 @@ class Solver : private RegionKernel {
   /// time. @throws std::invalid_argument if invalid, or if regionHalfWidth or density change
   /// (they define the lattice: build a new Solver).
   void setParams(const SolverParams& params);
+  /// With params.threads > 1 (fast solver), which steps ran on the threads and which on one
+  /// thread: each step times itself and a ThreadGovernor picks the faster (results are
+  /// identical either way); nullptr with one thread.
+  const ThreadGovernor* threadGovernor() const { return singleSummer_ ? &governor_ : nullptr; }
 
   /// alpha used per sub-step: params().requestedAlpha(spacing), capped. Classic mode: the cap is
   /// params().stiffness. Physical mode: the cap follows the stability of the sub-step, symplectic
@@ -78,7 +96,8 @@ class Solver : private RegionKernel {
   /// Sub-steps taken since construction or reset().
   std::uint64_t substepCount() const { return substeps_; }
 
-  /// Back to rest: positions = rest positions, zero velocities; drags, forces released; pins kept.
+  /// Back to rest: positions = rest positions, zero velocities; drags, forces released; pins and
+  /// colliders kept (their wrenches cleared).
   void reset();
 
   /// #P current positions x (m)
@@ -104,10 +123,22 @@ class Solver : private RegionKernel {
 
   // --- drags ----------------------------------------------------------------------------
   /// Grabs `particles` under `id` (replacing a drag of the same id) and pulls their centroid to
-  /// `target`. stiffness 0 = hard constraint, > 0 = spring (N/m).
+  /// `target`, keeping their arrangement unrotated. stiffness 0 = hard constraint, > 0 = spring
+  /// (N/m). @throws std::invalid_argument, std::out_of_range for an empty or bad selection, a
+  /// non-finite target or a negative stiffness.
   void grab(const std::string& id, const std::vector<std::uint32_t>& particles,
             const Eigen::Vector3d& target, double stiffness);
-  /// Moves the target of drag `id`. Returns false if there is no such drag.
+  /// Attaches `particles` to a moving frame under `id` (replacing a drag of the same id): each
+  /// keeps its present position in `frame` (simulation frame <- attached frame), and follows it
+  /// when moveDrag() moves and turns the frame. Nothing moves until the frame does.
+  /// @throws like grab(), and std::invalid_argument for a non-rigid or non-finite frame.
+  void attach(const std::string& id, const std::vector<std::uint32_t>& particles,
+              const Eigen::Isometry3d& frame, double stiffness);
+  /// Moves the drag frame of drag `id` to `pose` at the end of the next step(). Returns false
+  /// if there is no such drag. @throws std::invalid_argument for a non-rigid or non-finite pose.
+  bool moveDrag(const std::string& id, const Eigen::Isometry3d& pose);
+  /// Moves the origin of drag `id`'s frame to `target` and keeps its rotation (for a grab(): the
+  /// grabbed centroid goes to `target`). Returns false if there is no such drag.
   bool moveDrag(const std::string& id, const Eigen::Vector3d& target);
   /// Releases drag `id`. Returns false if there is no such drag.
   bool release(const std::string& id);
@@ -125,12 +156,17 @@ class Solver : private RegionKernel {
 
   // --- colliders ------------------------------------------------------------------------
   /// Adds collider `id`, or replaces the collider of that id. Particles collide with it as
-  /// spheres of radius params().contactRadius, with Coulomb friction (see collider.h).
-  /// @throws std::invalid_argument if collider.validate() fails.
+  /// spheres of radius contactRadius(), with Coulomb friction (collider.h; the response is
+  /// contactVelocityChange() in contact.h). A mesh collider gets its MeshDistanceField here when it has none (this
+  /// takes a moment for a large mesh; share one field between colliders of the same mesh).
+  /// @throws std::invalid_argument if collider.validate() fails (an open mesh among others).
   void setCollider(const std::string& id, const Collider& collider);
   /// Gives collider `id` its pose at the start of the next step() and its velocity over that
-  /// step (the sub-steps move it along). Returns false if there is no such collider.
-  /// @throws std::invalid_argument for a non-finite pose or velocity.
+  /// step (the sub-steps move it along). step() leaves each collider at its pose at the end of
+  /// the step, so that a collider keeps moving at its velocity until told otherwise.
+  /// Returns false if there is no such collider.
+  /// @throws std::invalid_argument for a non-finite pose or velocity, or a pose whose rotation
+  ///         part is not a rotation.
   bool moveCollider(const std::string& id, const Eigen::Isometry3d& pose,
                     const Eigen::Vector3d& linearVelocity, const Eigen::Vector3d& angularVelocity);
   /// Removes collider `id`. Returns false if there is no such collider.
@@ -139,6 +175,11 @@ class Solver : private RegionKernel {
   const std::map<std::string, Collider>& colliders() const { return colliders_; }
   /// What the object exerted on collider `id` during the last step(); zero for an unknown id.
   ContactWrench contactWrench(const std::string& id) const;
+  /// Radius of the particles' contact spheres (m): params().contactRadius, or half the lattice
+  /// spacing when that is 0. At half the spacing a particle's sphere touches its cell's faces, so
+  /// the particles of a full bottom layer stand with their cells' lower faces on the ground: the
+  /// rest surface of the voxelized object rests on the collider.
+  double contactRadius() const;
 
   // --- queries --------------------------------------------------------------------------
   /// The `count` particles nearest to `point` in the current configuration, nearest first.
@@ -173,6 +214,11 @@ class Solver : private RegionKernel {
   void finishSubstep(double h);
   /// hardDragged_ from drags_
   void markHardDrags();
+  /// Stores a drag under `id`: offsets are the particles' positions in `frame`.
+  void addDrag(const std::string& id, const std::vector<std::uint32_t>& particles,
+               const Eigen::Isometry3d& frame, const Eigen::Isometry3d& pose, double stiffness);
+  /// Every drag's frame at fraction `s` of the step from `reached` to `pose` into dragFrames_.
+  void interpolateDragFrames(double s);
   // RegionKernel
   int gatherChannels() const override;
   int scatterChannels() const override;
@@ -180,12 +226,27 @@ class Solver : private RegionKernel {
   void regionData(std::size_t begin, std::size_t end, const double* sums, double* out) override;
   void particleResult(std::size_t begin, std::size_t end, const double* sums) override;
   void accumulateForces(double h);
+  // --- contact (solver_contact.cpp) ---
+  /// Collider poses at the start of a step, wrench accumulators cleared.
+  void beginContactStep();
+  /// The contact response of the free particles after the region pass of a sub-step of length h.
+  void contactPass(double h);
+  /// Wrenches averaged over the step; colliders left at their end-of-step poses.
+  void endContactStep();
+  /// contactBodies_ and the reduction buffers after a change of colliders_.
+  void rebuildContactBodies();
   void computeRegionWeights();
+  /// summer_ (and singleSummer_) for params_.kind and threads_.
+  void makeSummers();
   void reserveForcedParticles();
 
   std::shared_ptr<const Lattice> lattice_;
   SolverParams params_;
   std::unique_ptr<RegionSummer> summer_;
+  /// With threads_ > 1: the same sums on one thread, for the steps the governor gives to it.
+  std::unique_ptr<RegionSummer> singleSummer_;
+  RegionSummer* activeSummer_ = nullptr;  // the summer of the step being run
+  ThreadGovernor governor_;
 
   std::vector<Eigen::Vector3d> x_, v_;
   std::vector<Eigen::Vector3d>* goalsOut_ = nullptr;  // where computeGoals() wants the goals
@@ -207,7 +268,33 @@ class Solver : private RegionKernel {
   std::vector<Eigen::Vector3d> impulseDv_;  // velocity change pending from impulses
   bool impulsePending_ = false;
   std::map<std::string, Drag> drags_;
+  /// per drag (in drags_ order): its frame at the current sub-step; capacity kept across steps
+  std::vector<Eigen::Isometry3d> dragFrames_;
   std::map<std::string, Collider> colliders_;
+  /// A collider as the contact pass sees it, in the order of colliders_.
+  struct ContactBody {
+    const std::string* id = nullptr;
+    Collider* collider = nullptr;
+    Eigen::Isometry3d start = Eigen::Isometry3d::Identity();  // pose at the start of the step
+    Eigen::Isometry3d now = Eigen::Isometry3d::Identity();    // pose at the end of this sub-step
+    Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();  // bounds + radius
+    bool bounded = false;
+    Eigen::Vector3d impulse = Eigen::Vector3d::Zero();  // sum of m dv on the particles this step
+    Eigen::Vector3d moment = Eigen::Vector3d::Zero();   // sum of (contact point - origin) x m dv
+    std::size_t contacts = 0;                            // in the last sub-step
+    ContactWrench wrench;                                // over the last step
+  };
+  /// One chunk's share of a body's impulse (chunks of fixed size: thread-count-independent sums).
+  struct ContactPartial {
+    Eigen::Vector3d impulse = Eigen::Vector3d::Zero();
+    Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+    std::size_t contacts = 0;
+  };
+  std::vector<ContactBody> contactBodies_;
+  std::vector<int> activeBodies_;               // bodies near the object in this sub-step
+  std::vector<ContactPartial> contactPartials_;  // chunk-major, #chunks x #bodies
+  std::vector<int> chunkBodies_;                // per chunk, the active bodies near it (#chunks x #bodies)
+  double contactTime_ = 0.0;                    // time since the start of the step (s)
   std::vector<TimedForce> forces_;
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
   std::vector<std::uint32_t> forcedParticles_;  // where forceAccel_ is non-zero

@@ -23,9 +23,14 @@ SolverKind parseSolverKind(const std::string& name);
 /// "fast" or "naive".
 const char* toString(SolverKind kind);
 
+/// Largest region half-width w (cells) the solver accepts: (2w+1)^3 = 9261 cells per region at
+/// w = 10, beyond any useful stiffness.
+constexpr int kMaxRegionHalfWidth = 10;
+
 /// Region half-width w (cells) for a region radius in metres: the nearest whole number of cells,
 /// at least 1, so that regions keep their physical size whatever the lattice spacing.
-/// @throws std::invalid_argument for a non-positive or non-finite radius or spacing
+/// @throws std::invalid_argument for a non-positive or non-finite radius or spacing, or a
+///         radius of more than kMaxRegionHalfWidth cells
 int regionHalfWidthForRadius(double radius, double spacing);
 
 struct SolverParams {
@@ -86,8 +91,10 @@ struct SolverParams {
   SolverKind kind = SolverKind::Fast;
   /// Threads a step uses (OpenMP); 0 for every hardware thread. Results do not depend on it:
   /// threads take whole blocks of z-slices, at whose starts every sliding window restarts, so
-  /// each sum is the same sequence of additions (see SliceStreamSummer). Pays only on idle cores: with
-  /// another job on the second core, two threads were 1.3-1.7x slower than one.
+  /// each sum is the same sequence of additions (see SliceStreamSummer). Threads pay only on idle
+  /// cores (with another job on the second core two threads took 2 to 9 times one thread's
+  /// time), so with more than one the solver times its steps and runs each on the threads or on
+  /// one thread, whichever has been faster lately (ThreadGovernor, Solver::threadGovernor()).
   int threads = 1;
 
   /// Radius (m) of the sphere each particle is for contact with colliders; 0 means half the

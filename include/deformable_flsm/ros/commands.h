@@ -3,9 +3,11 @@
 /// limits they are checked against, and the thread-safe tally of accepted and rejected ones.
 #pragma once
 
+#include "deformable_flsm/core/collider.h"
 #include "deformable_flsm/core/solver_params.h"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <cstdint>
 #include <functional>
@@ -75,6 +77,16 @@ struct GrabCommand {
   double stiffness = 0.0;
 };
 
+/// Grab like `grab` and attach the particles to the moving frame `frame`: each keeps its present
+/// position in that frame. `pose` is the frame now (simulation frame <- frame); the simulation
+/// loop follows the frame before every step through its FrameSource. An empty `frame` holds the
+/// particles where they are (nothing to follow).
+struct AttachCommand {
+  GrabCommand grab;
+  std::string frame;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+};
+
 /// Move the target of drag `id` (simulation frame, m).
 struct MoveCommand {
   std::string id;
@@ -114,8 +126,31 @@ struct ParamsCommand {
   SolverParams params;
 };
 
-using CommandBody = std::variant<GrabCommand, MoveCommand, ReleaseCommand, ApplyForceCommand, ResetCommand,
-                                 ReleaseAllCommand, PinBoxCommand, ParamsCommand>;
+/// Add collider `id`, or replace the collider of that id. With an empty followFrame the
+/// collider stays at collider.pose (simulation frame); otherwise it follows that tf frame and
+/// joins the solver at the first pose the node hands over (SimulationLoop::setColliderMotion).
+struct SetColliderCommand {
+  std::string id;
+  Collider collider;
+  std::string followFrame;
+};
+/// Move collider `id` to `pose` (simulation frame) with the given velocity over the next step
+/// (m/s, rad/s, simulation frame); refused for a collider that follows a tf frame.
+struct MoveColliderCommand {
+  std::string id;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d linearVelocity = Eigen::Vector3d::Zero();
+  Eigen::Vector3d angularVelocity = Eigen::Vector3d::Zero();
+};
+/// Remove collider `id`.
+struct RemoveColliderCommand {
+  std::string id;
+};
+
+using CommandBody = std::variant<GrabCommand, AttachCommand, MoveCommand, ReleaseCommand,
+                                 ApplyForceCommand, ResetCommand, ReleaseAllCommand, PinBoxCommand,
+                                 ParamsCommand, SetColliderCommand, MoveColliderCommand,
+                                 RemoveColliderCommand>;
 
 /// A command and, optionally, the promise its outcome is delivered to.
 struct Command {

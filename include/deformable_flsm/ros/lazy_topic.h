@@ -1,6 +1,7 @@
 /// @file lazy_topic.h
 /// A heavy topic that costs nothing while nobody listens: its message is built only while
-/// subscribed, and not republished while the simulation rests except to a new subscriber.
+/// subscribed and once per simulation state; at rest it is either resent at the rate (the cached
+/// message with a new stamp) or sent once and then only to a new subscriber.
 #pragma once
 
 #include "deformable_flsm/ros/simulation_loop.h"

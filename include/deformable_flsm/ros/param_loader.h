@@ -3,6 +3,7 @@
 #pragma once
 
 #include "deformable_flsm/core/mesh.h"
+#include "deformable_flsm/ros/collider_params.h"
 #include "deformable_flsm/core/solver_params.h"
 
 #include <ros/node_handle.h>
@@ -65,26 +66,47 @@ struct NodeParams {
   int maxParticles = 200000;
 
   // --- regions and material ---------------------------------------------------------------
-  /// ~region_radius: region half-width in metres (preferred; rounded to whole cells); 0 = unset
+  /// ~region_radius: region half-width in metres (preferred; rounded to whole cells, at most
+  /// kMaxRegionHalfWidth cells: clamped with a warning); 0 = unset
   double regionRadius = 0.0;
   /// ~region_half_width: region half-width in cells (classic); 0 = unset
   int regionHalfWidth = 0;
-  /// ~stiffness, ~youngs_modulus, ~damping, ~ambient_damping, ~gravity, ~time_step,
-  /// ~substeps, ~density, ~solver, ~threads; regionHalfWidth is set by
+  /// ~material: how the stiffness is given. Youngs: by ~youngs_modulus (> 0), alpha follows
+  /// from it (the cap being ~stiffness); Classic: alpha = ~stiffness per sub-step, as in the
+  /// original FastLSM (youngs_modulus is not used). No value of youngs_modulus switches
+  /// between the two: a typo such as -5 is refused, not taken as "classic".
+  enum class Material { Youngs, Classic };
+  Material material = Material::Youngs;
+  /// ~youngs_modulus (Pa): the material with Material::Youngs; a firm jelly by default. The
+  /// solver receives it in solver.youngsModulus (0 there under Material::Classic).
+  double youngsModulus = 14000.0;
+  /// ~poissons_ratio: Poisson's ratio with Material::Youngs, [0, 0.45]; solver.poissonsRatio
+  /// (0 there under Material::Classic, which has no Poisson effect).
+  double poissonsRatio = 0.0;
+  /// ~stiffness, ~damping, ~ambient_damping, ~gravity, ~time_step, ~substeps, ~density,
+  /// ~solver, ~threads, ~contact_radius; youngsModulus and poissonsRatio from ~material,
+  /// ~youngs_modulus and ~poissons_ratio (see applyMaterial()); regionHalfWidth is set by
   /// resolveRegionHalfWidth()
   SolverParams solver;
 
   // --- running and publishing -------------------------------------------------------------
   /// ~publish_rate: rate of every published topic and of tf (Hz, (0, kMaxPublishRate])
   double publishRate = 30.0;
-  /// ~republish_at_rest: at rest, keep sending ~mesh, ~surface, ~particles and ~lattice at
-  /// ~publish_rate (copies of the last state) instead of once; for consumers that expect a
-  /// steady stream (rate monitors, bag recording). Costs ~7 % of a core for the bunny's 5 MB mesh.
+  /// ~republish_at_rest: at rest, keep sending the markers ~mesh and ~lattice at ~publish_rate
+  /// (copies of the last state) instead of once; for consumers that expect a steady stream
+  /// (rate monitors, bag recording). Costs ~7 % of a core for the bunny's 5 MB mesh. The
+  /// clouds ~surface, ~particles, ~state and tf keep the rate at rest in any case.
   bool republishAtRest = false;
   /// ~real_time_factor: simulated seconds per wall-clock second ((0, kMaxRealTimeFactor])
   double realTimeFactor = 1.0;
   /// ~pinned: boxes whose particles (by rest position) are pinned at start-up
   std::vector<Box> pinned;
+  /// ~ground: a plane collider "ground" below the object, normal against gravity
+  bool ground = true;
+  /// ~ground_clearance: gap (m, >= 0) between the object's lowest rest point and the ground
+  double groundClearance = 0.1;
+  /// ~colliders: more colliders (parsed and validated, meshes loaded)
+  std::vector<ColliderSpec> colliders;
   /// ~render_triangle_budget: simplify the render mesh to at most this many triangles at
   /// load (0 = render the mesh as loaded); the lattice is chosen from the full mesh
   int renderTriangleBudget = 0;
@@ -94,14 +116,28 @@ struct NodeParams {
 
   /// @throws ParamError naming the first field that is out of range.
   void validate() const;
+  /// solver.youngsModulus from material and youngsModulus: the modulus, or 0 (alpha =
+  /// stiffness) under Material::Classic.
+  void applyMaterial() {
+    solver.youngsModulus = material == Material::Youngs ? youngsModulus : 0.0;
+    solver.poissonsRatio = material == Material::Youngs ? poissonsRatio : 0.0;
+  }
 
-  /// Region half-width w for a lattice of the given spacing: from regionRadius, from
-  /// regionHalfWidth, or 2. @throws ParamError when the radius is out of range.
-  int resolveRegionHalfWidth(double latticeSpacing) const;
+  /// Region half-width w for a lattice of the given spacing: from regionRadius (rounded to
+  /// whole cells), from regionHalfWidth, or 2. A radius of more cells than the solver accepts
+  /// (kMaxRegionHalfWidth) on this lattice is clamped to the largest that fits, and
+  /// `askedCells`, when given, receives the cells asked for (else 0), so that the caller can
+  /// warn: a radius that suits one mesh must not stop another from starting.
+  int resolveRegionHalfWidth(double latticeSpacing, int* askedCells = nullptr) const;
 };
 
 /// Reads `~` parameters with their defaults. A parameter that is set with the wrong type is an
 /// error, never silently replaced by its default.
+/// "youngs" or "classic".
+const char* toString(NodeParams::Material material);
+/// Parses "youngs" / "classic"; false for anything else.
+bool parseMaterial(const std::string& name, NodeParams::Material& material);
+
 class ParamLoader {
  public:
   /// @param[in] pnh  the node's private handle ("~")
@@ -125,6 +161,7 @@ class ParamLoader {
   std::string getString(const std::string& name, const std::string& fallback) const;
   Eigen::Vector3d getVector3(const std::string& name, const Eigen::Vector3d& fallback) const;
   std::vector<Box> getBoxes(const std::string& name) const;
+  std::vector<ColliderSpec> getColliders(const std::string& name, const std::string& simFrame) const;
 
   ros::NodeHandle pnh_;
 };

@@ -18,22 +18,26 @@
 namespace deformable_flsm {
 
 /// The server, started from the loaded parameters; calls `onChange` for every change a client
-/// makes (not for the initial echo of the parameters). Callbacks run on the main thread.
+/// makes (not for the initial echo of the parameters). Callbacks run on the main thread. When
+/// `onChange` refuses a change (returns false), the server keeps and reports the configuration
+/// it had: a client reading back its parameters sees that nothing changed.
 class Reconfigure {
  public:
-  using OnChange = std::function<void(const FlsmConfig&)>;
+  using OnChange = std::function<bool(const FlsmConfig&)>;
 
   Reconfigure(const ros::NodeHandle& pnh, const NodeParams& params, OnChange onChange);
 
   /// The configuration that shows `params`.
   static FlsmConfig configFrom(const NodeParams& params);
-  /// `base` with the material and gravity of `config` (not validated).
-  static SolverParams solverParams(const FlsmConfig& config, SolverParams base);
+  /// `params` with the material and gravity of `config` (not validated); false when
+  /// config.material names no material.
+  static bool apply(const FlsmConfig& config, NodeParams& params);
 
  private:
   boost::recursive_mutex mutex_;
   OnChange onChange_;
   bool ready_ = false;
+  FlsmConfig current_;  ///< the last configuration accepted
   std::unique_ptr<dynamic_reconfigure::Server<FlsmConfig>> server_;
 };
 

@@ -27,12 +27,22 @@ struct SceneInfo {
   int voxelizations = 0;
   double voxelizeSeconds = 0.0;
   int regionHalfWidth = 0;
+  /// cells ~region_radius asked for when that was more than the solver allows and
+  /// regionHalfWidth was clamped to kMaxRegionHalfWidth; 0 when not clamped
+  int regionAskedCells = 0;
   double objectSize = 0.0;  ///< m, diagonal of the rest bounding box of the lattice
   double totalMass = 0.0;   ///< kg
   std::size_t loadedTriangles = 0, renderTriangles = 0, renderVertices = 0;
   double simplifyError = 0.0;  ///< relative to the mesh extent
   std::vector<std::size_t> pinnedPerBox;
   std::size_t pinned = 0;
+  /// colliders in the solver at start-up (the ground and those fixed in the simulation frame;
+  /// colliders that follow a tf frame join when their frame is first known)
+  std::size_t colliders = 0;
+  /// radius of the particles' contact spheres (m)
+  double contactRadius = 0.0;
+  /// height of the ground's surface along its normal (m), when there is a ground
+  double groundHeight = 0.0;
   /// alpha asked for by youngs_modulus (before the cap), alpha used, and the sub-steps that
   /// would bring the asked alpha under the cap when it is saturated (0 otherwise)
   double requestedAlpha = 0.0, alpha = 0.0;
@@ -57,7 +67,8 @@ struct Scene {
 /// @param[in] mesh    the loaded mesh (m, oriented), already validated
 /// @param[in] measureSteps  solver steps timed at start-up (0 skips the measurement)
 /// @throws ParamError with a message naming the parameter to change (lattice too fine for
-///         ~max_particles, region radius out of range, ...).
+///         ~max_particles, ...). A region radius beyond the solver's limit is clamped, not
+///         refused (SceneInfo::regionAskedCells, regionClampWarning()).
 Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps = 10);
 
 /// A few lines for the start-up log: the lattice, the regions, the material, the cost.
@@ -65,5 +76,9 @@ std::string describeScene(const SceneInfo& info, const NodeParams& params);
 
 /// Warning text when the time step is too long for the asked Young's modulus, else "".
 std::string saturationWarning(const SceneInfo& info, const NodeParams& params);
+
+/// Warning text when ~region_radius was more cells than the solver allows on this lattice and
+/// the regions were clamped to the largest that fit, else "".
+std::string regionClampWarning(const SceneInfo& info, const NodeParams& params);
 
 }  // namespace deformable_flsm

@@ -15,6 +15,8 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -31,11 +33,20 @@ struct LoopSettings {
   /// the rest of the simulated time it owes (reported as dropped steps), so that a machine that
   /// cannot keep up runs slower than real time instead of piling up a growing backlog.
   int maxCatchUpSteps = 4;
-  /// The object is still when every particle is slower than idleSpeed (m/s) and the kinetic
-  /// energy is below 1/2 M idleSpeed^2; after idleHold seconds of simulated stillness with no
-  /// drag or force acting, the loop stops stepping until a command arrives. idleHold <= 0 never
-  /// rests. The node sets idleSpeed relative to the object size (see SimulatorNode).
-  double idleSpeed = 1e-4;
+  /// Rest means equilibrium, not slowness: the loop stops stepping (until a command arrives)
+  /// once no particle has moved farther than restFraction object sizes (Lattice::objectSize())
+  /// from where it was idleHold seconds of simulated time earlier, with no drag or force
+  /// acting. A speed threshold is not enough: a slow swing turns at its ends with almost no
+  /// speed for a second or more, far from where it settles (the soft cantilever of
+  /// test_simulation_loop's RestsOnlyAtEquilibrium, with a period of several seconds, was
+  /// declared still 9 % past its final deflection at 3.4 s; now it rests at 9.7 s, within
+  /// 0.1 %). Over a whole second, a swing
+  /// of amplitude A moves a particle by ~A (slow swings) to 2A (fast ones), and a creep moves
+  /// it by what the next second would add, so the object rests within ~restFraction sizes of
+  /// its equilibrium: 2e-5 is 7 um for the 33 cm bunny, far below what can be seen, and the
+  /// solver converges to its fixed point geometrically, so this costs seconds, not minutes.
+  /// idleHold <= 0 never rests.
+  double restFraction = 2e-5;
   double idleHold = 1.0;
   /// Window (s, wall clock) over which the achieved real-time factor and step cost are averaged.
   double statsWindow = 1.0;
@@ -85,11 +96,28 @@ struct Snapshot {
   /// the object's best-fit rigid frame, origin at its centre of mass: the identity maps the
   /// rest centre of mass to itself (Solver::rigidFrame() followed by a shift to the rest COM)
   Eigen::Isometry3d objectFrame = Eigen::Isometry3d::Identity();
+  /// the colliders in the solver (poses at the end of the step) and what the object exerted on
+  /// each during the step (simulation frame)
+  std::map<std::string, Collider> colliders;
+  std::map<std::string, ContactWrench> wrenches;
   LoopDiagnostics diag;
+};
+
+/// Where a collider that follows a tf frame is (simulation frame), and how fast it moves.
+struct ColliderMotion {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d linearVelocity = Eigen::Vector3d::Zero();   ///< m/s of the frame origin
+  Eigen::Vector3d angularVelocity = Eigen::Vector3d::Zero();  ///< rad/s
 };
 
 class SimulationLoop {
  public:
+  /// Where a frame that drags follow is now: simFromFrame maps the frame into the simulation
+  /// frame. Called by the simulation thread before every step, once per attached drag; it must
+  /// not block (the node reads tf's latest transform). false = not known now: the drag holds
+  /// its last pose.
+  using FrameSource = std::function<bool(const std::string& frame, Eigen::Isometry3d& simFromFrame)>;
+
   /// @param[in] solver    the solver, ready (pins set); owned by the loop from now on
   /// @param[in] settings  pacing and idling
   /// @param[in] stats     where accepted and rejected commands are counted
@@ -109,8 +137,22 @@ class SimulationLoop {
   /// once (borrowing the next step's time; see run()). When the queue is full the
   /// command is rejected ("queue_full"), its outcome delivered, and false returned.
   bool submit(Command command);
+  /// Sets how attached drags (AttachCommand) find their frames; call before start(). Without a
+  /// source, attached drags hold their pose.
+  void setFrameSource(FrameSource source);
   /// Changes the pace (simulated seconds per wall second, > 0) and wakes an idle loop.
   void setRealTimeFactor(double realTimeFactor);
+
+  /// Registers a collider that follows a tf frame; call before start() (colliders added at run
+  /// time come as SetColliderCommand). It joins the solver at its first setColliderMotion().
+  void addFollowedCollider(const std::string& id, const Collider& collider);
+  /// The newest pose and velocity of followed collider `id`, from any thread (the node samples
+  /// tf). Only the newest per collider is kept; before each step the loop moves the collider
+  /// there, and between two samples along the sampled velocity for at most kMaxExtrapolation
+  /// (then it holds still). Wakes a resting loop when the collider moves.
+  void setColliderMotion(const std::string& id, const ColliderMotion& motion);
+  /// Simulated seconds a followed collider keeps moving along its last sampled velocity.
+  static constexpr double kMaxExtrapolation = 0.1;
 
   /// The newest snapshot. Single reader: the reference stays valid and unchanged until the next
   /// call of acquire().
@@ -124,21 +166,31 @@ class SimulationLoop {
   void run();
   /// Applies one command; returns true when it was accepted.
   bool apply(Command& command);
-  CommandOutcome grab(const GrabCommand& c);
+  CommandOutcome grab(const GrabCommand& c, const AttachCommand* attach = nullptr);
   CommandOutcome move(const MoveCommand& c);
   CommandOutcome release(const ReleaseCommand& c);
   CommandOutcome force(const ApplyForceCommand& c);
   CommandOutcome pinBox(const PinBoxCommand& c);
   CommandOutcome setParams(const ParamsCommand& c);
+  CommandOutcome setCollider(const SetColliderCommand& c);
+  CommandOutcome moveCollider(const MoveColliderCommand& c);
+  CommandOutcome removeCollider(const RemoveColliderCommand& c);
+  /// Before a step of dt: puts followed colliders at their newest sampled pose (or moves them on
+  /// along the sampled velocity), adding those seen for the first time.
+  void followColliders(double dt);
   /// Rejection: counted, and the outcome carries the detail.
   CommandOutcome reject(const std::string& reason, const std::string& detail);
   double massOf(const std::vector<std::uint32_t>& particles) const;
   /// Resets a non-finite state to rest and counts it.
   void ensureFinite();
+  /// Moves every attached drag to where its frame is now (see FrameSource).
+  void followFrames();
   void timedStep();
   /// Starts a new averaging window for the step cost and the achieved real-time factor.
   void restartWindow(std::chrono::steady_clock::time_point now);
   void updateStillness(double simulated);
+  /// Starts a new stillness window at the current positions.
+  void restartStillness();
   void writeSnapshot();
 
   std::unique_ptr<Solver> solver_;
@@ -164,11 +216,30 @@ class SimulationLoop {
   bool fresh_ = false;
   Eigen::Vector3d centerOfMass_ = Eigen::Vector3d::Zero();
 
+  // Followed colliders' motions, shared with setColliderMotion().
+  std::mutex motionMutex_;
+  std::map<std::string, ColliderMotion> motions_;        // not yet applied
+  std::map<std::string, ColliderMotion> postedMotions_;  // the last posted, to decide on waking
+
   // Owned by the simulation thread.
+  FrameSource frameSource_;
+  std::map<std::string, std::string> attachedFrames_;  // drag id -> the frame it follows
+  /// A collider that follows a tf frame: its shape, whether it is in the solver yet, the pose
+  /// and velocity for the next step, and the simulated time since its last sample.
+  struct Followed {
+    Collider collider;
+    bool inSolver = false;
+    ColliderMotion motion;
+    double sinceSample = 0.0;
+  };
+  std::map<std::string, Followed> followed_;
+  std::map<std::string, ColliderMotion> incomingMotions_;
+  bool collidersMoving_ = false;  // a followed collider moved in the last step
   LoopDiagnostics diag_;
   std::uint64_t sequence_ = 0;
   bool idle_ = false;
   double stillFor_ = 0.0;  // simulated seconds of stillness
+  std::vector<Eigen::Vector3d> stillFrom_;  // positions at the start of the stillness window
   double windowSteps_ = 0.0, windowStepSeconds_ = 0.0, windowSimulated_ = 0.0;
   std::chrono::steady_clock::time_point windowStart_;
   bool windowComplete_ = false;  // a full window has passed since the last restart

@@ -3,6 +3,7 @@
 /// core (through SimulationLoop); this class owns the ROS handles and converts at the edges.
 #pragma once
 
+#include "deformable_flsm/ros/collider_topics.h"
 #include "deformable_flsm/ros/command_validator.h"
 #include "deformable_flsm/ros/commands.h"
 #include "deformable_flsm/ros/interactive_drag.h"
@@ -36,14 +37,18 @@
 namespace deformable_flsm {
 
 /// flsm_node's topics, services and timers (see README for the full table):
-///   in   ~drag (DragCommand), ~force (ForceCommand), RViz mouse via ~drag_marker
-///   out  ~mesh, ~surface, ~particles, ~lattice (only while subscribed), ~state, tf
+///   in   ~drag (DragCommand), ~force (ForceCommand), ~collider (ColliderCommand), RViz mouse
+///        via ~drag_marker
+///   out  ~mesh, ~surface, ~particles, ~lattice, ~colliders (only while subscribed), ~state,
+///        ~contact_wrenches, tf
 ///   srv  ~reset, ~release_all, ~pin_box; dynamic_reconfigure on ~
 ///
 /// Threads: the simulation thread (SimulationLoop) steps the solver; the main thread (ros::spin)
 /// runs the publish timer, dynamic_reconfigure and the RViz feedback; a second spinner thread
-/// with its own queue serves ~drag, ~force and the services, so that a tf wait or a service
-/// waiting for the simulation never delays publishing.
+/// with its own queue serves ~drag and ~force, and a third the services, so that a service
+/// waiting for the simulation never delays publishing nor another client's commands. Commands
+/// never wait for tf: a frame tf does not know now is refused at once (see lookupTransform), so
+/// that a client commanding in a frame nobody publishes cannot starve the others.
 ///
 /// The node owns and wires the parts: StatePublisher (what goes out each tick), InteractiveDrag
 /// (the RViz mouse), Reconfigure (dynamic_reconfigure), ProblemReporter (the log); the commands'
@@ -70,17 +75,28 @@ class SimulatorNode {
   bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool onReleaseAll(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool onPinBox(PinBox::Request& req, PinBox::Response& res);
-  void onReconfigure(const FlsmConfig& config);
+  /// false (counted as invalid_params) when the change is refused: nothing changes.
+  bool onReconfigure(const FlsmConfig& config);
   /// Sends a command to the simulation thread; waits for its outcome when `wait`.
   CommandOutcome send(CommandBody body, bool wait);
   void rejected(const Rejection& why);
-  /// Starts the tf listener on first use (see kFirstTransformTimeout).
+  /// The transform at `stamp` if tf has it, else the latest one, else false: it never waits,
+  /// except once, when the first command in a foreign frame starts the tf listener (see
+  /// kFirstTransformTimeout).
   bool lookupTransform(const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
                        std::string& why);
+  /// Starts the tf listener if it is not running; true when this call started it.
+  bool startTfListener();
+  /// Where a frame that drags are attached to (DragCommand ATTACH) is now: the simulation loop's
+  /// FrameSource, called from the simulation thread before every step. tf's latest transform,
+  /// never waiting; false, with a throttled warning, while the frame is unknown or stale.
+  bool attachedFrame(const std::string& frame, Eigen::Isometry3d& simFromFrame);
 
   ros::NodeHandle nh_, pnh_;
   ros::NodeHandle commandNh_;  ///< private namespace, served by commandSpinner_
   ros::CallbackQueue commandQueue_;
+  ros::NodeHandle serviceNh_;  ///< private namespace, served by serviceSpinner_
+  ros::CallbackQueue serviceQueue_;
   NodeParams params_;
   SceneInfo info_;
   std::shared_ptr<const Lattice> lattice_;
@@ -89,6 +105,7 @@ class SimulatorNode {
   std::shared_ptr<CommandStats> stats_;
   std::unique_ptr<SimulationLoop> loop_;
   std::unique_ptr<CommandValidator> validator_;
+  std::unique_ptr<ColliderTopics> colliders_;  ///< ~collider, ~contact_wrenches, ~colliders
 
   tf2_ros::Buffer tfBuffer_;
   std::mutex tfListenerMutex_;
@@ -99,7 +116,7 @@ class SimulatorNode {
   ros::Subscriber dragSub_, forceSub_;
   ros::ServiceServer resetSrv_, releaseAllSrv_, pinBoxSrv_;
   ros::Timer publishTimer_;
-  std::unique_ptr<ros::AsyncSpinner> commandSpinner_;
+  std::unique_ptr<ros::AsyncSpinner> commandSpinner_, serviceSpinner_;
   std::unique_ptr<Reconfigure> reconfigure_;
   std::unique_ptr<InteractiveDrag> mouse_;
 };

@@ -40,10 +40,16 @@ class StatePublisher {
 
   /// The object's frame on tf: ~frame_id -> ~object_frame_id.
   void publishTf(const Snapshot& s, const ros::Time& stamp);
-  /// ~state: the loop's diagnostics and the command counts.
-  void publishState(const Snapshot& s, const ros::Time& stamp);
-  /// ~mesh, ~surface, ~particles, ~lattice, to those that are due (LazyTopic::due()). Nothing
-  /// non-finite goes out: a non-finite embedded mesh skips ~mesh and ~surface (logged).
+  /// ~state: the loop's diagnostics, the command counts and the colliders.
+  /// @param[in] colliderFrameMisses  samples that found a followed tf frame unknown or stale
+  ///                                 (ColliderFollower::misses())
+  void publishState(const Snapshot& s, const ros::Time& stamp, std::uint64_t colliderFrameMisses);
+  /// ~mesh, ~surface, ~particles, ~lattice, to those that are due (LazyTopic::due()): at rest
+  /// the clouds (~surface, ~particles) keep the rate with the cached message and a new stamp;
+  /// the markers (~mesh, ~lattice) go out once, then to new subscribers only, unless
+  /// ~republish_at_rest. Nothing non-finite goes out: a non-finite embedded mesh skips ~mesh and
+  /// ~surface (logged). The embedded render vertices are projected out of the snapshot's
+  /// colliders first.
   void publishHeavy(const Snapshot& s, const ros::Time& stamp);
 
  private:
@@ -59,6 +65,7 @@ class StatePublisher {
 
   std::vector<Eigen::Vector3d> vertices_;  ///< embedded render vertices
   std::uint64_t verticesSequence_ = 0;
+  bool verticesFinite_ = true;  ///< checked once per deform, not per resend at rest
   visualization_msgs::Marker marker_;
   sensor_msgs::PointCloud2 surfaceCloud_, particleCloud_;
   visualization_msgs::MarkerArray latticeMarkerArray_;

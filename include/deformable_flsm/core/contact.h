@@ -1,0 +1,97 @@
+/// @file contact.h
+/// Geometry of the colliders (signed distance, outward normal, bounds, motion) and the contact
+/// response of one particle sphere: the stateless kernels the solver's contact pass is built of.
+#pragma once
+
+#include "deformable_flsm/core/collider.h"
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <cstddef>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace deformable_flsm {
+
+/// Signed distance from a point to a shape's surface (m, negative inside) and the outward unit
+/// normal there, in the collider's own frame. Exact for the half-space, box, sphere and capsule;
+/// a mesh is read from shape.distanceField (see MeshDistanceField for its accuracy).
+/// @param[in]  shape   a valid shape; a mesh needs its distanceField
+/// @param[in]  p       3 by 1 point in the collider frame (m)
+/// @param[out] normal  3 by 1 outward unit normal (collider frame): the gradient of the distance;
+///                     where it is not unique (centre of a sphere, axis of a capsule, centre
+///                     plane of a box) one of the nearest surface directions
+/// @throws std::invalid_argument for a mesh shape without its distance field.
+double shapeDistance(const ColliderShape& shape, const Eigen::Vector3d& p, Eigen::Vector3d& normal);
+
+/// shapeDistance() of a point given in the simulation frame, for the collider at `pose`.
+/// @param[in]  pose    collider frame in the simulation frame
+/// @param[in]  x       3 by 1 point (m, simulation frame)
+/// @param[out] normal  3 by 1 outward unit normal (simulation frame)
+double colliderDistance(const ColliderShape& shape, const Eigen::Isometry3d& pose, const Eigen::Vector3d& x,
+                        Eigen::Vector3d& normal);
+
+/// Axis-aligned bounds of the shape in the simulation frame, for the collider at `pose`.
+/// @return false for an unbounded shape (the half-space); lo, hi are then left alone.
+bool colliderBounds(const ColliderShape& shape, const Eigen::Isometry3d& pose, Eigen::Vector3d& lo,
+                    Eigen::Vector3d& hi);
+
+/// Whether any point of the box [lo, hi] comes within `margin` of the collider (a cheap test:
+/// it may say true for a box that is farther away, never false for one that is closer).
+bool boxNearCollider(const ColliderShape& shape, const Eigen::Isometry3d& pose, const Eigen::Vector3d& lo,
+                     const Eigen::Vector3d& hi, double margin);
+
+/// The pose of a collider `t` seconds after `pose`, moving with constant linear velocity v of its
+/// origin and angular velocity omega (both in the simulation frame):
+///   p(t) = p + v t,  R(t) = exp(t [omega]x) R.
+Eigen::Isometry3d advancePose(const Eigen::Isometry3d& pose, const Eigen::Vector3d& linearVelocity,
+                              const Eigen::Vector3d& angularVelocity, double t);
+
+/// Velocity change of one particle in contact over a sub-step (velocity-level response with
+/// Coulomb friction).
+///
+/// The particle is a sphere whose predicted end-of-sub-step position x* = x + h v lies
+/// `depth` = phi(x*) - r < 0 inside the collider. The normal change dv_n = -depth / h moves it
+/// back to the surface (its end position x + h (v + dv) touches it). Then the tangential part of
+/// the velocity relative to the collider's surface, v_t = (I - n n^T)(v + dv_n n - v_c), is
+/// removed when that needs no more than mu_s dv_n (static friction: the particle sticks), else
+/// reduced by mu_k dv_n along -v_t (kinetic friction). The impulse m dv is what the collider
+/// receives, with the opposite sign.
+/// @param[in] depth             phi(x*) - r (m), < 0
+/// @param[in] normal            3 by 1 outward unit normal at x*
+/// @param[in] velocity          3 by 1 particle velocity v (m/s)
+/// @param[in] colliderVelocity  3 by 1 velocity of the collider's material at x*, v_lin + omega x (x* - o)
+/// @param[in] h                 sub-step (s)
+/// @param[in] staticFriction    mu_s >= 0
+/// @param[in] kineticFriction   mu_k in [0, mu_s]
+/// @return 3 by 1 velocity change dv (m/s)
+inline Eigen::Vector3d contactVelocityChange(double depth, const Eigen::Vector3d& normal,
+                                             const Eigen::Vector3d& velocity,
+                                             const Eigen::Vector3d& colliderVelocity, double h,
+                                             double staticFriction, double kineticFriction) {
+  const double dvn = -depth / h;
+  Eigen::Vector3d dv = dvn * normal;
+  const Eigen::Vector3d rel = velocity + dv - colliderVelocity;
+  const Eigen::Vector3d tangential = rel - rel.dot(normal) * normal;
+  const double slip = tangential.norm();
+  if (slip <= staticFriction * dvn)
+    dv -= tangential;
+  else
+    dv -= (kineticFriction * dvn / slip) * tangential;
+  return dv;
+}
+
+/// Moves points out of the colliders: a point closer than `margin` to a collider's surface (or
+/// inside it) is moved along the normal to the distance `margin`. For the render vertices, which
+/// interpolate the particles and may dip below a surface the particles stand on.
+/// @param[in,out] points     #V by 3 points (m, simulation frame)
+/// @param[in]     colliders  the colliders at their current poses (Solver::colliders()); a mesh
+///                           collider without its distanceField gets a temporary one (slow)
+/// @param[in]     margin     distance to keep from the surfaces (m), >= 0
+/// @return the number of points moved
+std::size_t projectOutOfColliders(std::vector<Eigen::Vector3d>& points,
+                                  const std::map<std::string, Collider>& colliders, double margin);
+
+}  // namespace deformable_flsm

@@ -1,0 +1,50 @@
+/// @file collider_messages.h
+/// Builds the messages that show the colliders: ~colliders (MarkerArray), ~contact_wrenches
+/// (ContactWrenches) and the colliders' tf frames. Pure functions of their inputs: no master,
+/// no publishing.
+#pragma once
+
+#include "deformable_flsm/core/collider.h"
+
+#include <deformable_flsm/ContactWrenches.h>
+#include <geometry_msgs/TransformStamped.h>
+#include <ros/time.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <map>
+#include <string>
+#include <vector>
+
+namespace deformable_flsm {
+
+/// The colliders as markers in `frameId`, one namespace per collider id: a plane as a square
+/// slab `planeSize` wide and 1 % of it thick whose top face is the plane; a box as a CUBE; a
+/// sphere as a SPHERE; a capsule as a CYLINDER (id 0) and two SPHEREs (ids 1, 2); a mesh as a
+/// TRIANGLE_LIST whose points are in the collider frame and whose pose is the collider's.
+/// The first marker is a DELETEALL, so that RViz forgets removed colliders.
+/// @param[in]  colliders  by id, poses in the simulation frame (m)
+/// @param[in]  frameId    header.frame_id (the simulation frame)
+/// @param[in]  planeSize  edge of the square that shows a plane (m, > 0)
+/// @param[in]  stamp      header.stamp
+/// @param[out] markers    replaced
+void fillColliderMarkers(const std::map<std::string, Collider>& colliders,
+                         const std::string& frameId, double planeSize, const ros::Time& stamp,
+                         visualization_msgs::MarkerArray& markers);
+
+/// What the object exerts on each collider, each expressed in the collider's own frame
+/// (colliderFrameId(id)): the simulation-frame force and torque (about the collider origin)
+/// rotated by the inverse of the collider's orientation.
+/// @param[in]  colliders  by id, poses in the simulation frame
+/// @param[in]  wrenches   by id, simulation frame (an id missing here gets a zero wrench)
+/// @param[in]  stamp      the stamp of every header
+/// @param[out] out        replaced
+void fillContactWrenches(const std::map<std::string, Collider>& colliders,
+                         const std::map<std::string, ContactWrench>& wrenches,
+                         const ros::Time& stamp, ContactWrenches& out);
+
+/// One transform per collider, from `frameId` to colliderFrameId(id).
+void colliderTransforms(const std::map<std::string, Collider>& colliders,
+                        const std::string& frameId, const ros::Time& stamp,
+                        std::vector<geometry_msgs::TransformStamped>& out);
+
+}  // namespace deformable_flsm

@@ -1,0 +1,87 @@
+/// @file collider_topics.h
+/// The colliders' ROS face: ~collider commands in, ~contact_wrenches, ~colliders markers and the
+/// colliders' tf frames out, and the tf frames that colliders follow sampled at the step rate.
+/// SimulatorNode owns one and calls publish() from its publish timer.
+#pragma once
+
+#include "deformable_flsm/ros/collider_command_validator.h"
+#include "deformable_flsm/ros/collider_follower.h"
+#include "deformable_flsm/ros/commands.h"
+#include "deformable_flsm/ros/lazy_topic.h"
+#include "deformable_flsm/ros/param_loader.h"
+#include "deformable_flsm/ros/simulation_loop.h"
+
+#include <deformable_flsm/ColliderCommand.h>
+#include <deformable_flsm/ContactWrenches.h>
+#include <ros/node_handle.h>
+#include <ros/publisher.h>
+#include <ros/subscriber.h>
+#include <ros/timer.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_broadcaster.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace deformable_flsm {
+
+class ColliderTopics {
+ public:
+  /// Sends a validated command to the simulation thread (without waiting).
+  using Send = std::function<void(CommandBody)>;
+
+  /// Registers the parameters' colliders that follow tf frames with the loop (call before
+  /// loop.start()), advertises the topics and starts the follow timer.
+  /// @param[in] pnh        private handle for the publishers and the timer (main queue)
+  /// @param[in] commandNh  private handle on the command queue, for the ~collider subscriber
+  /// @param[in] params     the node's parameters (colliders, frame, publish and step rates)
+  /// @param[in] loop       the simulation, outlives this object
+  /// @param[in] stats      where refused commands are counted
+  /// @param[in] tfBuffer   the node's tf buffer (followed frames are read from it, never waited
+  ///                       for)
+  /// @param[in] startTfListener  starts the node's tf listener (called when a frame is followed)
+  /// @param[in] lookup     transform of a command's header frame (the node's command lookup)
+  /// @param[in] send       hands a command to the simulation thread
+  /// @param[in] objectSize the object's size (m): sets the size the ground is drawn at
+  ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& commandNh, const NodeParams& params,
+                 SimulationLoop& loop, std::shared_ptr<CommandStats> stats,
+                 const tf2_ros::Buffer& tfBuffer, std::function<void()> startTfListener,
+                 CommandValidator::TransformLookup lookup, Send send, double objectSize);
+
+  /// Every publish tick: ~contact_wrenches (also at rest), the colliders' tf frames, and
+  /// ~colliders when it is due (LazyTopic::due(): while subscribed, like ~lattice).
+  void publish(const Snapshot& s, const ros::Time& stamp);
+  /// Samples that found a followed tf frame unknown or stale (for ~state).
+  std::uint64_t frameMisses() const { return follower_.misses(); }
+
+ private:
+  void onCommand(const ColliderCommand::ConstPtr& msg);
+  void onFollowTimer(const ros::TimerEvent& event);
+
+  std::string simFrame_;
+  SimulationLoop& loop_;
+  std::shared_ptr<CommandStats> stats_;
+  std::function<void()> startTfListener_;
+  ColliderCommandValidator validator_;
+  Send send_;
+  double planeSize_;
+  bool republishAtRest_;
+  ColliderFollower follower_;
+
+  ros::Publisher wrenchPub_;
+  LazyTopic markers_;
+  ros::Subscriber commandSub_;
+  ros::Timer followTimer_;
+  tf2_ros::TransformBroadcaster tfBroadcaster_;
+
+  // Publish-timer state (main thread only).
+  ContactWrenches wrenches_;
+  visualization_msgs::MarkerArray markerArray_;
+  std::vector<geometry_msgs::TransformStamped> transforms_;
+  std::vector<std::string> problems_;
+};
+
+}  // namespace deformable_flsm

@@ -1,0 +1,228 @@
+// The solver's contact with rigid colliders: the collider set, and the contact pass of a sub-step
+// (see contactPass()). The geometry and the per-particle response are in contact.h.
+#include "deformable_flsm/core/contact.h"
+#include "deformable_flsm/core/mesh_distance_field.h"
+#include "deformable_flsm/core/solver.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <stdexcept>
+
+namespace deformable_flsm {
+
+namespace {
+
+/// Particles per chunk of the contact pass. Each chunk sums its own impulses, and the chunks are
+/// added in order: the wrenches do not depend on how many threads share the chunks.
+constexpr std::size_t kContactChunk = 1024;
+
+bool isRotation(const Eigen::Matrix3d& R) {
+  return (R.transpose() * R).isIdentity(1e-6) && R.determinant() > 0.0;
+}
+
+}  // namespace
+
+double Solver::contactRadius() const {
+  return params_.contactRadius > 0.0 ? params_.contactRadius : 0.5 * lattice_->spacing();
+}
+
+void Solver::setCollider(const std::string& id, const Collider& collider) {
+  collider.validate();
+  Collider c = collider;
+  if (c.shape.type == ColliderType::Mesh && !c.shape.distanceField)
+    c.shape.distanceField = std::make_shared<const MeshDistanceField>(*c.shape.mesh);
+  colliders_[id] = std::move(c);
+  rebuildContactBodies();
+}
+
+bool Solver::moveCollider(const std::string& id, const Eigen::Isometry3d& pose,
+                          const Eigen::Vector3d& linearVelocity, const Eigen::Vector3d& angularVelocity) {
+  auto it = colliders_.find(id);
+  if (it == colliders_.end()) return false;
+  if (!pose.matrix().allFinite() || !linearVelocity.allFinite() || !angularVelocity.allFinite())
+    throw std::invalid_argument("solver: collider '" + id + "' given a non-finite pose or velocity");
+  if (!isRotation(pose.linear()))
+    throw std::invalid_argument("solver: collider '" + id +
+                                "' given a pose whose rotation is not orthonormal with determinant +1");
+  it->second.pose = pose;
+  it->second.linearVelocity = linearVelocity;
+  it->second.angularVelocity = angularVelocity;
+  return true;
+}
+
+bool Solver::removeCollider(const std::string& id) {
+  const bool found = colliders_.erase(id) > 0;
+  rebuildContactBodies();
+  return found;
+}
+
+void Solver::removeAllColliders() {
+  colliders_.clear();
+  rebuildContactBodies();
+}
+
+ContactWrench Solver::contactWrench(const std::string& id) const {
+  for (const ContactBody& body : contactBodies_)
+    if (*body.id == id) return body.wrench;
+  return ContactWrench();
+}
+
+// Every change of the collider set comes here, outside step(): the buffers the contact pass
+// writes are sized now, so that the pass allocates nothing.
+void Solver::rebuildContactBodies() {
+  std::vector<ContactBody> bodies;
+  bodies.reserve(colliders_.size());
+  for (auto& entry : colliders_) {
+    ContactBody body;
+    body.id = &entry.first;
+    body.collider = &entry.second;
+    body.start = body.now = entry.second.pose;
+    // a collider that stays (another was added or removed) keeps its last wrench
+    for (const ContactBody& old : contactBodies_)
+      if (old.collider == body.collider) body.wrench = old.wrench;
+    bodies.push_back(body);
+  }
+  contactBodies_ = std::move(bodies);
+  activeBodies_.clear();
+  activeBodies_.reserve(contactBodies_.size());
+  const std::size_t chunks = (x_.size() + kContactChunk - 1) / kContactChunk;
+  contactPartials_.assign(chunks * contactBodies_.size(), ContactPartial());
+  chunkBodies_.assign(chunks * contactBodies_.size(), 0);
+}
+
+void Solver::beginContactStep() {
+  contactTime_ = 0.0;
+  for (ContactBody& body : contactBodies_) {
+    body.start = body.now = body.collider->pose;
+    body.impulse.setZero();
+    body.moment.setZero();
+    body.contacts = 0;
+  }
+}
+
+// Contact of the particle spheres (radius r = contactRadius()) with the colliders, after the
+// region pass has moved every free particle to x* = x + h v:
+//  1. broad phase: colliders whose bounds (inflated by r) miss the object's bounds are skipped,
+//     then those that miss a chunk's bounds (a slab of the lattice), then, per particle, those
+//     whose inflated bounds miss the particle;
+//  2. velocity-level response (contactVelocityChange()): a particle whose sphere ends inside a
+//     collider, at the collider's pose at the end of the sub-step, gets the velocity that ends
+//     it on the surface, with Coulomb friction relative to the collider's surface velocity;
+//     x* moves with it (x* = x + h v holds). Colliders are visited in id order, each seeing the
+//     corrections of the ones before;
+//  3. safety projection: a sphere still inside a collider (a curved surface, or pushed into one
+//     collider by another) is moved out along the normal, position only.
+// The impulses m dv, and their moments about each collider's origin taken at the contact point
+// x* - r n, are summed per chunk, then over the chunks in order.
+// Pinned and hard-dragged particles are left alone: their motion is prescribed.
+void Solver::contactPass(double h) {
+  if (contactBodies_.empty()) return;
+  contactTime_ += h;
+  const double r = contactRadius();
+  Eigen::Vector3d lo = x_[0], hi = x_[0];
+  for (const Eigen::Vector3d& x : x_) {
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  activeBodies_.clear();
+  for (std::size_t b = 0; b < contactBodies_.size(); ++b) {
+    ContactBody& body = contactBodies_[b];
+    const Collider& c = *body.collider;
+    body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_);
+    body.contacts = 0;
+    body.bounded = colliderBounds(c.shape, body.now, body.lo, body.hi);
+    if (body.bounded) {
+      body.lo.array() -= r;
+      body.hi.array() += r;
+    }
+    if (boxNearCollider(c.shape, body.now, lo, hi, r)) activeBodies_.push_back(static_cast<int>(b));
+  }
+  if (activeBodies_.empty()) return;
+
+  const std::size_t n = x_.size();
+  const std::size_t bodies = contactBodies_.size();
+  const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + kContactChunk - 1) / kContactChunk);
+  const auto& m = lattice_->masses();
+#pragma omp parallel for num_threads(threads_) schedule(static) if (threads_ > 1)
+  for (std::ptrdiff_t chunk = 0; chunk < chunks; ++chunk) {
+    ContactPartial* partial = contactPartials_.data() + static_cast<std::size_t>(chunk) * bodies;
+    for (int a : activeBodies_) partial[a] = ContactPartial();
+    const std::size_t begin = static_cast<std::size_t>(chunk) * kContactChunk;
+    const std::size_t end = std::min(n, begin + kContactChunk);
+    // The chunk's own broad phase: particles are sorted by (k, j, i), so a chunk is a slab of the
+    // lattice, and most colliders (the ground, under the bottom slabs) miss most slabs.
+    Eigen::Vector3d chunkLo = x_[begin], chunkHi = x_[begin];
+    for (std::size_t i = begin + 1; i < end; ++i) {
+      chunkLo = chunkLo.cwiseMin(x_[i]);
+      chunkHi = chunkHi.cwiseMax(x_[i]);
+    }
+    int* near = chunkBodies_.data() + static_cast<std::size_t>(chunk) * bodies;
+    int nearCount = 0;
+    for (int a : activeBodies_) {
+      const ContactBody& body = contactBodies_[a];
+      if (boxNearCollider(body.collider->shape, body.now, chunkLo, chunkHi, r)) near[nearCount++] = a;
+    }
+    if (nearCount == 0) continue;
+    for (std::size_t i = begin; i < end; ++i) {
+      if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
+      Eigen::Vector3d x = x_[i], v = v_[i];
+      bool touched = false;
+      for (int k = 0; k < nearCount; ++k) {
+        const int a = near[k];
+        const ContactBody& body = contactBodies_[a];
+        if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
+        const Collider& c = *body.collider;
+        Eigen::Vector3d normal;
+        const double depth = colliderDistance(c.shape, body.now, x, normal) - r;
+        if (!(depth < 0.0)) continue;
+        const Eigen::Vector3d origin = body.now.translation();
+        const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - origin);
+        const Eigen::Vector3d dv =
+            contactVelocityChange(depth, normal, v, vc, h, c.staticFriction, c.kineticFriction);
+        v += dv;
+        x += h * dv;
+        const Eigen::Vector3d J = m[i] * dv;
+        ContactPartial& p = partial[a];
+        p.impulse += J;
+        p.moment += (x - r * normal - origin).cross(J);
+        ++p.contacts;
+        touched = true;
+      }
+      if (!touched) continue;
+      for (int k = 0; k < nearCount; ++k) {
+        const ContactBody& body = contactBodies_[near[k]];
+        if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
+        Eigen::Vector3d normal;
+        const double depth = colliderDistance(body.collider->shape, body.now, x, normal) - r;
+        if (depth < 0.0) x -= depth * normal;
+      }
+      x_[i] = x;
+      v_[i] = v;
+    }
+  }
+  for (std::ptrdiff_t chunk = 0; chunk < chunks; ++chunk) {
+    const ContactPartial* partial = contactPartials_.data() + static_cast<std::size_t>(chunk) * bodies;
+    for (int a : activeBodies_) {
+      ContactBody& body = contactBodies_[a];
+      body.impulse += partial[a].impulse;
+      body.moment += partial[a].moment;
+      body.contacts += partial[a].contacts;
+    }
+  }
+}
+
+// The object's impulse on a collider is minus the particles' m dv; averaged over the step.
+void Solver::endContactStep() {
+  const double T = params_.timeStep;
+  for (ContactBody& body : contactBodies_) {
+    body.wrench.force = -body.impulse / T;
+    body.wrench.torque = -body.moment / T;
+    body.wrench.contacts = body.contacts;
+    Collider& c = *body.collider;
+    c.pose = advancePose(body.start, c.linearVelocity, c.angularVelocity, T);
+    body.now = c.pose;
+  }
+}
+
+}  // namespace deformable_flsm

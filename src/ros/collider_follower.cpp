@@ -1,0 +1,99 @@
+#include "deformable_flsm/ros/collider_follower.h"
+
+#include <tf2/exceptions.h>
+#include <tf2_eigen/tf2_eigen.h>
+
+#include <utility>
+
+namespace deformable_flsm {
+
+ColliderFollower::ColliderFollower(const tf2::BufferCore& buffer, std::string simFrame)
+    : buffer_(buffer), simFrame_(std::move(simFrame)) {}
+
+void ColliderFollower::follow(const std::string& id, const std::string& frame,
+                              const Eigen::Isometry3d& offset) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Entry e;
+  e.frame = frame;
+  e.offset = offset;
+  entries_[id] = e;
+}
+
+void ColliderFollower::forget(const std::string& id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  entries_.erase(id);
+}
+
+bool ColliderFollower::empty() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return entries_.empty();
+}
+
+std::uint64_t ColliderFollower::misses() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return misses_;
+}
+
+void ColliderFollower::sample(const ros::Time& now, const Post& post,
+                              std::vector<std::string>& problems) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (auto& item : entries_) {
+    const std::string& id = item.first;
+    Entry& e = item.second;
+    std::string problem;
+    geometry_msgs::TransformStamped t;
+    // Latest transform, no timeout: BufferCore never waits.
+    std::string error;
+    if (!buffer_.canTransform(simFrame_, e.frame, ros::Time(0), &error)) {
+      problem = "collider '" + id + "': frame '" + e.frame + "' unknown (" + error + ")";
+    } else {
+      try {
+        t = buffer_.lookupTransform(simFrame_, e.frame, ros::Time(0));
+      } catch (const tf2::TransformException& ex) {
+        problem = "collider '" + id + "': frame '" + e.frame + "': " + ex.what();
+      }
+    }
+    // A static transform has stamp 0 and never goes stale.
+    if (problem.empty() && !t.header.stamp.isZero() &&
+        (now - t.header.stamp).toSec() > kStaleAfter) {
+      problem = "collider '" + id + "': the newest transform of frame '" + e.frame + "' is " +
+                std::to_string((now - t.header.stamp).toSec()) + " s old";
+    }
+    if (!problem.empty()) {
+      ++misses_;
+      problems.push_back(problem + ": the collider holds still");
+      if (e.seen && !e.holding) {
+        ColliderMotion hold;
+        hold.pose = e.pose;
+        post(id, hold);
+        e.holding = true;
+      }
+      continue;
+    }
+    const Eigen::Isometry3d pose = tf2::transformToEigen(t) * e.offset;
+    if (!pose.matrix().allFinite()) {
+      ++misses_;
+      problems.push_back("collider '" + id + "': frame '" + e.frame + "' is not finite");
+      continue;
+    }
+    // Nothing new: the simulation moves on along the velocity. A static transform (stamp 0)
+    // is posted every time, so that a collider (re)added on that frame always gets its pose;
+    // an unchanged pose does not wake the simulation.
+    if (e.seen && !e.holding && t.header.stamp == e.stamp && !t.header.stamp.isZero()) continue;
+    ColliderMotion m;
+    m.pose = pose;
+    const double dt = (t.header.stamp - e.stamp).toSec();
+    if (e.seen && !e.holding && dt > 0.0) {
+      m.linearVelocity = (pose.translation() - e.pose.translation()) / dt;
+      const Eigen::AngleAxisd turn(pose.linear() * e.pose.linear().transpose());
+      m.angularVelocity = turn.axis() * (turn.angle() / dt);
+    }
+    e.seen = true;
+    e.holding = false;
+    e.stamp = t.header.stamp;
+    e.pose = pose;
+    post(id, m);
+  }
+}
+
+}  // namespace deformable_flsm

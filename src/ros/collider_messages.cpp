@@ -1,0 +1,163 @@
+#include "deformable_flsm/ros/collider_messages.h"
+
+#include "deformable_flsm/ros/collider_params.h"
+
+#include <tf2_eigen/tf2_eigen.h>
+
+#include <Eigen/Geometry>
+
+namespace deformable_flsm {
+
+namespace {
+
+/// The ground and other planes: light grey, slightly transparent so that the object's underside
+/// shows through.
+constexpr float kPlaneColor[4] = {0.8f, 0.8f, 0.78f, 0.75f};
+/// Solid colliders: steel blue, slightly transparent.
+constexpr float kSolidColor[4] = {0.35f, 0.5f, 0.75f, 0.8f};
+/// A plane's slab is this fraction of its width thick.
+constexpr double kPlaneThickness = 0.01;
+
+visualization_msgs::Marker makeMarker(const std::string& ns, int id, int type,
+                                      const std::string& frameId, const ros::Time& stamp,
+                                      const Eigen::Isometry3d& pose, const float (&color)[4]) {
+  visualization_msgs::Marker m;
+  m.header.frame_id = frameId;
+  m.header.stamp = stamp;
+  m.ns = ns;
+  m.id = id;
+  m.type = type;
+  m.action = visualization_msgs::Marker::ADD;
+  m.pose = tf2::toMsg(pose);
+  m.scale.x = m.scale.y = m.scale.z = 1.0;
+  m.color.r = color[0];
+  m.color.g = color[1];
+  m.color.b = color[2];
+  m.color.a = color[3];
+  return m;
+}
+
+void setScale(visualization_msgs::Marker& m, double x, double y, double z) {
+  m.scale.x = x;
+  m.scale.y = y;
+  m.scale.z = z;
+}
+
+geometry_msgs::Vector3 toVector(const Eigen::Vector3d& v) {
+  geometry_msgs::Vector3 out;
+  out.x = v.x();
+  out.y = v.y();
+  out.z = v.z();
+  return out;
+}
+
+}  // namespace
+
+void fillColliderMarkers(const std::map<std::string, Collider>& colliders,
+                         const std::string& frameId, double planeSize, const ros::Time& stamp,
+                         visualization_msgs::MarkerArray& markers) {
+  using visualization_msgs::Marker;
+  markers.markers.clear();
+  Marker clear;
+  clear.header.frame_id = frameId;
+  clear.header.stamp = stamp;
+  clear.action = Marker::DELETEALL;
+  clear.pose.orientation.w = 1.0;  // RViz warns about a zero quaternion even here
+  markers.markers.push_back(clear);
+  for (const auto& entry : colliders) {
+    const std::string& ns = entry.first;
+    const Collider& c = entry.second;
+    const ColliderShape& s = c.shape;
+    switch (s.type) {
+      case ColliderType::HalfSpace: {
+        const double thickness = kPlaneThickness * planeSize;
+        const Eigen::Isometry3d slab = c.pose * Eigen::Translation3d(0.0, 0.0, -0.5 * thickness);
+        Marker m = makeMarker(ns, 0, Marker::CUBE, frameId, stamp, slab, kPlaneColor);
+        setScale(m, planeSize, planeSize, thickness);
+        markers.markers.push_back(m);
+        break;
+      }
+      case ColliderType::Box: {
+        Marker m = makeMarker(ns, 0, Marker::CUBE, frameId, stamp, c.pose, kSolidColor);
+        setScale(m, 2 * s.halfExtents.x(), 2 * s.halfExtents.y(), 2 * s.halfExtents.z());
+        markers.markers.push_back(m);
+        break;
+      }
+      case ColliderType::Sphere: {
+        Marker m = makeMarker(ns, 0, Marker::SPHERE, frameId, stamp, c.pose, kSolidColor);
+        setScale(m, 2 * s.radius, 2 * s.radius, 2 * s.radius);
+        markers.markers.push_back(m);
+        break;
+      }
+      case ColliderType::Capsule: {
+        const double d = 2 * s.radius;
+        Marker body = makeMarker(ns, 0, Marker::CYLINDER, frameId, stamp, c.pose, kSolidColor);
+        setScale(body, d, d, 2 * s.halfLength);
+        markers.markers.push_back(body);
+        for (int end = 0; end < 2; ++end) {
+          const double z = end == 0 ? -s.halfLength : s.halfLength;
+          Marker cap = makeMarker(ns, 1 + end, Marker::SPHERE, frameId, stamp,
+                                  c.pose * Eigen::Translation3d(0.0, 0.0, z), kSolidColor);
+          setScale(cap, d, d, d);
+          markers.markers.push_back(cap);
+        }
+        break;
+      }
+      case ColliderType::Mesh: {
+        Marker m = makeMarker(ns, 0, Marker::TRIANGLE_LIST, frameId, stamp, c.pose, kSolidColor);
+        if (s.mesh) {
+          m.points.reserve(3 * s.mesh->triangles.size());
+          for (const auto& t : s.mesh->triangles) {
+            for (const std::uint32_t v : t) {
+              geometry_msgs::Point p;
+              p.x = s.mesh->vertices[v].x();
+              p.y = s.mesh->vertices[v].y();
+              p.z = s.mesh->vertices[v].z();
+              m.points.push_back(p);
+            }
+          }
+        }
+        markers.markers.push_back(m);
+        break;
+      }
+    }
+  }
+}
+
+void fillContactWrenches(const std::map<std::string, Collider>& colliders,
+                         const std::map<std::string, ContactWrench>& wrenches,
+                         const ros::Time& stamp, ContactWrenches& out) {
+  out.header.stamp = stamp;
+  out.ids.clear();
+  out.wrenches.clear();
+  out.contacts.clear();
+  for (const auto& entry : colliders) {
+    const auto w = wrenches.find(entry.first);
+    const ContactWrench cw = w == wrenches.end() ? ContactWrench() : w->second;
+    // Sim -> collider frame: the transpose of the collider's rotation.
+    const Eigen::Matrix3d colliderFromSim = entry.second.pose.linear().transpose();
+    geometry_msgs::WrenchStamped ws;
+    ws.header.stamp = stamp;
+    ws.header.frame_id = colliderFrameId(entry.first);
+    ws.wrench.force = toVector(colliderFromSim * cw.force);
+    ws.wrench.torque = toVector(colliderFromSim * cw.torque);
+    out.ids.push_back(entry.first);
+    out.wrenches.push_back(ws);
+    out.contacts.push_back(static_cast<std::uint32_t>(cw.contacts));
+  }
+}
+
+void colliderTransforms(const std::map<std::string, Collider>& colliders,
+                        const std::string& frameId, const ros::Time& stamp,
+                        std::vector<geometry_msgs::TransformStamped>& out) {
+  out.clear();
+  for (const auto& entry : colliders) {
+    geometry_msgs::TransformStamped t = tf2::eigenToTransform(entry.second.pose);
+    t.header.stamp = stamp;
+    t.header.frame_id = frameId;
+    t.child_frame_id = colliderFrameId(entry.first);
+    out.push_back(t);
+  }
+}
+
+}  // namespace deformable_flsm

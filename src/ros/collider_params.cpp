@@ -1,0 +1,270 @@
+#include "deformable_flsm/ros/collider_params.h"
+
+#include "deformable_flsm/core/mesh_distance_field.h"
+
+#include "deformable_flsm/ros/commands.h"
+#include "deformable_flsm/ros/param_loader.h"
+
+#include <Eigen/Geometry>
+
+#include <cctype>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+namespace deformable_flsm {
+
+namespace {
+
+constexpr const char kColliderFramePrefix[] = "flsm_collider/";
+
+/// Fields an entry of ~colliders may have.
+const char* const kFields[] = {"id",       "type",       "frame_id",        "position",
+                               "orientation", "size",    "radius",          "length",
+                               "mesh",     "mesh_scale", "static_friction", "kinetic_friction"};
+
+std::string describe(XmlRpc::XmlRpcValue value) {
+  std::ostringstream out;
+  switch (value.getType()) {
+    case XmlRpc::XmlRpcValue::TypeString:
+      out << "'" << static_cast<std::string&>(value) << "'";
+      break;
+    case XmlRpc::XmlRpcValue::TypeStruct:
+      out << "a dictionary";
+      break;
+    default:
+      value.write(out);
+  }
+  return out.str();
+}
+
+bool toNumber(XmlRpc::XmlRpcValue& v, double& out) {
+  if (v.getType() == XmlRpc::XmlRpcValue::TypeDouble) {
+    out = static_cast<double>(v);
+    return true;
+  }
+  if (v.getType() == XmlRpc::XmlRpcValue::TypeInt) {
+    out = static_cast<int>(v);
+    return true;
+  }
+  return false;
+}
+
+/// Reads the fields of one ~colliders entry; every error names the entry.
+class EntryReader {
+ public:
+  EntryReader(XmlRpc::XmlRpcValue& entry, int index) : entry_(entry), index_(index) {}
+
+  [[noreturn]] void fail(const std::string& what) const {
+    std::ostringstream out;
+    out << "~colliders entry " << index_;
+    if (!id_.empty()) out << " ('" << id_ << "')";
+    out << ": " << what;
+    throw ParamError(out.str());
+  }
+  void setId(const std::string& id) { id_ = id; }
+
+  bool has(const char* field) { return entry_.hasMember(field); }
+
+  std::string string(const char* field, const std::string& fallback) {
+    if (!has(field)) return fallback;
+    XmlRpc::XmlRpcValue& v = entry_[field];
+    if (v.getType() != XmlRpc::XmlRpcValue::TypeString)
+      fail(std::string(field) + " is " + describe(v) + ": it must be a string");
+    return static_cast<std::string&>(v);
+  }
+
+  double number(const char* field, double fallback) {
+    if (!has(field)) return fallback;
+    double out = 0.0;
+    if (!toNumber(entry_[field], out) || !std::isfinite(out))
+      fail(std::string(field) + " is " + describe(entry_[field]) + ": it must be a finite number");
+    return out;
+  }
+
+  Eigen::VectorXd numbers(const char* field, int count, const Eigen::VectorXd& fallback) {
+    if (!has(field)) return fallback;
+    XmlRpc::XmlRpcValue& v = entry_[field];
+    Eigen::VectorXd out(count);
+    bool ok = v.getType() == XmlRpc::XmlRpcValue::TypeArray && v.size() == count;
+    for (int k = 0; ok && k < count; ++k) ok = toNumber(v[k], out[k]) && std::isfinite(out[k]);
+    if (!ok)
+      fail(std::string(field) + " is " + describe(v) + ": it must be a list of " +
+           std::to_string(count) + " finite numbers");
+    return out;
+  }
+
+  void checkFields() {
+    for (auto it = entry_.begin(); it != entry_.end(); ++it) {
+      bool known = false;
+      for (const char* f : kFields) known = known || it->first == f;
+      if (!known)
+        fail("unknown field '" + it->first + "' (misspelt?): the fields are id, type, frame_id, "
+             "position, orientation, size, radius, length, mesh, mesh_scale, static_friction, "
+             "kinetic_friction");
+    }
+  }
+
+ private:
+  XmlRpc::XmlRpcValue& entry_;
+  int index_;
+  std::string id_;
+};
+
+}  // namespace
+
+std::string colliderFrameId(const std::string& id) { return kColliderFramePrefix + id; }
+
+bool validColliderId(const std::string& id) {
+  if (id.empty() || id.size() > CommandLimits::kMaxIdLength) return false;
+  for (const char c : id)
+    if (!std::isprint(static_cast<unsigned char>(c))) return false;
+  return true;
+}
+
+void loadColliderMesh(const std::string& url, double scale, ColliderShape& shape) {
+  if (url.empty()) throw std::invalid_argument("mesh is empty: give a mesh file or package:// URL");
+  if (!std::isfinite(scale) || scale <= 0.0)
+    throw std::invalid_argument("mesh_scale " + std::to_string(scale) +
+                                " must be a finite factor > 0");
+  std::string path;
+  try {
+    path = resolveMeshPath(url);
+  } catch (const ParamError& e) {
+    throw std::invalid_argument(std::string("mesh ") + e.what());
+  }
+  try {
+    auto mesh = std::make_shared<const TriMesh>(loadMesh(path, scale));
+    shape.distanceField = std::make_shared<const MeshDistanceField>(*mesh);
+    shape.mesh = std::move(mesh);
+  } catch (const MeshError& e) {
+    throw std::invalid_argument("mesh '" + url + "' (file '" + path + "') cannot be used: " +
+                                e.what());
+  }
+}
+
+std::vector<ColliderSpec> parseColliderList(XmlRpc::XmlRpcValue& value,
+                                            const std::string& simFrame) {
+  if (value.getType() != XmlRpc::XmlRpcValue::TypeArray)
+    throw ParamError("~colliders is " + describe(value) +
+                     ": it must be a list of colliders, each a dictionary with at least id and "
+                     "type (see README)");
+  if (static_cast<std::size_t>(value.size()) > ColliderLimits::kMaxColliders)
+    throw ParamError("~colliders has " + std::to_string(value.size()) + " entries: at most " +
+                     std::to_string(ColliderLimits::kMaxColliders));
+  std::vector<ColliderSpec> specs;
+  std::set<std::string> ids;
+  for (int i = 0; i < value.size(); ++i) {
+    XmlRpc::XmlRpcValue& entry = value[i];
+    EntryReader r(entry, i);
+    if (entry.getType() != XmlRpc::XmlRpcValue::TypeStruct)
+      r.fail("it is " + describe(entry) + ": each entry must be a dictionary with at least id "
+             "and type");
+    ColliderSpec spec;
+    spec.id = r.string("id", "");
+    if (!validColliderId(spec.id))
+      r.fail("id '" + spec.id + "' must be 1 to " + std::to_string(CommandLimits::kMaxIdLength) +
+             " printable characters");
+    r.setId(spec.id);
+    if (!ids.insert(spec.id).second) r.fail("id '" + spec.id + "' is used by an earlier entry");
+    r.checkFields();
+
+    ColliderShape& shape = spec.collider.shape;
+    const std::string type = r.string("type", "");
+    try {
+      shape.type = parseColliderType(type);
+    } catch (const std::invalid_argument&) {
+      r.fail("type is '" + type + "': it must be plane, box, sphere, capsule or mesh");
+    }
+    spec.followFrame = r.string("frame_id", "");
+    if (spec.followFrame == simFrame) spec.followFrame.clear();
+
+    const Eigen::Vector3d position = r.numbers("position", 3, Eigen::Vector3d::Zero());
+    const Eigen::Vector4d q = r.numbers("orientation", 4, Eigen::Vector4d(0, 0, 0, 1));
+    if (q.norm() < 1e-6)
+      r.fail("orientation [x, y, z, w] is zero: give a unit quaternion, e.g. [0, 0, 0, 1]");
+    const Eigen::Quaterniond rotation(q[3], q[0], q[1], q[2]);
+    spec.collider.pose = Eigen::Translation3d(position) * rotation.normalized();
+
+    const auto needs = [&](const char* field) {
+      if (!r.has(field)) r.fail(std::string("a ") + toString(shape.type) + " needs " + field);
+    };
+    switch (shape.type) {
+      case ColliderType::HalfSpace:
+        break;
+      case ColliderType::Box: {
+        needs("size");
+        const Eigen::Vector3d size = r.numbers("size", 3, Eigen::Vector3d::Zero());
+        if ((size.array() <= 0.0).any())
+          r.fail("size is [" + std::to_string(size.x()) + ", " + std::to_string(size.y()) + ", " +
+                 std::to_string(size.z()) + "]: a box's full edge lengths must be > 0 (m)");
+        shape.halfExtents = 0.5 * size;
+        break;
+      }
+      case ColliderType::Capsule:
+        needs("length");
+        shape.halfLength = 0.5 * r.number("length", 0.0);
+        if (shape.halfLength < 0.0)
+          r.fail("length is " + std::to_string(2 * shape.halfLength) + ": it must be >= 0 (m)");
+        [[fallthrough]];
+      case ColliderType::Sphere:
+        needs("radius");
+        shape.radius = r.number("radius", 0.0);
+        if (shape.radius <= 0.0)
+          r.fail("radius is " + std::to_string(shape.radius) + ": it must be > 0 (m)");
+        break;
+      case ColliderType::Mesh: {
+        needs("mesh");
+        spec.meshUrl = r.string("mesh", "");
+        const double scale = r.number("mesh_scale", 1.0);
+        if (scale <= 0.0)
+          r.fail("mesh_scale is " + std::to_string(scale) + ": it must be > 0");
+        try {
+          loadColliderMesh(spec.meshUrl, scale, shape);
+        } catch (const std::invalid_argument& e) {
+          r.fail(e.what());
+        }
+        break;
+      }
+    }
+    spec.collider.staticFriction = r.number("static_friction", spec.collider.staticFriction);
+    spec.collider.kineticFriction = r.number("kinetic_friction", spec.collider.kineticFriction);
+    if (spec.collider.kineticFriction < 0.0 ||
+        spec.collider.staticFriction < spec.collider.kineticFriction)
+      r.fail("static_friction " + std::to_string(spec.collider.staticFriction) +
+             ", kinetic_friction " + std::to_string(spec.collider.kineticFriction) +
+             ": they must satisfy 0 <= kinetic_friction <= static_friction");
+    try {
+      spec.collider.validate();
+    } catch (const std::invalid_argument& e) {
+      r.fail(e.what());
+    }
+    specs.push_back(std::move(spec));
+  }
+  return specs;
+}
+
+Collider groundCollider(const Lattice& lattice, const TriMesh& mesh, const Eigen::Vector3d& gravity,
+                        double contactRadius, double clearance) {
+  const Eigen::Vector3d up =
+      gravity.norm() > 0.0 ? Eigen::Vector3d(-gravity.normalized()) : Eigen::Vector3d::UnitZ();
+  double lowest = std::numeric_limits<double>::infinity();
+  for (const Eigen::Vector3d& v : mesh.vertices) lowest = std::min(lowest, up.dot(v));
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& x : lattice.restPositions()) {
+    lowest = std::min(lowest, up.dot(x) - contactRadius);
+    centre += x;
+  }
+  centre /= static_cast<double>(std::max<std::size_t>(1, lattice.size()));
+  Collider ground;
+  ground.shape.type = ColliderType::HalfSpace;
+  // The plane's origin below the object's centre; its +z is `up`.
+  const Eigen::Vector3d origin = centre + (lowest - clearance - up.dot(centre)) * up;
+  ground.pose = Eigen::Translation3d(origin) *
+                Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), up);
+  return ground;
+}
+
+}  // namespace deformable_flsm

@@ -1,0 +1,623 @@
+// Contact of the deformable object with rigid colliders: the response kernel against Coulomb's
+// law, the solver's contact pass (no penetration, wrenches, kinematic colliders, pins, threads),
+// and scenes whose figures are printed with the test output: a bunny dropped on the ground, a
+// block on an incline, a grasp by two fingers, an indentation, and abuse it must survive.
+#include "deformable_flsm/core/contact.h"
+
+#include "deformable_flsm/core/embedding.h"
+#include "deformable_flsm/core/mesh.h"
+#include "deformable_flsm/core/solver.h"
+#include "deformable_flsm/core/voxelizer.h"
+#include "fixtures.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+using namespace deformable_flsm;
+
+namespace {
+
+const char* const kBunnyPath = "/usr/share/glmark2/models/bunny.obj";
+constexpr double kG = 9.81;
+
+/// The bunny file's ~2-unit bunny at 0.1 (about 20 cm), turned from Y-up to Z-up.
+TriMesh zUpBunny() {
+  TriMesh mesh = loadMesh(kBunnyPath, 0.1);
+  for (auto& v : mesh.vertices) v = Eigen::Vector3d(v.x(), -v.z(), v.y());
+  return mesh;
+}
+
+/// Lattice cells along the bunny's longest axis in the scenes: about 1300 particles.
+constexpr int kBunnyResolution = 16;
+
+struct BunnyScene {
+  TriMesh mesh;
+  std::shared_ptr<const Lattice> lattice;
+};
+
+/// Regions of two cells (w = 2).
+constexpr int kRegionHalfWidth = 2;
+
+BunnyScene bunnyScene() {
+  BunnyScene scene;
+  scene.mesh = zUpBunny();
+  VoxelizeOptions options;
+  options.resolution = kBunnyResolution;
+  scene.lattice = std::make_shared<const Lattice>(voxelize(scene.mesh, options), 1000.0, kRegionHalfWidth);
+  return scene;
+}
+
+/// 60 Hz in 8 sub-steps, classic FastLSM with alpha = `alpha` (firm: the squeeze of a grasp
+/// must carry the weight), the default damping. (The package's default E = 14 kPa at this
+/// resolution is a jelly that two fingers squeezing 1.5 cm hold with only 2 N each.)
+SolverParams sceneParams(const Lattice& lattice, double alpha = 1.0) {
+  SolverParams p;
+  p.regionHalfWidth = lattice.regionHalfWidth();
+  p.stiffness = alpha;
+  p.timeStep = 1.0 / 60.0;
+  p.substeps = 8;
+  return p;
+}
+
+Eigen::Vector3d centreOfMass(const Solver& s) {
+  const auto& m = s.lattice().masses();
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < m.size(); ++i) c += m[i] * s.positions()[i];
+  return c / s.lattice().totalMass();
+}
+
+double maxSpeed(const Solver& s) {
+  double v = 0.0;
+  for (const auto& vi : s.velocities()) v = std::max(v, vi.norm());
+  return v;
+}
+
+bool allFinite(const Solver& s) {
+  for (std::size_t i = 0; i < s.positions().size(); ++i)
+    if (!s.positions()[i].allFinite() || !s.velocities()[i].allFinite()) return false;
+  return true;
+}
+
+double lowestZ(const Solver& s) {
+  double z = s.positions()[0].z();
+  for (const auto& x : s.positions()) z = std::min(z, x.z());
+  return z;
+}
+
+/// A ground plane whose surface is `gap` below the lowest particle sphere.
+Collider groundBelow(const Solver& s, double gap) {
+  Collider ground;
+  ground.pose.translation() = Eigen::Vector3d(0, 0, lowestZ(s) - s.contactRadius() - gap);
+  return ground;
+}
+
+Collider boxCollider(const Eigen::Vector3d& centre, const Eigen::Vector3d& half, double mu) {
+  Collider c;
+  c.shape.type = ColliderType::Box;
+  c.shape.halfExtents = half;
+  c.pose.translation() = centre;
+  c.staticFriction = mu;
+  c.kineticFriction = mu;
+  return c;
+}
+
+void setVelocity(Solver& s, const std::string& id, const Eigen::Vector3d& v) {
+  ASSERT_TRUE(s.moveCollider(id, s.colliders().at(id).pose, v, Eigen::Vector3d::Zero()));
+}
+
+int stepsFor(double seconds, const Solver& s) {
+  return static_cast<int>(std::lround(seconds / s.params().timeStep));
+}
+
+}  // namespace
+
+// --- the kernel ------------------------------------------------------------------------------
+
+TEST(ContactVelocityChange, EndsOnTheSurfaceAndSticksWithinTheFrictionCone) {
+  const Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+  const double h = 0.01;
+  // 1 mm deep, tangential slip 0.05 m/s: the normal change is 0.1 m/s, mu_s 0.6 holds 0.06
+  const Eigen::Vector3d v(0.05, 0.0, -0.2);
+  Eigen::Vector3d dv = contactVelocityChange(-0.001, n, v, Eigen::Vector3d::Zero(), h, 0.6, 0.5);
+  EXPECT_NEAR(dv.z(), 0.1, 1e-15) << "the normal change ends the sub-step on the surface";
+  EXPECT_NEAR((v + dv).x(), 0.0, 1e-15) << "static friction stops the slip";
+  // slip 0.2 m/s exceeds 0.06: kinetic friction takes mu_k * 0.1 = 0.05 off it
+  dv = contactVelocityChange(-0.001, n, Eigen::Vector3d(0.2, 0, -0.2), Eigen::Vector3d::Zero(), h, 0.6, 0.5);
+  EXPECT_NEAR(dv.x(), -0.05, 1e-15);
+  EXPECT_NEAR(dv.z(), 0.1, 1e-15);
+  // relative to a moving collider: a particle moving with the surface keeps its velocity
+  const Eigen::Vector3d belt(0.3, 0.1, 0.0);
+  dv = contactVelocityChange(-0.001, n, belt, belt, h, 0.6, 0.5);
+  EXPECT_TRUE(dv.isApprox(Eigen::Vector3d(0, 0, 0.1), 1e-14));
+  // frictionless: the tangential velocity stays
+  dv = contactVelocityChange(-0.001, n, Eigen::Vector3d(0.01, 0, 0), Eigen::Vector3d::Zero(), h, 0.0, 0.0);
+  EXPECT_TRUE(dv.isApprox(Eigen::Vector3d(0, 0, 0.1), 1e-14));
+}
+
+// --- the contact pass ------------------------------------------------------------------------
+
+TEST(Contact, BlockRestsOnTheGroundAndItsWeightIsTheNormalForce) {
+  auto lattice = std::make_shared<const Lattice>(test::makeBox(6, 4, 3, 0.01), 1000.0, 1);
+  Solver s(lattice, sceneParams(*lattice, 0.3));
+  const Collider ground = groundBelow(s, 0.02);
+  s.setCollider("ground", ground);
+  const double zg = ground.pose.translation().z();
+  double deepest = 0.0;
+  const int steps = stepsFor(5.0, s), last = stepsFor(1.0, s);
+  ContactWrench w;  // averaged over the last second
+  for (int i = 0; i < steps; ++i) {
+    s.step();
+    deepest = std::max(deepest, zg + s.contactRadius() - lowestZ(s));
+    if (i < steps - last) continue;
+    w.force += s.contactWrench("ground").force / last;
+    w.torque += s.contactWrench("ground").torque / last;
+    w.contacts = s.contactWrench("ground").contacts;
+  }
+  EXPECT_LT(deepest, 1e-12) << "no sphere ends a sub-step inside the ground";
+  EXPECT_LT(maxSpeed(s), 1e-3);
+  const double W = lattice->totalMass() * kG;
+  EXPECT_NEAR(w.force.z(), -W, 2e-3 * W) << "the block presses on the ground with its weight";
+  EXPECT_NEAR(w.force.head<2>().norm(), 0.0, 2e-3 * W);
+  EXPECT_EQ(w.contacts, 24u) << "the bottom layer of 6 x 4 particles touches";
+  // torque about the ground's origin: the weight acts at the centre of mass
+  const Eigen::Vector3d c = centreOfMass(s) - ground.pose.translation();
+  const Eigen::Vector3d expected = Eigen::Vector3d(c.x(), c.y(), 0.0).cross(Eigen::Vector3d(0, 0, -W));
+  EXPECT_TRUE(w.torque.isApprox(expected, 1e-2)) << w.torque.transpose() << " vs " << expected.transpose();
+  EXPECT_EQ(s.contactWrench("nothing").contacts, 0u);
+  // reset keeps the colliders
+  s.reset();
+  EXPECT_EQ(s.colliders().size(), 1u);
+}
+
+TEST(Contact, BlockRestsOnAMeshTable) {
+  // the same block on a table given as a triangle mesh (a 20 x 20 x 5 cm box whose top is z = 0)
+  auto lattice = std::make_shared<const Lattice>(test::makeBox(6, 4, 3, 0.01), 1000.0, 1);
+  Solver s(lattice, sceneParams(*lattice, 0.3));
+  Collider table;
+  table.shape.type = ColliderType::Mesh;
+  table.shape.mesh = std::make_shared<const TriMesh>(
+      test::boxMesh(Eigen::Vector3d(-0.07, -0.08, -0.05), Eigen::Vector3d(0.13, 0.12, 0.0)));
+  table.pose.translation() = Eigen::Vector3d(0, 0, -0.01);
+  s.setCollider("table", table);
+  ASSERT_TRUE(s.colliders().at("table").shape.distanceField) << "setCollider builds the field";
+  const int steps = stepsFor(4.0, s), last = stepsFor(1.0, s);
+  double deepest = 0.0, fz = 0.0;
+  for (int i = 0; i < steps; ++i) {
+    s.step();
+    deepest = std::max(deepest, -0.01 + s.contactRadius() - lowestZ(s));
+    if (i >= steps - last) fz += s.contactWrench("table").force.z() / last;
+  }
+  // the top face is far from the table's edges: the field is exact there
+  EXPECT_LT(deepest, 1e-9);
+  const double W = lattice->totalMass() * kG;
+  EXPECT_NEAR(fz, -W, 2e-3 * W);
+  EXPECT_EQ(s.contactWrench("table").contacts, 24u);
+}
+
+TEST(Contact, PinnedParticlesAreNotMovedByContact) {
+  auto lattice = std::make_shared<const Lattice>(test::makeBox(4, 4, 4, 0.01), 1000.0, 1);
+  SolverParams p = sceneParams(*lattice);
+  p.gravity.setZero();
+  Solver s(lattice, p);
+  s.setPinned(0, true);  // a corner at (0.005, 0.005, 0.005)
+  // a ball that swallows the pinned corner
+  Collider ball;
+  ball.shape.type = ColliderType::Sphere;
+  ball.shape.radius = 0.012;
+  ball.pose.translation() = Eigen::Vector3d::Zero();
+  s.setCollider("ball", ball);
+  for (int i = 0; i < 10; ++i) s.step();
+  EXPECT_EQ(s.positions()[0], lattice->restPositions()[0]);
+  EXPECT_TRUE(allFinite(s));
+}
+
+TEST(Contact, KinematicColliderPushesAndFollowsItsVelocity) {
+  auto lattice = std::make_shared<const Lattice>(test::makeBox(4, 4, 4, 0.01), 1000.0, 1);
+  SolverParams p = sceneParams(*lattice);
+  p.gravity.setZero();
+  p.ambientDamping = 0.0;
+  Solver s(lattice, p);
+  // a wall coming from -x at 0.5 m/s, frictionless
+  Collider wall = boxCollider(Eigen::Vector3d(-0.05, 0.02, 0.02), Eigen::Vector3d(0.04, 0.1, 0.1), 0.0);
+  wall.linearVelocity = Eigen::Vector3d(0.5, 0, 0);
+  s.setCollider("wall", wall);
+  EXPECT_THROW(s.moveCollider("wall", Eigen::Isometry3d(Eigen::Translation3d(std::nan(""), 0, 0)),
+                              Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()),
+               std::invalid_argument);
+  EXPECT_FALSE(s.moveCollider("none", Eigen::Isometry3d::Identity(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()));
+  const int steps = stepsFor(0.5, s);
+  for (int i = 0; i < steps; ++i) s.step();
+  // the wall went 0.25 m; its face is at x = -0.01 + 0.25 = 0.24 and pushes the block ahead of it
+  EXPECT_NEAR(s.colliders().at("wall").pose.translation().x(), -0.05 + 0.5 * steps * p.timeStep, 1e-12);
+  const double face = s.colliders().at("wall").pose.translation().x() + 0.04;
+  double back = 1.0;
+  for (const auto& x : s.positions()) back = std::min(back, x.x());
+  EXPECT_GE(back - s.contactRadius(), face - 1e-12) << "nothing behind the wall's face";
+  EXPECT_GT(centreOfMass(s).x(), 0.2) << "the block was pushed along";
+  EXPECT_NEAR(s.linearMomentum().y(), 0.0, 1e-9);
+}
+
+TEST(Contact, TurntableCarriesTheBlockByFriction) {
+  // a ground spinning about its normal at 1 rad/s under a block centred on the axis: friction on
+  // the velocity relative to the surface (omega x r) turns the block with it
+  auto lattice = std::make_shared<const Lattice>(test::makeBox(6, 4, 3, 0.01), 1000.0, 1);
+  Solver s(lattice, sceneParams(*lattice, 0.3));
+  Collider table;
+  table.pose.translation() = Eigen::Vector3d(0.03, 0.02, 0.0);  // under the block's centre
+  s.setCollider("table", table);
+  for (int i = 0; i < stepsFor(0.5, s); ++i) s.step();
+  const Eigen::Matrix3d before = s.rigidFrame().linear();
+  s.moveCollider("table", s.colliders().at("table").pose, Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 1.0));
+  for (int i = 0; i < stepsFor(1.0, s); ++i) s.step();
+  const Eigen::AngleAxisd turned(s.rigidFrame().linear() * before.transpose());
+  EXPECT_NEAR(turned.angle(), 1.0, 0.02) << "the block turned with the table";
+  EXPECT_NEAR(std::abs(turned.axis().z()), 1.0, 1e-3);
+  EXPECT_NEAR((centreOfMass(s) - table.pose.translation()).head<2>().norm(), 0.0, 1e-3) << "about its axis";
+}
+
+TEST(Contact, WrenchesDoNotDependOnTheThreadCount) {
+  if (!std::filesystem::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing (package glmark2-data)";
+  const BunnyScene scene = bunnyScene();
+  SolverParams p1 = sceneParams(*scene.lattice);
+  SolverParams p2 = p1;
+  p2.threads = 2;
+  Solver one(scene.lattice, p1), two(scene.lattice, p2);
+  for (Solver* s : {&one, &two}) {
+    s->setCollider("ground", groundBelow(*s, 0.01));
+    Collider ball;
+    ball.shape.type = ColliderType::Sphere;
+    ball.shape.radius = 0.04;
+    ball.pose.translation() = centreOfMass(*s) + Eigen::Vector3d(0.02, 0, 0.15);
+    ball.linearVelocity = Eigen::Vector3d(0, 0, -0.3);
+    s->setCollider("ball", ball);
+  }
+  for (int i = 0; i < 30; ++i) {
+    one.step();
+    two.step();
+  }
+  for (const char* id : {"ground", "ball"}) {
+    EXPECT_EQ(one.contactWrench(id).force, two.contactWrench(id).force) << id;
+    EXPECT_EQ(one.contactWrench(id).torque, two.contactWrench(id).torque) << id;
+    EXPECT_EQ(one.contactWrench(id).contacts, two.contactWrench(id).contacts) << id;
+  }
+  EXPECT_GT(one.contactWrench("ball").contacts, 0u) << "the ball reached the bunny";
+  EXPECT_EQ(one.positions(), two.positions());
+}
+
+// --- scenes ----------------------------------------------------------------------------------
+
+TEST(ContactScene, BunnyDroppedOnTheGroundComesToRest) {
+  if (!std::filesystem::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing (package glmark2-data)";
+  const BunnyScene scene = bunnyScene();
+  Solver s(scene.lattice, sceneParams(*scene.lattice));
+  const Collider ground = groundBelow(s, 0.10);
+  s.setCollider("ground", ground);
+  const double zg = ground.pose.translation().z(), r = s.contactRadius();
+  const double W = scene.lattice->totalMass() * kG;
+  // at rest: the kinetic energy stays below 0.1 % of the energy of the fall (a thin ear,
+  // one cell across, keeps trembling at a few cm/s long after the body has settled)
+  const double dropEnergy = W * 0.10, kRestEnergy = 1e-3;
+  double deepest = 0.0, lastMoving = 0.0;
+  const int steps = stepsFor(6.0, s);
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();
+  const int averaged = 30;
+  for (int i = 0; i < steps; ++i) {
+    s.step();
+    ASSERT_TRUE(allFinite(s));
+    deepest = std::max(deepest, zg + r - lowestZ(s));
+    if (s.kineticEnergy() > kRestEnergy * dropEnergy) lastMoving = s.time();
+    if (i >= steps - averaged) force += s.contactWrench("ground").force / averaged;
+  }
+  const Embedding embedding(*scene.lattice, scene.mesh.vertices);
+  TriMesh deformed = scene.mesh;
+  embedding.deform(s.positions(), s.regionRotations(), deformed.vertices);
+  double vertexDepth = 0.0;
+  for (const auto& v : deformed.vertices) vertexDepth = std::max(vertexDepth, zg - v.z());
+  const double volumeChange = test::signedVolume(deformed) / test::signedVolume(scene.mesh) - 1.0;
+  std::vector<Eigen::Vector3d> projected = deformed.vertices;
+  const std::size_t moved = projectOutOfColliders(projected, s.colliders(), 0.0);
+  double projectedDepth = 0.0;
+  for (const auto& v : projected) projectedDepth = std::max(projectedDepth, zg - v.z());
+  const double spacing = scene.lattice->spacing();
+  std::printf("[ drop    ] bunny %zu particles (spacing %.1f mm), 10 cm onto the ground: at rest (kinetic "
+              "energy < 0.1 %% of m g h) after %.2f s; deepest particle sphere %.2g m; render vertices %.2f mm (%.0f %% of the "
+              "spacing) below the ground, %zu moved out by projectOutOfColliders (then %.2g m); volume change "
+              "%+.2f %%; ground force %.4f N vs weight %.4f N (%+.2f %%)\n",
+              scene.lattice->size(), 1e3 * spacing, lastMoving, deepest, 1e3 * vertexDepth,
+              100 * vertexDepth / spacing, moved, projectedDepth, 100 * volumeChange, -force.z(), W,
+              100 * (-force.z() / W - 1));
+  EXPECT_LT(lastMoving, 5.5) << "the bunny settles";
+  EXPECT_LT(deepest, 1e-9) << "no particle sphere ends a sub-step inside the ground";
+  EXPECT_LT(vertexDepth, 0.1 * spacing) << "render vertices stay on the ground (without projection)";
+  EXPECT_LT(projectedDepth, 1e-12);
+  EXPECT_LT(std::abs(volumeChange), 0.05);  // shape matching keeps volume only as shape
+  EXPECT_NEAR(-force.z(), W, 0.02 * W) << "at rest the ground carries the weight";
+  EXPECT_LT(force.head<2>().norm(), 0.02 * W);
+}
+
+namespace {
+
+/// A 10 x 5 x 3 cm block settles on a horizontal plane through the origin, which then tilts
+/// slowly (0.1 rad/s, about y) to theta: downhill is the plane's +x. Returns the block's downhill
+/// displacement along the plane over `settle` seconds after the tilt, and its downhill
+/// acceleration over the following `measure` seconds.
+struct InclineResult {
+  double displacement;
+  double acceleration;
+};
+
+InclineResult slideOnIncline(double theta, double mus, double muk, double settle, double measure) {
+  auto lattice = std::make_shared<const Lattice>(test::makeBox(10, 5, 3, 0.01), 1000.0, 2);
+  // alpha = 1 makes the block ring at every sub-step, and a ringing block creeps down a slope
+  // it would stand on (each chattering contact slips a little): a softer block stands still.
+  SolverParams p = sceneParams(*lattice, 0.3);
+  p.ambientDamping = 0.0;  // air drag would slow the slide
+  Solver s(lattice, p);
+  Collider plane;  // the lattice's cells fill [0, 0.1] x [0, 0.05] x [0, 0.03]: on the plane
+  plane.staticFriction = mus;
+  plane.kineticFriction = muk;
+  s.setCollider("incline", plane);
+  for (int i = 0; i < stepsFor(0.5, s); ++i) s.step();
+  const int tilting = std::max(1, stepsFor(theta / 0.1, s));
+  const Eigen::Vector3d omega(0, theta / (tilting * p.timeStep), 0);
+  s.moveCollider("incline", Eigen::Isometry3d::Identity(), Eigen::Vector3d::Zero(), omega);
+  for (int i = 0; i < tilting; ++i) s.step();
+  const Eigen::Isometry3d tilted(Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitY()));
+  const Eigen::Isometry3d& reached = s.colliders().at("incline").pose;
+  EXPECT_LT((reached.linear() - tilted.linear()).cwiseAbs().maxCoeff(), 1e-9) << "the tilt reached theta";
+  EXPECT_LT(reached.translation().norm(), 1e-12);
+  s.moveCollider("incline", tilted, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  const Eigen::Vector3d downhill = tilted.linear().col(0);
+  const double along0 = centreOfMass(s).dot(downhill);
+  auto velocity = [&] { return s.linearMomentum().dot(downhill) / lattice->totalMass(); };
+  for (int i = 0; i < stepsFor(settle, s); ++i) s.step();
+  const double displacement = centreOfMass(s).dot(downhill) - along0;
+  const double v1 = velocity(), t1 = s.time();
+  for (int i = 0; i < stepsFor(measure, s); ++i) s.step();
+  return {displacement, (velocity() - v1) / (s.time() - t1)};
+}
+
+}  // namespace
+
+TEST(ContactScene, BlockOnAnInclineSticksBelowTheFrictionAngleAndSlidesAbove) {
+  const double mus = 0.6;
+  // Coulomb with mu_k = mu_s: the block holds up to the friction angle.
+  for (double ratio : {0.5, 0.9}) {
+    const double theta = std::atan(ratio * mus);
+    const InclineResult held = slideOnIncline(theta, mus, mus, 2.0, 1.0);
+    std::printf("[ incline ] mu_s = mu_k = %.1f, theta %.1f deg (tan = %.1f mu_s): moved %.3f mm in 2 s, "
+                "acceleration %.4f m/s^2\n", mus, theta * 180 / M_PI, ratio, 1e3 * held.displacement, held.acceleration);
+    EXPECT_LT(std::abs(held.displacement), 1e-3) << "the block sticks at tan(theta) = " << ratio << " mu_s";
+    EXPECT_LT(std::abs(held.acceleration), 0.01);
+  }
+  // Above it the block slides with g (sin - mu_k cos).
+  for (auto [muk, tanTheta] : {std::pair<double, double>{mus, 1.1 * mus}, {0.5, 1.2 * mus}, {0.5, 1.0}}) {
+    const double theta = std::atan(tanTheta);
+    const double expected = kG * (std::sin(theta) - muk * std::cos(theta));
+    const InclineResult slide = slideOnIncline(theta, mus, muk, 0.5, 1.0);
+    std::printf("[ incline ] mu_s %.1f, mu_k %.1f, theta %.1f deg: acceleration %.4f m/s^2, g (sin - mu_k cos) = "
+                "%.4f (%+.2f %%)\n", mus, muk, theta * 180 / M_PI, slide.acceleration, expected,
+                100 * (slide.acceleration / expected - 1));
+    EXPECT_NEAR(slide.acceleration, expected, 0.05 * expected) << "theta " << theta;
+  }
+}
+
+namespace {
+
+struct GraspResult {
+  double lift;          // rise of the bunny's centre of mass (m)
+  double slip;          // its fall relative to the fingers over the hold (m)
+  double carried;       // the fingers' vertical force over the last second of the hold / weight
+  bool finite;
+};
+
+/// The bunny settles on the ground, two box fingers close on it along y (1.5 cm into it on each
+/// side), lift it 10 cm in 2 s and hold it 5 s.
+GraspResult grasp(const BunnyScene& scene, double mu) {
+  Solver s(scene.lattice, sceneParams(*scene.lattice));
+  s.setCollider("ground", groundBelow(s, 0.0));
+  for (int i = 0; i < stepsFor(1.0, s); ++i) s.step();
+  const Eigen::Vector3d c = centreOfMass(s);
+  const double r = s.contactRadius();
+  // the width along y of the bunny in a 8 x 8 cm window (x, z) around its centre of mass
+  double yLo = 1.0, yHi = -1.0;
+  for (const auto& x : s.positions())
+    if (std::abs(x.x() - c.x()) < 0.04 && std::abs(x.z() - c.z()) < 0.04) {
+      yLo = std::min(yLo, x.y() - r);
+      yHi = std::max(yHi, x.y() + r);
+    }
+  const Eigen::Vector3d half(0.04, 0.01, 0.04);
+  const double gap = 0.01, squeeze = 0.015;
+  s.setCollider("left", boxCollider(Eigen::Vector3d(c.x(), yLo - gap - half.y(), c.z()), half, mu));
+  s.setCollider("right", boxCollider(Eigen::Vector3d(c.x(), yHi + gap + half.y(), c.z()), half, mu));
+  const double closeTime = 0.5;
+  const double speed = (gap + squeeze) / closeTime;
+  setVelocity(s, "left", Eigen::Vector3d(0, speed, 0));
+  setVelocity(s, "right", Eigen::Vector3d(0, -speed, 0));
+  for (int i = 0; i < stepsFor(closeTime, s); ++i) s.step();
+  setVelocity(s, "left", Eigen::Vector3d(0, 0, 0.05));
+  setVelocity(s, "right", Eigen::Vector3d(0, 0, 0.05));
+  for (int i = 0; i < stepsFor(2.0, s); ++i) s.step();
+  setVelocity(s, "left", Eigen::Vector3d::Zero());
+  setVelocity(s, "right", Eigen::Vector3d::Zero());
+  const double fingerZ = s.colliders().at("left").pose.translation().z();
+  const double relative0 = centreOfMass(s).z() - fingerZ;
+  double carried = 0.0;
+  const int hold = stepsFor(5.0, s), last = stepsFor(1.0, s);
+  for (int i = 0; i < hold; ++i) {
+    s.step();
+    if (i >= hold - last)
+      carried += (s.contactWrench("left").force.z() + s.contactWrench("right").force.z()) / last;
+  }
+  GraspResult out;
+  out.lift = centreOfMass(s).z() - c.z();
+  out.slip = relative0 - (centreOfMass(s).z() - fingerZ);
+  out.carried = -carried / (scene.lattice->totalMass() * kG);
+  out.finite = allFinite(s);
+  return out;
+}
+
+}  // namespace
+
+TEST(ContactScene, TwoFingersLiftTheBunnyWithFrictionAndLoseItWithout) {
+  if (!std::filesystem::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing (package glmark2-data)";
+  const BunnyScene scene = bunnyScene();
+  const GraspResult held = grasp(scene, 1.0);
+  std::printf("[ grasp   ] mu 1: lifted %.1f mm, slip %.2f mm over the 5 s hold, fingers carry %.2f %% of the "
+              "weight\n", 1e3 * held.lift, 1e3 * held.slip, 100 * held.carried);
+  EXPECT_TRUE(held.finite);
+  // the fingers rose 10 cm; hanging, the bunny stretches below where it sat squeezed on the ground
+  EXPECT_GT(held.lift, 0.08);
+  EXPECT_LT(std::abs(held.slip), 0.005);
+  EXPECT_NEAR(held.carried, 1.0, 0.05);
+  const GraspResult lost = grasp(scene, 0.05);
+  std::printf("[ grasp   ] mu 0.05: lifted %.1f mm, fingers carry %.2f %% of the weight\n", 1e3 * lost.lift,
+              100 * lost.carried);
+  EXPECT_TRUE(lost.finite);
+  EXPECT_LT(lost.lift, 0.02) << "without friction the bunny slips out";
+}
+
+TEST(ContactScene, SpherePressedIntoTheBunnyMeetsAGrowingReaction) {
+  if (!std::filesystem::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing (package glmark2-data)";
+  const BunnyScene scene = bunnyScene();
+  Solver s(scene.lattice, sceneParams(*scene.lattice));
+  s.setCollider("ground", groundBelow(s, 0.0));
+  for (int i = 0; i < stepsFor(1.0, s); ++i) s.step();
+  const Eigen::Vector3d c = centreOfMass(s);
+  const double r = s.contactRadius(), R = 0.03;
+  double top = -1.0;
+  for (const auto& x : s.positions())
+    if ((x - c).head<2>().norm() < 0.02) top = std::max(top, x.z() + r);
+  Collider ball;
+  ball.shape.type = ColliderType::Sphere;
+  ball.shape.radius = R;
+  ball.pose.translation() = Eigen::Vector3d(c.x(), c.y(), top + R);
+  s.setCollider("ball", ball);
+  double previous = 0.0;
+  for (double depth : {0.01, 0.02, 0.03}) {
+    // down by 1 cm in 0.25 s, then held 1 s
+    setVelocity(s, "ball", Eigen::Vector3d(0, 0, -0.04));
+    for (int i = 0; i < stepsFor(0.25, s); ++i) s.step();
+    setVelocity(s, "ball", Eigen::Vector3d::Zero());
+    const int hold = stepsFor(1.0, s), last = stepsFor(0.25, s);
+    double force = 0.0;
+    for (int i = 0; i < hold; ++i) {
+      s.step();
+      if (i >= hold - last) force += s.contactWrench("ball").force.z() / last;
+    }
+    EXPECT_NEAR(s.colliders().at("ball").pose.translation().z(), top + R - depth, 1e-9);
+    std::printf("[ indent  ] sphere r %.0f mm pressed %.0f mm into the bunny: reaction %.3f N\n", 1e3 * R,
+                1e3 * depth, force);
+    EXPECT_GT(force, previous) << "deeper, harder";
+    previous = force;
+    EXPECT_TRUE(allFinite(s));
+  }
+}
+
+namespace {
+
+/// Lets the object go (colliders and drags removed), runs `seconds` without gravity and returns
+/// shapeError / object size.
+double recoveryError(Solver& s, double seconds) {
+  s.removeAllColliders();
+  s.releaseAll();
+  SolverParams p = s.params();
+  p.gravity.setZero();
+  s.setParams(p);
+  for (int i = 0; i < stepsFor(seconds, s); ++i) s.step();
+  return s.shapeError() / s.lattice().objectSize();
+}
+
+}  // namespace
+
+TEST(ContactScene, AbuseLeavesTheBunnyFiniteAndItRecoversItsShape) {
+  if (!std::filesystem::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing (package glmark2-data)";
+  const BunnyScene scene = bunnyScene();
+  const double recovered = 0.01;  // shapeError below 1 % of the size, as the stress scenarios ask
+  {  // squeezed to 2 cm between two boxes
+    Solver s(scene.lattice, sceneParams(*scene.lattice));
+    s.setCollider("ground", groundBelow(s, 0.0));
+    const Eigen::Vector3d c = centreOfMass(s);
+    const Eigen::Vector3d half(0.2, 0.02, 0.2);
+    s.setCollider("left", boxCollider(Eigen::Vector3d(c.x(), c.y() - 0.12, c.z()), half, 0.5));
+    s.setCollider("right", boxCollider(Eigen::Vector3d(c.x(), c.y() + 0.12, c.z()), half, 0.5));
+    setVelocity(s, "left", Eigen::Vector3d(0, 0.09, 0));
+    setVelocity(s, "right", Eigen::Vector3d(0, -0.09, 0));
+    for (int i = 0; i < stepsFor(1.0, s); ++i) s.step();  // faces 2 cm apart
+    setVelocity(s, "left", Eigen::Vector3d::Zero());
+    setVelocity(s, "right", Eigen::Vector3d::Zero());
+    for (int i = 0; i < stepsFor(1.0, s); ++i) s.step();
+    double widest = 0.0;
+    for (const auto& x : s.positions()) widest = std::max(widest, std::abs(x.y() - c.y()) + s.contactRadius());
+    EXPECT_LT(widest, 0.01 + 1e-9) << "every particle sphere between the boxes";
+    ASSERT_TRUE(allFinite(s));
+    const double error = recoveryError(s, 4.0);
+    std::printf("[ abuse   ] squeezed to 2 cm: shape error after 4 s %.3f %% of the size\n", 100 * error);
+    EXPECT_LT(error, recovered);
+    EXPECT_TRUE(allFinite(s));
+  }
+  {  // dragged through a sphere, weightless
+    SolverParams p = sceneParams(*scene.lattice);
+    p.gravity.setZero();
+    Solver s(scene.lattice, p);
+    const Eigen::Vector3d c = centreOfMass(s);
+    Collider ball;
+    ball.shape.type = ColliderType::Sphere;
+    ball.shape.radius = 0.03;
+    ball.pose.translation() = c + Eigen::Vector3d(0.15, 0, 0);
+    s.setCollider("ball", ball);
+    const auto grabbed = s.nearestParticles(c, 20);
+    s.grab("hand", grabbed, c, 0.0);
+    for (int i = 1; i <= stepsFor(2.0, s); ++i) {
+      s.moveDrag("hand", c + Eigen::Vector3d(0.3 * i / stepsFor(2.0, s), 0, 0));
+      s.step();
+    }
+    ASSERT_TRUE(allFinite(s));
+    const double error = recoveryError(s, 4.0);
+    std::printf("[ abuse   ] dragged through a sphere: shape error after 4 s %.3f %% of the size\n", 100 * error);
+    EXPECT_LT(error, recovered);
+  }
+  {  // dropped from 2 m
+    Solver s(scene.lattice, sceneParams(*scene.lattice));
+    const Collider ground = groundBelow(s, 2.0);
+    s.setCollider("ground", ground);
+    double deepest = 0.0, worstShape = 0.0;
+    for (int i = 0; i < stepsFor(2.0, s); ++i) {
+      s.step();
+      deepest = std::max(deepest, ground.pose.translation().z() + s.contactRadius() - lowestZ(s));
+      worstShape = std::max(worstShape, s.shapeError() / s.lattice().objectSize());
+    }
+    ASSERT_TRUE(allFinite(s));
+    const double error = recoveryError(s, 4.0);
+    std::printf("[ abuse   ] dropped from 2 m: worst shape error %.2f %%, then weightless 4 s: %.3f %%; deepest "
+                "sphere %.2g m\n", 100 * worstShape, 100 * error, deepest);
+    EXPECT_LT(deepest, 1e-9);
+    EXPECT_LT(error, recovered);
+  }
+  {  // pressed flat by a box to 3 cm above the ground
+    Solver s(scene.lattice, sceneParams(*scene.lattice));
+    const Collider ground = groundBelow(s, 0.0);
+    s.setCollider("ground", ground);
+    const Eigen::Vector3d c = centreOfMass(s);
+    const double top = lowestZ(s) + (scene.lattice->restMax() - scene.lattice->restMin()).z() + 0.01;
+    const Eigen::Vector3d half(0.2, 0.2, 0.02);
+    s.setCollider("press", boxCollider(Eigen::Vector3d(c.x(), c.y(), top + half.z() + 0.01), half, 0.5));
+    const double travel = top + 0.01 - (ground.pose.translation().z() + 0.03);
+    setVelocity(s, "press", Eigen::Vector3d(0, 0, -travel));
+    for (int i = 0; i < stepsFor(1.0, s); ++i) s.step();
+    setVelocity(s, "press", Eigen::Vector3d::Zero());
+    for (int i = 0; i < stepsFor(1.0, s); ++i) s.step();
+    double highest = -1.0;
+    for (const auto& x : s.positions()) highest = std::max(highest, x.z() + s.contactRadius());
+    ASSERT_TRUE(allFinite(s));
+    const double error = recoveryError(s, 4.0);
+    std::printf("[ abuse   ] pressed flat (highest sphere %.1f mm above the ground): shape error after 4 s "
+                "%.3f %%\n", 1e3 * (highest - ground.pose.translation().z()), 100 * error);
+    EXPECT_LT(highest - ground.pose.translation().z(), 0.03 + 1e-9);
+    EXPECT_LT(error, recovered);
+  }
+}

@@ -1,0 +1,269 @@
+/// @file test_collider_follower.cpp
+/// Tests of ros/collider_follower.h (tf frames sampled without waiting, velocity from the last
+/// two transforms, unknown and stale frames held still and counted) and of the collider side of
+/// ros/simulation_loop.h (followed colliders join at their first pose, move along the sampled
+/// velocity for a bounded time; collider commands applied or refused with a reason).
+#include "deformable_flsm/ros/collider_follower.h"
+#include "deformable_flsm/ros/collider_params.h"
+#include "deformable_flsm/ros/simulation_loop.h"
+
+#include <gtest/gtest.h>
+#include <tf2_eigen/tf2_eigen.h>
+
+#include <chrono>
+#include <functional>
+#include <thread>
+
+namespace deformable_flsm {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+struct Posted {
+  std::vector<std::pair<std::string, ColliderMotion>> motions;
+  ColliderFollower::Post post() {
+    return [this](const std::string& id, const ColliderMotion& m) { motions.emplace_back(id, m); };
+  }
+};
+
+void setFrame(tf2::BufferCore& buffer, const Eigen::Isometry3d& T, double stamp,
+              bool isStatic = false) {
+  geometry_msgs::TransformStamped t = tf2::eigenToTransform(T);
+  t.header.frame_id = "world";
+  t.child_frame_id = "finger";
+  t.header.stamp = ros::Time(stamp);
+  buffer.setTransform(t, "test", isStatic);
+}
+
+TEST(ColliderFollower, VelocityFromTheLastTwoTransformsOfTheOffsetPose) {
+  tf2::BufferCore buffer;
+  ColliderFollower follower(buffer, "world");
+  const Eigen::Isometry3d offset(Eigen::Translation3d(0.0, 0.1, 0.0));
+  follower.follow("s", "finger", offset);
+  Posted posted;
+  std::vector<std::string> problems;
+
+  // Not seen yet: nothing posted, the miss counted.
+  follower.sample(ros::Time(100.0), posted.post(), problems);
+  EXPECT_TRUE(posted.motions.empty());
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_NE(problems[0].find("'finger' unknown"), std::string::npos) << problems[0];
+  EXPECT_EQ(follower.misses(), 1u);
+
+  // First transform: its pose (frame * offset), at rest.
+  setFrame(buffer, Eigen::Isometry3d(Eigen::Translation3d(1.0, 0.0, 0.0)), 100.0);
+  problems.clear();
+  follower.sample(ros::Time(100.01), posted.post(), problems);
+  ASSERT_EQ(posted.motions.size(), 1u);
+  EXPECT_TRUE(problems.empty());
+  EXPECT_TRUE(posted.motions[0].second.pose.translation().isApprox(Eigen::Vector3d(1.0, 0.1, 0.0)));
+  EXPECT_TRUE(posted.motions[0].second.linearVelocity.isZero(0.0));
+
+  // 0.1 s later the frame moved 1 cm along x and turned 0.1 rad about z: the collider origin,
+  // 0.1 m from the frame's, moved by (0.01, 0, 0) + (Rz(0.1) - I) (0, 0.1, 0).
+  const Eigen::Isometry3d T1 =
+      Eigen::Translation3d(1.01, 0.0, 0.0) * Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitZ());
+  setFrame(buffer, T1, 100.1);
+  follower.sample(ros::Time(100.11), posted.post(), problems);
+  ASSERT_EQ(posted.motions.size(), 2u);
+  const ColliderMotion& m = posted.motions[1].second;
+  const Eigen::Vector3d p1 = (T1 * offset).translation();
+  EXPECT_TRUE(m.pose.translation().isApprox(p1, 1e-12));
+  EXPECT_TRUE(m.linearVelocity.isApprox((p1 - Eigen::Vector3d(1.0, 0.1, 0.0)) / 0.1, 1e-6));
+  EXPECT_TRUE(m.angularVelocity.isApprox(Eigen::Vector3d(0.0, 0.0, 1.0), 1e-6));
+
+  // No new transform: nothing posted (the simulation moves on along the velocity).
+  follower.sample(ros::Time(100.15), posted.post(), problems);
+  EXPECT_EQ(posted.motions.size(), 2u);
+
+  // Stale: held still at the last pose, once; every sample counted.
+  const std::uint64_t misses = follower.misses();
+  follower.sample(ros::Time(100.1 + ColliderFollower::kStaleAfter + 0.1), posted.post(), problems);
+  follower.sample(ros::Time(100.1 + ColliderFollower::kStaleAfter + 0.2), posted.post(), problems);
+  ASSERT_EQ(posted.motions.size(), 3u);
+  EXPECT_TRUE(posted.motions[2].second.pose.isApprox(m.pose));
+  EXPECT_TRUE(posted.motions[2].second.linearVelocity.isZero(0.0));
+  EXPECT_TRUE(posted.motions[2].second.angularVelocity.isZero(0.0));
+  EXPECT_EQ(follower.misses(), misses + 2);
+
+  // Back: the first new transform restarts from rest (no velocity across the gap).
+  setFrame(buffer, Eigen::Isometry3d(Eigen::Translation3d(2.0, 0.0, 0.0)), 101.0);
+  follower.sample(ros::Time(101.0), posted.post(), problems);
+  ASSERT_EQ(posted.motions.size(), 4u);
+  EXPECT_TRUE(posted.motions[3].second.linearVelocity.isZero(0.0));
+
+  follower.forget("s");
+  EXPECT_TRUE(follower.empty());
+}
+
+TEST(ColliderFollower, StaticTransformNeverGoesStale) {
+  tf2::BufferCore buffer;
+  ColliderFollower follower(buffer, "world");
+  follower.follow("s", "finger", Eigen::Isometry3d::Identity());
+  setFrame(buffer, Eigen::Isometry3d(Eigen::Translation3d(0.0, 0.0, 1.0)), 0.0, true);
+  Posted posted;
+  std::vector<std::string> problems;
+  follower.sample(ros::Time(1000.0), posted.post(), problems);
+  follower.sample(ros::Time(2000.0), posted.post(), problems);
+  EXPECT_TRUE(problems.empty());
+  // Posted every time (a collider re-added on the frame gets its pose), always at rest.
+  ASSERT_EQ(posted.motions.size(), 2u);
+  for (const auto& m : posted.motions) {
+    EXPECT_DOUBLE_EQ(m.second.pose.translation().z(), 1.0);
+    EXPECT_TRUE(m.second.linearVelocity.isZero(0.0));
+  }
+}
+
+// --- the simulation loop's colliders ----------------------------------------------------------
+
+Voxelization box(int n, double spacing) {
+  Voxelization v;
+  v.spacing = spacing;
+  v.dims = Eigen::Vector3i(n, n, n);
+  v.closed = true;
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        v.cells.emplace_back(i, j, k);
+        v.fillFraction.push_back(1.0);
+      }
+  return v;
+}
+
+Collider sphere(double radius) {
+  Collider c;
+  c.shape.type = ColliderType::Sphere;
+  c.shape.radius = radius;
+  return c;
+}
+
+SolverParams weightless() {
+  SolverParams p;
+  p.gravity.setZero();
+  p.regionHalfWidth = 1;
+  return p;
+}
+
+struct Rig {
+  explicit Rig(const SolverParams& p = weightless()) {
+    lattice = std::make_shared<const Lattice>(box(4, 0.01), 1000.0, 1);
+    stats = std::make_shared<CommandStats>();
+    LoopSettings settings;
+    settings.idleHold = 0.2;
+    loop = std::make_unique<SimulationLoop>(std::make_unique<Solver>(lattice, p), settings, stats);
+  }
+  CommandOutcome run(CommandBody body) {
+    Command c{std::move(body), std::make_shared<std::promise<CommandOutcome>>()};
+    auto f = c.outcome->get_future();
+    loop->submit(std::move(c));
+    EXPECT_EQ(f.wait_for(std::chrono::seconds(5)), std::future_status::ready);
+    return f.get();
+  }
+  bool waitFor(const std::function<bool(const Snapshot&)>& done, double timeout = 5.0) {
+    const Clock::time_point end =
+        Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(timeout));
+    while (Clock::now() < end) {
+      if (done(loop->acquire())) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    return false;
+  }
+  std::uint64_t rejected(const std::string& reason) const {
+    const auto c = stats->counts();
+    const auto it = c.rejectedByReason.find(reason);
+    return it == c.rejectedByReason.end() ? 0 : it->second;
+  }
+  std::shared_ptr<const Lattice> lattice;
+  std::shared_ptr<CommandStats> stats;
+  std::unique_ptr<SimulationLoop> loop;
+};
+
+TEST(SimulationLoopColliders, FollowedColliderJoinsAtItsFirstPoseAndMovesAlongItsVelocity) {
+  Rig rig;
+  rig.loop->addFollowedCollider("finger", sphere(0.01));
+  rig.loop->start();
+  // Not in the solver before its frame is known.
+  ASSERT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.steps > 2; }));
+  EXPECT_EQ(rig.loop->acquire().colliders.count("finger"), 0u);
+
+  ColliderMotion m;
+  m.pose.translation() = Eigen::Vector3d(1.0, 0.0, 0.0);  // far from the 4 cm box
+  m.linearVelocity = Eigen::Vector3d(0.1, 0.0, 0.0);
+  rig.loop->setColliderMotion("finger", m);
+  ASSERT_TRUE(rig.waitFor([](const Snapshot& s) { return s.colliders.count("finger") > 0; }));
+  // It moves along the velocity for at most kMaxExtrapolation without news, then holds still.
+  ASSERT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.idle; }, 10.0));
+  const double x = rig.loop->acquire().colliders.at("finger").pose.translation().x();
+  EXPECT_GT(x, 1.0);
+  EXPECT_LE(x, 1.0 + 0.1 * (SimulationLoop::kMaxExtrapolation + 0.02) + 1e-12);
+
+  // A followed collider refuses MOVE; ADD without a frame makes it a fixed one that moves.
+  MoveColliderCommand move;
+  move.id = "finger";
+  EXPECT_FALSE(rig.run(move).accepted);
+  EXPECT_EQ(rig.rejected("collider_follows_frame"), 1u);
+  SetColliderCommand fixed{"finger", sphere(0.01), ""};
+  fixed.collider.pose.translation() = Eigen::Vector3d(2.0, 0.0, 0.0);
+  EXPECT_TRUE(rig.run(fixed).accepted);
+  move.pose.translation() = Eigen::Vector3d(3.0, 0.0, 0.0);
+  EXPECT_TRUE(rig.run(move).accepted);
+  ASSERT_TRUE(rig.waitFor([](const Snapshot& s) {
+    return s.colliders.count("finger") > 0 &&
+           s.colliders.at("finger").pose.translation().x() == 3.0;
+  }));
+  // A motion posted for it now is not applied: it follows no frame any more.
+  m.pose.translation() = Eigen::Vector3d(-5.0, 0.0, 0.0);
+  rig.loop->setColliderMotion("finger", m);
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(rig.loop->acquire().colliders.at("finger").pose.translation().x(), 3.0);
+
+  EXPECT_TRUE(rig.run(RemoveColliderCommand{"finger"}).accepted);
+  EXPECT_FALSE(rig.run(RemoveColliderCommand{"finger"}).accepted);
+  EXPECT_EQ(rig.rejected("unknown_collider"), 1u);
+  EXPECT_TRUE(rig.waitFor([](const Snapshot& s) { return s.colliders.empty(); }));
+}
+
+TEST(SimulationLoopColliders, CollidersAreLimitedAndInvalidOnesRefused) {
+  Rig rig;
+  rig.loop->start();
+  for (std::size_t i = 0; i < ColliderLimits::kMaxColliders; ++i) {
+    SetColliderCommand add{"c" + std::to_string(i), sphere(0.01), ""};
+    add.collider.pose.translation() = Eigen::Vector3d(1.0 + i, 0.0, 0.0);
+    ASSERT_TRUE(rig.run(add).accepted);
+  }
+  SetColliderCommand extra{"extra", sphere(0.01), ""};
+  EXPECT_FALSE(rig.run(extra).accepted);
+  EXPECT_EQ(rig.rejected("too_many_colliders"), 1u);
+  // Replacing one is not adding one.
+  SetColliderCommand replace{"c0", sphere(0.02), ""};
+  replace.collider.pose.translation() = Eigen::Vector3d(1.0, 0.0, 0.0);
+  EXPECT_TRUE(rig.run(replace).accepted);
+  EXPECT_TRUE(rig.run(RemoveColliderCommand{"c1"}).accepted);
+  SetColliderCommand bad{"bad", sphere(-1.0), ""};
+  EXPECT_FALSE(rig.run(bad).accepted);
+  EXPECT_EQ(rig.rejected("bad_collider"), 1u);
+}
+
+TEST(SimulationLoopColliders, SnapshotCarriesTheContactWrench) {
+  // The box resting on a plane under gravity: once at rest the plane carries its weight.
+  SolverParams p = weightless();
+  p.gravity = Eigen::Vector3d(0.0, 0.0, -9.81);
+  // Air drag takes a fraction ambientDamping h of each sub-step's gravity kick before contact
+  // sees it (0.4 % here), within the tolerance.
+  p.ambientDamping = 1.0;
+  Rig rig(p);
+  Collider plane;  // touching the particles' contact spheres (radius half the spacing)
+  plane.pose.translation() = rig.lattice->restMin() - Eigen::Vector3d(0.0, 0.0, 0.005);
+  rig.loop->start();
+  ASSERT_TRUE(rig.run(SetColliderCommand{"plane", plane, ""}).accepted);
+  ASSERT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.idle; }, 20.0));
+  const Snapshot& s = rig.loop->acquire();
+  const ContactWrench& w = s.wrenches.at("plane");
+  const double weight = 9.81 * rig.lattice->totalMass();
+  EXPECT_EQ(w.contacts, 16u);  // the bottom layer of 4 x 4 particles
+  EXPECT_NEAR(-w.force.z() / weight, 1.0, 0.02);
+  EXPECT_NEAR(w.force.head<2>().norm(), 0.0, 1e-3 * weight);
+}
+
+}  // namespace
+}  // namespace deformable_flsm
