@@ -596,12 +596,12 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
           (Eigen::Vector3d(s[12], s[13], s[14]) + Eigen::Vector3d(s[15], s[16], s[17]).cross(p)) * invCount_[i];
       dv += k.kd * (target - v_[i]);
     }
-    if (k.ambient) {
+    if (k.relative) {
       // ambient damping of the motion relative to the object's rigid motion (computeRigidMotion())
       const Eigen::Vector3d rigid = rigidVelocity_ + rigidSpin_.cross(x_[i] - xref_);
       v_[i] = rigid + k.keep * (v_[i] - rigid) + dv;
     } else {
-      v_[i] += dv;
+      v_[i] = (v_[i] + dv) * k.keep;  // held by the world: drag towards rest
     }
     x_[i] += k.h * v_[i];
   }
@@ -612,12 +612,13 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
 // ratio c / (2 omega), and a falling, thrown or spinning object keeps its momentum (a vibration
 // mode of a free object has neither linear nor angular momentum, so its rigid part is zero).
 // The rigid motion keeps the object's linear and angular momentum: v_obj(x) = V + W x (x - xref),
-// V the centre-of-mass velocity moved to xref, W = I^+ L about the centre of mass. A pinned object
-// is held by the world: its rigid motion is the world's, zero (drag towards rest, as before).
+// V the centre-of-mass velocity moved to xref, W = I^+ L about the centre of mass. An object the
+// world can hold (pinned, dragged or attached, or with colliders in the scene to rest on) is
+// damped relative to the world's rigid motion, zero: drag towards rest, as before, so that it
+// settles on its supports.
+bool Solver::heldByWorld() const { return pinnedCount_ > 0 || !drags_.empty() || !colliders_.empty(); }
+
 void Solver::computeRigidMotion() {
-  rigidVelocity_.setZero();
-  rigidSpin_.setZero();
-  if (pinnedCount_ > 0) return;
   const auto& m = lattice_->masses();
   xref_ = x_[anchor_];
   double M = 0.0;
@@ -675,7 +676,8 @@ void Solver::accumulateForces(double h) {
 //   v <- v + alpha (g - x) / h + h f / m,   damping,   x <- x + h v.
 // Shape matching and both dampings act on the state at the start of the sub-step:
 //   v <- v_obj + keep (v - v_obj) + alpha s_i (g - x) / h + h f / m + kd (v_rigid(v) - v)
-// with v_obj the object's rigid motion (zero when pinned, see computeRigidMotion()).
+// with v_obj the object's rigid motion; v <- (v + ...) keep when held by the world (see
+// computeRigidMotion()).
 // The update of each particle is the last step of the region pass (particleResult()), done as
 // soon as its goal is known: the state is read and written in one sweep over the lattice.
 void Solver::substep(double h) {
@@ -691,9 +693,9 @@ void Solver::substep(double h) {
   step_.kd = 1.0 - std::exp(-params_.damping * h);
   step_.pull = alpha_ / h;
   step_.keep = std::exp(-params_.ambientDamping * h);
-  step_.ambient = params_.ambientDamping > 0.0;
+  step_.relative = params_.ambientDamping > 0.0 && !heldByWorld();
   step_.forced = !forcedParticles_.empty();
-  if (step_.ambient) computeRigidMotion();
+  if (step_.relative) computeRigidMotion();
   if (volumetric_) computeVolumetricForces();
   regionPass(step_.kd > 0.0);
   step_.integrate = false;

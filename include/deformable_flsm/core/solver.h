@@ -307,13 +307,15 @@ class Solver : private RegionKernel {
     double pull = 0.0;       // alpha / h
     double keep = 1.0;       // ambient damping factor per sub-step
     bool forced = false;     // some particle has a force or spring acceleration (forceAccel_)
-    bool ambient = false;    // ambient damping is on
+    bool relative = false;   // ambient damping relative to the object's rigid motion
   } step_;
   /// The object's rigid motion at the start of the sub-step, v_obj(x) = rigidVelocity_ +
-  /// rigidSpin_ x (x - xref_) (zero when pinned), what ambient damping leaves alone.
+  /// rigidSpin_ x (x - xref_), what ambient damping leaves alone (see computeRigidMotion()).
   Eigen::Vector3d rigidVelocity_ = Eigen::Vector3d::Zero(), rigidSpin_ = Eigen::Vector3d::Zero();
   std::size_t pinnedCount_ = 0;
   void computeRigidMotion();
+  /// pinned, dragged or attached, or with colliders to rest on: ambient damping drags to rest
+  bool heldByWorld() const;
   std::vector<double> regionWeight_;     // beta_r
   bool volumetric_ = false;  // physical mode with nu > 0: the Poisson term is on
   /// The Poisson term on the lattice stencil of each particle (see computeVolumetricForces())

@@ -77,8 +77,9 @@ struct SolverParams {
   /// Every vibration mode of angular frequency omega gets the damping ratio zeta = c / (2 omega):
   /// for a damping ratio zeta of the first mode, c = 2 zeta omega_1. It settles the long, slow
   /// modes (a cantilever's first bending mode looks rigid inside every region, so region damping
-  /// hardly reaches it); a falling, thrown or spinning object keeps its momentum. A pinned object
-  /// is held by the world, so its motion is damped relative to rest. 0 for none.
+  /// hardly reaches it); a falling, thrown or spinning object keeps its momentum. An object the
+  /// world can hold (pinned, dragged or attached, or with colliders in the scene) is damped
+  /// relative to rest instead, so that it settles on its supports. 0 for none.
   double ambientDamping = 0.5;
   /// Gravitational acceleration (m/s^2).
   Eigen::Vector3d gravity = Eigen::Vector3d(0.0, 0.0, -9.81);
