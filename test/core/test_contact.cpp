@@ -609,12 +609,17 @@ TEST(ContactScene, AbuseLeavesTheBunnyFiniteAndItRecoversItsShape) {
     Solver gentle(scene.lattice, sceneParams(*scene.lattice));
     gentle.setCollider("ground", groundBelow(gentle, 0.0));
     for (int i = 0; i < stepsFor(4.0, gentle); ++i) gentle.step();
-    const double error = s.shapeError() / s.lattice().objectSize();
+    const double onGround = s.shapeError() / s.lattice().objectSize();
     const double reference = gentle.shapeError() / gentle.lattice().objectSize();
+    // On the ground the sag depends on the side the bunny landed on (upright when set down
+    // gently, often on its side after the drop), so recovery is judged as in the other scenes:
+    // let go (no collider, no gravity), it returns to its rest shape.
+    const double error = recoveryError(s, 4.0);
     std::printf("[ abuse   ] dropped from 2 m: worst shape error %.2f %%, 4 s later on the ground %.3f %% (set down "
-                "gently: %.3f %%); deepest sphere %.2g m\n", 100 * worstShape, 100 * error, 100 * reference, deepest);
+                "gently: %.3f %%), let go 4 s %.3f %%; deepest sphere %.2g m\n", 100 * worstShape,
+                100 * onGround, 100 * reference, 100 * error, deepest);
     EXPECT_LT(deepest, 1e-9);
-    EXPECT_LT(error, reference + recovered);
+    EXPECT_LT(error, recovered);
   }
   {  // pressed flat by a box to 3 cm above the ground
     Solver s(scene.lattice, sceneParams(*scene.lattice));
