@@ -10,10 +10,15 @@
 // Loads are small (deflections ~1 % of the length), where linear elasticity is the reference.
 // A benchmark: it prints figures and never fails.
 //
-//   bench_material [--quick] [--nu NU]
+// With --from-section each case runs with the regions regionHalfWidthForSection() chooses for the
+// asked w on the case's measured thinnest section (core/section.h; the node's
+// ~region_from_section); the column "w" is then the one used.
+//
+//   bench_material [--quick] [--nu NU] [--from-section]
 
 #include "deformable_flsm/core/fem_oracle.h"
 #include "deformable_flsm/core/lattice.h"
+#include "deformable_flsm/core/section.h"
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/voxelizer.h"
 
@@ -34,6 +39,8 @@ constexpr double kStep = 1.0 / 60.0;  // s per step
 constexpr double kBig = 1e3;          // a box bound beyond the objects (m)
 /// Simulated time to settle, in units of the case's 1 / omega_1 (--settle)
 double gSettle = 10.0;
+/// --from-section: regions narrowed to the case's thinnest section
+bool gFromSection = false;
 /// The oracle splits each cell so that a bent section has at least this many elements across
 /// (fully integrated hexahedra are within ~3 % of beam theory there, test_fem_oracle).
 constexpr int kOracleElementsAcross = 8;
@@ -64,12 +71,18 @@ struct Setting {
 /// what this table is about).
 double modulusFor(double h) { return 0.3 * kDensity * h * h * 2.0 / (3.0 * std::pow(kStep / 4, 2)); }
 
-SolverParams paramsFor(const Setting& s, double E, const Eigen::Vector3d& load, double settleRate) {
+/// The region half-width a case runs with: the asked one, or with --from-section the widest
+/// regions no wider than the voxels' thinnest section.
+int regionHalfWidthFor(const Setting& s, const Voxelization& vox) {
+  return gFromSection ? regionHalfWidthForSection(measureSectionThickness(vox).thinnest, s.w) : s.w;
+}
+
+SolverParams paramsFor(const Setting& s, int w, double E, const Eigen::Vector3d& load, double settleRate) {
   SolverParams p;
   p.density = kDensity;
   p.youngsModulus = E;
   p.poissonsRatio = s.nu;
-  p.regionHalfWidth = s.w;
+  p.regionHalfWidth = w;
   p.timeStep = kStep;
   p.substeps = s.substeps;
   p.gravity = load;
@@ -86,12 +99,13 @@ double settle(Solver& s, double seconds) {
 }
 
 struct Row {
+  int w = 0;  // the region half-width used
   double lattice = 0.0, oracle = 0.0, alpha = 0.0, residualSpeed = 0.0;
   bool saturated = false;
 };
 
 void print(const char* name, int across, const Setting& s, const Row& r, const char* unit, double scale) {
-  std::printf("%-12s %3d %2d %3d %5.2f %7.3f %12.4f %12.4f %8.3f%s%s\n", name, across, s.w, s.substeps, s.nu, r.alpha,
+  std::printf("%-12s %3d %2d %3d %5.2f %7.3f %12.4f %12.4f %8.3f%s%s\n", name, across, r.w, s.substeps, s.nu, r.alpha,
               scale * r.lattice, scale * r.oracle, r.lattice / r.oracle, r.saturated ? "  (alpha capped)" : "", std::abs(r.residualSpeed / r.lattice) > 0.01 ? "  (not settled)" : "");
   if (std::getenv("FLSM_BENCH_RESIDUAL")) std::printf("   residual %.3g\n", r.residualSpeed / r.lattice);
 }
@@ -105,8 +119,9 @@ Row cantilever(double t, double L, int across, const Setting& s) {
   const double E = modulusFor(h);
   const double g = 0.01 * L * E * t * t / (1.5 * kDensity * std::pow(L, 4));
   const double omega = analytic::cantileverFirstBendingFrequency(L, t, E, kDensity);
-  const SolverParams p = paramsFor(s, E, Eigen::Vector3d(0, 0, -g), 2.0 * omega);
-  auto lattice = std::make_shared<const Lattice>(vox, kDensity, s.w);
+  const int w = regionHalfWidthFor(s, vox);
+  const SolverParams p = paramsFor(s, w, E, Eigen::Vector3d(0, 0, -g), 2.0 * omega);
+  auto lattice = std::make_shared<const Lattice>(vox, kDensity, w);
   Solver solver(lattice, p);
   solver.pinBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(0.0, kBig, kBig), true);
   Row r;
@@ -124,6 +139,7 @@ Row cantilever(double t, double L, int across, const Setting& s) {
     }
   r.lattice /= count;
   r.oracle /= count;
+  r.w = w;
   r.alpha = solver.alpha();
   r.saturated = solver.stiffnessSaturated();
   return r;
@@ -139,8 +155,9 @@ Row column(double t, int across, const Setting& s) {
   const double H = up * h;
   const double g = 0.002 * 2.0 * E / (kDensity * H);  // top moves ~0.2 % of H
   const double omega = 0.5 * M_PI * std::sqrt(E / kDensity) / H;
-  const SolverParams p = paramsFor(s, E, Eigen::Vector3d(0, 0, -g), 2.0 * omega);
-  auto lattice = std::make_shared<const Lattice>(vox, kDensity, s.w);
+  const int w = regionHalfWidthFor(s, vox);
+  const SolverParams p = paramsFor(s, w, E, Eigen::Vector3d(0, 0, -g), 2.0 * omega);
+  auto lattice = std::make_shared<const Lattice>(vox, kDensity, w);
   Solver solver(lattice, p);
   solver.pinBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(kBig, kBig, 0.0), true);
   Row r;
@@ -157,6 +174,7 @@ Row column(double t, int across, const Setting& s) {
     }
   r.lattice /= count;
   r.oracle /= count;
+  r.w = w;
   r.alpha = solver.alpha();
   r.saturated = solver.stiffnessSaturated();
   return r;
@@ -172,8 +190,9 @@ std::pair<Row, Row> stretch(double t, int across, const Setting& s) {
   const double eps = 0.002;
   const double F = eps * E * t * t;
   const double omega = M_PI * std::sqrt(E / kDensity) / (along * h);
-  const SolverParams p = paramsFor(s, E, Eigen::Vector3d::Zero(), 2.0 * omega);
-  auto lattice = std::make_shared<const Lattice>(vox, kDensity, s.w);
+  const int w = regionHalfWidthFor(s, vox);
+  const SolverParams p = paramsFor(s, w, E, Eigen::Vector3d::Zero(), 2.0 * omega);
+  auto lattice = std::make_shared<const Lattice>(vox, kDensity, w);
   Solver solver(lattice, p);
   std::vector<std::uint32_t> left, right;
   const auto& x0 = lattice->restPositions();
@@ -204,6 +223,7 @@ std::pair<Row, Row> stretch(double t, int across, const Setting& s) {
   axial.oracle = F / (t * t * E);
   lateral.lattice = (hi / nhi - lo / nlo) / restWidth - 1.0;
   lateral.oracle = analytic::uniaxialLateralStrain(axial.oracle, s.nu);
+  axial.w = lateral.w = w;
   axial.alpha = lateral.alpha = solver.alpha();
   axial.saturated = lateral.saturated = solver.stiffnessSaturated();
   return {axial, lateral};
@@ -218,10 +238,14 @@ int main(int argc, char** argv) {
     if (std::strcmp(argv[a], "--quick") == 0) quick = true;
     if (std::strcmp(argv[a], "--nu") == 0 && a + 1 < argc) nus = {std::atof(argv[++a])};
     if (std::strcmp(argv[a], "--settle") == 0 && a + 1 < argc) gSettle = std::atof(argv[++a]);
+    if (std::strcmp(argv[a], "--from-section") == 0) gFromSection = true;
   }
   const std::vector<int> substeps = quick ? std::vector<int>{4} : std::vector<int>{4, 16};
   std::printf("lattice = the settled solver, oracle = FEM on the same voxels (cantilever, column) or the\n"
-              "analytic uniaxial-stress strains (stretch); E chosen per lattice (alpha 0.3 at w 1, 4 sub-steps)\n\n");
+              "analytic uniaxial-stress strains (stretch); E chosen per lattice (alpha 0.3 at w 1, 4 sub-steps)\n%s\n",
+              gFromSection ? "regions narrowed to each case's thinnest section (--from-section): w asked 1 to 3, "
+                             "the column w is the one used\n"
+                           : "");
   std::printf("%-12s %3s %2s %3s %5s %7s %12s %12s %8s\n", "case", "n", "w", "sub", "nu", "alpha", "lattice",
               "oracle", "ratio");
   for (double nu : nus) {

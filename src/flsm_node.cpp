@@ -18,6 +18,8 @@ int main(int argc, char** argv) {
     ROS_INFO_STREAM("flsm_node: mesh '" << params.mesh << "'\n" << describeScene(scene.info, params));
     const std::string clamped = regionClampWarning(scene.info, params);
     if (!clamped.empty()) ROS_WARN("flsm_node: %s", clamped.c_str());
+    const std::string thin = sectionWarning(scene.info, params);
+    if (!thin.empty()) ROS_WARN("flsm_node: %s", thin.c_str());
     SimulatorNode node(nh, pnh, params, std::move(scene));
     ros::spin();
   } catch (const std::exception& e) {

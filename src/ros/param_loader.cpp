@@ -222,6 +222,7 @@ NodeParams ParamLoader::loadNodeParams() const {
 
   p.regionRadius = getDouble("region_radius", p.regionRadius);
   p.regionHalfWidth = getInt("region_half_width", p.regionHalfWidth);
+  p.regionFromSection = getBool("region_from_section", p.regionFromSection);
   SolverParams& s = p.solver;
   s.stiffness = getDouble("stiffness", s.stiffness);
   p.youngsModulus = getDouble("youngs_modulus", p.youngsModulus);
@@ -264,7 +265,8 @@ std::vector<std::string> ParamLoader::unknownParams() const {
   // Read by loadNodeParams(), plus what dynamic_reconfigure keeps next to them.
   static const char* const kKnown[] = {
       "mesh", "mesh_scale", "mesh_rpy", "frame_id", "object_frame_id", "spacing", "resolution",
-      "particle_budget", "max_particles", "region_radius", "region_half_width", "stiffness",
+      "particle_budget", "max_particles", "region_radius", "region_half_width",
+      "region_from_section", "stiffness",
       "youngs_modulus", "poissons_ratio", "material", "damping", "ambient_damping", "gravity",
       "time_step", "substeps", "density", "solver", "publish_rate", "republish_at_rest",
       "real_time_factor", "pinned", "render_triangle_budget", "threads", "gravity_x", "gravity_y",

@@ -1,6 +1,7 @@
 #include "deformable_flsm/ros/scene.h"
 
 #include "deformable_flsm/core/resolution.h"
+#include "deformable_flsm/core/section.h"
 #include "deformable_flsm/core/voxelizer.h"
 #include "deformable_flsm/ros/render_mesh.h"
 
@@ -67,8 +68,11 @@ Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps
   const Voxelization voxels = chooseLattice(params, mesh, info);
 
   SolverParams solverParams = params.solver;
+  info.regionHalfWidthAsked = params.resolveRegionHalfWidth(voxels.spacing, &info.regionAskedCells);
+  info.sectionCells = measureSectionThickness(voxels).thinnest;
   solverParams.regionHalfWidth =
-      params.resolveRegionHalfWidth(voxels.spacing, &info.regionAskedCells);
+      params.regionFromSection ? regionHalfWidthForSection(info.sectionCells, info.regionHalfWidthAsked)
+                               : info.regionHalfWidthAsked;
   info.regionHalfWidth = solverParams.regionHalfWidth;
   try {
     scene.lattice = std::make_shared<const Lattice>(voxels, solverParams.density,
@@ -162,6 +166,16 @@ std::string describeScene(const SceneInfo& info, const NodeParams& params) {
                 info.objectSize,
                 info.totalMass);
   out << buf << "\n";
+  std::snprintf(buf, sizeof buf,
+                "thinnest section: %d%s cells (%.4g m; %.0f %% of the particles lie in thinner "
+                "ones)%s",
+                info.sectionCells, info.sectionCells >= kMaxSectionThickness ? " or more" : "",
+                info.sectionCells * info.spacing, 100.0 * kThinSectionFraction,
+                info.regionHalfWidth < info.regionHalfWidthAsked
+                    ? (", regions narrowed from w = " + std::to_string(info.regionHalfWidthAsked) +
+                       " to fit it (~region_from_section)").c_str()
+                    : "");
+  out << buf << "\n";
   if (s.youngsModulus > 0.0) {
     std::snprintf(buf, sizeof buf,
                   "material: Young's modulus %.4g Pa, density %.4g kg/m^3 -> alpha %.3g per "
@@ -229,6 +243,33 @@ std::string regionClampWarning(const SceneInfo& info, const NodeParams& params) 
                 info.regionHalfWidth, info.regionHalfWidth * info.spacing,
                 kMaxRegionHalfWidth * info.spacing);
   return buf;
+}
+
+std::string sectionWarning(const SceneInfo& info, const NodeParams& params) {
+  const int w = info.regionHalfWidth;
+  if (params.solver.youngsModulus <= 0.0 || info.sectionCells <= 0 || 2 * w + 1 <= info.sectionCells) return "";
+  const int fits = regionHalfWidthForSection(info.sectionCells, w);
+  char buf[1024];
+  std::snprintf(buf, sizeof buf,
+                "regions of half-width w = %d cells (%d cells wide) are wider than the object's "
+                "thinnest section, %d cells (%.4g m; %.0f %% of the particles lie in thinner ones): "
+                "bending there comes out about %.2g times as stiff as ~youngs_modulus says "
+                "(cantilevers against linear FEM). ",
+                w, 2 * w + 1, info.sectionCells, info.sectionCells * info.spacing,
+                100.0 * kThinSectionFraction, bendingStiffeningEstimate(w, info.sectionCells));
+  std::string text = buf;
+  if (fits < w) {
+    std::snprintf(buf, sizeof buf,
+                  "~region_from_section true would use w = %d (regions within 10 %% of linear FEM "
+                  "in bending; for the same modulus they may need more ~substeps), or use a finer "
+                  "lattice.",
+                  fits);
+  } else {
+    std::snprintf(buf, sizeof buf,
+                  "w = 1 is the narrowest region: only a finer lattice (more cells across the "
+                  "section) fixes it.");
+  }
+  return text + buf;
 }
 
 }  // namespace deformable_flsm

@@ -85,6 +85,51 @@ TEST(BuildScene, RegionRadiusBeyondTheLimitIsClampedWithAWarning) {
   EXPECT_EQ(buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0).info.regionAskedCells, 0);
 }
 
+// A bar 4 cells across with regions 7 cells wide: bending would be ~1.4x too stiff. Without
+// ~region_from_section the scene keeps the regions and warns with the figures; with it the
+// regions are narrowed to w = 1 (3 cells wide, within 10 % of FEM in test_solver_material).
+TEST(BuildScene, RegionsWiderThanTheThinnestSectionWarnOrAreNarrowed) {
+  NodeParams p;
+  p.resolution = 40;  // 1 m long, 0.1 m = 4 cells across
+  p.regionHalfWidth = 3;
+  p.solver.youngsModulus = 14000.0;
+  p.solver.gravity.setZero();
+  const TriMesh bar = test::boxMesh(Eigen::Vector3d(1.0, 0.1, 0.1));
+  const Scene asked = buildScene(p, bar, 0);
+  EXPECT_EQ(asked.info.sectionCells, 4);
+  EXPECT_EQ(asked.info.regionHalfWidth, 3);
+  const std::string w = sectionWarning(asked.info, p);
+  EXPECT_NE(w.find("w = 3 cells (7 cells wide)"), std::string::npos) << w;
+  EXPECT_NE(w.find("thinnest section, 4 cells"), std::string::npos) << w;
+  EXPECT_NE(w.find("1.4 times"), std::string::npos) << w;
+  EXPECT_NE(w.find("~region_from_section true would use w = 1"), std::string::npos) << w;
+  EXPECT_NE(describeScene(asked.info, p).find("thinnest section: 4 cells"), std::string::npos);
+
+  p.regionFromSection = true;
+  const Scene narrowed = buildScene(p, bar, 0);
+  EXPECT_EQ(narrowed.info.regionHalfWidth, 1);
+  EXPECT_EQ(narrowed.info.regionHalfWidthAsked, 3);
+  EXPECT_EQ(narrowed.solver->lattice().regionHalfWidth(), 1);
+  EXPECT_EQ(sectionWarning(narrowed.info, p), "");
+  EXPECT_NE(describeScene(narrowed.info, p).find("narrowed from w = 3"), std::string::npos)
+      << describeScene(narrowed.info, p);
+
+  // classic mode has no modulus to be stiffer than: no warning
+  p.regionFromSection = false;
+  p.solver.youngsModulus = 0.0;
+  EXPECT_EQ(sectionWarning(buildScene(p, bar, 0).info, p), "");
+}
+
+TEST(BuildScene, RegionsThatFitTheSectionDoNotWarn) {
+  NodeParams p = cubeParams();  // 10 cells across, w = 2
+  p.solver.youngsModulus = 14000.0;
+  p.regionFromSection = true;
+  const Scene s = buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0);
+  EXPECT_EQ(s.info.sectionCells, 10);
+  EXPECT_EQ(s.info.regionHalfWidth, 2);
+  EXPECT_EQ(sectionWarning(s.info, p), "");
+}
+
 TEST(BuildScene, PinnedBoxesAreCountedPerBox) {
   NodeParams p = cubeParams();
   p.pinned.push_back(Box{Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(2, 2, 0.1)});  // z = 0.05

@@ -30,6 +30,11 @@ struct SceneInfo {
   /// cells ~region_radius asked for when that was more than the solver allows and
   /// regionHalfWidth was clamped to kMaxRegionHalfWidth; 0 when not clamped
   int regionAskedCells = 0;
+  /// the object's thinnest section (cells; measureSectionThickness() in core/section.h)
+  int sectionCells = 0;
+  /// the half-width ~region_radius or ~region_half_width asked for, before
+  /// ~region_from_section narrowed it to regionHalfWidth
+  int regionHalfWidthAsked = 0;
   double objectSize = 0.0;  ///< m, diagonal of the rest bounding box of the lattice
   double totalMass = 0.0;   ///< kg
   std::size_t loadedTriangles = 0, renderTriangles = 0, renderVertices = 0;
@@ -80,5 +85,10 @@ std::string saturationWarning(const SceneInfo& info, const NodeParams& params);
 /// Warning text when ~region_radius was more cells than the solver allows on this lattice and
 /// the regions were clamped to the largest that fit, else "".
 std::string regionClampWarning(const SceneInfo& info, const NodeParams& params);
+
+/// Warning text when the regions are wider than the object's thinnest section in physical mode
+/// (bending there comes out stiffer than the asked modulus: by how much, and what fixes it),
+/// else "".
+std::string sectionWarning(const SceneInfo& info, const NodeParams& params);
 
 }  // namespace deformable_flsm
