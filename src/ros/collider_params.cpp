@@ -1,5 +1,7 @@
 #include "deformable_flsm/ros/collider_params.h"
 
+#include "xmlrpc_number.h"
+
 #include "deformable_flsm/core/mesh_distance_field.h"
 
 #include "deformable_flsm/ros/commands.h"
@@ -38,18 +40,6 @@ std::string describe(XmlRpc::XmlRpcValue value) {
       value.write(out);
   }
   return out.str();
-}
-
-bool toNumber(XmlRpc::XmlRpcValue& v, double& out) {
-  if (v.getType() == XmlRpc::XmlRpcValue::TypeDouble) {
-    out = static_cast<double>(v);
-    return true;
-  }
-  if (v.getType() == XmlRpc::XmlRpcValue::TypeInt) {
-    out = static_cast<int>(v);
-    return true;
-  }
-  return false;
 }
 
 /// Reads the fields of one ~colliders entry; every error names the entry.

@@ -1,5 +1,7 @@
 #include "deformable_flsm/ros/param_loader.h"
 
+#include "xmlrpc_number.h"
+
 #include "deformable_flsm/ros/render_mesh.h"
 
 #include <ros/package.h>
@@ -56,19 +58,6 @@ std::string describe(XmlRpc::XmlRpcValue value) {
   }
   throw ParamError("~" + name + " (" + pnh.resolveName(name) + ") must be " + expected +
                    ", got " + describe(found) + hint);
-}
-
-/// A number from an XML-RPC value that is an int or a double.
-bool toNumber(XmlRpc::XmlRpcValue& v, double& out) {
-  if (v.getType() == XmlRpc::XmlRpcValue::TypeDouble) {
-    out = static_cast<double>(v);
-    return true;
-  }
-  if (v.getType() == XmlRpc::XmlRpcValue::TypeInt) {
-    out = static_cast<int>(v);
-    return true;
-  }
-  return false;
 }
 
 std::string str(const Eigen::Vector3d& v) {
