@@ -1,6 +1,6 @@
 #include "deformable_flsm/ros/collider_params.h"
 
-#include "xmlrpc_number.h"
+#include "xmlrpc_value.h"
 
 #include "deformable_flsm/core/mesh_distance_field.h"
 
@@ -26,21 +26,6 @@ constexpr const char kColliderFramePrefix[] = "flsm_collider/";
 const char* const kFields[] = {"id",       "type",       "frame_id",        "position",
                                "orientation", "size",    "radius",          "length",
                                "mesh",     "mesh_scale", "static_friction", "kinetic_friction"};
-
-std::string describe(XmlRpc::XmlRpcValue value) {
-  std::ostringstream out;
-  switch (value.getType()) {
-    case XmlRpc::XmlRpcValue::TypeString:
-      out << "'" << static_cast<std::string&>(value) << "'";
-      break;
-    case XmlRpc::XmlRpcValue::TypeStruct:
-      out << "a dictionary";
-      break;
-    default:
-      value.write(out);
-  }
-  return out.str();
-}
 
 /// Reads the fields of one ~colliders entry; every error names the entry.
 class EntryReader {

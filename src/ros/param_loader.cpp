@@ -1,6 +1,6 @@
 #include "deformable_flsm/ros/param_loader.h"
 
-#include "xmlrpc_number.h"
+#include "xmlrpc_value.h"
 
 #include "deformable_flsm/ros/render_mesh.h"
 
@@ -21,28 +21,6 @@ constexpr const char kFileScheme[] = "file://";
 
 bool startsWith(const std::string& s, const char* prefix) {
   return s.rfind(prefix, 0) == 0;
-}
-
-/// What was found on the parameter server, for error messages: "'fast' (a string)".
-std::string describe(XmlRpc::XmlRpcValue value) {
-  std::ostringstream out;
-  switch (value.getType()) {
-    case XmlRpc::XmlRpcValue::TypeString:
-      out << "'" << static_cast<std::string&>(value) << "' (a string)";
-      break;
-    case XmlRpc::XmlRpcValue::TypeBoolean:
-      out << (static_cast<bool&>(value) ? "true" : "false") << " (a boolean)";
-      break;
-    case XmlRpc::XmlRpcValue::TypeArray:
-      out << "a list of " << value.size();
-      break;
-    case XmlRpc::XmlRpcValue::TypeStruct:
-      out << "a dictionary";
-      break;
-    default:
-      value.write(out);
-  }
-  return out.str();
 }
 
 [[noreturn]] void throwWrongType(const ros::NodeHandle& pnh, const std::string& name,
