@@ -26,6 +26,17 @@ void ThreadGovernor::record(double seconds) {
   Recent& mine = recent_[mode ? 1 : 0];
   const double usual = mine.median();
   mine.add(seconds);
+  if (opening_) {
+    // Alternate until both modes have kMinSamples times, then run the faster one.
+    if (recent_[0].count >= kMinSamples && recent_[1].count >= kMinSamples) {
+      opening_ = false;
+      probing_ = false;
+      threaded_ = better(true);
+      return;
+    }
+    probing_ = !probing_;
+    return;
+  }
   if (probing_) {
     probing_ = false;
     sinceProbe_ = 0;

@@ -1,5 +1,7 @@
 #include "deformable_flsm/ros/collider_command_validator.h"
 
+#include "refusal.h"
+
 #include "deformable_flsm/ros/collider_params.h"
 
 #include <cmath>
@@ -10,25 +12,11 @@ namespace deformable_flsm {
 
 namespace {
 
+using refusal::refuse;
+using refusal::str;
+
 /// A quaternion shorter than this is refused rather than normalised.
 constexpr double kMinQuaternionNorm = 1e-6;
-
-std::string str(double v) {
-  std::ostringstream os;
-  os.precision(4);
-  os << v;
-  return os.str();
-}
-
-std::string str(const Eigen::Vector3d& v) {
-  return "(" + str(v.x()) + ", " + str(v.y()) + ", " + str(v.z()) + ")";
-}
-
-bool refuse(Rejection& why, const char* reason, std::string detail) {
-  why.reason = reason;
-  why.detail = std::move(detail);
-  return false;
-}
 
 Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return {p.x, p.y, p.z}; }
 Eigen::Vector3d toEigen(const geometry_msgs::Vector3& v) { return {v.x, v.y, v.z}; }

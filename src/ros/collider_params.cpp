@@ -1,5 +1,7 @@
 #include "deformable_flsm/ros/collider_params.h"
 
+#include "xmlrpc_value.h"
+
 #include "deformable_flsm/core/mesh_distance_field.h"
 
 #include "deformable_flsm/ros/commands.h"
@@ -24,33 +26,6 @@ constexpr const char kColliderFramePrefix[] = "flsm_collider/";
 const char* const kFields[] = {"id",       "type",       "frame_id",        "position",
                                "orientation", "size",    "radius",          "length",
                                "mesh",     "mesh_scale", "static_friction", "kinetic_friction"};
-
-std::string describe(XmlRpc::XmlRpcValue value) {
-  std::ostringstream out;
-  switch (value.getType()) {
-    case XmlRpc::XmlRpcValue::TypeString:
-      out << "'" << static_cast<std::string&>(value) << "'";
-      break;
-    case XmlRpc::XmlRpcValue::TypeStruct:
-      out << "a dictionary";
-      break;
-    default:
-      value.write(out);
-  }
-  return out.str();
-}
-
-bool toNumber(XmlRpc::XmlRpcValue& v, double& out) {
-  if (v.getType() == XmlRpc::XmlRpcValue::TypeDouble) {
-    out = static_cast<double>(v);
-    return true;
-  }
-  if (v.getType() == XmlRpc::XmlRpcValue::TypeInt) {
-    out = static_cast<int>(v);
-    return true;
-  }
-  return false;
-}
 
 /// Reads the fields of one ~colliders entry; every error names the entry.
 class EntryReader {

@@ -1,5 +1,7 @@
 #include "deformable_flsm/ros/command_validator.h"
 
+#include "refusal.h"
+
 #include <cctype>
 #include <cmath>
 #include <sstream>
@@ -9,25 +11,11 @@ namespace deformable_flsm {
 
 namespace {
 
+using refusal::refuse;
+using refusal::str;
+
 Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return {p.x, p.y, p.z}; }
 Eigen::Vector3d toEigen(const geometry_msgs::Vector3& v) { return {v.x, v.y, v.z}; }
-
-std::string str(double v) {
-  std::ostringstream os;
-  os.precision(4);
-  os << v;
-  return os.str();
-}
-
-std::string str(const Eigen::Vector3d& v) {
-  return "(" + str(v.x()) + ", " + str(v.y()) + ", " + str(v.z()) + ")";
-}
-
-bool refuse(Rejection& why, const char* reason, std::string detail) {
-  why.reason = reason;
-  why.detail = std::move(detail);
-  return false;
-}
 
 bool validId(const std::string& id) {
   if (id.empty() || id.size() > CommandLimits::kMaxIdLength) return false;

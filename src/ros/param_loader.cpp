@@ -1,5 +1,7 @@
 #include "deformable_flsm/ros/param_loader.h"
 
+#include "xmlrpc_value.h"
+
 #include "deformable_flsm/ros/render_mesh.h"
 
 #include <ros/package.h>
@@ -21,28 +23,6 @@ bool startsWith(const std::string& s, const char* prefix) {
   return s.rfind(prefix, 0) == 0;
 }
 
-/// What was found on the parameter server, for error messages: "'fast' (a string)".
-std::string describe(XmlRpc::XmlRpcValue value) {
-  std::ostringstream out;
-  switch (value.getType()) {
-    case XmlRpc::XmlRpcValue::TypeString:
-      out << "'" << static_cast<std::string&>(value) << "' (a string)";
-      break;
-    case XmlRpc::XmlRpcValue::TypeBoolean:
-      out << (static_cast<bool&>(value) ? "true" : "false") << " (a boolean)";
-      break;
-    case XmlRpc::XmlRpcValue::TypeArray:
-      out << "a list of " << value.size();
-      break;
-    case XmlRpc::XmlRpcValue::TypeStruct:
-      out << "a dictionary";
-      break;
-    default:
-      value.write(out);
-  }
-  return out.str();
-}
-
 [[noreturn]] void throwWrongType(const ros::NodeHandle& pnh, const std::string& name,
                                  const char* expected) {
   XmlRpc::XmlRpcValue found;
@@ -56,19 +36,6 @@ std::string describe(XmlRpc::XmlRpcValue value) {
   }
   throw ParamError("~" + name + " (" + pnh.resolveName(name) + ") must be " + expected +
                    ", got " + describe(found) + hint);
-}
-
-/// A number from an XML-RPC value that is an int or a double.
-bool toNumber(XmlRpc::XmlRpcValue& v, double& out) {
-  if (v.getType() == XmlRpc::XmlRpcValue::TypeDouble) {
-    out = static_cast<double>(v);
-    return true;
-  }
-  if (v.getType() == XmlRpc::XmlRpcValue::TypeInt) {
-    out = static_cast<int>(v);
-    return true;
-  }
-  return false;
 }
 
 std::string str(const Eigen::Vector3d& v) {

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <vector>
+
 namespace deformable_flsm {
 namespace {
 
@@ -22,11 +24,31 @@ std::size_t run(ThreadGovernor& g, int steps, double threadedSeconds, double sin
 TEST(ThreadGovernor, KeepsThreadsWhenTheyAreFaster) {
   ThreadGovernor g;
   const std::size_t threaded = run(g, 2000, 1.0, 1.7);  // a quiet machine: 1.7x
-  // It starts on one thread and probes the threads 8 steps apart until they have 3 times; then
-  // probes of one thread 8, 16, ... 256 steps apart.
+  // It opens with three steps of each mode, then probes one thread 8, 16, ... 256 steps apart.
   const double cost = (threaded * 1.0 + (2000 - threaded) * 1.7) / 2000.0;
   EXPECT_LT(cost, 1.02) << threaded << " threaded steps";
   EXPECT_TRUE(g.threaded());
+}
+
+TEST(ThreadGovernor, ChoosesAfterThreeStepsOfEachMode) {
+  // Quiet machine: the threads from the seventh step on.
+  ThreadGovernor quiet;
+  std::vector<bool> modes;
+  for (int s = 0; s < 6; ++s) {
+    modes.push_back(quiet.threaded());
+    quiet.record(modes.back() ? 1.0 : 1.7);
+  }
+  EXPECT_EQ(modes, (std::vector<bool>{false, true, false, true, false, true}));
+  EXPECT_TRUE(quiet.threaded());
+  // Busy machine: back to one thread after the same opening.
+  ThreadGovernor busy;
+  run(busy, 6, 4.0, 1.0);
+  EXPECT_FALSE(busy.threaded());
+  EXPECT_EQ(busy.threadedSteps(), 3u);
+  // Threads not clearly faster (less than kToThreadsMargin): one thread.
+  ThreadGovernor even;
+  run(even, 6, 0.9, 1.0);
+  EXPECT_FALSE(even.threaded());
 }
 
 TEST(ThreadGovernor, FallsBackToOneThreadWhenThreadsAreSlower) {
@@ -34,7 +56,7 @@ TEST(ThreadGovernor, FallsBackToOneThreadWhenThreadsAreSlower) {
   // Another process on one of two cores: two threads take 4 times as long as one.
   const std::size_t threaded = run(g, 2000, 4.0, 1.0);
   EXPECT_FALSE(g.threaded());
-  // It starts on one thread; the probes of the threads cost, ever rarer.
+  // The opening's three threaded steps and the probes of the threads cost, ever rarer.
   const double cost = (threaded * 4.0 + (2000 - threaded) * 1.0) / 2000.0;
   EXPECT_LT(cost, 1.1) << threaded << " threaded steps";
 }

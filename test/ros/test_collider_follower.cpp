@@ -7,6 +7,8 @@
 #include "deformable_flsm/ros/collider_params.h"
 #include "deformable_flsm/ros/simulation_loop.h"
 
+#include "../core/fixtures.h"
+
 #include <gtest/gtest.h>
 #include <tf2_eigen/tf2_eigen.h>
 
@@ -116,20 +118,6 @@ TEST(ColliderFollower, StaticTransformNeverGoesStale) {
 
 // --- the simulation loop's colliders ----------------------------------------------------------
 
-Voxelization box(int n, double spacing) {
-  Voxelization v;
-  v.spacing = spacing;
-  v.dims = Eigen::Vector3i(n, n, n);
-  v.closed = true;
-  for (int k = 0; k < n; ++k)
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i) {
-        v.cells.emplace_back(i, j, k);
-        v.fillFraction.push_back(1.0);
-      }
-  return v;
-}
-
 Collider sphere(double radius) {
   Collider c;
   c.shape.type = ColliderType::Sphere;
@@ -146,7 +134,7 @@ SolverParams weightless() {
 
 struct Rig {
   explicit Rig(const SolverParams& p = weightless()) {
-    lattice = std::make_shared<const Lattice>(box(4, 0.01), 1000.0, 1);
+    lattice = std::make_shared<const Lattice>(test::makeBox(4, 4, 4, 0.01), 1000.0, 1);
     stats = std::make_shared<CommandStats>();
     LoopSettings settings;
     settings.idleHold = 0.2;

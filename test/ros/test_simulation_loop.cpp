@@ -5,6 +5,8 @@
 /// non-finite state.
 #include "deformable_flsm/ros/simulation_loop.h"
 
+#include "../core/fixtures.h"
+
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -20,20 +22,7 @@ namespace {
 using std::chrono::duration;
 using Clock = std::chrono::steady_clock;
 
-/// nx x ny x nz full cells of `spacing` (m) from the origin.
-Voxelization box(int nx, int ny, int nz, double spacing) {
-  Voxelization v;
-  v.spacing = spacing;
-  v.dims = Eigen::Vector3i(nx, ny, nz);
-  v.closed = true;
-  for (int k = 0; k < nz; ++k)
-    for (int j = 0; j < ny; ++j)
-      for (int i = 0; i < nx; ++i) {
-        v.cells.emplace_back(i, j, k);
-        v.fillFraction.push_back(1.0);
-      }
-  return v;
-}
+using test::makeBox;
 
 SolverParams weightless() {
   SolverParams p;
@@ -49,7 +38,7 @@ SolverParams weightless() {
 struct Rig {
   explicit Rig(LoopSettings settings = LoopSettings(), SolverParams params = weightless(),
                int n = 6) {
-    auto lattice = std::make_shared<const Lattice>(box(n, n, n, 0.01), 1000.0, params.regionHalfWidth);
+    auto lattice = std::make_shared<const Lattice>(makeBox(n, n, n, 0.01), 1000.0, params.regionHalfWidth);
     auto s = std::make_unique<Solver>(lattice, params);
     solver = s.get();
     stats = std::make_shared<CommandStats>();
@@ -345,7 +334,7 @@ SolverParams softBar() {
 }
 
 std::unique_ptr<Solver> clampedBar(const SolverParams& p) {
-  auto lattice = std::make_shared<const Lattice>(box(20, 2, 2, 0.05), 1000.0, p.regionHalfWidth);
+  auto lattice = std::make_shared<const Lattice>(makeBox(20, 2, 2, 0.05), 1000.0, p.regionHalfWidth);
   auto solver = std::make_unique<Solver>(lattice, p);
   solver->pinBox(Eigen::Vector3d(-1.0, -1.0, -1.0), Eigen::Vector3d(0.05, 1.0, 1.0), true);
   return solver;

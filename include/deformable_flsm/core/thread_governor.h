@@ -12,10 +12,11 @@ namespace deformable_flsm {
 /// Threads pay only when they get a core each: a sub-step's region pass waits for its slowest
 /// thread, so with another process busy on one of two cores a two-thread step can take several
 /// times a one-thread step. The governor keeps the last kRecent step times of each mode and runs
-/// the mode whose median is lower; the other mode is tried now and then (a probe) to keep its
-/// figure fresh: kFirstProbe steps apart until it has kMinSamples times, then twice as far apart
-/// after every probe that does not change the choice (up to kLastProbe steps), so that a mode
-/// that keeps losing costs less and less. Moving to the threads asks for a clear win
+/// the mode whose median is lower. It opens by alternating the modes, one thread first, until
+/// each has kMinSamples times (six steps), then takes the faster; from there on the other mode is
+/// tried now and then (a probe) to keep its figure fresh: kFirstProbe steps apart, then twice as
+/// far apart after every probe that does not change the choice (up to kLastProbe steps), so that
+/// a mode that keeps losing costs less and less. Moving to the threads asks for a clear win
 /// (kToThreadsMargin: a lucky step of a busy machine must not bring back a run of slow ones);
 /// moving to one thread a small one (kToSingleMargin). A step much slower than its mode's recent
 /// ones on the threads (another job started) brings the next probe of one thread forward.
@@ -60,11 +61,13 @@ class ThreadGovernor {
   /// true when mode `m`'s recent steps beat the other mode's by the margin moving to m asks.
   bool better(bool m) const;
 
-  // The mode in use. It starts on one thread: until the threads have shown they are faster,
-  // the safe choice (a step on a busy machine's threads can take several times as long; one on
-  // a quiet machine's single thread at most as many times as there are threads).
+  // The mode in use. One thread until the opening has shown the threads faster: the safe choice
+  // (a step on a busy machine's threads can take several times as long; one on a quiet
+  // machine's single thread at most as many times as there are threads).
   bool threaded_ = false;
-  bool probing_ = false;  // the step being run is a probe of the other mode
+  bool opening_ = true;   // the first steps, alternating the modes
+  bool probing_ = false;  // the step being run is a probe of the other mode (or, in the
+                          // opening, the threaded one of a pair)
   int interval_ = kFirstProbe;
   int sinceProbe_ = 0;
   std::array<Recent, 2> recent_;  // [0] one thread, [1] threaded
