@@ -196,15 +196,16 @@ TEST(PhysicalMaterial, CantileverDeflectionMatchesTheFemOracle) {
   EXPECT_GT(half.lattice / half.oracle, 1.6) << "half the modulus must sag about twice as far";
 }
 
-// Regions chosen from the section (core/section.h): asked for w = 3, cantilevers 2, 4 and 8 cells
-// across get the widest regions no wider than their section (w = 1, 1, 3) and bend within 10 % of
-// the FEM oracle. The asked w = 3 itself is too stiff at 2 and 4 cells across (bench_material:
-// 0.47 and 0.71 of the oracle's deflection), which is checked too, so that the choice matters.
+// Regions chosen from the section (core/section.h): asked for w = 3, cantilevers 2 and 4 cells
+// across get the widest regions no wider than their section (w = 1) and bend within 10 % of the
+// FEM oracle. The asked w = 3 itself is too stiff there (bench_material: 0.47 and 0.71 of the
+// oracle's deflection), which is checked too, so that the choice matters. (At 8 cells across the
+// choice is w = 3 itself, within 10 % too; its oracle takes minutes and a gigabyte: not here.)
 TEST(PhysicalMaterial, RegionsChosenFromTheSectionBendLikeTheOracle) {
   struct Case {
     int across, expectedW;
   };
-  for (const Case& c : {Case{2, 1}, Case{4, 1}, Case{8, 3}}) {
+  for (const Case& c : {Case{2, 1}, Case{4, 1}}) {
     const double t = 0.1, L = 0.8, h = t / c.across;
     const int along = static_cast<int>(std::lround(L / h));
     const Voxelization vox = box(along + 2, c.across, c.across, h, Eigen::Vector3d(-2 * h, 0, 0));
@@ -217,7 +218,6 @@ TEST(PhysicalMaterial, RegionsChosenFromTheSectionBendLikeTheOracle) {
     EXPECT_NEAR(chosen.lattice / chosen.oracle, 1.0, 0.10)
         << c.across << " cells across, w " << w << ": " << 1e3 * chosen.lattice << " mm, oracle "
         << 1e3 * chosen.oracle << " mm";
-    if (w == 3) continue;
     const Sag asked = cantilever(c.across, 3, 4, 0.0);
     EXPECT_LT(asked.lattice / asked.oracle, 0.85)
         << c.across << " cells across, w 3: " << 1e3 * asked.lattice << " mm, oracle " << 1e3 * asked.oracle << " mm";
