@@ -54,9 +54,10 @@ struct SolverParams {
   /// (Solver::stiffnessSaturated() tells when the step is too long for E).
   ///
   /// Accuracy against linear elasticity (FEM on the same voxels, bench_material): within 10 % for
-  /// bending, compression and stretching when the region radius w dx is at most half the
+  /// bending, compression and stretching when the regions (2w + 1 cells) are no wider than the
   /// thinnest section; wider regions make bending stiffer (w = 3 on a section of 4 cells: 0.71
-  /// of the deflection). Choose w (or region_radius) from the thinnest feature of the object.
+  /// of the deflection). Choose w from the thinnest feature of the object: section.h measures
+  /// it and regionHalfWidthForSection() gives the widest regions that fit.
   double youngsModulus = 0.0;
   /// Poisson's ratio nu of the material, in [0, 0.45] (physical mode only: with youngsModulus 0
   /// it must stay 0). Shape matching penalises every non-rigid deformation alike, the energy of
