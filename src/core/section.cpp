@@ -35,19 +35,20 @@ void forEachLine(const Grid& g, int axis, F f) {
 }
 
 /// 1-D squared distance transform of f (Felzenszwalb & Huttenlocher 2012): d[q] = min_p (q - p)^2
-/// + f[p], the lower envelope of parabolas rooted at every p with f[p] finite. f and d are lines of
-/// `count` values `step` apart; v and z are scratch of count and count + 1 entries.
+/// + f[p], the lower envelope of parabolas rooted at every p with f[p] finite. f is `count`
+/// contiguous values, d a line of `count` values `step` apart (it may be where f was copied
+/// from); v and z are scratch of count and count + 1 entries.
 void distanceTransform1d(const float* f, float* d, std::size_t count, std::size_t step, int* v,
                          double* z) {
   constexpr float kInfF = std::numeric_limits<float>::infinity();
   constexpr double kInf = std::numeric_limits<double>::infinity();
   int k = -1;
   for (int q = 0; q < static_cast<int>(count); ++q) {
-    const double fq = f[step * static_cast<std::size_t>(q)];
+    const double fq = f[q];
     if (fq == kInfF) continue;
     while (k >= 0) {
       const int p = v[k];
-      const double fp = f[step * static_cast<std::size_t>(p)];
+      const double fp = f[p];
       const double s = ((fq + q * q) - (fp + p * p)) / (2.0 * (q - p));
       if (s > z[k]) {
         ++k;
@@ -72,7 +73,7 @@ void distanceTransform1d(const float* f, float* d, std::size_t count, std::size_
   for (int q = 0; q < static_cast<int>(count); ++q) {
     while (z[j + 1] < q) ++j;
     const double dq = q - v[j];
-    d[step * static_cast<std::size_t>(q)] = static_cast<float>(dq * dq + f[step * static_cast<std::size_t>(v[j])]);
+    d[step * static_cast<std::size_t>(q)] = static_cast<float>(dq * dq + f[v[j]]);
   }
 }
 
@@ -129,6 +130,11 @@ SectionThickness measureSectionThickness(const Voxelization& voxels, double thin
   g.stride[2] = g.stride[1] * static_cast<std::size_t>(g.n.y());
   const std::size_t size = g.size();
   const std::size_t P = voxels.cells.size();
+  if (static_cast<double>(g.n.x()) * g.n.y() * g.n.z() > kMaxSectionGridCells)
+    throw std::invalid_argument(
+        "section thickness: the occupied cells' bounding box spans " + std::to_string(g.n.x()) + " x " +
+        std::to_string(g.n.y()) + " x " + std::to_string(g.n.z()) + " cells, more than the " +
+        std::to_string(kMaxSectionGridCells) + " the measurement takes (it needs ~45 bytes per cell)");
 
   std::vector<char> occupied(size, 0);
   std::vector<std::size_t> at(P);
@@ -146,7 +152,7 @@ SectionThickness measureSectionThickness(const Voxelization& voxels, double thin
   fine.stride[0] = 1;
   fine.stride[1] = static_cast<std::size_t>(fine.n.x());
   fine.stride[2] = fine.stride[1] * static_cast<std::size_t>(fine.n.y());
-  std::vector<float> d2(fine.size(), kInf), tmp(fine.size());
+  std::vector<float> d2(fine.size(), kInf);
   for (int k = 0; k < g.n.z(); ++k)
     for (int j = 0; j < g.n.y(); ++j)
       for (int i = 0; i < g.n.x(); ++i) {
@@ -159,13 +165,14 @@ SectionThickness measureSectionThickness(const Voxelization& voxels, double thin
   const int longest = fine.n.maxCoeff();
   std::vector<int> v(static_cast<std::size_t>(longest));
   std::vector<double> z(static_cast<std::size_t>(longest) + 1);
+  std::vector<float> line(static_cast<std::size_t>(longest));
   for (int axis = 0; axis < 3; ++axis) {
     const std::size_t step = fine.stride[axis];
     const std::size_t count = static_cast<std::size_t>(fine.n[axis]);
     forEachLine(fine, axis, [&](std::size_t first) {
-      distanceTransform1d(d2.data() + first, tmp.data() + first, count, step, v.data(), z.data());
+      for (std::size_t q = 0; q < count; ++q) line[q] = d2[first + step * q];
+      distanceTransform1d(line.data(), d2.data() + first, count, step, v.data(), z.data());
     });
-    d2.swap(tmp);
   }
 
   // Ball diameter at every occupied cell: the largest ball centred on a point of the cell (its

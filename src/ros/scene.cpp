@@ -69,10 +69,15 @@ Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps
 
   SolverParams solverParams = params.solver;
   info.regionHalfWidthAsked = params.resolveRegionHalfWidth(voxels.spacing, &info.regionAskedCells);
-  info.sectionCells = measureSectionThickness(voxels).thinnest;
-  solverParams.regionHalfWidth =
-      params.regionFromSection ? regionHalfWidthForSection(info.sectionCells, info.regionHalfWidthAsked)
-                               : info.regionHalfWidthAsked;
+  try {
+    info.sectionCells = measureSectionThickness(voxels).thinnest;
+  } catch (const std::invalid_argument& e) {
+    info.sectionCells = 0;  // not measured: the regions stay as asked
+    info.sectionNotMeasured = e.what();
+  }
+  solverParams.regionHalfWidth = params.regionFromSection && info.sectionCells > 0
+                                     ? regionHalfWidthForSection(info.sectionCells, info.regionHalfWidthAsked)
+                                     : info.regionHalfWidthAsked;
   info.regionHalfWidth = solverParams.regionHalfWidth;
   try {
     scene.lattice = std::make_shared<const Lattice>(voxels, solverParams.density,
@@ -166,16 +171,21 @@ std::string describeScene(const SceneInfo& info, const NodeParams& params) {
                 info.objectSize,
                 info.totalMass);
   out << buf << "\n";
-  std::snprintf(buf, sizeof buf,
-                "thinnest section: %d%s cells (%.4g m; %.0f %% of the particles lie in thinner "
-                "ones)%s",
-                info.sectionCells, info.sectionCells >= kMaxSectionThickness ? " or more" : "",
-                info.sectionCells * info.spacing, 100.0 * kThinSectionFraction,
-                info.regionHalfWidth < info.regionHalfWidthAsked
-                    ? (", regions narrowed from w = " + std::to_string(info.regionHalfWidthAsked) +
-                       " to fit it (~region_from_section)").c_str()
-                    : "");
-  out << buf << "\n";
+  if (info.sectionCells <= 0) {
+    out << "thinnest section: not measured (" << info.sectionNotMeasured << ")"
+        << (params.regionFromSection ? "; ~region_from_section keeps the asked regions" : "") << "\n";
+  } else {
+    std::snprintf(buf, sizeof buf,
+                  "thinnest section: %d%s cells (%.4g m; %.0f %% of the particles lie in thinner "
+                  "ones)%s",
+                  info.sectionCells, info.sectionCells >= kMaxSectionThickness ? " or more" : "",
+                  info.sectionCells * info.spacing, 100.0 * kThinSectionFraction,
+                  info.regionHalfWidth < info.regionHalfWidthAsked
+                      ? (", regions narrowed from w = " + std::to_string(info.regionHalfWidthAsked) +
+                         " to fit it (~region_from_section)").c_str()
+                      : "");
+    out << buf << "\n";
+  }
   if (s.youngsModulus > 0.0) {
     std::snprintf(buf, sizeof buf,
                   "material: Young's modulus %.4g Pa, density %.4g kg/m^3 -> alpha %.3g per "

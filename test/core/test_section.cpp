@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 namespace deformable_flsm {
 namespace {
@@ -120,6 +121,17 @@ TEST(SectionThickness, AFewThinCellsDoNotDecide) {
 
 TEST(SectionThickness, RefusesWhatItCannotMeasure) {
   EXPECT_THROW(measureSectionThickness(Voxelization()), std::invalid_argument);
+  // two cells far apart: a bounding box of 253^3 cells with padding, beyond kMaxSectionGridCells
+  Voxelization sparse;
+  sparse.spacing = 0.01;
+  sparse.cells = {Eigen::Vector3i(0, 0, 0), Eigen::Vector3i(250, 250, 250)};
+  sparse.fillFraction = {1.0, 1.0};
+  try {
+    measureSectionThickness(sparse);
+    FAIL() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("253 x 253 x 253"), std::string::npos) << e.what();
+  }
   EXPECT_THROW(measureSectionThickness(test::makeBox(2, 2, 2, 0.01), 1.0), std::invalid_argument);
   EXPECT_THROW(measureSectionThickness(test::makeBox(2, 2, 2, 0.01), -0.1), std::invalid_argument);
 }

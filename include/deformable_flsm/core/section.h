@@ -25,6 +25,11 @@ constexpr int kMaxSectionThickness = 2 * kMaxRegionHalfWidth + 1;
 /// that a few thin cells (a voxel spike on the surface, a box's edges) do not decide.
 constexpr double kThinSectionFraction = 0.05;
 
+/// Largest bounding box (cells, one of padding on every side included) measureSectionThickness()
+/// takes: it needs ~45 bytes per cell of the box (a distance transform on the half-cell grid),
+/// ~380 MB here. The bunny at 195k particles spans 99 x 99 x 78 = 0.76 M.
+constexpr int kMaxSectionGridCells = 1 << 23;
+
 /// Section thickness of every cell of a voxelization and the object's thinnest section.
 struct SectionThickness {
   /// #P thickness (cells) of the section at each cell of the voxelization, in its order,
@@ -54,11 +59,12 @@ struct SectionThickness {
 /// Exact (every cell) for axis-aligned boxes, bars and plates of whole cells; within about a cell
 /// for oblique and curved sections. Cost: O(dims) per thickness up to kMaxSectionThickness on a
 /// dense grid of the occupied cells' bounding box (like voxelize()), and a distance transform
-/// on the half-cell grid (8 times the cells, 4 bytes each).
+/// on the half-cell grid (8 times the cells, 4 bytes each): ~45 bytes per cell of the box.
 ///
 /// @param[in] voxels        the occupied cells (voxelize(); the spacing is not used)
 /// @param[in] thinFraction  in [0, 1): the fraction of particles allowed below `thinnest`
-/// @throws std::invalid_argument for no cells or a thinFraction outside [0, 1)
+/// @throws std::invalid_argument for no cells, a thinFraction outside [0, 1), or a bounding box
+///         of more than kMaxSectionGridCells cells (the message gives its size)
 SectionThickness measureSectionThickness(const Voxelization& voxels,
                                          double thinFraction = kThinSectionFraction);
 

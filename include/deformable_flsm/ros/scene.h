@@ -30,8 +30,10 @@ struct SceneInfo {
   /// cells ~region_radius asked for when that was more than the solver allows and
   /// regionHalfWidth was clamped to kMaxRegionHalfWidth; 0 when not clamped
   int regionAskedCells = 0;
-  /// the object's thinnest section (cells; measureSectionThickness() in core/section.h)
+  /// the object's thinnest section (cells; measureSectionThickness() in core/section.h); 0 when
+  /// it was not measured (sectionNotMeasured says why)
   int sectionCells = 0;
+  std::string sectionNotMeasured;
   /// the half-width ~region_radius or ~region_half_width asked for, before
   /// ~region_from_section narrowed it to regionHalfWidth
   int regionHalfWidthAsked = 0;
