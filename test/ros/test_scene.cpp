@@ -130,6 +130,33 @@ TEST(BuildScene, RegionsThatFitTheSectionDoNotWarn) {
   EXPECT_EQ(sectionWarning(s.info, p), "");
 }
 
+// Two small cubes 1 m apart on 4 mm cells: a bounding box too large to measure the section on
+// (core/section.h kMaxSectionGridCells). The scene still starts, says so, and keeps the regions.
+TEST(BuildScene, ASectionTooSparseToMeasureKeepsTheAskedRegions) {
+  TriMesh mesh = test::boxMesh(Eigen::Vector3d::Zero(), Eigen::Vector3d::Constant(0.02));
+  const TriMesh far = test::boxMesh(Eigen::Vector3d::Constant(0.98), Eigen::Vector3d::Ones());
+  const auto offset = static_cast<std::uint32_t>(mesh.vertices.size());
+  mesh.vertices.insert(mesh.vertices.end(), far.vertices.begin(), far.vertices.end());
+  for (auto t : far.triangles) {
+    for (auto& v : t) v += offset;
+    mesh.triangles.push_back(t);
+  }
+  NodeParams p;
+  p.spacing = 0.004;
+  p.regionHalfWidth = 3;
+  p.regionFromSection = true;
+  p.solver.youngsModulus = 14000.0;
+  p.solver.gravity.setZero();
+  const Scene s = buildScene(p, mesh, 0);
+  EXPECT_EQ(s.info.particles, 250u);
+  EXPECT_EQ(s.info.sectionCells, 0);
+  EXPECT_EQ(s.info.regionHalfWidth, 3);
+  const std::string d = describeScene(s.info, p);
+  EXPECT_NE(d.find("thinnest section: not measured"), std::string::npos) << d;
+  EXPECT_NE(d.find("keeps the asked regions"), std::string::npos) << d;
+  EXPECT_EQ(sectionWarning(s.info, p), "");
+}
+
 TEST(BuildScene, PinnedBoxesAreCountedPerBox) {
   NodeParams p = cubeParams();
   p.pinned.push_back(Box{Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(2, 2, 0.1)});  // z = 0.05
