@@ -52,7 +52,7 @@ void ProblemReporter::report(const LoopDiagnostics& d) {
   }
   if (d.solverResets > reportedResets_) {
     reportedResets_ = d.solverResets;
-    ROS_ERROR("flsm_node: the solver state became non-finite and was reset to rest (%llu "
+    ROS_ERROR("flsm_node: the solver state became non-finite (or grew beyond 1e12 m or m/s) and was reset to rest (%llu "
               "times so far). This should not happen: please report it with the commands sent.",
               static_cast<unsigned long long>(d.solverResets));
   }

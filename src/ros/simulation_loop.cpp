@@ -16,9 +16,22 @@ using Clock = std::chrono::steady_clock;
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
-bool allFinite(const std::vector<Eigen::Vector3d>& xs) {
+/// Beyond this (m, m/s) a coordinate or speed means the state has blown up: subscribers get
+/// float32, and a state that grows without bound passes it within a few steps of overflowing
+/// that (or double) to infinity. Far beyond any simulated scene (free fall takes days to get
+/// there).
+constexpr double kBlownUp = 1e12;
+
+/// true when every vector is finite and within kBlownUp.
+bool allBounded(const std::vector<Eigen::Vector3d>& xs) {
   for (const Eigen::Vector3d& x : xs)
-    if (!x.allFinite()) return false;
+    if (!(x.cwiseAbs().maxCoeff() <= kBlownUp)) return false;  // NaN fails the comparison too
+  return true;
+}
+
+bool allFinite(const std::vector<Eigen::Quaterniond>& qs) {
+  for (const Eigen::Quaterniond& q : qs)
+    if (!q.coeffs().allFinite()) return false;
   return true;
 }
 
@@ -258,9 +271,12 @@ void SimulationLoop::run() {
 }
 
 void SimulationLoop::ensureFinite() {
-  if (allFinite(solver_->positions()) && allFinite(solver_->velocities())) return;
+  if (allBounded(solver_->positions()) && allBounded(solver_->velocities()) &&
+      allFinite(solver_->regionRotations()))
+    return;
   // It should not happen (the solver is unconditionally stable for finite input and every
-  // command is range-checked); if it does, never let NaN reach a subscriber.
+  // command is range-checked); if it does, never let NaN, infinity (a float32 overflow) or a
+  // rotation of NaN reach a subscriber.
   solver_->reset();
   ++diag_.solverResets;
   restartStillness();

@@ -470,6 +470,29 @@ TEST(SimulationLoop, NonFiniteStateIsResetNeverPublished) {
   for (const Eigen::Vector3d& p : s.positions) ASSERT_TRUE(p.allFinite());
 }
 
+TEST(SimulationLoop, BlownUpStateIsResetBeforeItOverflowsAFloat) {
+  // A state that grows without bound is finite in double for a while, but a coordinate above
+  // 3.4e38 is infinity in the published float32 clouds: reset it before that.
+  LoopSettings settings;
+  settings.idleHold = 0.0;
+  Rig rig(settings);
+  std::vector<Eigen::Vector3d> x = rig.solver->positions();
+  x[3].z() = 1e39;
+  rig.solver->setPositions(x);
+  rig.loop->start();
+  const Snapshot& first = rig.loop->acquire();
+  EXPECT_EQ(first.diag.solverResets, 1u);
+  for (const Eigen::Vector3d& p : first.positions)
+    for (int a = 0; a < 3; ++a) ASSERT_TRUE(std::isfinite(static_cast<float>(p[a])));
+  // A far but sane coordinate (a long free fall) is left alone.
+  Rig far(settings);
+  x = far.solver->positions();
+  for (Eigen::Vector3d& p : x) p.z() -= 1e6;
+  far.solver->setPositions(x);
+  far.loop->start();
+  EXPECT_EQ(far.loop->acquire().diag.solverResets, 0u);
+}
+
 TEST(SimulationLoop, RealTimeFactorChangesAtRunTime) {
   LoopSettings settings;
   settings.idleHold = 0.0;
