@@ -316,6 +316,14 @@ class CommandsTest(unittest.TestCase):
         time.sleep(0.5)  # a change would have reached ~state by now
         self.assertEqual(f.state().alpha, alpha, 'the material changed')
         self.assertEqual(client.get_configuration(timeout=10.0)['youngs_modulus'], modulus)
+        # A stiffness typo is clamped to 0 and refused too, not taken as a much softer material.
+        answer = client.update_configuration({'stiffness': -1.0})
+        self.assertEqual(answer['stiffness'], config['stiffness'], 'the server did not keep the stiffness')
+        self.assertIsNotNone(f.wait_state(lambda s: self.flsm.rejected('invalid_params') ==
+                                          refused + 2, 5.0), 'stiffness -1 was not counted as '
+                             'invalid_params')
+        time.sleep(0.5)
+        self.assertEqual(f.state().alpha, alpha, 'the material changed')
         # The classic model is its own switch: alpha = stiffness, and back.
         client.update_configuration({'material': 'classic', 'stiffness': 0.5})
         self.assertIsNotNone(f.wait_state(lambda s: abs(s.alpha - 0.5) < 1e-12, 5.0),
