@@ -203,6 +203,38 @@ TEST(SimulationLoop, AttachToANonRigidFrameIsRefused) {
   EXPECT_TRUE(rig.loop->acquire().drags.empty());
 }
 
+TEST(SimulationLoop, SpringDragsOnTheSameParticlesShareTheLimit) {
+  // Each spring drag alone within the limit, several on one particle added up past explicit
+  // integration's stability and blew up: the limit is on their sum.
+  Rig rig;
+  rig.loop->start();
+  const double h = rig.solver->params().substepLength();
+  const auto& L = rig.loop->lattice();
+  const double k0 = L.masses()[0] / (h * h);  // kMaxSpringRate = 1 on particle 0 alone
+  GrabCommand g;
+  g.particle = 0;
+  g.target = L.restPositions()[0];
+  g.id = "a";
+  g.stiffness = 0.6 * k0;
+  EXPECT_TRUE(rig.run(g).accepted);
+  g.id = "b";
+  const CommandOutcome o = rig.run(g);
+  EXPECT_FALSE(o.accepted);
+  EXPECT_NE(o.message.find("other spring drags"), std::string::npos) << o.message;
+  EXPECT_EQ(rig.rejected("spring_too_stiff"), 1u);
+  g.stiffness = 0.35 * k0;  // what is left beside "a"
+  EXPECT_TRUE(rig.run(g).accepted);
+  g.id = "a";  // replacing "a": its own spring does not count against it
+  g.stiffness = 0.6 * k0;
+  EXPECT_TRUE(rig.run(g).accepted);
+  g.id = "c";  // another particle: the whole limit
+  g.particle = 1;
+  g.target = L.restPositions()[1];
+  g.stiffness = 0.9 * L.masses()[1] / (h * h);
+  EXPECT_TRUE(rig.run(g).accepted);
+  EXPECT_EQ(rig.rejected("spring_too_stiff"), 1u);
+}
+
 TEST(SimulationLoop, RejectionsCarryTheirReason) {
   Rig rig;
   rig.loop->start();
