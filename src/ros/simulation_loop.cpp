@@ -26,7 +26,7 @@ constexpr double kBlownUp = 1e12;
 /// true when every vector is finite and within kBlownUp.
 bool allBounded(const std::vector<Eigen::Vector3d>& xs) {
   for (const Eigen::Vector3d& x : xs)
-    if (!(x.cwiseAbs().maxCoeff() <= kBlownUp)) return false;  // NaN fails the comparison too
+    if (!x.allFinite() || x.cwiseAbs().maxCoeff() > kBlownUp) return false;
   return true;
 }
 
