@@ -485,11 +485,12 @@ CommandOutcome SimulationLoop::grab(const GrabCommand& c, const AttachCommand* a
         if (it != rate.end()) taken = std::max(taken, it->second += r);
       }
     }
-    const double limit = std::max(0.0, CommandLimits::kMaxSpringRate - taken) * massOf(particles) / (h * h);
+    const double mass = massOf(particles);
+    const double limit = std::max(0.0, CommandLimits::kMaxSpringRate - taken) * mass / (h * h);
     if (c.stiffness > limit)
       return reject("spring_too_stiff",
                     "drag '" + c.id + "': spring stiffness " + num(c.stiffness) +
-                        " N/m is unstable on " + num(massOf(particles)) +
+                        " N/m is unstable on " + num(mass) +
                         " kg of particles at sub-step " + num(h) + " s" +
                         (taken > 0.0 ? " with the other spring drags on them (" +
                                            num(100.0 * taken / CommandLimits::kMaxSpringRate) +
