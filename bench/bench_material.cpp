@@ -14,7 +14,9 @@
 // asked w on the case's measured thinnest section (core/section.h; the node's
 // ~region_from_section); the column "w" is then the one used.
 //
-//   bench_material [--quick] [--nu NU] [--from-section]
+// --substeps N runs every case at N sub-steps only (default 4 and 16; 4 with --quick).
+//
+//   bench_material [--quick] [--nu NU] [--substeps N] [--from-section]
 
 #include "deformable_flsm/core/fem_oracle.h"
 #include "deformable_flsm/core/lattice.h"
@@ -233,14 +235,18 @@ std::pair<Row, Row> stretch(double t, int across, const Setting& s) {
 
 int main(int argc, char** argv) {
   bool quick = false;
+  int onlySubsteps = 0;
   std::vector<double> nus = {0.0, 0.3};
   for (int a = 1; a < argc; ++a) {
     if (std::strcmp(argv[a], "--quick") == 0) quick = true;
     if (std::strcmp(argv[a], "--nu") == 0 && a + 1 < argc) nus = {std::atof(argv[++a])};
     if (std::strcmp(argv[a], "--settle") == 0 && a + 1 < argc) gSettle = std::atof(argv[++a]);
     if (std::strcmp(argv[a], "--from-section") == 0) gFromSection = true;
+    if (std::strcmp(argv[a], "--substeps") == 0 && a + 1 < argc) onlySubsteps = std::atoi(argv[++a]);
   }
-  const std::vector<int> substeps = quick ? std::vector<int>{4} : std::vector<int>{4, 16};
+  const std::vector<int> substeps = onlySubsteps > 0 ? std::vector<int>{onlySubsteps}
+                                    : quick          ? std::vector<int>{4}
+                                                     : std::vector<int>{4, 16};
   std::printf("lattice = the settled solver, oracle = FEM on the same voxels (cantilever, column) or the\n"
               "analytic uniaxial-stress strains (stretch); E chosen per lattice (alpha 0.3 at w 1, 4 sub-steps)\n%s\n",
               gFromSection ? "regions narrowed to each case's thinnest section (--from-section): w asked 1 to 3, "

@@ -176,16 +176,19 @@ Strain stretch(int w, double nu, int substeps) {
 }  // namespace
 
 // The cantilever's tip deflection with the modulus asked for: within 10 % of the oracle where the
-// region is at most half the section (R / t <= 1/2), for nu = 0 and 0.3 and at 4 and 16
+// region is at most half the section (R / t <= 1/2), for nu = 0, 0.3 and 0.4 and at 4 and 16
 // sub-steps (bench_material has the full table: w = 2 at 4 cells across and nu = 0 is 0.896, and
-// wider regions are stiffer in bending, see SolverParams::regionHalfWidth). A modulus off by 2x
-// is 2x off here.
+// wider regions are stiffer in bending, see SolverParams::regionHalfWidth). Two cells across,
+// every region is clipped by the sides: the surface term of the Poisson part keeps such a bar from
+// thinning too easily (without it nu = 0.3 bent 1.165 of the oracle). A modulus off by 2x is 2x
+// off here.
 TEST(PhysicalMaterial, CantileverDeflectionMatchesTheFemOracle) {
   struct Case {
     int across, w, substeps;
     double nu;
   };
-  for (const Case& c : {Case{4, 1, 4, 0.0}, Case{2, 1, 16, 0.0}, Case{4, 2, 4, 0.3}}) {
+  for (const Case& c : {Case{4, 1, 4, 0.0}, Case{2, 1, 16, 0.0}, Case{4, 2, 4, 0.3}, Case{2, 1, 4, 0.3},
+                        Case{2, 1, 16, 0.4}}) {
     const Sag s = cantilever(c.across, c.w, c.substeps, c.nu);
     EXPECT_FALSE(s.saturated);
     EXPECT_NEAR(s.lattice / s.oracle, 1.0, 0.10)
@@ -239,17 +242,23 @@ TEST(PhysicalMaterial, ColumnSettlementMatchesTheFemOracle) {
   EXPECT_LT(stiff.lattice / stiff.oracle, 0.6) << "twice the modulus must settle about half as far";
 }
 
-// Uniaxial stress: the axial strain is sigma / E within 10 % (15 % at nu = 0.4) and the lateral
-// strain -nu eps within 0.05 of nu (w = 1, a bar 4 cells across; the material must not be capped, which would soften it).
+// Uniaxial stress: the axial strain is sigma / E within 10 % and the lateral strain -nu eps within
+// 0.05 of nu (a bar 4 cells across, w = 1, and w = 2 and 3 at nu = 0.3, whose regions are all
+// clipped by the sides; the material must not be capped, which would soften it). Measured:
+// 1.00 to 1.04 of sigma / E, -lateral / axial 0.28 to 0.40 (bench_material); without the surface
+// term the clipped regions resisted lateral strain less than the interior and the bar yielded
+// 1.09 (w 1) to 1.24 (w 3) at nu = 0.3.
 TEST(PhysicalMaterial, UniaxialStretchHasTheModulusAndPoissonsRatioAskedFor) {
-  for (double nu : {0.0, 0.2, 0.3, 0.4}) {
+  struct Case {
+    int w;
+    double nu;
+  };
+  for (const Case& c : {Case{1, 0.0}, Case{1, 0.2}, Case{1, 0.3}, Case{1, 0.4}, Case{2, 0.3}, Case{3, 0.3}}) {
     // nu = 0.4 (lambda = 2.9 mu) needs shorter sub-steps than the others for the same E
-    const Strain s = stretch(1, nu, nu > 0.3 ? 16 : 4);
-    ASSERT_FALSE(s.saturated) << "nu " << nu;
-    // measured: 1.03 / 1.06 / 1.09 / 1.12 of sigma / E for nu = 0 / 0.2 / 0.3 / 0.4 (regions clipped
-    // by the sides resist lateral strain less than the interior: the bar thins and yields more)
-    EXPECT_NEAR(s.axial / s.expectedAxial, 1.0, nu > 0.3 ? 0.15 : 0.10) << "nu " << nu;
-    EXPECT_NEAR(-s.lateral / s.axial, nu, 0.05) << "nu " << nu;
+    const Strain s = stretch(c.w, c.nu, c.nu > 0.3 ? 16 : 4);
+    ASSERT_FALSE(s.saturated) << "w " << c.w << " nu " << c.nu;
+    EXPECT_NEAR(s.axial / s.expectedAxial, 1.0, 0.10) << "w " << c.w << " nu " << c.nu;
+    EXPECT_NEAR(-s.lateral / s.axial, c.nu, 0.05) << "w " << c.w << " nu " << c.nu;
   }
 }
 
@@ -325,6 +334,8 @@ TEST(PhysicalMaterial, AlphaCapSitsBelowTheStabilityLimitWithItsMargin) {
                                                << 4.0 * s.alpha() / omegaH2;
         EXPECT_GE(omegaH2, 1.4) << (shape ? "notched" : "box") << " w " << w << " nu " << nu << ": alpha "
                                 << s.alpha() << ", blow-up at alpha " << 4.0 * s.alpha() / omegaH2;
+        std::printf("  cap: %s w %d nu %.2f: alpha %.3f, (omega h)^2 %.3f\n", shape ? "notched" : "box", w, nu,
+                    s.alpha(), omegaH2);
       }
 }
 

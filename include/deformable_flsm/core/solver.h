@@ -323,6 +323,7 @@ class Solver : private RegionKernel {
     std::uint32_t plus[3], minus[3];  // the particles whose difference is column a of F_i
     double invDistance[3];            // 1 / their rest distance along a; 0 where there is none
     double weight;                    // lambda_eff V_i (N m)
+    double deficit[3];                // k D_ia: the normal-strain stiffness region i lacks (N m)
   };
   std::vector<VolumetricStencil> stencil_;
   std::vector<std::array<Eigen::Vector3d, 3>> stencilForce_;  // G_ia = lambda V e_i F_ia / d_ia
