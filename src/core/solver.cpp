@@ -244,6 +244,17 @@ void Solver::computeRegionWeights() {
         const int span = (p != Lattice::kNone) + (m != Lattice::kNone);
         st.invDistance[a] = span == 0 ? 0.0 : 1.0 / (span * L.spacing());
       }
+      // A stencil acts on its members with a force proportional to its weight, and a member's
+      // acceleration is that over its own mass: a full cell's stencil would shake a neighbour
+      // that is a sliver of a cell (fill fraction ~0.01 at a curved surface) and force the cap
+      // on alpha down by as much. So each stencil weighs with its lightest member's mass: the
+      // stiffness per unit mass stays an interior cell's, and the energy (and with it momentum
+      // and rotation invariance) stays exact; only the cells next to slivers are softer.
+      double lightest = L.masses()[i];
+      for (int a = 0; a < 3; ++a)
+        lightest = std::min({lightest, L.masses()[st.plus[a]], L.masses()[st.minus[a]]});
+      st.mass = lightest;
+      for (int a = 0; a < 3; ++a) deficit[3 * i + a] *= lightest / L.masses()[i];
     }
   }
   std::vector<double> weightSum;
@@ -274,7 +285,7 @@ void Solver::computeRegionWeights() {
     for (std::size_t i = 0; i < n; ++i) {
       const VolumetricStencil& st = stencil_[i];
       const double span = 2.0 * (st.invDistance[0] + st.invDistance[1] + st.invDistance[2]);
-      const double V = L.masses()[i] / params_.density;
+      const double V = st.mass / params_.density;
       for (int a = 0; a < 3; ++a) {
         if (st.invDistance[a] == 0.0) continue;
         lambdaRow[3 * st.plus[a] + a] += V * st.invDistance[a] * span;
@@ -300,7 +311,7 @@ void Solver::computeRegionWeights() {
     const double lambdaEff = params_.lameLambda() * alpha_ / requested;
     const double k = alpha_ / (h * h);
     for (std::size_t i = 0; i < n; ++i) {
-      stencil_[i].weight = lambdaEff * L.masses()[i] / params_.density;
+      stencil_[i].weight = lambdaEff * stencil_[i].mass / params_.density;
       for (int a = 0; a < 3; ++a)
         stencil_[i].deficit[a] = stencil_[i].invDistance[a] > 0.0 ? k * deficit[3 * i + a] : 0.0;
     }

@@ -322,6 +322,7 @@ class Solver : private RegionKernel {
   struct VolumetricStencil {
     std::uint32_t plus[3], minus[3];  // the particles whose difference is column a of F_i
     double invDistance[3];            // 1 / their rest distance along a; 0 where there is none
+    double mass;                      // the lightest member's mass (kg): V_i = mass / rho
     double weight;                    // lambda_eff V_i (N m)
     double deficit[3];                // k D_ia: the normal-strain stiffness region i lacks (N m)
   };
