@@ -92,6 +92,7 @@ TEST(BuildScene, RegionsWiderThanTheThinnestSectionWarnOrAreNarrowed) {
   NodeParams p;
   p.resolution = 40;  // 1 m long, 0.1 m = 4 cells across
   p.regionHalfWidth = 3;
+  p.regionFromSection = false;
   p.solver.youngsModulus = 14000.0;
   p.solver.gravity.setZero();
   const TriMesh bar = test::boxMesh(Eigen::Vector3d(1.0, 0.1, 0.1));

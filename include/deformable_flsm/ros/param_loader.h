@@ -77,7 +77,7 @@ struct NodeParams {
   /// wider than the section are up to 2x too stiff). Narrower regions need more sub-steps for
   /// the same modulus near the cap (the node warns when they do). false: the regions as asked,
   /// with a warning when they are wider than the thinnest section.
-  bool regionFromSection = false;
+  bool regionFromSection = true;
   /// ~material: how the stiffness is given. Youngs: by ~youngs_modulus (> 0), alpha follows
   /// from it (the cap being ~stiffness); Classic: alpha = ~stiffness per sub-step, as in the
   /// original FastLSM (youngs_modulus is not used). No value of youngs_modulus switches
