@@ -72,6 +72,7 @@ TEST(BuildScene, RegionRadiusBeyondTheLimitIsClampedWithAWarning) {
   // makes a finer lattice): the scene starts with the largest regions the solver allows.
   NodeParams p = cubeParams();
   p.regionRadius = 5.0;  // 50 cells of 0.1 m
+  p.regionFromSection = false;  // the clamp, not the section (10 cells: w = 4), is tested here
   const Scene s = buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0);
   EXPECT_EQ(s.info.regionHalfWidth, kMaxRegionHalfWidth);
   EXPECT_EQ(s.info.regionAskedCells, 50);
