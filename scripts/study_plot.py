@@ -135,8 +135,11 @@ def stability(rows, path):
                              (number(r["blow_up_time_s"]), energy))
             else:
                 volume = 100 * number(r["volume_change_final"])
+                outcome = r["outcome"]
+                if outcome == "recovered":
+                    outcome = "recovered after %.1f s" % number(r["recovered_after_s"])
                 cells.append("%s: error %.2g%% of size, volume %s%%, peak energy %.3g J" %
-                             (r["outcome"], 100 * number(r["shape_error"]),
+                             (outcome, 100 * number(r["shape_error"]),
                               ("%+.0f" if abs(volume) >= 10 else "%+.2g") % volume, energy))
         lines.append("| %s | %s | %s |" % (label, subs, " | ".join(cells)))
     first = rows[0] if rows else {}
@@ -144,7 +147,8 @@ def stability(rows, path):
     lines.append("Bunny at resolution %s (%s particles), frames of %s s, weightless, on %s; "
                  "error = RMS distance to the best rigid fit of the rest shape / size at the end, "
                  "volume = change of the embedded render mesh's volume at the end; "
-                 "recovered = error below 1%%; peak energy = largest kinetic energy after any frame. "
+                 "recovered = error below 1%% at the end, after N s = from the release on (the end of "
+                 "the drag's hold, or the start); peak energy = largest kinetic energy after any frame. "
                  "FastLSM runs with the study's Poisson's ratio 0.3 and, for comparison, without the "
                  "Poisson term (nu = 0). "
                  "The explicit mass-spring runs at one sub-step and at the fewest sub-steps its linear "

@@ -219,14 +219,14 @@ BulletDeformableParams bulletFemParams(const Setting& s, const Calibration& c) {
 
 std::unique_ptr<Method> makeMethod(const std::string& name, const std::shared_ptr<const Lattice>& lattice,
                                    const Setting& s, const Calibration& c) {
-  if (name == "fastlsm") return std::make_unique<FlsmMethod>(lattice, flsmParams(s, lattice->spacing(), SolverKind::Fast));
+  if (name == "fastlsm") return std::make_unique<FlsmMethod>(lattice, flsmParams(s, lattice->regionHalfWidth(), SolverKind::Fast));
   if (name == "fastlsm-nu0") {  // the stress table's FastLSM without the Poisson term
     Setting s0 = s;
     s0.poissonRatio = 0.0;
-    return std::make_unique<FlsmMethod>(lattice, flsmParams(s0, lattice->spacing(), SolverKind::Fast));
+    return std::make_unique<FlsmMethod>(lattice, flsmParams(s0, lattice->regionHalfWidth(), SolverKind::Fast));
   }
   if (name == "naive-lsm")
-    return std::make_unique<FlsmMethod>(lattice, flsmParams(s, lattice->spacing(), SolverKind::Naive));
+    return std::make_unique<FlsmMethod>(lattice, flsmParams(s, lattice->regionHalfWidth(), SolverKind::Naive));
   if (name == "mass-spring") return std::make_unique<MassSpringMethod>(lattice, massSpringParams(s, c));
 #ifdef FLSM_STUDY_WITH_BULLET
   if (name == "bullet") return std::make_unique<BulletVolumeMethod>(lattice, bulletParams(s, lattice->spacing(), c));
@@ -715,7 +715,7 @@ int main(int argc, char** argv) {
   {
     std::ofstream f(dir + "/stability.csv");
     f << "scenario,method,resolution,particles,frame_step_s,substeps,outcome,blow_up_time_s,shape_error,"
-         "peak_kinetic_energy_J,volume_change_held,volume_change_final\n";
+         "recovered_after_s,peak_kinetic_energy_J,volume_change_held,volume_change_final\n";
     for (const auto& rp : stress) {
       const Run& r = *rp;
       const std::string outcome =
@@ -724,7 +724,8 @@ int main(int argc, char** argv) {
         << num(kStressFrameStep) << ',' << r.substeps << ',' << outcome << ','
         << num(r.record.blewUp ? (r.record.blowUpFrame + 1) * kStressFrameStep
                                : std::numeric_limits<double>::quiet_NaN())
-        << ',' << num(r.record.shapeError) << ',' << num(r.record.peakKineticEnergy) << ','
+        << ',' << num(r.record.shapeError) << ',' << num(r.record.recoveredAfter) << ','
+        << num(r.record.peakKineticEnergy) << ','
         << num(r.scenario == Scenario::DragFar ? r.record.volumeChange : std::numeric_limits<double>::quiet_NaN())
         << ',' << num(r.record.finalVolumeChange) << '\n';
     }

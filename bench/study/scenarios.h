@@ -7,6 +7,7 @@
 #include "deformable_flsm/core/embedding.h"
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/mesh.h"
+#include "deformable_flsm/core/section.h"
 #include "deformable_flsm/core/voxelizer.h"
 #include "study/method.h"
 #include "study/metrics.h"
@@ -137,14 +138,17 @@ inline StudyObject makeBunny(const std::string& path, double scale) {
   return o;
 }
 
-/// The lattice of `object` at `resolution`, with the region half-width that flsmParams() gives.
+/// The lattice of `object` at `resolution`. Its regions are the object's region radius in cells,
+/// narrowed to the widest that fit across the lattice's thinnest section, as the node does by
+/// default (~region_from_section): regions wider than a section keep its curvature rigid.
 /// @throws VoxelizationError, std::invalid_argument (region radius over 10 cells)
 inline std::shared_ptr<const Lattice> buildLattice(const StudyObject& object, int resolution) {
   VoxelizeOptions options;
   options.resolution = resolution;
   const Voxelization voxels = voxelize(object.mesh, options);
+  const int asked = regionHalfWidthForRadius(object.regionRadius, voxels.spacing);
   return std::make_shared<const Lattice>(voxels, kStudyDensity,
-                                         regionHalfWidthForRadius(object.regionRadius, voxels.spacing));
+                                         regionHalfWidthForSection(measureSectionThickness(voxels).thinnest, asked));
 }
 
 // --- scenarios ----------------------------------------------------------------------------
@@ -195,12 +199,12 @@ constexpr double kBaseFraction = 0.1;
 constexpr double kEarRadiusFraction = 0.08;
 /// Ear drag: ramp (s), hold until (s), end (s); drag distance / object size (along +x).
 constexpr double kEarDragRamp = 0.5, kEarDragHoldUntil = 1.5, kEarDragEnd = 3.5, kEarDragDistance = 0.3;
-/// Drag far: 5 sizes in 0.2 s, held until 0.7 s, then 16 s to recover.
-constexpr double kDragFarRamp = 0.2, kDragFarHoldUntil = 0.7, kDragFarEnd = 16.7, kDragFarDistance = 5.0;
+/// Drag far: 5 sizes in 0.2 s, held until 0.7 s, then 40 s to recover.
+constexpr double kDragFarRamp = 0.2, kDragFarHoldUntil = 0.7, kDragFarEnd = 40.7, kDragFarDistance = 5.0;
 /// Plane and scrambled starts: simulated time to recover (s); seed of the scramble. The soft
-/// bunny (kBunnyYoungsModulus) at 1/30 s wobbles for seconds: FastLSM's rest-shape error falls
-/// below 1% of the size only after 8 to 12 s.
-constexpr double kReleaseDuration = 16.0;
+/// bunny (kBunnyYoungsModulus) at 1/30 s in one sub-step wobbles for seconds, the longer the
+/// softer the cap on alpha makes it: RunRecord::recoveredAfter says when each run got there.
+constexpr double kReleaseDuration = 40.0;
 constexpr unsigned kScrambleSeed = 5;
 /// A run has blown up when a coordinate is not finite or a particle is farther than this many
 /// object sizes from the rest centroid (a drag far puts the ear 5 sizes away).
@@ -270,6 +274,10 @@ struct RunRecord {
   double finalVolumeChange = std::numeric_limits<double>::quiet_NaN();
   /// rigidFitError() / object size after the last frame (infinity after a blow-up)
   double shapeError = std::numeric_limits<double>::infinity();
+  /// stress scenarios (drag far, plane, scrambled): simulated time from the release (the end of
+  /// the hold, or the start) after which the shape error stayed below kRecoveredTolerance; NaN
+  /// when it did not end below it
+  double recoveredAfter = std::numeric_limits<double>::quiet_NaN();
   /// wall time (s) of each frame's step(), nothing else
   std::vector<double> frameSeconds;
 };
@@ -386,6 +394,8 @@ inline RunRecord runScenario(Scenario scenario, const StudyObject& object, const
   }
 
   const int holdEndFrame = static_cast<int>(std::lround(holdUntil / frameStep));
+  const bool stress = scenario == Scenario::DragFar || scenario == Scenario::Plane || scenario == Scenario::Scrambled;
+  int lastDistortedFrame = -1;  // stress scenarios: the last frame that ended with the shape error at or above tolerance
   rec.frameSeconds.reserve(static_cast<std::size_t>(frames));
   for (int f = 0; f < frames; ++f) {
     if (!ear.empty()) {
@@ -420,6 +430,7 @@ inline RunRecord runScenario(Scenario scenario, const StudyObject& object, const
       rec.blowUpFrame = f;
       break;
     }
+    if (stress && rigidFitError(lattice.masses(), x0, x) / size >= kRecoveredTolerance) lastDistortedFrame = f;
     if (sampleEvery > 0 && (f + 1) % sampleEvery == 0) {
       embed();
       rec.trajectory.push_back(samplePoints());
@@ -431,6 +442,8 @@ inline RunRecord runScenario(Scenario scenario, const StudyObject& object, const
   rec.finalVolumeChange = volumeChange();
   if (ear.empty()) rec.volumeChange = rec.finalVolumeChange;
   rec.shapeError = rigidFitError(lattice.masses(), x0, method.positions()) / size;
+  if (stress && rec.shapeError < kRecoveredTolerance)
+    rec.recoveredAfter = std::max(0.0, (lastDistortedFrame + 1) * frameStep - (ear.empty() ? 0.0 : holdUntil));
   return rec;
 }
 

@@ -46,24 +46,24 @@ struct Setting {
   double substep() const { return frameStep / substeps; }
 };
 
-/// The FastLSM parameters of a study run: Young's modulus and region radius in metres (so the
-/// same material at every resolution and step, SolverParams::youngsModulus), alpha capped at 1
-/// (a sub-step too long for the modulus simulates a softer object; the study measures that),
-/// the setting's ambient damping and loads, the package's default region damping, one thread.
+/// The FastLSM parameters of a study run: Young's modulus (the same material at every resolution
+/// and step, SolverParams::youngsModulus), the regions of the lattice it runs on (buildLattice():
+/// the object's region radius narrowed to its thinnest section), alpha capped at 1 (a sub-step
+/// too long for the modulus simulates a softer object; the study measures that), the setting's
+/// ambient damping and loads, the package's default region damping, one thread.
 ///
-/// @param[in] setting         resolution, sub-steps, frame step, material, damping, gravity
-/// @param[in] latticeSpacing  cell edge of the lattice built for this setting (m)
-/// @param[in] kind            Fast (FastLSM summation) or Naive (direct region sums)
+/// @param[in] setting            resolution, sub-steps, frame step, material, damping, gravity
+/// @param[in] regionHalfWidth    w of the lattice built for this setting (Lattice::regionHalfWidth())
+/// @param[in] kind               Fast (FastLSM summation) or Naive (direct region sums)
 /// @return parameters that pass SolverParams::validate()
-/// @throws std::invalid_argument when the region radius is more than 10 cells at this spacing
-inline SolverParams flsmParams(const Setting& setting, double latticeSpacing, SolverKind kind) {
+inline SolverParams flsmParams(const Setting& setting, int regionHalfWidth, SolverKind kind) {
   SolverParams p;
   p.kind = kind;
   p.density = kStudyDensity;
   p.youngsModulus = setting.youngsModulus;
   p.poissonsRatio = setting.poissonRatio;
   p.stiffness = 1.0;
-  p.regionHalfWidth = regionHalfWidthForRadius(setting.regionRadius, latticeSpacing);
+  p.regionHalfWidth = regionHalfWidth;
   p.ambientDamping = setting.ambientDamping;
   p.timeStep = setting.frameStep;
   p.substeps = setting.substeps;
