@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <utility>
+#include <vector>
 
 namespace deformable_flsm {
 
@@ -27,6 +28,29 @@ constexpr float kHandleAlpha = 0.0f;
 /// The handle follows the object when it moved by more than these (fraction of the size, rad).
 constexpr double kHandleMoveFraction = 1e-3;
 constexpr double kHandleTurn = 1e-2;
+/// The handle is the rest shape moved out along its vertex normals by this many lattice
+/// spacings: RViz picks the nearest thing under the cursor, and where the object bulges beyond
+/// its rest shape (a soft body sagging on the ground) the visible mesh would hide a handle of the
+/// rest shape itself, and the mouse would turn the camera instead of grabbing.
+constexpr double kHandleOffsetSpacings = 1.0;
+
+/// `mesh` with every vertex moved outwards by `offset` along its area-weighted normal (outwards:
+/// the side that makes the enclosed volume positive, whichever way the file winds its triangles).
+void offsetAlongNormals(TriMesh& mesh, double offset) {
+  std::vector<Eigen::Vector3d> normal(mesh.vertices.size(), Eigen::Vector3d::Zero());
+  double volume6 = 0.0;
+  for (const auto& t : mesh.triangles) {
+    const Eigen::Vector3d &a = mesh.vertices[t[0]], &b = mesh.vertices[t[1]], &c = mesh.vertices[t[2]];
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    volume6 += a.dot(b.cross(c));
+    for (int k = 0; k < 3; ++k) normal[t[k]] += n;
+  }
+  if (volume6 < 0.0) offset = -offset;
+  for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
+    const double length = normal[v].norm();
+    if (length > 0.0) mesh.vertices[v] += offset / length * normal[v];
+  }
+}
 
 geometry_msgs::Point toPoint(const Eigen::Vector3d& v) {
   geometry_msgs::Point p;
@@ -65,6 +89,7 @@ InteractiveDrag::InteractiveDrag(const ros::NodeHandle& pnh, const std::string& 
   visualization_msgs::Marker handle;
   initTriangleListMarker(frameId, "flsm_handle", {1.0f, 1.0f, 1.0f, kHandleAlpha}, handle);
   TriMesh coarse = simplifyMesh(renderMesh, kHandleTriangles).mesh;
+  offsetAlongNormals(coarse, kHandleOffsetSpacings * lattice.spacing());
   for (Eigen::Vector3d& v : coarse.vertices) v -= com;
   setTriangleListPoints(coarse.vertices, coarse.triangles, handle);
   handle.header.frame_id.clear();  // in the interactive marker's frame
