@@ -14,9 +14,11 @@
 // asked w on the case's measured thinnest section (core/section.h; the node's
 // ~region_from_section); the column "w" is then the one used.
 //
-// --substeps N runs every case at N sub-steps only (default 4 and 16; 4 with --quick).
+// --substeps N runs every case at N sub-steps only (default 4 and 16; 4 with --quick); --across N
+// runs only the cantilevers N cells across (2, 4 or 8; 8 takes minutes and a gigabyte for its
+// oracle).
 //
-//   bench_material [--quick] [--nu NU] [--substeps N] [--from-section]
+//   bench_material [--quick] [--nu NU] [--substeps N] [--across N] [--from-section]
 
 #include "deformable_flsm/core/fem_oracle.h"
 #include "deformable_flsm/core/lattice.h"
@@ -235,7 +237,7 @@ std::pair<Row, Row> stretch(double t, int across, const Setting& s) {
 
 int main(int argc, char** argv) {
   bool quick = false;
-  int onlySubsteps = 0;
+  int onlySubsteps = 0, onlyAcross = 0;
   std::vector<double> nus = {0.0, 0.3};
   for (int a = 1; a < argc; ++a) {
     if (std::strcmp(argv[a], "--quick") == 0) quick = true;
@@ -243,6 +245,7 @@ int main(int argc, char** argv) {
     if (std::strcmp(argv[a], "--settle") == 0 && a + 1 < argc) gSettle = std::atof(argv[++a]);
     if (std::strcmp(argv[a], "--from-section") == 0) gFromSection = true;
     if (std::strcmp(argv[a], "--substeps") == 0 && a + 1 < argc) onlySubsteps = std::atoi(argv[++a]);
+    if (std::strcmp(argv[a], "--across") == 0 && a + 1 < argc) onlyAcross = std::atoi(argv[++a]);
   }
   const std::vector<int> substeps = onlySubsteps > 0 ? std::vector<int>{onlySubsteps}
                                     : quick          ? std::vector<int>{4}
@@ -255,13 +258,18 @@ int main(int argc, char** argv) {
   std::printf("%-12s %3s %2s %3s %5s %7s %12s %12s %8s\n", "case", "n", "w", "sub", "nu", "alpha", "lattice",
               "oracle", "ratio");
   for (double nu : nus) {
-    for (int across : quick ? std::vector<int>{2, 4} : std::vector<int>{2, 4, 8})
+    const std::vector<int> sections = onlyAcross > 0 ? std::vector<int>{onlyAcross}
+                                      : quick          ? std::vector<int>{2, 4}
+                                                       : std::vector<int>{2, 4, 8};
+    for (int across : sections)
       for (int w = 1; w <= 3; ++w)
         for (int sub : substeps) {
-          if (across == 8 && sub == 16) continue;  // minutes of settling; 4 sub-steps show the trend
+          // minutes of settling; 4 sub-steps show the trend
+          if (across == 8 && sub == 16 && onlySubsteps == 0) continue;
           const Setting s{w, sub, nu};
           print("cantilever", across, s, cantilever(0.1, 0.8, across, s), "mm", 1e3);
         }
+    if (onlyAcross > 0) continue;
     for (int w = 1; w <= 3; ++w)
       for (int sub : substeps) {
         const Setting s{w, sub, nu};
