@@ -37,19 +37,13 @@ constexpr double kHandleOffsetSpacings = 1.0;
 /// `mesh` with every vertex moved outwards by `offset` along its area-weighted normal (outwards:
 /// the side that makes the enclosed volume positive, whichever way the file winds its triangles).
 void offsetAlongNormals(TriMesh& mesh, double offset) {
-  std::vector<Eigen::Vector3d> normal(mesh.vertices.size(), Eigen::Vector3d::Zero());
-  double volume6 = 0.0;
-  for (const auto& t : mesh.triangles) {
-    const Eigen::Vector3d &a = mesh.vertices[t[0]], &b = mesh.vertices[t[1]], &c = mesh.vertices[t[2]];
-    const Eigen::Vector3d n = (b - a).cross(c - a);
-    volume6 += a.dot(b.cross(c));
-    for (int k = 0; k < 3; ++k) normal[t[k]] += n;
-  }
+  double volume6 = 0.0;  // six times the signed volume (divergence theorem)
+  for (const auto& t : mesh.triangles)
+    volume6 += mesh.vertices[t[0]].dot(mesh.vertices[t[1]].cross(mesh.vertices[t[2]]));
   if (volume6 < 0.0) offset = -offset;
-  for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
-    const double length = normal[v].norm();
-    if (length > 0.0) mesh.vertices[v] += offset / length * normal[v];
-  }
+  std::vector<Eigen::Vector3d> normals;
+  computeVertexNormals(mesh.vertices, mesh.triangles, normals);  // unit, or zero where no area
+  for (std::size_t v = 0; v < mesh.vertices.size(); ++v) mesh.vertices[v] += offset * normals[v];
 }
 
 geometry_msgs::Point toPoint(const Eigen::Vector3d& v) {
