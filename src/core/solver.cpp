@@ -312,8 +312,8 @@ void Solver::computeRegionWeights() {
     const double k = alpha_ / (h * h);
     for (std::size_t i = 0; i < n; ++i) {
       stencil_[i].weight = lambdaEff * stencil_[i].mass / params_.density;
-      for (int a = 0; a < 3; ++a)
-        stencil_[i].deficit[a] = stencil_[i].invDistance[a] > 0.0 ? k * deficit[3 * i + a] : 0.0;
+      // (an axis without neighbours has invDistance 0, which zeroes its force)
+      for (int a = 0; a < 3; ++a) stencil_[i].deficit[a] = k * deficit[3 * i + a];
     }
   }
 }
