@@ -146,7 +146,6 @@ void Solver::reset() {
   std::fill(rotations_.begin(), rotations_.end(), Eigen::Quaterniond::Identity());
   pinPosition_ = x_;
   drags_.clear();
-  dragFrames_.clear();
   markHardDrags();
   forces_.clear();
   std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
@@ -460,10 +459,9 @@ void Solver::substep(double h) {
 // The particles particleResult() leaves alone: hard-dragged ones follow their target (the
 // velocity that reaches it in one sub-step), pinned ones stay.
 void Solver::finishSubstep(double h) {
-  std::size_t k = 0;
   for (const auto& entry : drags_) {
     const Drag& drag = entry.second;
-    const Eigen::Isometry3d& frame = dragFrames_[k++];
+    const Eigen::Isometry3d& frame = drag.frame;
     if (drag.stiffness > 0.0) continue;
     for (std::size_t e = 0; e < drag.particles.size(); ++e) {
       const std::uint32_t p = drag.particles[e];

@@ -100,9 +100,9 @@ void Solver::addDrag(const std::string& id, const std::vector<std::uint32_t>& pa
   for (std::uint32_t p : particles) drag.offsets.push_back(toFrame * x_[p]);
   drag.pose = pose;
   drag.reached = frame;
+  drag.frame = frame;
   drag.stiffness = stiffness;
   drags_[id] = std::move(drag);
-  dragFrames_.resize(drags_.size());
   markHardDrags();
   reserveForcedParticles();
 }
@@ -136,14 +136,12 @@ bool Solver::moveDrag(const std::string& id, const Eigen::Vector3d& target) {
 
 bool Solver::release(const std::string& id) {
   const bool found = drags_.erase(id) > 0;
-  dragFrames_.resize(drags_.size());
   markHardDrags();
   return found;
 }
 
 void Solver::releaseAll() {
   drags_.clear();
-  dragFrames_.clear();
   markHardDrags();
 }
 
@@ -183,10 +181,9 @@ void Solver::applyForce(const std::vector<std::uint32_t>& particles, const Eigen
 // step: translation linearly and rotation along the shortest arc (slerp), i.e. at a constant
 // linear and angular velocity, the velocity a body moving from one pose to the next has.
 void Solver::interpolateDragFrames(double s) {
-  std::size_t k = 0;
-  for (const auto& entry : drags_) {
-    const Drag& drag = entry.second;
-    Eigen::Isometry3d& frame = dragFrames_[k++];
+  for (auto& entry : drags_) {
+    Drag& drag = entry.second;
+    Eigen::Isometry3d& frame = drag.frame;
     if (s >= 1.0) {
       frame = drag.pose;
       continue;
@@ -212,10 +209,9 @@ void Solver::accumulateForces(double h) {
     for (std::uint32_t p : f.particles) forceAccel_[p] += a;
     forcedParticles_.insert(forcedParticles_.end(), f.particles.begin(), f.particles.end());
   }
-  std::size_t k = 0;
   for (const auto& entry : drags_) {
     const Drag& drag = entry.second;
-    const Eigen::Isometry3d& frame = dragFrames_[k++];
+    const Eigen::Isometry3d& frame = drag.frame;
     if (drag.stiffness <= 0.0) continue;
     double M = 0.0;
     for (std::uint32_t p : drag.particles) M += m[p];

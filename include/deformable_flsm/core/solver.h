@@ -38,6 +38,9 @@ struct Drag {
   /// from here to `pose` (translation linearly, rotation by slerp), so that a frame moving
   /// steadily drags the particles at its own velocity instead of in one jump per step
   Eigen::Isometry3d reached = Eigen::Isometry3d::Identity();
+  /// the drag frame at the sub-step being run, on the way from `reached` to `pose` (what the
+  /// particles' targets follow within a step)
+  Eigen::Isometry3d frame = Eigen::Isometry3d::Identity();
   /// 0 for a hard constraint (the particles follow their targets exactly); otherwise the
   /// stiffness (N/m) of a spring from each particle to its target, scaled by the particle's mass
   /// share
@@ -217,7 +220,7 @@ class Solver : private RegionKernel {
   /// Stores a drag under `id`: offsets are the particles' positions in `frame`.
   void addDrag(const std::string& id, const std::vector<std::uint32_t>& particles,
                const Eigen::Isometry3d& frame, const Eigen::Isometry3d& pose, double stiffness);
-  /// Every drag's frame at fraction `s` of the step from `reached` to `pose` into dragFrames_.
+  /// Every drag's frame at fraction `s` of the step from `reached` to `pose` (Drag::frame).
   void interpolateDragFrames(double s);
   // RegionKernel
   int gatherChannels() const override;
@@ -268,8 +271,6 @@ class Solver : private RegionKernel {
   std::vector<Eigen::Vector3d> impulseDv_;  // velocity change pending from impulses
   bool impulsePending_ = false;
   std::map<std::string, Drag> drags_;
-  /// per drag (in drags_ order): its frame at the current sub-step; capacity kept across steps
-  std::vector<Eigen::Isometry3d> dragFrames_;
   std::map<std::string, Collider> colliders_;
   /// A collider as the contact pass sees it, in the order of colliders_.
   struct ContactBody {
