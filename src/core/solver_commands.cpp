@@ -6,7 +6,9 @@
 #include <cmath>
 #include <cstdint>
 #include <stdexcept>
+#include <sstream>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 namespace deformable_flsm {
@@ -28,6 +30,12 @@ Eigen::Vector3d centroidOf(const std::vector<Eigen::Vector3d>& x,
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
   for (std::uint32_t p : particles) c += x[p];
   return c / static_cast<double>(particles.size());
+}
+
+std::string num(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
 }
 
 }  // namespace
@@ -93,6 +101,16 @@ void Solver::addDrag(const std::string& id, const std::vector<std::uint32_t>& pa
     if (p >= x_.size()) throw std::out_of_range("solver: particle index out of range");
   if (!std::isfinite(stiffness) || stiffness < 0.0)
     throw std::invalid_argument("solver: drag stiffness must be finite and >= 0");
+  if (stiffness > 0.0) {
+    const SpringLimit limit = springLimit(id, particles);
+    if (stiffness > limit.stiffness)
+      throw std::invalid_argument(
+          "solver: drag '" + id + "': spring stiffness " + num(stiffness) + " N/m is unstable on " +
+          num(limit.mass) + " kg of particles at sub-step " + num(limit.substep) +
+          " s: at most " + num(limit.stiffness) +
+          " N/m (k h^2 / M <= " + num(kMaxSpringRate) +
+          " summed over the spring drags on a particle; or 0 for a hard drag)");
+  }
   Drag drag;
   drag.particles = particles;
   const Eigen::Isometry3d toFrame = frame.inverse(Eigen::Isometry);
@@ -105,6 +123,37 @@ void Solver::addDrag(const std::string& id, const std::vector<std::uint32_t>& pa
   drags_[id] = std::move(drag);
   markHardDrags();
   reserveForcedParticles();
+}
+
+// Linearised, a spring of stiffness k on mass M adds (omega h)^2 = k h^2 / M to the modes of the
+// particles it holds, and the springs on one particle add up; with shape matching's share it must
+// stay below symplectic Euler's 4 (see kMaxSpringRate).
+SpringLimit Solver::springLimit(const std::string& id, const std::vector<std::uint32_t>& particles) const {
+  const auto& m = lattice_->masses();
+  auto massOf = [&](const std::vector<std::uint32_t>& set) {
+    double M = 0.0;
+    for (std::uint32_t p : set) M += m[p];
+    return M;
+  };
+  for (std::uint32_t p : particles)
+    if (p >= x_.size()) throw std::out_of_range("solver: particle index out of range");
+  SpringLimit limit;
+  const double h = params_.substepLength();
+  limit.substep = h;
+  std::unordered_map<std::uint32_t, double> rate;
+  for (std::uint32_t p : particles) rate[p] = 0.0;
+  for (const auto& entry : drags_) {
+    const Drag& d = entry.second;
+    if (entry.first == id || d.stiffness <= 0.0) continue;
+    const double r = d.stiffness * h * h / massOf(d.particles);
+    for (std::uint32_t p : d.particles) {
+      auto it = rate.find(p);
+      if (it != rate.end()) limit.taken = std::max(limit.taken, it->second += r);
+    }
+  }
+  limit.mass = massOf(particles);
+  limit.stiffness = std::max(0.0, kMaxSpringRate - limit.taken) * limit.mass / (h * h);
+  return limit;
 }
 
 // accumulateForces() lists the particles it touches; reserving here, when a command arrives,

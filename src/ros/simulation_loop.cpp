@@ -6,7 +6,6 @@
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
-#include <unordered_map>
 #include <utility>
 
 namespace deformable_flsm {
@@ -470,33 +469,18 @@ CommandOutcome SimulationLoop::grab(const GrabCommand& c, const AttachCommand* a
       c.particle >= 0 ? std::vector<std::uint32_t>{static_cast<std::uint32_t>(c.particle)}
                       : solver_->nearestParticles(c.point, c.count);
   if (c.stiffness > 0.0) {
-    const double h = solver_->params().substepLength();
-    // The other spring drags on these particles (a drag of this id is replaced): the largest
-    // rate k h^2 / M they already put on one of them.
-    std::unordered_map<std::uint32_t, double> rate;
-    for (std::uint32_t p : particles) rate[p] = 0.0;
-    double taken = 0.0;
-    for (const auto& entry : solver_->drags()) {
-      const Drag& d = entry.second;
-      if (entry.first == c.id || d.stiffness <= 0.0) continue;
-      const double r = d.stiffness * h * h / massOf(d.particles);
-      for (std::uint32_t p : d.particles) {
-        auto it = rate.find(p);
-        if (it != rate.end()) taken = std::max(taken, it->second += r);
-      }
-    }
-    const double mass = massOf(particles);
-    const double limit = std::max(0.0, CommandLimits::kMaxSpringRate - taken) * mass / (h * h);
-    if (c.stiffness > limit)
+    // the core's rule (Solver::springLimit()), refused here with its reason and counted
+    const SpringLimit limit = solver_->springLimit(c.id, particles);
+    if (c.stiffness > limit.stiffness)
       return reject("spring_too_stiff",
                     "drag '" + c.id + "': spring stiffness " + num(c.stiffness) +
-                        " N/m is unstable on " + num(mass) +
-                        " kg of particles at sub-step " + num(h) + " s" +
-                        (taken > 0.0 ? " with the other spring drags on them (" +
-                                           num(100.0 * taken / CommandLimits::kMaxSpringRate) +
-                                           " % of the limit taken)"
-                                     : std::string()) +
-                        ": at most " + num(limit) + " N/m (or 0 for a hard drag)");
+                        " N/m is unstable on " + num(limit.mass) +
+                        " kg of particles at sub-step " + num(limit.substep) + " s" +
+                        (limit.taken > 0.0 ? " with the other spring drags on them (" +
+                                                 num(100.0 * limit.taken / kMaxSpringRate) +
+                                                 " % of the limit taken)"
+                                           : std::string()) +
+                        ": at most " + num(limit.stiffness) + " N/m (or 0 for a hard drag)");
   }
   if (attach == nullptr) {
     solver_->grab(c.id, particles, c.target, c.stiffness);

@@ -187,6 +187,36 @@ TEST(Solver, HardDragPutsParticlesOnTheTargetAndSpringDragPullsTowardsIt) {
   EXPECT_FALSE(t.release("nobody"));
 }
 
+// Spring drags are integrated explicitly: on a particle of mass m their rates k h^2 / M add up
+// (each counted with its own grabbed mass M), and past kMaxSpringRate with shape matching's share
+// the sub-step is unstable. The core refuses such a drag, whoever asks, and keeps the others.
+TEST(Solver, SpringDragsOnAParticleShareTheStabilityLimit) {
+  Solver s(bar(), weightless());
+  const double h = s.params().substepLength();
+  const double k0 = s.lattice().masses()[0] / (h * h);  // the whole limit on particle 0 alone
+  const Eigen::Vector3d at = s.positions()[0];
+  s.grab("a", {0}, at, 0.6 * k0);
+  try {
+    s.grab("b", {0}, at, 0.6 * k0);
+    ADD_FAILURE() << "a second spring past the limit was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("at most"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(s.drags().size(), 1u);
+  const deformable_flsm::SpringLimit limit = s.springLimit("b", {0});
+  EXPECT_NEAR(limit.taken, 0.6, 1e-12);
+  EXPECT_NEAR(limit.stiffness, 0.4 * k0, 1e-12 * k0);
+  s.grab("b", {0}, at, 0.35 * k0);  // what is left beside "a"
+  s.grab("a", {0}, at, 0.6 * k0);   // replacing "a": its own spring does not count against it
+  EXPECT_THROW(s.attach("c", {0}, Eigen::Isometry3d::Identity(), 0.2 * k0), std::invalid_argument);
+  s.grab("c", {1}, s.positions()[1], 0.9 * s.lattice().masses()[1] / (h * h));  // another particle
+  EXPECT_EQ(s.drags().size(), 3u);
+  // Within the limit the springs hold their particles where they were: the bar stays at rest.
+  for (int i = 0; i < 120; ++i) s.step();
+  EXPECT_TRUE(allFinite(s.positions()));
+  EXPECT_LT(s.maxDisplacement(), 1e-9);
+}
+
 namespace {
 
 /// The frame a test attaches to: it starts at `start` and turns about the z axis through the
@@ -269,7 +299,7 @@ TEST(Solver, SpringAttachLagsButConverges) {
   for (std::uint32_t p : end) local.push_back(start.inverse() * s.positions()[p]);
   double grabbed = 0.0;
   for (std::uint32_t p : end) grabbed += s.lattice().masses()[p];
-  // A spring a tenth of the stability limit M / h^2 (CommandLimits::kMaxSpringRate).
+  // A spring a tenth of the stability limit M / h^2 (kMaxSpringRate).
   const double h = s.params().substepLength();
   s.attach("gripper", end, start, 0.1 * grabbed / (h * h));
   // A quarter turn in half a second, then held still.

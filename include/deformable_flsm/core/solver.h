@@ -51,6 +51,25 @@ struct Drag {
   Eigen::Vector3d centroidTarget() const;
 };
 
+/// The spring drags on a particle may together be at most kMaxSpringRate M / h^2 stiff: each
+/// drag counts its rate k h^2 / M (k its stiffness, M its grabbed mass, h the sub-step), summed
+/// over the drags that hold the particle. Symplectic Euler is stable while that and shape
+/// matching's share (at most 2, see Solver::alpha()) stay below 4; 1 keeps a margin. Per drag
+/// alone, several spring drags on the same particles would add up past it.
+constexpr double kMaxSpringRate = 1.0;
+
+/// How stiff a spring drag may be on a set of particles (Solver::springLimit()).
+struct SpringLimit {
+  /// the stiffest spring allowed (N/m): (kMaxSpringRate - taken) M / h^2, at least 0
+  double stiffness = 0.0;
+  /// M, the particles' mass (kg)
+  double mass = 0.0;
+  /// h, the sub-step (s)
+  double substep = 0.0;
+  /// the largest sum of rates k h^2 / M the other spring drags put on one of the particles
+  double taken = 0.0;
+};
+
 /// A force spread over a set of particles in proportion to their masses, so that all of them
 /// get the same acceleration F / M (M = their total mass).
 struct TimedForce {
@@ -128,7 +147,7 @@ class Solver : private RegionKernel {
   /// Grabs `particles` under `id` (replacing a drag of the same id) and pulls their centroid to
   /// `target`, keeping their arrangement unrotated. stiffness 0 = hard constraint, > 0 = spring
   /// (N/m). @throws std::invalid_argument, std::out_of_range for an empty or bad selection, a
-  /// non-finite target or a negative stiffness.
+  /// non-finite target, a negative stiffness, or a spring stiffer than springLimit() allows.
   void grab(const std::string& id, const std::vector<std::uint32_t>& particles,
             const Eigen::Vector3d& target, double stiffness);
   /// Attaches `particles` to a moving frame under `id` (replacing a drag of the same id): each
@@ -143,6 +162,10 @@ class Solver : private RegionKernel {
   /// Moves the origin of drag `id`'s frame to `target` and keeps its rotation (for a grab(): the
   /// grabbed centroid goes to `target`). Returns false if there is no such drag.
   bool moveDrag(const std::string& id, const Eigen::Vector3d& target);
+  /// The stiffest spring drag `id` may put on `particles` beside the other spring drags on them
+  /// (a drag of the same id is replaced: its own spring does not count), kMaxSpringRate.
+  /// @throws std::out_of_range for a particle index out of range
+  SpringLimit springLimit(const std::string& id, const std::vector<std::uint32_t>& particles) const;
   /// Releases drag `id`. Returns false if there is no such drag.
   bool release(const std::string& id);
   void releaseAll();

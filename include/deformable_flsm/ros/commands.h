@@ -35,12 +35,6 @@ struct CommandLimits {
   static constexpr double kMaxSpeedChange = 10.0;
   /// Longest force (s of simulated time).
   static constexpr double kMaxForceDuration = 60.0;
-  /// The spring drags on a particle may together be at most kMaxSpringRate M / h^2 stiff (for
-  /// each drag k h^2 / M, M its grabbed mass, h the sub-step, summed over the drags that hold
-  /// the particle): explicit integration is stable while that and the shape matching's share
-  /// (at most 2) stay below 4; 1 keeps a margin. Per drag alone, several spring drags on the
-  /// same particles add up past it and blow up.
-  static constexpr double kMaxSpringRate = 1.0;
   /// Particles one grab may take (nearest to a point).
   static constexpr std::uint32_t kMaxGrabCount = 512;
   /// Concurrent drags and timed forces.
