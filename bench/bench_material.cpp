@@ -20,11 +20,11 @@
 //
 //   bench_material [--quick] [--nu NU] [--substeps N] [--across N] [--from-section]
 
-#include "deformable_flsm/core/fem_oracle.h"
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/section.h"
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/voxelizer.h"
+#include "support/fem_oracle.h"
 
 #include <cmath>
 #include <cstdio>

@@ -16,7 +16,6 @@
 // (default 3) repeats every run that took under 2 s and reports the median time.
 // Definitions of every figure: docs/study.md.
 
-#include "deformable_flsm/core/fem_oracle.h"
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/voxelizer.h"
 #include "study/mass_spring.h"
@@ -24,6 +23,7 @@
 #include "study/metrics.h"
 #include "study/scenarios.h"
 #include "study/setting.h"
+#include "support/fem_oracle.h"
 #ifdef FLSM_STUDY_WITH_BULLET
 #include "study/bullet_deformable.h"
 #endif

@@ -1,9 +1,9 @@
 #include "deformable_flsm/core/solver.h"
 
 #include "deformable_flsm/core/fast_summation.h"
-#include "deformable_flsm/core/fem_oracle.h"
 #include "deformable_flsm/core/mesh.h"
 #include "fixtures.h"
+#include "support/fem_oracle.h"
 
 #include <gtest/gtest.h>
 

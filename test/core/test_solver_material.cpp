@@ -1,10 +1,10 @@
 // The material of the solver in physical mode (Young's modulus, Poisson's ratio) against the FEM
 // oracle and analytic elasticity, the cap on alpha against the stability of the update, and the
 // robustness of the physical mode. bench_material prints the full tables.
-#include "deformable_flsm/core/fem_oracle.h"
 #include "deformable_flsm/core/section.h"
 #include "deformable_flsm/core/solver.h"
 #include "fixtures.h"
+#include "support/fem_oracle.h"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
-#include "deformable_flsm/core/fem_oracle.h"
+#include "support/fem_oracle.h"
 
-#include "fixtures.h"
+#include "../core/fixtures.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "deformable_flsm/core/fem_oracle.h"
+#include "support/fem_oracle.h"
 
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
