@@ -36,8 +36,8 @@ constexpr double kMaxVolumetricStrain = 0.5;
 // clipped by the surface has less along the clipped axes, which makes material near the surface
 // softer than inside. beta_r = m_r dx^2 sigma^2 / p_max, p_max the largest eigenvalue of P_r,
 // restores the energy along the region's best-resolved axis (the length of a bar) and never
-// inflates a region for the axes the surface cuts short (a trace-based weight did: clipped across
-// a slender section it made the bar up to 1.6x too stiff in stretching). Capped at
+// inflates a region for the axes the surface cuts short (a weight from the trace of P_r would:
+// clipped across a slender section, the bar would come out too stiff in stretching). Capped at
 // kMaxRegionWeight for regions resolved along no axis (a lone particle).
 // The forces f_i = k m~_i sum_{r contains i} beta_r (T_r x0_i - x_i) still sum to zero, with zero
 // torque, over every region: momentum is conserved as in classic shape matching. Per particle
@@ -45,17 +45,17 @@ constexpr double kMaxVolumetricStrain = 0.5;
 // s_i = (sum_r beta_r) / n_i.
 //
 // Poisson's ratio: shape matching alone is a material with lambda = 0; it carries the shear
-// modulus (2 mu = E / (1 + nu), through requestedAlpha()). With nu > 0 computeVolumetricForces() adds lambda / 2 (tr eps)^2 per
-// cell on the lattice's own stencil (so that a bent section feels the volumetric strain varying
-// across it, which a region-wide fit would average away). beta_r restores only the best-resolved
-// axis, so a region clipped by the surface lacks D_ra = m_r dx^2 sigma^2 - beta_r P_r,aa of an
-// interior region's resistance to the normal strain along lattice axis a. Without lambda that
-// hardly shows (a loaded bar does not strain across itself); with it, the sides resist the
-// lateral contraction too little, the bar thins more than -nu eps and yields (uniaxial stress
-// 1.09 / 1.13 / 1.24 of sigma / E at w = 1 / 2 / 3, nu = 0.3, a bar 4 cells across). So with nu > 0
-// each particle's stencil also carries k/2 sum_a D_ia e_aa^2 (e_aa the Green strain along a,
-// k = alpha / h^2): the normal-strain energy of every region is then an interior region's, and
-// the stretch yields 1.00 / 1.01 / 1.04. Rotation invariant, momentum exact, like the lambda term.
+// modulus (2 mu = E / (1 + nu), through requestedAlpha()). With nu > 0 computeVolumetricForces()
+// adds lambda / 2 (tr eps)^2 per cell on the lattice's own stencil (so that a bent section feels
+// the volumetric strain varying across it, which a region-wide fit would average away). beta_r
+// restores only the best-resolved axis, so a region clipped by the surface lacks
+// D_ra = m_r dx^2 sigma^2 - beta_r P_r,aa of an interior region's resistance to the normal strain
+// along lattice axis a. Without lambda that hardly shows (a loaded bar does not strain across
+// itself); with it, the sides resist the lateral contraction too little, and a bar under uniaxial
+// stress thins more than -nu eps and yields. So with nu > 0 each particle's stencil also carries
+// k/2 sum_a D_ia e_aa^2 (e_aa the Green strain along a, k = alpha / h^2): the normal-strain energy
+// of every region is then an interior region's (the stretch with and without it:
+// docs/method.md). Rotation invariant, momentum exact, like the lambda term.
 //
 // The cap on alpha follows the stability of the sub-step. Linearised about rest, shape matching's
 // update is symplectic Euler on M u'' = -K u with (omega h)^2 <= alpha s_i for the modes a particle

@@ -50,8 +50,8 @@ TEST(SectionThickness, PlatesAndCubesReadTheirThickness) {
 }
 
 // A voxelized ball: its surface cells (the lattice's staircase) belong to the ball, not to thin
-// sections. Every cell reads the diameter d or d - 1 (measured: d - 1 for d = 8 to 20): the
-// voxel ball is narrower than d between its axes, where the staircase cuts in.
+// sections. Every cell reads the diameter d or d - 1: the voxel ball is narrower than d between
+// its axes, where the staircase cuts in.
 TEST(SectionThickness, ABallReadsItsDiameter) {
   for (int d : {8, 12, 16}) {
     const double r = 0.5 * d;

@@ -133,7 +133,7 @@ TEST(Solver, ConservesLinearAndAngularMomentum) {
   const double error0 = s.shapeError();
   for (int i = 0; i < 300; ++i) s.step();
   // Linear momentum: exact algebra; round-off of eps ~1e-16 in sums of ~100 terms accumulates
-  // linearly (measured ~4e-13 of the momentum scale per 1000 sub-steps), so 1e-11 over 1200.
+  // linearly, ~1e-14 of the momentum scale per sub-step at most, so 1e-11 over 1200.
   EXPECT_LT((s.linearMomentum() - P0).norm(), 1e-11 * pScale);
   // Angular momentum: exact when rotations are exact polar factors (R^T A symmetric); they
   // converge to 1e-13 rad.
@@ -383,7 +383,7 @@ TEST(Solver, ForcesDeliverExactlyTheirImpulse) {
 // Pins hold, and the cantilever they hold sags as far as linear elasticity says: a stubby bar
 // (12 x 4 x 4 cells, two layers pinned, w = 2) of E = 1152 Pa settled under a light load against
 // the FEM oracle on the same voxels, supported at the pinned particles. 10 %: the material's
-// accuracy on this case is 4 % (bench_material, "stubby"); E off by 2x is 2x off.
+// accuracy where the regions fit the section (SolverParams::youngsModulus); E off by 2x is 2x off.
 TEST(Solver, PinnedParticlesHoldTheCantileverUnderGravity) {
   const double E = 1152.0, g = 0.0123, h = 0.01;
   SolverParams p;

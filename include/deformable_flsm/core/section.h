@@ -4,11 +4,10 @@
 /// Why it matters: shape matching fits each region with one rotation, so a region that spans a
 /// bent section keeps the curvature inside it as well as the strain, an extra bending energy
 /// ~ E kappa^2 R^2 that does not depend on the section. Bending then comes out stiffer than the
-/// material's E by a factor that grows with (R / t)^2 (R the region radius, t the section): a
-/// cantilever of L/t 8 against linear FEM on the same voxels (bench_material, nu = 0) deflects
-/// 0.90 of the oracle at w / t = 1/2, 0.71 at 3/4, 0.62 at 1 and 0.47 at 3/2, and within 10 % when
-/// the region (2w + 1 cells wide) is no wider than the section. Axial loads (a column, a stretched
-/// bar) do not care.
+/// material's E by a factor that grows with (R / t)^2 (R the region radius, t the section), and
+/// stays close to E when the region (2w + 1 cells wide) is no wider than the section (the
+/// cantilevers against linear FEM on the same voxels: docs/method.md, "Accuracy against the
+/// oracle"). Axial loads (a column, a stretched bar) do not care.
 #pragma once
 
 #include "deformable_flsm/core/solver_params.h"
@@ -27,7 +26,7 @@ constexpr double kThinSectionFraction = 0.05;
 
 /// Largest bounding box (cells, one of padding on every side included) measureSectionThickness()
 /// takes: it needs ~45 bytes per cell of the box (a distance transform on the half-cell grid),
-/// ~380 MB here. The bunny at 195k particles spans 99 x 99 x 78 = 0.76 M.
+/// ~380 MB at this bound.
 constexpr int kMaxSectionGridCells = 1 << 23;
 
 /// Section thickness of every cell of a voxelization and the object's thinnest section.
@@ -74,9 +73,9 @@ SectionThickness measureSectionThickness(const Voxelization& voxels,
 /// faces) <= t / 2.
 ///
 /// Cost of a smaller w at the same Young's modulus: the asked alpha grows like 1 / (w (w + 1))
-/// while the cap on alpha grows less (1.49 / 1.29 / 0.88 at w 1 / 2 / 3 on a box), so a modulus
-/// near the cap needs more sub-steps, ~sqrt of the ratio (w 3 -> 1: about 1.9 times as many);
-/// the cost of a sub-step does not depend on w.
+/// while the cap on alpha grows less (docs/method.md gives the caps), so a modulus near the cap
+/// needs more sub-steps, ~sqrt of the ratio of the two growths; the cost of a sub-step does not
+/// depend on w.
 /// @throws std::invalid_argument for sectionCells < 1 or askedHalfWidth outside
 ///         [1, kMaxRegionHalfWidth]
 int regionHalfWidthForSection(int sectionCells, int askedHalfWidth);
@@ -84,9 +83,8 @@ int regionHalfWidthForSection(int sectionCells, int askedHalfWidth);
 /// How much stiffer than E bending comes out with regions of half-width w on a section of t
 /// cells: the inverse of the settled deflection over the FEM oracle's for slender cantilevers
 /// (L/t = 8, nu = 0, bench_material --quick --nu 0), interpolated linearly in w / t between the
-/// measured points (w / t, factor) = (1/4, 0.96), (1/2, 1.12), (3/4, 1.40), (1, 1.61),
-/// (3/2, 2.15) and held constant beyond them. An estimate for the start-up warning, not a
-/// correction: stubbier members and other loads bend less.
+/// points of that table (section.cpp) and held constant beyond them. An estimate for the
+/// start-up warning, not a correction: stubbier members and other loads bend less.
 /// @throws std::invalid_argument for sectionCells < 1 or regionHalfWidth < 1
 double bendingStiffeningEstimate(int regionHalfWidth, int sectionCells);
 

@@ -27,20 +27,17 @@ namespace deformable_flsm {
 /// follows w slices behind, its region data in a second ring, its x-sums handed to the kernel
 /// run by run. The working set is a few slices, not a few copies of the whole lattice.
 ///
-/// Slices wider than `bandParticles` (4096) are swept in bands of rows (y), one band after the
-/// other, so that the rings stay small whatever the lattice's cross-section (a slice of the
-/// 200k-particle bunny holds up to 5,252 particles, whose two rings at w = 2 take 10.6 MB): as
-/// few bands as keep every band-slice within kBandTarget (2560) particles, halo included, as
-/// even as that allows. Against whole slices, bands make a flat 100 x 100 x 20 box ~25 % cheaper
-/// per particle-step and the bunny at 200k 10-20 % (bench_solver); even bands are ~3 % cheaper
-/// than greedy ones of 4096. Slices that fit in 4096 stay whole: the 100k bunny's (up to
-/// ~3,300) cost 1.01-1.05x in bands of 2560, and bands much smaller cost more in halo than they
-/// save. A band computes the regions of its rows [y0, y1) from the data of rows
-/// [y0 - w, y1 + w) (the halo, generated twice), and the particle results of rows [y0 - w, y1 -
-/// w), which need the regions of rows [y0 - 2w, y1): the band below leaves its top 2w region
-/// rows in a boundary store. Regions and particle results are computed once; only the halo's
-/// data and the boundary rows' z-windows are redone (2w of every band's rows; bands are at least
-/// 2w rows high).
+/// Slices wider than kBandParticles are swept in bands of rows (y), one band after the other, so
+/// that the rings (2w + 2 planes of a slice each) stay in cache whatever the lattice's
+/// cross-section: as few bands as keep every band-slice within kBandTarget particles, halo
+/// included, as even as that allows (even bands leave no thin last band). Slices that fit stay
+/// whole: a band's halo is recomputed, so bands much smaller than a slice cost more in halo than
+/// they save (their cost: docs/performance.md). A band computes the regions of its rows [y0, y1)
+/// from the data of rows [y0 - w, y1 + w) (the halo, generated twice), and the particle results of
+/// rows [y0 - w, y1 - w), which need the regions of rows [y0 - 2w, y1): the band below leaves its
+/// top 2w region rows in a boundary store. Regions and particle results are computed once; only the
+/// halo's data and the boundary rows' z-windows are redone (2w of every band's rows; bands are at
+/// least 2w rows high).
 ///
 /// The z-windows restart (a direct sum over the window) every kBlock slices, and threads take
 /// whole blocks: every sum is the same sequence of additions for any thread count, and the

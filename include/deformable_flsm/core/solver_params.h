@@ -55,9 +55,9 @@ struct SolverParams {
   ///
   /// Accuracy against linear elasticity (FEM on the same voxels, bench_material): within 10 % for
   /// bending, compression and stretching when the regions (2w + 1 cells) are no wider than the
-  /// thinnest section; wider regions make bending stiffer (w = 3 on a section of 4 cells: 0.71
-  /// of the deflection). Choose w from the thinnest feature of the object: section.h measures
-  /// it and regionHalfWidthForSection() gives the widest regions that fit.
+  /// thinnest section; wider regions make bending stiffer (section.h says why; the figures are in
+  /// docs/method.md). Choose w from the thinnest feature of the object: section.h measures it and
+  /// regionHalfWidthForSection() gives the widest regions that fit.
   double youngsModulus = 0.0;
   /// Poisson's ratio nu of the material, in [0, 0.45] (physical mode only: with youngsModulus 0
   /// it must stay 0). Shape matching penalises every non-rigid deformation alike, the energy of
@@ -94,9 +94,10 @@ struct SolverParams {
   /// Threads a step uses (OpenMP); 0 for every hardware thread. Results do not depend on it:
   /// threads take whole blocks of z-slices, at whose starts every sliding window restarts, so
   /// each sum is the same sequence of additions (see SliceStreamSummer). Threads pay only on idle
-  /// cores (with another job on the second core two threads took 2 to 9 times one thread's
-  /// time), so with more than one the solver times its steps and runs each on the threads or on
-  /// one thread, whichever has been faster lately (ThreadGovernor, Solver::threadGovernor()).
+  /// cores (with another job on a core, threads that wait for each other cost several times one
+  /// thread: docs/performance.md), so with more than one the solver times its steps and runs each
+  /// on the threads or on one thread, whichever has been faster lately (ThreadGovernor,
+  /// Solver::threadGovernor()).
   int threads = 1;
 
   /// Radius (m) of the sphere each particle is for contact with colliders; 0 means half the

@@ -73,8 +73,8 @@ struct NodeParams {
   int regionHalfWidth = 0;
   /// ~region_from_section: narrow the regions (from ~region_radius or ~region_half_width) to the
   /// widest that are no wider than the object's thinnest section (core/section.h), so that
-  /// bending keeps the asked modulus (within 10 % of linear FEM on cantilevers, where regions
-  /// wider than the section are up to 2x too stiff). Narrower regions need more sub-steps for
+  /// bending keeps the asked modulus (within 10 % of linear FEM on cantilevers; regions wider
+  /// than the section bend too stiffly, core/section.h). Narrower regions need more sub-steps for
   /// the same modulus near the cap (the node warns when they do). false: the regions as asked,
   /// with a warning when they are wider than the thinnest section.
   bool regionFromSection = true;
@@ -101,8 +101,9 @@ struct NodeParams {
   double publishRate = 30.0;
   /// ~republish_at_rest: at rest, keep sending the markers ~mesh and ~lattice at ~publish_rate
   /// (copies of the last state) instead of once; for consumers that expect a steady stream
-  /// (rate monitors, bag recording). Costs ~7 % of a core for the bunny's 5 MB mesh. The
-  /// clouds ~surface, ~particles, ~state and tf keep the rate at rest in any case.
+  /// (rate monitors, bag recording); it costs the mesh's serialisation at every tick
+  /// (docs/design.md). The clouds ~surface, ~particles, ~state and tf keep the rate at rest in
+  /// any case.
   bool republishAtRest = false;
   /// ~real_time_factor: simulated seconds per wall-clock second ((0, kMaxRealTimeFactor])
   double realTimeFactor = 1.0;

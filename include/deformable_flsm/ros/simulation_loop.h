@@ -33,18 +33,17 @@ struct LoopSettings {
   /// the rest of the simulated time it owes (reported as dropped steps), so that a machine that
   /// cannot keep up runs slower than real time instead of piling up a growing backlog.
   int maxCatchUpSteps = 4;
-  /// Rest means equilibrium, not slowness: the loop stops stepping (until a command arrives)
-  /// once no particle has moved farther than restFraction object sizes (Lattice::objectSize())
-  /// from where it was idleHold seconds of simulated time earlier, with no drag or force
-  /// acting. A speed threshold is not enough: a slow swing turns at its ends with almost no
-  /// speed for a second or more, far from where it settles (the soft cantilever of
-  /// test_simulation_loop's RestsOnlyAtEquilibrium, with a period of several seconds, was
-  /// declared still 9 % past its final deflection at 3.4 s; now it rests at 9.7 s, within
-  /// 0.1 %). Over a whole second, a swing
-  /// of amplitude A moves a particle by ~A (slow swings) to 2A (fast ones), and a creep moves
-  /// it by what the next second would add, so the object rests within ~restFraction sizes of
-  /// its equilibrium: 2e-5 is 7 um for the 33 cm bunny, far below what can be seen, and the
-  /// solver converges to its fixed point geometrically, so this costs seconds, not minutes.
+  /// Rest means equilibrium, not slowness: the loop stops stepping (until a command arrives) once
+  /// no particle has moved farther than restFraction object sizes (Lattice::objectSize()) from
+  /// where it was idleHold seconds of simulated time earlier, with no drag or force acting. A speed
+  /// threshold is not enough: a slow swing turns at its ends with almost no speed for a second or
+  /// more, far from where it settles (the soft cantilever of test_simulation_loop's
+  /// RestsOnlyAtEquilibrium, with a period of several seconds; figures in docs/design.md). Over a
+  /// whole second, a swing of amplitude A moves a particle by ~A (slow swings) to 2A (fast ones),
+  /// and a creep moves it by what the next second would add, so the object rests within
+  /// ~restFraction sizes of its equilibrium: 2e-5 is 7 um for the 33 cm bunny, far below what can
+  /// be seen, and the solver converges to its fixed point geometrically, so this costs seconds, not
+  /// minutes.
   /// idleHold <= 0 never rests.
   double restFraction = 2e-5;
   double idleHold = 1.0;
