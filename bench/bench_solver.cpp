@@ -47,7 +47,7 @@ using namespace deformable_flsm;
 namespace {
 
 struct Args {
-  std::string mesh = "/usr/share/glmark2/models/bunny.obj";
+  std::string mesh = deformable_flsm::kBunnyMeshPath;
   std::size_t particles = 10000;
   int steps = 40;
   int repeats = 11;

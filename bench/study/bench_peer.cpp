@@ -65,7 +65,7 @@ constexpr double kStudyBulletRatio = 0.318316;
 constexpr double kCollapsedVolume = 0.5;
 
 struct Args {
-  std::string mesh = "/usr/share/glmark2/models/bunny.obj";
+  std::string mesh = deformable_flsm::kBunnyMeshPath;
   std::size_t particles = 10000;
   int repeats = 3;
   int halfWidth = 2;

@@ -117,7 +117,7 @@ constexpr int kSampleEvery = 6;
 
 struct Args {
   std::string out = "docs/study";
-  std::string mesh = "/usr/share/glmark2/models/bunny.obj";
+  std::string mesh = deformable_flsm::kBunnyMeshPath;
   int repeats = 3;
   bool quick = false;
   bool bullet = true;

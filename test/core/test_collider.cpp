@@ -19,7 +19,7 @@ using namespace deformable_flsm;
 
 namespace {
 
-const char* const kBunnyPath = "/usr/share/glmark2/models/bunny.obj";
+const char* const kBunnyPath = deformable_flsm::kBunnyMeshPath;
 
 ColliderShape box(const Eigen::Vector3d& half) {
   ColliderShape s;
@@ -251,7 +251,7 @@ TEST(MeshDistanceField, RefusesOpenMeshes) {
 }
 
 TEST(MeshDistanceField, BunnyInsideAndOutside) {
-  if (!std::filesystem::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing (package glmark2-data)";
+  ASSERT_TRUE(std::filesystem::exists(kBunnyPath)) << kBunnyPath << " missing: install glmark2-data (a test dependency)";
   const TriMesh bunny = loadMesh(kBunnyPath, 0.1);
   const MeshDistanceField field(bunny, 32);
   // Voxelization: cells whose centre is inside by parity; the field must agree for centres more

@@ -22,7 +22,7 @@ using namespace deformable_flsm;
 
 namespace {
 
-const char* const kBunnyPath = "/usr/share/glmark2/models/bunny.obj";
+const char* const kBunnyPath = deformable_flsm::kBunnyMeshPath;
 constexpr double kG = 9.81;
 
 /// The bunny file's ~2-unit bunny at 0.1 (about 20 cm), turned from Y-up to Z-up.
@@ -261,7 +261,7 @@ TEST(Contact, TurntableCarriesTheBlockByFriction) {
 }
 
 TEST(Contact, WrenchesDoNotDependOnTheThreadCount) {
-  if (!std::filesystem::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing (package glmark2-data)";
+  ASSERT_TRUE(std::filesystem::exists(kBunnyPath)) << kBunnyPath << " missing: install glmark2-data (a test dependency)";
   const BunnyScene scene = bunnyScene();
   SolverParams p1 = sceneParams(*scene.lattice);
   SolverParams p2 = p1;
@@ -292,7 +292,7 @@ TEST(Contact, WrenchesDoNotDependOnTheThreadCount) {
 // --- scenes ----------------------------------------------------------------------------------
 
 TEST(ContactScene, BunnyDroppedOnTheGroundComesToRest) {
-  if (!std::filesystem::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing (package glmark2-data)";
+  ASSERT_TRUE(std::filesystem::exists(kBunnyPath)) << kBunnyPath << " missing: install glmark2-data (a test dependency)";
   const BunnyScene scene = bunnyScene();
   Solver s(scene.lattice, sceneParams(*scene.lattice));
   const Collider ground = groundBelow(s, 0.10);
@@ -470,7 +470,7 @@ GraspResult grasp(const BunnyScene& scene, double mu) {
 }  // namespace
 
 TEST(ContactScene, TwoFingersLiftTheBunnyWithFrictionAndLoseItWithout) {
-  if (!std::filesystem::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing (package glmark2-data)";
+  ASSERT_TRUE(std::filesystem::exists(kBunnyPath)) << kBunnyPath << " missing: install glmark2-data (a test dependency)";
   const BunnyScene scene = bunnyScene();
   const GraspResult held = grasp(scene, 1.0);
   std::printf("[ grasp   ] mu 1: lifted %.1f mm, slip %.2f mm over the 5 s hold, fingers carry %.2f %% of the "
@@ -488,7 +488,7 @@ TEST(ContactScene, TwoFingersLiftTheBunnyWithFrictionAndLoseItWithout) {
 }
 
 TEST(ContactScene, SpherePressedIntoTheBunnyMeetsAGrowingReaction) {
-  if (!std::filesystem::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing (package glmark2-data)";
+  ASSERT_TRUE(std::filesystem::exists(kBunnyPath)) << kBunnyPath << " missing: install glmark2-data (a test dependency)";
   const BunnyScene scene = bunnyScene();
   Solver s(scene.lattice, sceneParams(*scene.lattice));
   s.setCollider("ground", groundBelow(s, 0.0));
@@ -541,7 +541,7 @@ double recoveryError(Solver& s, double seconds) {
 }  // namespace
 
 TEST(ContactScene, AbuseLeavesTheBunnyFiniteAndItRecoversItsShape) {
-  if (!std::filesystem::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing (package glmark2-data)";
+  ASSERT_TRUE(std::filesystem::exists(kBunnyPath)) << kBunnyPath << " missing: install glmark2-data (a test dependency)";
   const BunnyScene scene = bunnyScene();
   const double recovered = 0.01;  // shapeError below 1 % of the size, as the stress scenarios ask
   {  // squeezed to 2 cm between two boxes

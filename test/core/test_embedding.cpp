@@ -102,8 +102,8 @@ TEST(Embedding, InteriorVerticesFollowAnyAffineDeformation) {
 }
 
 TEST(Embedding, BunnyRestAndRigidMotionAreExact) {
-  const std::string path = "/usr/share/glmark2/models/bunny.obj";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " missing (package glmark2-data)";
+  const std::string path = deformable_flsm::kBunnyMeshPath;
+  ASSERT_TRUE(std::filesystem::exists(path)) << path << " missing: install glmark2-data (a test dependency)";
   const auto mesh = deformable_flsm::loadMesh(path, 0.1);
   deformable_flsm::VoxelizeOptions opts;
   opts.resolution = 20;

@@ -26,7 +26,7 @@ using test::signedVolume;
 
 namespace fs = std::filesystem;
 
-const char* const kBunnyPath = "/usr/share/glmark2/models/bunny.obj";
+const char* const kBunnyPath = deformable_flsm::kBunnyMeshPath;
 
 /// Corners of the unit cube [0, 1]^3; corner v has coordinates (v & 1, (v >> 1) & 1, v >> 2).
 std::vector<Eigen::Vector3d> cubeCorners() {
@@ -278,7 +278,7 @@ TEST_F(MeshFileTest, ColladaNodeTransformsAreAppliedAndMeshesMerged) {
 }
 
 TEST(LoadMesh, StanfordBunnyFromGlmark2IsClosed) {
-  if (!fs::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing (install glmark2-data)";
+  ASSERT_TRUE(fs::exists(kBunnyPath)) << kBunnyPath << " missing: install glmark2-data (a test dependency)";
   const TriMesh bunny = loadMesh(kBunnyPath);
   // The file has 34,835 distinct positions and 69,666 triangles; welding finds no duplicates and
   // no degenerate triangles, so both counts are those of the file.
@@ -313,8 +313,8 @@ TEST_F(MeshFileTest, Glmark2JobjIsReadFromItsIndexLines) {
 }
 
 TEST(LoadMesh, Glmark2JellyfishLoads) {
-  const char* const path = "/usr/share/glmark2/models/jellyfish.jobj";
-  if (!fs::exists(path)) GTEST_SKIP() << path << " missing (install glmark2-data)";
+  const std::string path = std::string(deformable_flsm::kGlmark2ModelDirectory) + "/jellyfish.jobj";
+  ASSERT_TRUE(fs::exists(path)) << path << " missing: install glmark2-data (a test dependency)";
   const TriMesh jellyfish = loadMesh(path);
   EXPECT_GT(jellyfish.triangles.size(), 1000u);  // 13,200 index lines: 4400 triangles
   EXPECT_LE(jellyfish.triangles.size(), 4400u);

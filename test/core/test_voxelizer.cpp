@@ -28,7 +28,7 @@ namespace {
 
 using test::signedVolume;
 
-const char* const kBunnyPath = "/usr/share/glmark2/models/bunny.obj";
+const char* const kBunnyPath = deformable_flsm::kBunnyMeshPath;
 
 
 TriMesh unitCube() { return test::boxMesh(Eigen::Vector3d::Zero(), Eigen::Vector3d::Ones()); }
@@ -508,7 +508,7 @@ TEST(TriangleBoxOverlap, AgreesWithDenseSamplingOnRandomTriangles) {
 }
 
 TEST(Voxelize, StanfordBunnyAtResolution30) {
-  if (!std::filesystem::exists(kBunnyPath)) GTEST_SKIP() << kBunnyPath << " missing";
+  ASSERT_TRUE(std::filesystem::exists(kBunnyPath)) << kBunnyPath << " missing: install glmark2-data (a test dependency)";
   const TriMesh bunny = loadMesh(kBunnyPath);
   const auto start = std::chrono::steady_clock::now();
   const Voxelization v = voxelize(bunny, withResolution(30));

@@ -12,6 +12,12 @@
 
 namespace deformable_flsm {
 
+/// Where Debian's glmark2-data installs its models (bunny.obj, horse.3ds, jellyfish.jobj, ...).
+constexpr const char* kGlmark2ModelDirectory = "/usr/share/glmark2/models";
+/// The Stanford bunny of glmark2-data (about 2 units tall, Y up): the node's default mesh and
+/// the tests' and benchmarks' fixture.
+constexpr const char* kBunnyMeshPath = "/usr/share/glmark2/models/bunny.obj";
+
 /// Thrown for a mesh that cannot be used; the message names the file and what to fix.
 class MeshError : public std::runtime_error {
  public:

@@ -40,7 +40,7 @@ struct Box {
 /// else w = 2.
 struct NodeParams {
   /// Default render mesh: the Stanford bunny shipped by Debian's glmark2-data.
-  static constexpr const char* kDefaultMesh = "/usr/share/glmark2/models/bunny.obj";
+  static constexpr const char* kDefaultMesh = kBunnyMeshPath;
 
   // --- the object -------------------------------------------------------------------------
   /// ~mesh: a file path or a package://<pkg>/<path> or file:// URL
