@@ -1,6 +1,7 @@
 #include "deformable_flsm/ros/collider_command_validator.h"
 
 #include "refusal.h"
+#include "to_eigen.h"
 
 #include "deformable_flsm/ros/collider_params.h"
 
@@ -18,9 +19,6 @@ using refusal::str;
 /// A quaternion shorter than this is refused rather than normalised.
 constexpr double kMinQuaternionNorm = 1e-6;
 
-Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return {p.x, p.y, p.z}; }
-Eigen::Vector3d toEigen(const geometry_msgs::Vector3& v) { return {v.x, v.y, v.z}; }
-
 /// The message's pose, checked: finite, non-zero quaternion (normalised).
 bool toPose(const ColliderCommand& msg, Eigen::Isometry3d& pose, Rejection& why) {
   const geometry_msgs::Quaternion& q = msg.pose.orientation;
@@ -32,7 +30,9 @@ bool toPose(const ColliderCommand& msg, Eigen::Isometry3d& pose, Rejection& why)
     return refuse(why, "bad_orientation",
                   "collider '" + msg.id + "': the pose's quaternion is zero: give a unit "
                   "quaternion (w = 1 for no rotation)");
-  pose = Eigen::Translation3d(position) * Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized();
+  Eigen::Quaterniond rotation;
+  tf2::fromMsg(q, rotation);
+  pose = Eigen::Translation3d(position) * rotation.normalized();
   return true;
 }
 

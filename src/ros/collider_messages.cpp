@@ -43,14 +43,6 @@ void setScale(visualization_msgs::Marker& m, double x, double y, double z) {
   m.scale.z = z;
 }
 
-geometry_msgs::Vector3 toVector(const Eigen::Vector3d& v) {
-  geometry_msgs::Vector3 out;
-  out.x = v.x();
-  out.y = v.y();
-  out.z = v.z();
-  return out;
-}
-
 }  // namespace
 
 void fillColliderMarkers(const std::map<std::string, Collider>& colliders,
@@ -108,13 +100,7 @@ void fillColliderMarkers(const std::map<std::string, Collider>& colliders,
         if (s.mesh) {
           m.points.reserve(3 * s.mesh->triangles.size());
           for (const auto& t : s.mesh->triangles) {
-            for (const std::uint32_t v : t) {
-              geometry_msgs::Point p;
-              p.x = s.mesh->vertices[v].x();
-              p.y = s.mesh->vertices[v].y();
-              p.z = s.mesh->vertices[v].z();
-              m.points.push_back(p);
-            }
+            for (const std::uint32_t v : t) m.points.push_back(tf2::toMsg(s.mesh->vertices[v]));
           }
         }
         markers.markers.push_back(m);
@@ -139,8 +125,8 @@ void fillContactWrenches(const std::map<std::string, Collider>& colliders,
     geometry_msgs::WrenchStamped ws;
     ws.header.stamp = stamp;
     ws.header.frame_id = colliderFrameId(entry.first);
-    ws.wrench.force = toVector(colliderFromSim * cw.force);
-    ws.wrench.torque = toVector(colliderFromSim * cw.torque);
+    tf2::toMsg(Eigen::Vector3d(colliderFromSim * cw.force), ws.wrench.force);
+    tf2::toMsg(Eigen::Vector3d(colliderFromSim * cw.torque), ws.wrench.torque);
     out.ids.push_back(entry.first);
     out.wrenches.push_back(ws);
     out.contacts.push_back(static_cast<std::uint32_t>(cw.contacts));

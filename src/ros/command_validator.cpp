@@ -1,6 +1,7 @@
 #include "deformable_flsm/ros/command_validator.h"
 
 #include "refusal.h"
+#include "to_eigen.h"
 
 #include <cctype>
 #include <cmath>
@@ -13,9 +14,6 @@ namespace {
 
 using refusal::refuse;
 using refusal::str;
-
-Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return {p.x, p.y, p.z}; }
-Eigen::Vector3d toEigen(const geometry_msgs::Vector3& v) { return {v.x, v.y, v.z}; }
 
 bool validId(const std::string& id) {
   if (id.empty() || id.size() > CommandLimits::kMaxIdLength) return false;

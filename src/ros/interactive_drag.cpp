@@ -2,6 +2,7 @@
 
 #include "deformable_flsm/ros/mesh_messages.h"
 #include "deformable_flsm/ros/render_mesh.h"
+#include "to_eigen.h"
 
 #include <tf2_eigen/tf2_eigen.h>
 #include <visualization_msgs/InteractiveMarker.h>
@@ -45,16 +46,6 @@ void offsetAlongNormals(TriMesh& mesh, double offset) {
   computeVertexNormals(mesh.vertices, mesh.triangles, normals);  // unit, or zero where no area
   for (std::size_t v = 0; v < mesh.vertices.size(); ++v) mesh.vertices[v] += offset * normals[v];
 }
-
-geometry_msgs::Point toPoint(const Eigen::Vector3d& v) {
-  geometry_msgs::Point p;
-  p.x = v.x();
-  p.y = v.y();
-  p.z = v.z();
-  return p;
-}
-
-Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return {p.x, p.y, p.z}; }
 
 Eigen::Vector3d restCenterOfMass(const Lattice& L) {
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
@@ -134,7 +125,7 @@ void InteractiveDrag::onFeedback(const visualization_msgs::InteractiveMarkerFeed
     case InteractiveMarkerFeedback::POSE_UPDATE:
       if (!dragging_) return;
       drag.action = DragCommand::MOVE;
-      drag.target = toPoint(grabPoint_ + (pose - grabPose_));
+      drag.target = tf2::toMsg(Eigen::Vector3d(grabPoint_ + (pose - grabPose_)));
       break;
     case InteractiveMarkerFeedback::MOUSE_UP:
       if (!dragging_) return;

@@ -1,6 +1,7 @@
 #include "deformable_flsm/ros/mesh_messages.h"
 
 #include <sensor_msgs/point_cloud2_iterator.h>
+#include <tf2_eigen/tf2_eigen.h>
 
 #include <cmath>
 
@@ -30,13 +31,7 @@ void setTriangleListPoints(const std::vector<Eigen::Vector3d>& vertices,
   marker.points.resize(3 * triangles.size());
   std::size_t k = 0;
   for (const auto& tri : triangles) {
-    for (const std::uint32_t v : tri) {
-      const Eigen::Vector3d& x = vertices[v];
-      geometry_msgs::Point& p = marker.points[k++];
-      p.x = x.x();
-      p.y = x.y();
-      p.z = x.z();
-    }
+    for (const std::uint32_t v : tri) marker.points[k++] = tf2::toMsg(vertices[v]);
   }
 }
 
@@ -114,12 +109,6 @@ void initListMarker(visualization_msgs::Marker& m, const char* ns, int id, int t
   m.color.a = color[3];
 }
 
-void setPoint(geometry_msgs::Point& p, const Eigen::Vector3d& x) {
-  p.x = x.x();
-  p.y = x.y();
-  p.z = x.z();
-}
-
 /// ADD when there is something to show, DELETE otherwise (RViz refuses empty lists).
 void setAction(visualization_msgs::Marker& m) {
   m.action = m.points.empty() ? visualization_msgs::Marker::DELETE
@@ -154,14 +143,14 @@ void fillLatticeMarkers(const std::vector<Eigen::Vector3d>& positions,
   held.points.resize(nPinned);
   std::size_t f = 0, h = 0;
   for (std::size_t i = 0; i < positions.size(); ++i) {
-    setPoint(pinned[i] ? held.points[h++] : free.points[f++], positions[i]);
+    (pinned[i] ? held.points[h++] : free.points[f++]) = tf2::toMsg(positions[i]);
   }
   lines.points.resize(2 * drags.size());
   targets.points.resize(drags.size());
   for (std::size_t d = 0; d < drags.size(); ++d) {
-    setPoint(lines.points[2 * d], drags[d].first);
-    setPoint(lines.points[2 * d + 1], drags[d].second);
-    setPoint(targets.points[d], drags[d].second);
+    lines.points[2 * d] = tf2::toMsg(drags[d].first);
+    lines.points[2 * d + 1] = tf2::toMsg(drags[d].second);
+    targets.points[d] = tf2::toMsg(drags[d].second);
   }
   for (Marker& m : markers.markers) setAction(m);
 }

@@ -1,5 +1,7 @@
 #include "deformable_flsm/ros/simulator_node.h"
 
+#include "to_eigen.h"
+
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/console.h>
 #include <tf2/exceptions.h>
@@ -32,8 +34,6 @@ constexpr double kRejectPeriod = 1.0;  // s between two rejection warnings
 /// its drags hold still (as colliders that follow a frame do, ColliderFollower::kStaleAfter).
 constexpr double kAttachStaleAfter = 0.5;
 constexpr double kAttachWarnPeriod = 5.0;  // s between two warnings about attached frames
-
-Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return {p.x, p.y, p.z}; }
 
 }  // namespace
 
@@ -169,12 +169,11 @@ bool SimulatorNode::attachedFrame(const std::string& frame, Eigen::Isometry3d& s
     return false;
   }
   // tf accepts quaternions normalised to within 1 %: the drag needs an exact rotation.
-  const geometry_msgs::Quaternion& r = t.transform.rotation;
-  const geometry_msgs::Vector3& p = t.transform.translation;
-  Eigen::Quaterniond q(r.w, r.x, r.y, r.z);
+  Eigen::Quaterniond q;
+  tf2::fromMsg(t.transform.rotation, q);
   if (!(q.norm() > 0.0)) return false;
   q.normalize();
-  simFromFrame = Eigen::Translation3d(p.x, p.y, p.z) * q;
+  simFromFrame = Eigen::Translation3d(toEigen(t.transform.translation)) * q;
   return simFromFrame.matrix().allFinite();
 }
 
