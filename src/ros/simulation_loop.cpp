@@ -68,8 +68,9 @@ CommandOutcome accepted(std::string message, std::size_t particles = 0) {
 }  // namespace
 
 SimulationLoop::SimulationLoop(std::unique_ptr<Solver> solver, const LoopSettings& settings,
-                               std::shared_ptr<CommandStats> stats)
+                               std::shared_ptr<CommandStats> stats, std::shared_ptr<LoopClock> clock)
     : solver_(std::move(solver)), settings_(settings), stats_(std::move(stats)),
+      clock_(clock ? std::move(clock) : std::make_shared<SteadyLoopClock>()),
       realTimeFactor_(settings.realTimeFactor) {
   if (!solver_) throw std::invalid_argument("SimulationLoop: no solver");
   if (!stats_) throw std::invalid_argument("SimulationLoop: no command statistics");
@@ -193,7 +194,7 @@ Eigen::Vector3d SimulationLoop::centerOfMass() const {
 }
 
 void SimulationLoop::run() {
-  Clock::time_point last = Clock::now();
+  Clock::time_point last = clock_->now();
   restartWindow(last);
   double owed = 0.0;  // simulated seconds due but not yet stepped
   std::vector<Command> batch;
@@ -218,14 +219,14 @@ void SimulationLoop::run() {
     if (rtf != diag_.requestedRealTimeFactor) {
       // A new pace: measure it afresh rather than average it with the old one.
       diag_.requestedRealTimeFactor = rtf;
-      restartWindow(Clock::now());
+      restartWindow(clock_->now());
     }
     if (idle_) {
       if (!acted && !woken) continue;  // only rejected commands: rest on
       // Awake: the time spent resting is not owed.
       idle_ = false;
       restartStillness();
-      last = Clock::now();
+      last = clock_->now();
       owed = 0.0;
       restartWindow(last);
       diag_.idle = false;
@@ -234,7 +235,7 @@ void SimulationLoop::run() {
       restartStillness();
     }
 
-    const Clock::time_point now = Clock::now();
+    const Clock::time_point now = clock_->now();
     owed += seconds(now - last) * rtf;
     last = now;
     const double dt = solver_->params().timeStep;
@@ -265,8 +266,10 @@ void SimulationLoop::run() {
     // Sleep until the next step is due, or until a command arrives.
     const double wait = std::max(0.0, (dt - owed) / rtf);
     std::unique_lock<std::mutex> lock(queueMutex_);
-    wakeUp_.wait_for(lock, std::chrono::duration<double>(wait),
-                     [&] { return stopRequested_ || wakeRequested_ || !queue_.empty(); });
+    clock_->waitUntil(lock, wakeUp_,
+                      clock_->now() + std::chrono::duration_cast<LoopClock::Duration>(
+                                          std::chrono::duration<double>(wait)),
+                      [&] { return stopRequested_ || wakeRequested_ || !queue_.empty(); });
   }
 }
 
@@ -296,9 +299,9 @@ void SimulationLoop::followFrames() {
 }
 
 void SimulationLoop::timedStep() {
-  const Clock::time_point t0 = Clock::now();
+  const Clock::time_point t0 = clock_->now();
   solver_->step();
-  const Clock::time_point t1 = Clock::now();
+  const Clock::time_point t1 = clock_->now();
   ++diag_.steps;
   const double dt = solver_->params().timeStep;
   ensureFinite();

@@ -37,12 +37,12 @@ SolverParams weightless() {
 
 struct Rig {
   explicit Rig(LoopSettings settings = LoopSettings(), SolverParams params = weightless(),
-               int n = 6) {
+               int n = 6, std::shared_ptr<LoopClock> clock = nullptr) {
     auto lattice = std::make_shared<const Lattice>(makeBox(n, n, n, 0.01), 1000.0, params.regionHalfWidth);
     auto s = std::make_unique<Solver>(lattice, params);
     solver = s.get();
     stats = std::make_shared<CommandStats>();
-    loop = std::make_unique<SimulationLoop>(std::move(s), settings, stats);
+    loop = std::make_unique<SimulationLoop>(std::move(s), settings, stats, std::move(clock));
   }
   /// Pins the particle farthest from particle 0 (before start()): ambient damping acts on the
   /// motion relative to a free object's rigid motion, so a free box would keep the momentum a drag
@@ -412,77 +412,103 @@ TEST(SimulationLoop, RestsOnlyAtEquilibrium) {
       << "declared at rest at " << s.diag.simTime << " s of simulated time";
 }
 
-TEST(SimulationLoop, PacedToTheWallClock) {
+/// The loop's clock moved by `seconds` once the loop waits on it; returns when the loop has
+/// stepped what that time asks and waits again.
+void advance(ManualLoopClock& clock, double seconds) {
+  ASSERT_TRUE(clock.advanceAndSettle(
+      std::chrono::duration_cast<LoopClock::Duration>(duration<double>(seconds))))
+      << "the loop did not wait on its clock again";
+}
+
+TEST(SimulationLoop, PacedToItsClock) {
+  // At half of real time, 1/50 s steps are due every 40 ms of the clock: one step per 40 ms,
+  // simulated time half the clock's, whatever the machine's load.
   LoopSettings settings;
   settings.idleHold = 0.0;  // never rest: this is about pacing
   settings.realTimeFactor = 0.5;
-  Rig rig(settings);
+  SolverParams p = weightless();
+  p.timeStep = 0.02;
+  auto clock = std::make_shared<ManualLoopClock>();
+  Rig rig(settings, p, 6, clock);
   rig.loop->start();
-  const Clock::time_point t0 = Clock::now();
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
-  const double wall = duration<double>(Clock::now() - t0).count();
+  for (int i = 1; i <= 40; ++i) {
+    advance(*clock, 0.04);
+    const LoopDiagnostics d = rig.loop->acquire().diag;
+    ASSERT_EQ(d.steps, static_cast<std::uint64_t>(i)) << "after " << 0.04 * i << " s of the clock";
+    EXPECT_NEAR(d.simTime, 0.02 * i, 1e-12);
+  }
   const LoopDiagnostics d = rig.loop->acquire().diag;
-  // Steps are whole 1/60 s; a loaded machine may fall behind by a few steps but never ahead.
-  EXPECT_LE(d.simTime, 0.5 * wall + 2.0 / 60.0);
-  EXPECT_GT(d.simTime, 0.5 * wall * 0.7);
-  EXPECT_NEAR(d.achievedRealTimeFactor, 0.5, 0.15);
+  EXPECT_NEAR(d.achievedRealTimeFactor, 0.5, 1e-9);
   EXPECT_EQ(d.droppedSteps, 0u);
 }
 
 TEST(SimulationLoop, ACommandIsSteppedAtOnceAndThePaceKept) {
-  // Steps of 0.1 s at a fifth of real time, 0.5 s apart: a command that had to wait for the next
-  // step would show up to 0.5 s late.
+  // Steps of 0.1 s at a fifth of real time, 0.5 s of the clock apart: a command that had to wait
+  // for the next step would show up to 0.5 s late. It is stepped at once, borrowing the next
+  // step's time, and the pace is kept: simulated time never leads the clock's by more than a step.
   LoopSettings settings;
   settings.idleHold = 0.0;
   settings.realTimeFactor = 0.2;
   SolverParams p = weightless();
   p.timeStep = 0.1;
-  Rig rig(settings, p);
+  auto clock = std::make_shared<ManualLoopClock>();
+  Rig rig(settings, p, 6, clock);
   rig.loop->start();
-  const Clock::time_point t0 = Clock::now();
-  ASSERT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.steps >= 1; }));  // just stepped
+  advance(*clock, 0.5);
+  ASSERT_EQ(rig.loop->acquire().diag.steps, 1u);
+  advance(*clock, 0.25);  // halfway to the next step
   const Eigen::Vector3d target = rig.loop->lattice().restPositions()[0] + Eigen::Vector3d(-0.01, 0, 0);
   GrabCommand g;
   g.id = "a";
   g.particle = 0;
   g.target = target;
-  const Clock::time_point sent = Clock::now();
+  std::uint64_t waits = clock->waits();
   ASSERT_TRUE(rig.run(g).accepted);
-  ASSERT_TRUE(rig.waitFor([&](const Snapshot& s) { return (s.positions[0] - target).norm() < 1e-9; }, 2.0));
-  EXPECT_LT(duration<double>(Clock::now() - sent).count(), 0.25);
-  // The borrowed step is paid back: simulated time never leads the clock by more than a step.
+  ASSERT_TRUE(clock->awaitWaitBeyond(waits));
+  // Stepped with the clock where it was: no time passed.
+  const Snapshot& s = rig.loop->acquire();
+  EXPECT_EQ(s.diag.steps, 2u);
+  EXPECT_LT((s.positions[0] - target).norm(), 1e-9);
+  double wall = 0.75;
+  EXPECT_LE(s.diag.simTime, 0.2 * wall + 0.1 + 1e-9);
+  // The borrowed step is paid back: the step due at 1.0 s of the clock was taken early, so the
+  // next comes at 1.5 s; moves in between are stepped at once only while that does not put
+  // simulated time more than a step ahead.
   for (int i = 0; i < 6; ++i) {
     MoveCommand m;
     m.id = "a";
     m.target = target + Eigen::Vector3d(0, 0.001 * i, 0);
+    waits = clock->waits();
     ASSERT_TRUE(rig.run(m).accepted);
-    std::this_thread::sleep_for(std::chrono::milliseconds(150));
-    const double wall = duration<double>(Clock::now() - t0).count();
-    EXPECT_LE(rig.loop->acquire().diag.simTime, 0.2 * wall + 0.1 + 1e-9);
+    ASSERT_TRUE(clock->awaitWaitBeyond(waits));
+    advance(*clock, 0.15);
+    wall += 0.15;
+    const double simTime = rig.loop->acquire().diag.simTime;
+    EXPECT_LE(simTime, 0.2 * wall + 0.1 + 1e-9) << "at " << wall << " s of the clock";
+    EXPECT_GE(simTime, 0.2 * wall - 0.1 - 1e-9) << "at " << wall << " s of the clock";
   }
-  const double wall = duration<double>(Clock::now() - t0).count();
-  EXPECT_GT(rig.loop->acquire().diag.simTime, 0.2 * wall - 0.2);
 }
 
 TEST(SimulationLoop, ASlowMachineDropsDebtInsteadOfSpiralling) {
-  // Asking for 1000 x real time: every step is late. The loop must take at most
-  // maxCatchUpSteps at a time, drop the rest, keep answering commands, and report it.
+  // Asking for 1000 x real time: a second of the clock owes 60,000 steps. The loop takes at
+  // most maxCatchUpSteps at a time, drops the rest and reports them, and goes back to its
+  // commands.
   LoopSettings settings;
   settings.idleHold = 0.0;
   settings.realTimeFactor = 1000.0;
-  SolverParams p = weightless();
-  p.substeps = 20;
-  Rig rig(settings, p, 12);
+  auto clock = std::make_shared<ManualLoopClock>();
+  Rig rig(settings, weightless(), 6, clock);
   rig.loop->start();
-  std::this_thread::sleep_for(std::chrono::milliseconds(800));
-  const Clock::time_point t0 = Clock::now();
-  const CommandOutcome o = rig.run(ResetCommand{});
-  EXPECT_TRUE(o.accepted);
-  EXPECT_LT(duration<double>(Clock::now() - t0).count(), 1.0) << "commands starve";
-  const LoopDiagnostics d = rig.loop->acquire().diag;
-  EXPECT_GT(d.droppedSteps, 0u);
-  EXPECT_LT(d.achievedRealTimeFactor, 1000.0);
+  advance(*clock, 1.0);
+  LoopDiagnostics d = rig.loop->acquire().diag;
+  EXPECT_EQ(d.steps, static_cast<std::uint64_t>(settings.maxCatchUpSteps));
+  const double owed = 1000.0 / rig.solver->params().timeStep;  // steps owed by the second
+  EXPECT_NEAR(static_cast<double>(d.droppedSteps), owed - settings.maxCatchUpSteps, 1.0);
   EXPECT_GT(d.achievedRealTimeFactor, 0.0);
+  EXPECT_LT(d.achievedRealTimeFactor, 1000.0);
+  const std::uint64_t waits = clock->waits();
+  EXPECT_TRUE(rig.run(ResetCommand{}).accepted);
+  ASSERT_TRUE(clock->awaitWaitBeyond(waits));
 }
 
 TEST(SimulationLoop, NonFiniteStateIsResetNeverPublished) {

@@ -1,11 +1,12 @@
 /// @file simulation_loop.h
 /// The simulation thread: owns the solver, applies queued commands, steps at a fixed simulated
-/// time step paced to the wall clock, goes idle when nothing moves, and hands out snapshots of
+/// time step paced to its clock (LoopClock: the steady clock unless given another), goes idle when nothing moves, and hands out snapshots of
 /// the state. No ROS: the node feeds it validated commands and reads its snapshots.
 #pragma once
 
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/ros/commands.h"
+#include "deformable_flsm/ros/loop_clock.h"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -120,8 +121,9 @@ class SimulationLoop {
   /// @param[in] solver    the solver, ready (pins set); owned by the loop from now on
   /// @param[in] settings  pacing and idling
   /// @param[in] stats     where accepted and rejected commands are counted
+  /// @param[in] clock     what the loop paces itself by; nullptr for the steady clock
   SimulationLoop(std::unique_ptr<Solver> solver, const LoopSettings& settings,
-                 std::shared_ptr<CommandStats> stats);
+                 std::shared_ptr<CommandStats> stats, std::shared_ptr<LoopClock> clock = nullptr);
   /// Stops and joins the thread.
   ~SimulationLoop();
   SimulationLoop(const SimulationLoop&) = delete;
@@ -196,6 +198,7 @@ class SimulationLoop {
   const Lattice* lattice_ = nullptr;  // the solver's; immutable, so any thread may read it
   LoopSettings settings_;
   std::shared_ptr<CommandStats> stats_;
+  std::shared_ptr<LoopClock> clock_;
   Eigen::Vector3d restCenterOfMass_ = Eigen::Vector3d::Zero();
 
   // Command queue, shared with submitters.
