@@ -10,8 +10,9 @@ int main(int argc, char** argv) {
   ros::NodeHandle nh, pnh("~");
   try {
     using namespace deformable_flsm;
-    const NodeParams params = ParamLoader(pnh).loadNodeParams();
-    for (const std::string& name : ParamLoader(pnh).unknownParams()) {
+    const ParamLoader loader(pnh);
+    const NodeParams params = loader.loadNodeParams();
+    for (const std::string& name : loader.unknownParams()) {
       ROS_WARN("flsm_node: ~%s is not a parameter of flsm_node (misspelt?); ignored", name.c_str());
     }
     Scene scene = buildScene(params, loadMeshParam(params));

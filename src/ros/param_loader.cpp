@@ -229,15 +229,11 @@ NodeParams ParamLoader::loadNodeParams() const {
 }
 
 std::vector<std::string> ParamLoader::unknownParams() const {
-  // Read by loadNodeParams(), plus what dynamic_reconfigure keeps next to them.
-  static const char* const kKnown[] = {
-      "mesh", "mesh_scale", "mesh_rpy", "frame_id", "object_frame_id", "spacing", "resolution",
-      "particle_budget", "max_particles", "region_radius", "region_half_width",
-      "region_from_section", "stiffness",
-      "youngs_modulus", "poissons_ratio", "material", "damping", "ambient_damping", "gravity",
-      "time_step", "substeps", "density", "solver", "publish_rate", "republish_at_rest",
-      "real_time_factor", "pinned", "render_triangle_budget", "threads", "gravity_x", "gravity_y",
-      "gravity_z", "ground", "ground_clearance", "colliders", "contact_radius"};
+  // What dynamic_reconfigure keeps next to the parameters (cfg/Flsm.cfg): the rest of its names
+  // are parameters the node reads.
+  static const char* const kReconfigureOnly[] = {"gravity_x", "gravity_y", "gravity_z"};
+  std::vector<std::string> known(read_.begin(), read_.end());
+  known.insert(known.end(), std::begin(kReconfigureOnly), std::end(kReconfigureOnly));
   std::vector<std::string> all, unknown;
   ros::param::getParamNames(all);
   const std::string prefix = pnh_.getNamespace() + "/";
@@ -245,7 +241,7 @@ std::vector<std::string> ParamLoader::unknownParams() const {
     if (name.rfind(prefix, 0) != 0) continue;
     const std::string rest = name.substr(prefix.size());
     const std::string first = rest.substr(0, rest.find('/'));
-    if (std::find(std::begin(kKnown), std::end(kKnown), first) == std::end(kKnown) &&
+    if (std::find(known.begin(), known.end(), first) == known.end() &&
         std::find(unknown.begin(), unknown.end(), first) == unknown.end()) {
       unknown.push_back(first);
     }
@@ -254,6 +250,7 @@ std::vector<std::string> ParamLoader::unknownParams() const {
 }
 
 double ParamLoader::getDouble(const std::string& name, double fallback) const {
+  read_.push_back(name);
   if (!pnh_.hasParam(name)) {
     return fallback;
   }
@@ -266,6 +263,7 @@ double ParamLoader::getDouble(const std::string& name, double fallback) const {
 
 bool ParamLoader::getOfType(const std::string& name, XmlRpc::XmlRpcValue::Type type, const char* expected,
                             XmlRpc::XmlRpcValue& value) const {
+  read_.push_back(name);
   if (!pnh_.hasParam(name)) {
     return false;
   }
@@ -289,6 +287,7 @@ bool ParamLoader::getBool(const std::string& name, bool fallback) const {
 }
 
 std::string ParamLoader::getString(const std::string& name, const std::string& fallback) const {
+  read_.push_back(name);
   if (!pnh_.hasParam(name)) {
     return fallback;
   }
@@ -301,6 +300,7 @@ std::string ParamLoader::getString(const std::string& name, const std::string& f
 
 Eigen::Vector3d ParamLoader::getVector3(const std::string& name,
                                         const Eigen::Vector3d& fallback) const {
+  read_.push_back(name);
   if (!pnh_.hasParam(name)) {
     return fallback;
   }
@@ -316,6 +316,7 @@ Eigen::Vector3d ParamLoader::getVector3(const std::string& name,
 }
 
 std::vector<Box> ParamLoader::getBoxes(const std::string& name) const {
+  read_.push_back(name);
   std::vector<Box> boxes;
   if (!pnh_.hasParam(name)) {
     return boxes;
@@ -345,6 +346,7 @@ std::vector<Box> ParamLoader::getBoxes(const std::string& name) const {
 
 std::vector<ColliderSpec> ParamLoader::getColliders(const std::string& name,
                                                     const std::string& simFrame) const {
+  read_.push_back(name);
   if (!pnh_.hasParam(name)) {
     return {};
   }

@@ -154,8 +154,9 @@ class ParamLoader {
   /// @throws ParamError on a wrongly typed or invalid parameter.
   NodeParams loadNodeParams() const;
 
-  /// Names (without "~") of the private parameters set on the server that the node does not
-  /// read: most likely misspelt.
+  /// Names (without "~") of the private parameters set on the server that loadNodeParams(),
+  /// called before on this loader, did not read: most likely misspelt. Each name is written once,
+  /// where it is read.
   std::vector<std::string> unknownParams() const;
 
  private:
@@ -172,6 +173,8 @@ class ParamLoader {
   std::vector<ColliderSpec> getColliders(const std::string& name, const std::string& simFrame) const;
 
   ros::NodeHandle pnh_;
+  /// the names the getters were asked for, set or not (unknownParams())
+  mutable std::vector<std::string> read_;
 };
 
 /// Turns ~mesh into a file path: package://<pkg>/<rest> is resolved with rospack, file://<path>
