@@ -1,6 +1,10 @@
 /// @file solver.h
 /// The FastLSM dynamics (Rivers & James 2007): shape matching over lattice regions, region
 /// damping, external forces, pins and drags, advanced at a fixed time step.
+/// Its rooms: solver.cpp (rest state, the step, the region pass, integration and damping,
+/// queries and diagnostics), solver_material.cpp (region weights, the Poisson term, the cap on
+/// alpha), solver_commands.cpp (pins, drags and their frames, forces, impulses, the spring
+/// limit), solver_contact.cpp (colliders and the contact pass).
 #pragma once
 
 #include "deformable_flsm/core/collider.h"
@@ -238,12 +242,14 @@ class Solver : private RegionKernel {
   void regionPass(bool withDamping);
   /// the sub-step's update of the pinned and hard-dragged particles
   void finishSubstep(double h);
-  /// hardDragged_ from drags_
+  /// hardDragged_ from drags_ (solver_commands.cpp)
   void markHardDrags();
-  /// Stores a drag under `id`: offsets are the particles' positions in `frame`.
+  /// Stores a drag under `id`: offsets are the particles' positions in `frame`
+  /// (solver_commands.cpp).
   void addDrag(const std::string& id, const std::vector<std::uint32_t>& particles,
                const Eigen::Isometry3d& frame, const Eigen::Isometry3d& pose, double stiffness);
-  /// Every drag's frame at fraction `s` of the step from `reached` to `pose` (Drag::frame).
+  /// Every drag's frame at fraction `s` of the step from `reached` to `pose` (Drag::frame;
+  /// solver_commands.cpp).
   void interpolateDragFrames(double s);
   // RegionKernel
   int gatherChannels() const override;
@@ -251,6 +257,7 @@ class Solver : private RegionKernel {
   void particleData(std::size_t begin, std::size_t end, double* out) override;
   void regionData(std::size_t begin, std::size_t end, const double* sums, double* out) override;
   void particleResult(std::size_t begin, std::size_t end, const double* sums) override;
+  /// forceAccel_ from the timed forces and spring drags for a sub-step (solver_commands.cpp)
   void accumulateForces(double h);
   // --- contact (solver_contact.cpp) ---
   /// Collider poses at the start of a step, wrench accumulators cleared.
@@ -261,9 +268,11 @@ class Solver : private RegionKernel {
   void endContactStep();
   /// contactBodies_ and the reduction buffers after a change of colliders_.
   void rebuildContactBodies();
+  /// beta_r, the Poisson stencil and the cap on alpha (solver_material.cpp)
   void computeRegionWeights();
   /// summer_ (and singleSummer_) for params_.kind and threads_.
   void makeSummers();
+  /// accumulateForces()'s capacity, reserved when a command arrives (solver_commands.cpp)
   void reserveForcedParticles();
 
   std::shared_ptr<const Lattice> lattice_;
@@ -353,6 +362,7 @@ class Solver : private RegionKernel {
   std::vector<VolumetricStencil> stencil_;
   std::vector<std::array<Eigen::Vector3d, 3>> stencilForce_;  // G_ia = lambda V e_i F_ia / d_ia
   std::vector<Eigen::Vector3d> volumetricAccel_;
+  /// volumetricAccel_ from the Poisson term (solver_material.cpp)
   void computeVolumetricForces();
   std::vector<double> invWeightSum_;     // 1 / sum_{r contains i} beta_r
   std::vector<double> stiffnessFactor_;  // s_i = sum_{r contains i} beta_r / n_i
