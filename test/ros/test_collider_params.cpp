@@ -70,9 +70,13 @@ TEST(ColliderParams, ParsesEveryShapeWithItsPoseAndFriction) {
   list[2]["length"] = 0.08;
   list[3]["id"] = std::string("wall");
   list[3]["type"] = std::string("plane");
+  list[4]["id"] = std::string("post");
+  list[4]["type"] = std::string("cylinder");
+  list[4]["radius"] = 0.02;
+  list[4]["length"] = 0.3;
 
   const std::vector<ColliderSpec> specs = parseColliderList(list, "world");
-  ASSERT_EQ(specs.size(), 4u);
+  ASSERT_EQ(specs.size(), 5u);
   EXPECT_EQ(specs[0].id, "left_finger");
   EXPECT_EQ(specs[0].followFrame, "gripper");
   EXPECT_EQ(specs[0].collider.shape.type, ColliderType::Box);
@@ -87,6 +91,9 @@ TEST(ColliderParams, ParsesEveryShapeWithItsPoseAndFriction) {
   EXPECT_EQ(specs[2].collider.shape.radius, 1.0);
   EXPECT_DOUBLE_EQ(specs[2].collider.shape.halfLength, 0.04);
   EXPECT_EQ(specs[3].collider.shape.type, ColliderType::HalfSpace);
+  EXPECT_EQ(specs[4].collider.shape.type, ColliderType::Cylinder);
+  EXPECT_EQ(specs[4].collider.shape.radius, 0.02);
+  EXPECT_DOUBLE_EQ(specs[4].collider.shape.halfLength, 0.15) << "length is the full length";
 }
 
 TEST(ColliderParams, LoadsAMeshColliderWithItsDistanceField) {
@@ -110,7 +117,7 @@ TEST(ColliderParams, BadEntriesNameTheEntryAndTheField) {
   XmlRpc::XmlRpcValue l;
   l[0] = boxEntry("a");
   l[0]["type"] = std::string("cone");
-  expectMentions(parseError(l), {"entry 0", "'a'", "'cone'", "plane, box, sphere, capsule or mesh"});
+  expectMentions(parseError(l), {"entry 0", "'a'", "'cone'", "plane, box, sphere, capsule, cylinder or mesh"});
 
   l[0] = boxEntry("a");
   l[1] = boxEntry("b");
