@@ -69,7 +69,7 @@ void ColliderFollower::sample(const ros::Time& now, const Post& post, Report& re
     if (!problem.empty() && !e.seen) {
       // Not a miss: the frame has not appeared yet (a publisher still starting).
       if (!e.announced) {
-        report.waiting.push_back("collider '" + id + "' is waiting for its frame '" + e.frame + "'");
+        report.waiting.emplace_back(id, e.frame);
         e.announced = true;
       }
       ++it;

@@ -22,8 +22,8 @@ constexpr std::size_t kNamesPerLine = 8;
 
 std::string list(const std::vector<std::string>& items) {
   std::ostringstream out;
-  for (std::size_t i = 0; i < items.size() && i < kNamesPerLine; ++i) out << (i ? "; " : "") << items[i];
-  if (items.size() > kNamesPerLine) out << "; and " << items.size() - kNamesPerLine << " more";
+  for (std::size_t i = 0; i < items.size() && i < kNamesPerLine; ++i) out << (i ? ", " : "") << items[i];
+  if (items.size() > kNamesPerLine) out << ", and " << items.size() - kNamesPerLine << " more";
   return out.str();
 }
 
@@ -123,8 +123,13 @@ void ColliderTopics::onFollowTimer(const ros::TimerEvent&) {
       [this](const std::string& id, const ColliderMotion& m) { loop_.setColliderMotion(id, m); },
       report_);
   if (!report_.waiting.empty()) {
-    ROS_INFO("flsm_node: %s: each joins the simulation at its frame's first transform",
-             list(report_.waiting).c_str());
+    std::map<std::string, int> frames;  // frame -> colliders waiting for it
+    for (const auto& w : report_.waiting) ++frames[w.second];
+    std::vector<std::string> items;
+    for (const auto& f : frames) items.push_back("'" + f.first + "' (" + std::to_string(f.second) + ")");
+    ROS_INFO("flsm_node: %zu collider(s) wait for their tf frames %s: each joins the simulation "
+             "at its frame's first transform",
+             report_.waiting.size(), list(items).c_str());
   }
   if (!report_.excluded.empty()) {
     std::vector<std::string> links;

@@ -53,8 +53,8 @@ TEST(ColliderFollower, VelocityFromTheLastTwoTransformsOfTheOffsetPose) {
   EXPECT_TRUE(posted.motions.empty());
   EXPECT_TRUE(problems.empty());
   ASSERT_EQ(report.waiting.size(), 1u) << "one line per waiting collider, not one per sample";
-  EXPECT_NE(report.waiting[0].find("waiting for its frame 'finger'"), std::string::npos)
-      << report.waiting[0];
+  EXPECT_EQ(report.waiting[0].first, "s");
+  EXPECT_EQ(report.waiting[0].second, "finger");
   EXPECT_EQ(follower.misses(), 0u);
   EXPECT_EQ(follower.waiting(), 1u);
 

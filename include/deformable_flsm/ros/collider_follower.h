@@ -20,6 +20,7 @@
 #include <map>
 #include <mutex>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace deformable_flsm {
@@ -38,9 +39,9 @@ class ColliderFollower {
     /// followed frames that were seen before and are now unknown, stale or not finite (every
     /// sample while it lasts; each counted in misses())
     std::vector<std::string> problems;
-    /// colliders found waiting for a frame that has not appeared yet: each named once, at the
-    /// first sample that finds it waiting
-    std::vector<std::string> waiting;
+    /// colliders found waiting for a frame that has not appeared yet, as (id, frame): each
+    /// named once, at the first sample that finds it waiting
+    std::vector<std::pair<std::string, std::string>> waiting;
     /// colliders their Admit refused at their first transform: forgotten since
     std::vector<std::string> excluded;
     void clear() {
