@@ -2,8 +2,8 @@
 """An arm link swept through the object pushes it aside, with the real robot_state_publisher.
 
 test/ros/sweep_arm.urdf's arm is an upright cylinder on a prismatic joint along x, through the
-middle of the resting bunny; this test publishes the joint's states, sweeping it from x = -START
-to +START and holding it there. Checked: the arm touched the object; the object was pushed out of
+middle of the resting bunny; this test has the joint's states published (joint_states_player.py,
+a process of its own), sweeping it from x = -START to +START and holding it there. Checked: the arm touched the object; the object was pushed out of
 its way, by at least MIN_PUSH, in the direction opposite to the impulse the arm received (the sum
 of its ~contact_wrenches force over the sweep, link frame turned into the world with tf), as
 action and reaction must; in every ~particles cloud of the sweep, no particle's contact sphere
@@ -13,6 +13,10 @@ reset; and the URDF's link 'inside', a sphere at the world origin inside the res
 left out (~robot_exclude_overlapping, the default) instead of blowing the object apart.
 """
 
+import json
+import os
+import subprocess
+import sys
 import threading
 import time
 import unittest
@@ -22,13 +26,14 @@ import rospy
 import rostest
 import tf2_ros
 from sensor_msgs import point_cloud2
-from sensor_msgs.msg import JointState, PointCloud2
+from sensor_msgs.msg import PointCloud2
 
 from deformable_flsm.msg import ContactWrenches
 from flsm_testing import FlsmClient, finite
 
 PKG = 'deformable_flsm'
-# The arm's travel (m, from -START to +START along x) and how long it takes (s): 0.3 m/s.
+# The arm's travel (m, from -START to +START along x) and how long it takes (s): 0.3 m/s on
+# average (eased in and out).
 START, SWEEP = 0.3, 2.0
 # The arm's cylinder in the URDF: its axis at y = 0, radius ARM_RADIUS, from z = ARM_LOW to
 # ARM_HIGH (m); the inside link: a sphere of INSIDE_RADIUS at the origin.
@@ -58,13 +63,10 @@ class RobotSweepTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         rospy.init_node('test_robot_sweep')
-        cls.x = -START
         cls.lock = threading.Lock()
-        cls.pub = rospy.Publisher('/joint_states', JointState, queue_size=10)
-        cls.running = True
-        cls.thread = threading.Thread(target=cls.publish)
-        cls.thread.daemon = True
-        cls.thread.start()
+        player = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'joint_states_player.py')
+        cls.player = subprocess.Popen([sys.executable, player], stdin=subprocess.PIPE)
+        cls.play([(0.0, [-START])])
         cls.flsm = FlsmClient()
         cls.tf_buffer = tf2_ros.Buffer()
         cls.tf_listener = tf2_ros.TransformListener(cls.tf_buffer)
@@ -78,32 +80,21 @@ class RobotSweepTest(unittest.TestCase):
 
     @classmethod
     def tearDownClass(cls):
-        cls.running = False
-        cls.thread.join()
+        cls.player.stdin.close()
+        cls.player.wait(timeout=10.0)
 
     @classmethod
-    def publish(cls):
-        rate = rospy.Rate(100.0)
-        while cls.running and not rospy.is_shutdown():
-            msg = JointState()
-            msg.header.stamp = rospy.Time.now()
-            msg.name = ['sweep']
-            with cls.lock:
-                msg.position = [cls.x]
-            cls.pub.publish(msg)
-            rate.sleep()
+    def play(cls, waypoints):
+        """The sweep joint's waypoints [(t, [x])] from now on (see joint_states_player.py)."""
+        line = json.dumps({'names': ['sweep'], 'waypoints': waypoints})
+        cls.player.stdin.write((line + '\n').encode())
+        cls.player.stdin.flush()
 
     @classmethod
     def on_cloud(cls, msg):
         with cls.lock:
             if cls.recording:
                 cls.clouds.append(msg)
-
-    @classmethod
-    def set_x(cls, x):
-        """The sweep joint's position from now on (m)."""
-        with cls.lock:
-            cls.x = x
 
     @classmethod
     def on_wrenches(cls, msg):
@@ -131,13 +122,11 @@ class RobotSweepTest(unittest.TestCase):
         before = rest.mean(axis=0)
         with self.lock:
             type(self).recording = True
-        t0 = rospy.get_time()
-        while rospy.get_time() < t0 + SWEEP and not rospy.is_shutdown():
-            self.set_x(-START + 2 * START * (rospy.get_time() - t0) / SWEEP)
-            time.sleep(0.005)
-        self.set_x(START)
-        t1 = rospy.get_time()
-        time.sleep(2.0)
+        t0 = rospy.get_time() + 0.2
+        t1 = t0 + SWEEP
+        self.play([(t0, [-START]), (t1, [START])])
+        while rospy.get_time() < t1 + 2.0 and not rospy.is_shutdown():
+            time.sleep(0.05)
         with self.lock:
             type(self).recording = False
             clouds = list(self.clouds)
