@@ -5,7 +5,10 @@
 // the same load and deformation as standing on the ground, so that the shape matching does the
 // same work); the ground under the bunny; 8 primitives (the ground, two boxes, three spheres and
 // two capsules, each touching the bunny); the ground and a mesh collider (a second, rigid bunny
-// of half the size pressed into its side). A benchmark, not a test: it prints figures and never fails because
+// of half the size pressed into its side); a robot mostly far from the object: the ground and two
+// box fingers touching the bunny, without and with 22 more links beside it (tilted cylinders,
+// boxes, spheres and box meshes, as a URDF's collision model gives them, none within reach), to
+// show what the far links cost once the broad phase has skipped them. A benchmark, not a test: it prints figures and never fails because
 // the machine is slow. Entries run in turns, one run each per round, and each ratio is the median
 // of the ratios within a round, so that a busy spell of a shared machine hits all entries alike.
 //
@@ -94,6 +97,28 @@ Collider box(const Eigen::Vector3d& centre, const Eigen::Vector3d& half) {
   return c;
 }
 
+/// A cylinder whose axis (its frame's z) is turned by `turn`.
+Collider cylinder(const Eigen::Vector3d& centre, const Eigen::AngleAxisd& turn, double radius, double halfLength) {
+  Collider c;
+  c.shape.type = ColliderType::Cylinder;
+  c.shape.radius = radius;
+  c.shape.halfLength = halfLength;
+  c.pose.translation() = centre;
+  c.pose.linear() = turn.toRotationMatrix();
+  return c;
+}
+
+/// A closed box mesh of half extents `half` about the origin (a link's mesh collision shape).
+std::shared_ptr<const TriMesh> boxMesh(const Eigen::Vector3d& half) {
+  auto m = std::make_shared<TriMesh>();
+  for (int k = 0; k < 8; ++k)
+    m->vertices.emplace_back((k & 1 ? 1 : -1) * half.x(), (k & 2 ? 1 : -1) * half.y(), (k & 4 ? 1 : -1) * half.z());
+  // two counter-clockwise triangles per face, seen from outside
+  m->triangles = {{0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}, {0, 1, 5}, {0, 5, 4},
+                  {2, 6, 7}, {2, 7, 3}, {0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}};
+  return m;
+}
+
 /// A capsule whose axis (its frame's z) is turned by `turn`.
 Collider capsule(const Eigen::Vector3d& centre, const Eigen::AngleAxisd& turn, double radius, double halfLength) {
   Collider c;
@@ -127,11 +152,13 @@ int main(int argc, char** argv) {
   Collider ground;
   ground.pose.translation() = Eigen::Vector3d(0, 0, lo.z() - touch);
 
-  std::vector<Entry> entries(4);
+  std::vector<Entry> entries(6);
   entries[0].name = "none (pinned)";
   entries[1].name = "ground";
   entries[2].name = "8 primitives";
   entries[3].name = "ground + mesh";
+  entries[4].name = "2 fingers";
+  entries[5].name = "24-link robot";
   for (Entry& e : entries) e.solver = std::make_unique<Solver>(lattice, p);
   entries[0].solver->pinBox(Eigen::Vector3d::Constant(-1e9), Eigen::Vector3d(1e9, 1e9, lo.z() + 0.5 * vox.spacing), true);
   entries[1].solver->setCollider("ground", ground);
@@ -167,6 +194,39 @@ int main(int argc, char** argv) {
     s.setCollider("ground", ground);
     s.setCollider("rigid_bunny", rigid);
   }
+  // A robot: two box fingers gripping the bunny's sides (with the ground), then the same with
+  // 22 more links spread along an arm that reaches toward it from the +x, +y side and stops
+  // 5 cm or more short of its bounds.
+  for (int k : {4, 5}) {
+    Solver& s = *entries[k].solver;
+    s.setCollider("ground", ground);
+    const Eigen::Vector3d half(0.04, 0.01, 0.04);
+    s.setCollider("robot/finger_left/0", box(Eigen::Vector3d(mid.x(), lo.y() - touch - half.y(), mid.z()), half));
+    s.setCollider("robot/finger_right/0", box(Eigen::Vector3d(mid.x(), hi.y() + touch + half.y(), mid.z()), half));
+  }
+  {
+    Solver& s = *entries[5].solver;
+    const auto meshLink = boxMesh(Eigen::Vector3d(0.03, 0.02, 0.05));
+    for (int k = 0; k < 22; ++k) {
+      // along the arm, from 0.8 m away to 5 cm from the bunny's bounds, turning as it goes
+      const double t = k / 21.0;
+      const double reach = 0.05 + 0.75 * (1.0 - t);
+      const Eigen::Vector3d centre = hi + Eigen::Vector3d(reach + 0.06, reach + 0.06, 0.1 * t);
+      const Eigen::AngleAxisd turn(0.4 * k, Eigen::Vector3d(1, 2, 3).normalized());
+      Collider c;
+      switch (k % 4) {
+        case 0: c = cylinder(centre, turn, 0.04, 0.06); break;
+        case 1: c = box(centre, Eigen::Vector3d(0.03, 0.04, 0.05)); c.pose.linear() = turn.toRotationMatrix(); break;
+        case 2: c = sphere(centre, 0.05); break;
+        default:
+          c.shape.type = ColliderType::Mesh;
+          c.shape.mesh = meshLink;
+          c.pose.translation() = centre;
+          c.pose.linear() = turn.toRotationMatrix();
+      }
+      s.setCollider("robot/link" + std::to_string(k) + "/0", c);
+    }
+  }
   const int steps = stepsPerRun(lattice->size());
   for (int i = 0; i < 3; ++i)
     for (Entry& e : entries) run(e, steps);  // warm-up: the bunny settles against its colliders
@@ -184,5 +244,14 @@ int main(int argc, char** argv) {
     std::printf("%16s %12.1f %10.3f %10zu %10.2f\n", e.name.c_str(), ns, median(ratio), e.contacts,
                 ns * p.substeps * double(lattice->size()) * 1e-6);
   }
+  // The far links' own cost: the robot against its two fingers alone, and against the ground
+  // alone (no robot), each the median of the ratios within a round.
+  const auto versus = [&](const Entry& a, const Entry& b) {
+    std::vector<double> ratio;
+    for (std::size_t i = 0; i < a.samples.size(); ++i) ratio.push_back(a.samples[i] / b.samples[i]);
+    return median(ratio);
+  };
+  std::printf("\n24-link robot (22 links far) / 2 fingers: %.3f\n", versus(entries[5], entries[4]));
+  std::printf("24-link robot / ground (no robot):       %.3f\n", versus(entries[5], entries[1]));
   return 0;
 }

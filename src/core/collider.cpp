@@ -24,9 +24,10 @@ ColliderType parseColliderType(const std::string& name) {
   if (name == "box") return ColliderType::Box;
   if (name == "sphere") return ColliderType::Sphere;
   if (name == "capsule") return ColliderType::Capsule;
+  if (name == "cylinder") return ColliderType::Cylinder;
   if (name == "mesh") return ColliderType::Mesh;
   throw std::invalid_argument("unknown collider type '" + name +
-                              "': expected plane (or half_space), box, sphere, capsule or mesh");
+                              "': expected plane (or half_space), box, sphere, capsule, cylinder or mesh");
 }
 
 const char* toString(ColliderType type) {
@@ -35,6 +36,7 @@ const char* toString(ColliderType type) {
     case ColliderType::Box: return "box";
     case ColliderType::Sphere: return "sphere";
     case ColliderType::Capsule: return "capsule";
+    case ColliderType::Cylinder: return "cylinder";
     case ColliderType::Mesh: return "mesh";
   }
   return "?";
@@ -56,6 +58,12 @@ void ColliderShape::validate() const {
         fail(name + " radius " + str(radius) + ": expected a finite radius > 0 (m)");
       if (type == ColliderType::Capsule && (!std::isfinite(halfLength) || halfLength < 0.0))
         fail("capsule half length " + str(halfLength) + ": expected a finite length >= 0 (m)");
+      break;
+    case ColliderType::Cylinder:
+      if (!std::isfinite(radius) || radius <= 0.0)
+        fail("cylinder radius " + str(radius) + ": expected a finite radius > 0 (m)");
+      if (!std::isfinite(halfLength) || halfLength <= 0.0)
+        fail("cylinder half length " + str(halfLength) + ": expected a finite length > 0 (m)");
       break;
     case ColliderType::Mesh:
       if (!mesh) fail("mesh collider without a mesh: load one (loadMesh) and set shape.mesh");

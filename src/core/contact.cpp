@@ -36,6 +36,27 @@ double ballDistance(const Eigen::Vector3d& d, double radius, Eigen::Vector3d& no
   return len - radius;
 }
 
+/// Distance to the capped cylinder x^2 + y^2 <= R^2, |z| <= H: with the radial and axial
+/// excesses q = (rho - R, |z| - H), rho = sqrt(x^2 + y^2), outside it is |max(q, 0)| (the nearest
+/// point is on the side, on an end disc or on a rim), inside max(q_r, q_z) (the nearer of the side
+/// and the end face).
+double cylinderDistance(double R, double H, const Eigen::Vector3d& p, Eigen::Vector3d& normal) {
+  const double rho = std::hypot(p.x(), p.y());
+  // the outward radial direction; on the axis any is nearest
+  const Eigen::Vector3d radial =
+      rho > 0.0 ? Eigen::Vector3d(p.x() / rho, p.y() / rho, 0.0) : Eigen::Vector3d::UnitX();
+  const Eigen::Vector3d axial(0.0, 0.0, p.z() < 0.0 ? -1.0 : 1.0);
+  const double qr = rho - R, qz = std::abs(p.z()) - H;
+  if (qr > 0.0 || qz > 0.0) {
+    const double a = std::max(qr, 0.0), b = std::max(qz, 0.0);
+    const double gap = std::hypot(a, b);
+    normal = (a * radial + b * axial) / gap;
+    return gap;
+  }
+  normal = qr > qz ? radial : axial;
+  return std::max(qr, qz);
+}
+
 }  // namespace
 
 double shapeDistance(const ColliderShape& shape, const Eigen::Vector3d& p, Eigen::Vector3d& normal) {
@@ -55,6 +76,8 @@ double shapeDistance(const ColliderShape& shape, const Eigen::Vector3d& p, Eigen
         normal = Eigen::Vector3d::UnitX();
       return d;
     }
+    case ColliderType::Cylinder:
+      return cylinderDistance(shape.radius, shape.halfLength, p, normal);
     case ColliderType::Mesh:
       if (!shape.distanceField)
         throw std::invalid_argument("mesh collider without its distance field (Solver::setCollider builds it)");
@@ -93,6 +116,18 @@ bool colliderBounds(const ColliderShape& shape, const Eigen::Isometry3d& pose, E
     case ColliderType::Capsule:
       localHi = Eigen::Vector3d(shape.radius, shape.radius, shape.radius + shape.halfLength);
       break;
+    case ColliderType::Cylinder: {
+      // Exact: along world axis i the cylinder of axis a (the frame's z) reaches
+      // H |a_i| + R sqrt(1 - a_i^2) from its centre (the end discs' rims), tighter than the
+      // rotated box around it for a tilted link.
+      const Eigen::Vector3d a = pose.linear().col(2);
+      const Eigen::Vector3d half =
+          shape.halfLength * a.cwiseAbs() +
+          shape.radius * (Eigen::Vector3d::Ones() - a.cwiseAbs2()).cwiseMax(0.0).cwiseSqrt();
+      lo = pose.translation() - half;
+      hi = pose.translation() + half;
+      return true;
+    }
     case ColliderType::Mesh:
       if (shape.distanceField) {  // bounds kept by the field: no pass over the vertices
         localLo = shape.distanceField->meshMin();

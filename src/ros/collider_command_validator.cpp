@@ -96,7 +96,7 @@ bool ColliderCommandValidator::check(const ColliderCommand& msg, CommandBody& ou
     shape.type = parseColliderType(msg.type);
   } catch (const std::invalid_argument&) {
     return refuse(why, "bad_type", "collider '" + msg.id + "': type '" + msg.type +
-                                       "' unknown: use plane, box, sphere, capsule or mesh");
+                                       "' unknown: use plane, box, sphere, capsule, cylinder or mesh");
   }
   const Eigen::Vector3d size = toEigen(msg.size);
   if (!size.allFinite() || !std::isfinite(msg.radius) || !std::isfinite(msg.length) ||
@@ -115,6 +115,16 @@ bool ColliderCommandValidator::check(const ColliderCommand& msg, CommandBody& ou
         return refuse(why, "bad_size", "collider '" + msg.id + "': box size " + str(size) +
                                            ": the full edge lengths must be > 0 (m)");
       shape.halfExtents = 0.5 * size;
+      break;
+    case ColliderType::Cylinder:
+      if (msg.length <= 0.0)
+        return refuse(why, "bad_size", "collider '" + msg.id + "': cylinder length " +
+                                           str(msg.length) + " must be > 0 (m)");
+      shape.halfLength = 0.5 * msg.length;
+      if (msg.radius <= 0.0)
+        return refuse(why, "bad_size", "collider '" + msg.id + "': radius " + str(msg.radius) +
+                                           " must be > 0 (m)");
+      shape.radius = msg.radius;
       break;
     case ColliderType::Capsule:
       if (msg.length < 0.0)

@@ -11,11 +11,12 @@ ColliderFollower::ColliderFollower(const tf2::BufferCore& buffer, std::string si
     : buffer_(buffer), simFrame_(std::move(simFrame)) {}
 
 void ColliderFollower::follow(const std::string& id, const std::string& frame,
-                              const Eigen::Isometry3d& offset) {
+                              const Eigen::Isometry3d& offset, Admit admit) {
   std::lock_guard<std::mutex> lock(mutex_);
   Entry e;
   e.frame = frame;
   e.offset = offset;
+  e.admit = std::move(admit);
   entries_[id] = e;
 }
 
@@ -34,12 +35,18 @@ std::uint64_t ColliderFollower::misses() const {
   return misses_;
 }
 
-void ColliderFollower::sample(const ros::Time& now, const Post& post,
-                              std::vector<std::string>& problems) {
+std::size_t ColliderFollower::waiting() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  for (auto& item : entries_) {
-    const std::string& id = item.first;
-    Entry& e = item.second;
+  std::size_t n = 0;
+  for (const auto& item : entries_) n += item.second.seen ? 0 : 1;
+  return n;
+}
+
+void ColliderFollower::sample(const ros::Time& now, const Post& post, Report& report) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (auto it = entries_.begin(); it != entries_.end();) {
+    const std::string& id = it->first;
+    Entry& e = it->second;
     std::string problem;
     geometry_msgs::TransformStamped t;
     // Latest transform, no timeout: BufferCore never waits.
@@ -59,27 +66,46 @@ void ColliderFollower::sample(const ros::Time& now, const Post& post,
       problem = "collider '" + id + "': the newest transform of frame '" + e.frame + "' is " +
                 std::to_string((now - t.header.stamp).toSec()) + " s old";
     }
+    if (!problem.empty() && !e.seen) {
+      // Not a miss: the frame has not appeared yet (a publisher still starting).
+      if (!e.announced) {
+        report.waiting.emplace_back(id, e.frame);
+        e.announced = true;
+      }
+      ++it;
+      continue;
+    }
     if (!problem.empty()) {
       ++misses_;
-      problems.push_back(problem + ": the collider holds still");
-      if (e.seen && !e.holding) {
+      report.problems.push_back(problem + ": the collider holds still");
+      if (!e.holding) {
         ColliderMotion hold;
         hold.pose = e.pose;
         post(id, hold);
         e.holding = true;
       }
+      ++it;
       continue;
     }
     const Eigen::Isometry3d pose = tf2::transformToEigen(t) * e.offset;
     if (!pose.matrix().allFinite()) {
-      ++misses_;
-      problems.push_back("collider '" + id + "': frame '" + e.frame + "' is not finite");
+      if (e.seen) ++misses_;
+      report.problems.push_back("collider '" + id + "': frame '" + e.frame + "' is not finite");
+      ++it;
+      continue;
+    }
+    if (!e.seen && e.admit && !e.admit(pose)) {
+      report.excluded.push_back(id);
+      it = entries_.erase(it);
       continue;
     }
     // Nothing new: the simulation moves on along the velocity. A static transform (stamp 0)
     // is posted every time, so that a collider (re)added on that frame always gets its pose;
     // an unchanged pose does not wake the simulation.
-    if (e.seen && !e.holding && t.header.stamp == e.stamp && !t.header.stamp.isZero()) continue;
+    if (e.seen && !e.holding && t.header.stamp == e.stamp && !t.header.stamp.isZero()) {
+      ++it;
+      continue;
+    }
     ColliderMotion m;
     m.pose = pose;
     const double dt = (t.header.stamp - e.stamp).toSec();
@@ -93,6 +119,7 @@ void ColliderFollower::sample(const ros::Time& now, const Post& post,
     e.stamp = t.header.stamp;
     e.pose = pose;
     post(id, m);
+    ++it;
   }
 }
 

@@ -81,6 +81,13 @@ void fillColliderMarkers(const std::map<std::string, Collider>& colliders,
         markers.markers.push_back(m);
         break;
       }
+      case ColliderType::Cylinder: {
+        const double d = 2 * s.radius;
+        Marker m = makeMarker(ns, 0, Marker::CYLINDER, frameId, stamp, c.pose, kSolidColor);
+        setScale(m, d, d, 2 * s.halfLength);
+        markers.markers.push_back(m);
+        break;
+      }
       case ColliderType::Capsule: {
         const double d = 2 * s.radius;
         Marker body = makeMarker(ns, 0, Marker::CYLINDER, frameId, stamp, c.pose, kSolidColor);
@@ -113,11 +120,38 @@ void fillColliderMarkers(const std::map<std::string, Collider>& colliders,
 void fillContactWrenches(const std::map<std::string, Collider>& colliders,
                          const std::map<std::string, ContactWrench>& wrenches,
                          const ros::Time& stamp, ContactWrenches& out) {
+  fillContactWrenches(colliders, wrenches, {}, stamp, out);
+}
+
+void fillContactWrenches(const std::map<std::string, Collider>& colliders,
+                         const std::map<std::string, ContactWrench>& wrenches,
+                         const std::map<std::string, WrenchGroup>& groups, const ros::Time& stamp,
+                         ContactWrenches& out) {
   out.header.stamp = stamp;
   out.ids.clear();
   out.wrenches.clear();
   out.contacts.clear();
+  struct Body {
+    const WrenchGroup* group = nullptr;
+    Eigen::Vector3d force = Eigen::Vector3d::Zero(), torque = Eigen::Vector3d::Zero();
+    std::size_t contacts = 0;
+  };
+  std::map<std::string, Body> bodies;
   for (const auto& entry : colliders) {
+    const auto g = groups.find(entry.first);
+    if (g != groups.end()) {
+      const auto w = wrenches.find(entry.first);
+      const ContactWrench cw = w == wrenches.end() ? ContactWrench() : w->second;
+      const Eigen::Isometry3d& pc = entry.second.pose;
+      const Eigen::Isometry3d pb = pc * g->second.offset.inverse();
+      Body& b = bodies[g->second.id];
+      b.group = &g->second;
+      const Eigen::Matrix3d bodyFromSim = pb.linear().transpose();
+      b.force += bodyFromSim * cw.force;
+      b.torque += bodyFromSim * (cw.torque + (pc.translation() - pb.translation()).cross(cw.force));
+      b.contacts += cw.contacts;
+      continue;
+    }
     const auto w = wrenches.find(entry.first);
     const ContactWrench cw = w == wrenches.end() ? ContactWrench() : w->second;
     // Sim -> collider frame: the transpose of the collider's rotation.
@@ -130,6 +164,16 @@ void fillContactWrenches(const std::map<std::string, Collider>& colliders,
     out.ids.push_back(entry.first);
     out.wrenches.push_back(ws);
     out.contacts.push_back(static_cast<std::uint32_t>(cw.contacts));
+  }
+  for (const auto& entry : bodies) {
+    geometry_msgs::WrenchStamped ws;
+    ws.header.stamp = stamp;
+    ws.header.frame_id = entry.second.group->frame;
+    ws.wrench.force = toVector(entry.second.force);
+    ws.wrench.torque = toVector(entry.second.torque);
+    out.ids.push_back(entry.first);
+    out.wrenches.push_back(ws);
+    out.contacts.push_back(static_cast<std::uint32_t>(entry.second.contacts));
   }
 }
 

@@ -100,10 +100,18 @@ bool validColliderId(const std::string& id) {
 }
 
 void loadColliderMesh(const std::string& url, double scale, ColliderShape& shape) {
-  if (url.empty()) throw std::invalid_argument("mesh is empty: give a mesh file or package:// URL");
   if (!std::isfinite(scale) || scale <= 0.0)
     throw std::invalid_argument("mesh_scale " + std::to_string(scale) +
                                 " must be a finite factor > 0");
+  loadColliderMesh(url, Eigen::Vector3d::Constant(scale), shape);
+}
+
+void loadColliderMesh(const std::string& url, const Eigen::Vector3d& scale, ColliderShape& shape) {
+  if (url.empty()) throw std::invalid_argument("mesh is empty: give a mesh file or package:// URL");
+  if (!scale.allFinite() || (scale.array() <= 0.0).any())
+    throw std::invalid_argument("mesh scale [" + std::to_string(scale.x()) + ", " +
+                                std::to_string(scale.y()) + ", " + std::to_string(scale.z()) +
+                                "] must be finite factors > 0");
   std::string path;
   try {
     path = resolveMeshPath(url);
@@ -111,7 +119,12 @@ void loadColliderMesh(const std::string& url, double scale, ColliderShape& shape
     throw std::invalid_argument(std::string("mesh ") + e.what());
   }
   try {
-    auto mesh = std::make_shared<const TriMesh>(loadMesh(path, scale));
+    const bool uniform = scale.x() == scale.y() && scale.y() == scale.z();
+    TriMesh loaded = loadMesh(path, uniform ? scale.x() : 1.0);
+    if (!uniform) {
+      for (Eigen::Vector3d& v : loaded.vertices) v = v.cwiseProduct(scale);
+    }
+    auto mesh = std::make_shared<const TriMesh>(std::move(loaded));
     shape.distanceField = std::make_shared<const MeshDistanceField>(*mesh);
     shape.mesh = std::move(mesh);
   } catch (const MeshError& e) {
@@ -151,7 +164,7 @@ std::vector<ColliderSpec> parseColliderList(XmlRpc::XmlRpcValue& value,
     try {
       shape.type = parseColliderType(type);
     } catch (const std::invalid_argument&) {
-      r.fail("type is '" + type + "': it must be plane, box, sphere, capsule or mesh");
+      r.fail("type is '" + type + "': it must be plane, box, sphere, capsule, cylinder or mesh");
     }
     spec.followFrame = r.string("frame_id", "");
     if (spec.followFrame == simFrame) spec.followFrame.clear();
@@ -178,6 +191,16 @@ std::vector<ColliderSpec> parseColliderList(XmlRpc::XmlRpcValue& value,
         shape.halfExtents = 0.5 * size;
         break;
       }
+      case ColliderType::Cylinder:
+        needs("length");
+        needs("radius");
+        shape.halfLength = 0.5 * r.number("length", 0.0);
+        shape.radius = r.number("radius", 0.0);
+        if (shape.halfLength <= 0.0)
+          r.fail("length is " + std::to_string(2 * shape.halfLength) + ": it must be > 0 (m)");
+        if (shape.radius <= 0.0)
+          r.fail("radius is " + std::to_string(shape.radius) + ": it must be > 0 (m)");
+        break;
       case ColliderType::Capsule:
         needs("length");
         shape.halfLength = 0.5 * r.number("length", 0.0);

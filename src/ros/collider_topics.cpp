@@ -1,9 +1,10 @@
 #include "deformable_flsm/ros/collider_topics.h"
 
-#include "deformable_flsm/ros/collider_messages.h"
+#include "deformable_flsm/ros/robot_colliders.h"
 
 #include <ros/console.h>
 
+#include <sstream>
 #include <utility>
 
 namespace deformable_flsm {
@@ -16,6 +17,15 @@ constexpr std::uint32_t kCommandQueue = 100;
 constexpr double kPlaneSizePerObject = 4.0;
 /// s between two warnings about followed frames.
 constexpr double kFrameWarnPeriod = 5.0;
+/// Names listed in one log line before "and N more".
+constexpr std::size_t kNamesPerLine = 8;
+
+std::string list(const std::vector<std::string>& items) {
+  std::ostringstream out;
+  for (std::size_t i = 0; i < items.size() && i < kNamesPerLine; ++i) out << (i ? ", " : "") << items[i];
+  if (items.size() > kNamesPerLine) out << ", and " << items.size() - kNamesPerLine << " more";
+  return out.str();
+}
 
 }  // namespace
 
@@ -25,17 +35,20 @@ ColliderTopics::ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& commandNh,
                                const tf2_ros::Buffer& tfBuffer,
                                std::function<void()> startTfListener,
                                CommandValidator::TransformLookup lookup, Send send,
-                               double objectSize)
+                               const Lattice& lattice, double contactRadius)
     : simFrame_(params.frameId), loop_(loop), stats_(std::move(stats)),
       startTfListener_(std::move(startTfListener)),
       validator_(params.frameId, std::move(lookup)), send_(std::move(send)),
-      planeSize_(kPlaneSizePerObject * objectSize), republishAtRest_(params.republishAtRest),
+      planeSize_(kPlaneSizePerObject * lattice.objectSize()),
+      republishAtRest_(params.republishAtRest),
       follower_(tfBuffer, params.frameId) {
   for (const ColliderSpec& spec : params.colliders) {
     if (spec.followFrame.empty()) continue;
     loop_.addFollowedCollider(spec.id, spec.collider);
     follower_.follow(spec.id, spec.followFrame, spec.collider.pose);
   }
+  addRobot(params.robot, lattice, contactRadius);
+  // From start-up, so that the frames are known by the first samples.
   if (!follower_.empty()) startTfListener_();
 
   markers_.advertise<visualization_msgs::MarkerArray>(pnh, "colliders");
@@ -46,6 +59,37 @@ ColliderTopics::ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& commandNh,
   followTimer_ = pnh.createTimer(
       ros::Duration(params.solver.timeStep / params.realTimeFactor), &ColliderTopics::onFollowTimer,
       this, false, !follower_.empty());
+}
+
+void ColliderTopics::addRobot(const RobotColliders& robot, const Lattice& lattice,
+                              double contactRadius) {
+  if (robot.options.descriptionParam.empty()) return;
+  std::vector<std::string> links;
+  for (const RobotCollider& rc : robot.colliders) {
+    const ColliderSpec& spec = rc.spec;
+    loop_.addFollowedCollider(spec.id, spec.collider);
+    ColliderFollower::Admit admit;
+    if (robot.options.excludeOverlapping) {
+      // The rest positions are the lattice's own (immutable, outlives the node's parts).
+      const std::vector<Eigen::Vector3d>* rest = &lattice.restPositions();
+      const ColliderShape shape = spec.collider.shape;
+      admit = [rest, shape, contactRadius](const Eigen::Isometry3d& pose) {
+        return !overlapsParticles(shape, pose, *rest, contactRadius);
+      };
+    }
+    follower_.follow(spec.id, spec.followFrame, spec.collider.pose, admit);
+    robotLinks_[spec.id] = WrenchGroup{robotLinkWrenchId(rc.link), rc.link, spec.collider.pose};
+    if (links.empty() || links.back() != rc.link) links.push_back(rc.link);
+  }
+  std::ostringstream names;
+  for (std::size_t i = 0; i < links.size(); ++i) names << (i ? ", " : "") << links[i];
+  ROS_INFO("flsm_node: robot '%s' from '%s': %zu colliders on %zu links (%s), each following its "
+           "link's tf frame%s",
+           robot.robotName.c_str(), robot.options.descriptionParam.c_str(), robot.colliders.size(),
+           links.size(), names.str().c_str(),
+           robot.options.excludeOverlapping ? "; links that start inside the object are left out"
+                                            : "");
+  for (const std::string& w : robot.warnings) ROS_WARN("flsm_node: %s", w.c_str());
 }
 
 void ColliderTopics::onCommand(const ColliderCommand::ConstPtr& msg) {
@@ -73,21 +117,41 @@ void ColliderTopics::onCommand(const ColliderCommand::ConstPtr& msg) {
 
 void ColliderTopics::onFollowTimer(const ros::TimerEvent&) {
   if (follower_.empty()) return;
-  problems_.clear();
+  report_.clear();
   follower_.sample(
       ros::Time::now(),
       [this](const std::string& id, const ColliderMotion& m) { loop_.setColliderMotion(id, m); },
-      problems_);
-  if (!problems_.empty()) {
+      report_);
+  if (!report_.waiting.empty()) {
+    std::map<std::string, int> frames;  // frame -> colliders waiting for it
+    for (const auto& w : report_.waiting) ++frames[w.second];
+    std::vector<std::string> items;
+    for (const auto& f : frames) items.push_back("'" + f.first + "' (" + std::to_string(f.second) + ")");
+    ROS_INFO("flsm_node: %zu collider(s) wait for their tf frames %s: each joins the simulation "
+             "at its frame's first transform",
+             report_.waiting.size(), list(items).c_str());
+  }
+  if (!report_.excluded.empty()) {
+    std::vector<std::string> links;
+    for (const std::string& id : report_.excluded) {
+      const auto g = robotLinks_.find(id);
+      links.push_back(g == robotLinks_.end() ? id : "'" + g->second.frame + "' (" + id + ")");
+      send_(RemoveColliderCommand{id});
+    }
+    ROS_WARN("flsm_node: robot links left out because they start inside the object: %s (set "
+             "~robot_exclude_overlapping false to keep them, or move the object)",
+             list(links).c_str());
+  }
+  if (!report_.problems.empty()) {
     ROS_WARN_THROTTLE(kFrameWarnPeriod, "flsm_node: %s (%zu collider(s) affected; %llu misses so "
                       "far, see ~state collider_frame_misses)",
-                      problems_.front().c_str(), problems_.size(),
+                      report_.problems.front().c_str(), report_.problems.size(),
                       static_cast<unsigned long long>(follower_.misses()));
   }
 }
 
 void ColliderTopics::publish(const Snapshot& s, const ros::Time& stamp) {
-  fillContactWrenches(s.colliders, s.wrenches, stamp, wrenches_);
+  fillContactWrenches(s.colliders, s.wrenches, robotLinks_, stamp, wrenches_);
   wrenches_.header.frame_id = simFrame_;
   wrenchPub_.publish(wrenches_);
   if (!s.colliders.empty()) {

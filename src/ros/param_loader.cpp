@@ -127,6 +127,28 @@ void NodeParams::validate() const {
                        std::to_string(colliders.size() + (ground ? 1 : 0)) +
                        " colliders: at most " + std::to_string(ColliderLimits::kMaxColliders));
     }
+    const std::size_t all = colliders.size() + (ground ? 1 : 0) + robot.colliders.size();
+    if (all > ColliderLimits::kMaxColliders) {
+      throw ParamError("the robot's " + std::to_string(robot.colliders.size()) +
+                       " collision elements with ~colliders and ~ground make " +
+                       std::to_string(all) + " colliders: at most " +
+                       std::to_string(ColliderLimits::kMaxColliders) +
+                       "; leave links out with ~robot_links or ~robot_exclude_links");
+    }
+    for (const RobotCollider& r : robot.colliders) {
+      for (const ColliderSpec& c : colliders) {
+        if (c.id == r.spec.id)
+          throw ParamError("~colliders entry '" + c.id + "': the id is the robot's collider of "
+                           "link '" + r.link + "': rename the entry");
+      }
+    }
+    const RobotColliderOptions& ro = robot.options;
+    if (!std::isfinite(ro.kineticFriction) || ro.kineticFriction < 0.0 ||
+        !std::isfinite(ro.staticFriction) || ro.staticFriction < ro.kineticFriction) {
+      throw ParamError("~robot_static_friction " + std::to_string(ro.staticFriction) +
+                       ", ~robot_kinetic_friction " + std::to_string(ro.kineticFriction) +
+                       ": they must satisfy 0 <= kinetic <= static");
+    }
     // The solver's own ranges (stiffness, damping, time step, ...); w is checked once known.
     SolverParams s = solver;
     s.youngsModulus = material == Material::Youngs ? youngsModulus : 0.0;
@@ -223,6 +245,7 @@ NodeParams ParamLoader::loadNodeParams() const {
   p.ground = getBool("ground", p.ground);
   p.groundClearance = getDouble("ground_clearance", p.groundClearance);
   p.colliders = getColliders("colliders", p.frameId);
+  p.robot = getRobot();
   p.validate();
   p.applyMaterial();
   return p;
@@ -353,6 +376,55 @@ std::vector<ColliderSpec> ParamLoader::getColliders(const std::string& name,
   XmlRpc::XmlRpcValue value;
   pnh_.getParam(name, value);
   return parseColliderList(value, simFrame);
+}
+
+std::vector<std::string> ParamLoader::getStrings(const std::string& name,
+                                                 const std::vector<std::string>& fallback) const {
+  if (!pnh_.hasParam(name)) {
+    return fallback;
+  }
+  XmlRpc::XmlRpcValue value;
+  pnh_.getParam(name, value);
+  std::vector<std::string> out;
+  bool ok = value.getType() == XmlRpc::XmlRpcValue::TypeArray;
+  for (int i = 0; ok && i < value.size(); ++i) {
+    ok = value[i].getType() == XmlRpc::XmlRpcValue::TypeString;
+    if (ok) out.push_back(static_cast<std::string&>(value[i]));
+  }
+  if (!ok) {
+    throwWrongType(pnh_, name, "a list of strings");
+  }
+  return out;
+}
+
+RobotColliders ParamLoader::getRobot() const {
+  RobotColliderOptions o;
+  o.descriptionParam = getString("robot_description", o.descriptionParam);
+  o.includeLinks = getStrings("robot_links", o.includeLinks);
+  o.excludeLinks = getStrings("robot_exclude_links", o.excludeLinks);
+  o.excludeOverlapping = getBool("robot_exclude_overlapping", o.excludeOverlapping);
+  o.staticFriction = getDouble("robot_static_friction", o.staticFriction);
+  o.kineticFriction = getDouble("robot_kinetic_friction", o.kineticFriction);
+  if (o.descriptionParam.empty()) {
+    RobotColliders none;
+    none.options = o;
+    return none;
+  }
+  // Resolved as robot_state_publisher resolves it: in the node's namespace.
+  const ros::NodeHandle nh;
+  const std::string resolved = nh.resolveName(o.descriptionParam);
+  std::string xml;
+  if (!nh.hasParam(o.descriptionParam)) {
+    throw ParamError("~robot_description names parameter '" + resolved + "', which is not set: "
+                     "load the URDF there (e.g. <param name=\"robot_description\" textfile=...>), "
+                     "or set ~robot_description to '' for no robot");
+  }
+  if (!nh.getParam(o.descriptionParam, xml)) {
+    throw ParamError("~robot_description names parameter '" + resolved +
+                     "', which is not a string: it must hold the URDF text");
+  }
+  o.descriptionParam = resolved;
+  return parseRobotColliders(xml, o);
 }
 
 std::string resolveMeshPath(const std::string& url) {

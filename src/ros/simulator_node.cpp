@@ -65,7 +65,7 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
       pnh_, commandNh_, params_, *loop_, stats_, tfBuffer_, [this] { startTfListener(); },
       [this](const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
              std::string& why) { return lookupTransform(frame, stamp, T, why); },
-      [this](CommandBody body) { send(std::move(body), false); }, lattice_->objectSize());
+      [this](CommandBody body) { send(std::move(body), false); }, *lattice_, info_.contactRadius);
   reconfigure_ = std::make_unique<Reconfigure>(pnh_, params_,
                                                [this](const FlsmConfig& c) { return onReconfigure(c); });
   mouse_ = std::make_unique<InteractiveDrag>(pnh_, params_.frameId, *lattice_, renderMesh_,

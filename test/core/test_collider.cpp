@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
@@ -43,6 +44,14 @@ ColliderShape capsule(double radius, double halfLength) {
   return s;
 }
 
+ColliderShape cylinder(double radius, double halfLength) {
+  ColliderShape s;
+  s.type = ColliderType::Cylinder;
+  s.radius = radius;
+  s.halfLength = halfLength;
+  return s;
+}
+
 /// The gradient of shapeDistance() by central differences: the normal must be it where the
 /// distance is differentiable.
 Eigen::Vector3d numericGradient(const ColliderShape& s, const Eigen::Vector3d& p, double eps = 1e-7) {
@@ -67,14 +76,15 @@ std::vector<Eigen::Vector3d> randomPoints(std::size_t count, double extent, unsi
 
 TEST(ColliderType, ParsesAndPrints) {
   for (ColliderType t : {ColliderType::HalfSpace, ColliderType::Box, ColliderType::Sphere, ColliderType::Capsule,
-                         ColliderType::Mesh})
+                         ColliderType::Cylinder, ColliderType::Mesh})
     EXPECT_EQ(parseColliderType(toString(t)), t);
   EXPECT_EQ(parseColliderType("half_space"), ColliderType::HalfSpace);
   try {
-    parseColliderType("cylinder");
-    FAIL() << "accepted 'cylinder'";
+    parseColliderType("cone");
+    FAIL() << "accepted 'cone'";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("cylinder"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("cone"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("cylinder"), std::string::npos) << "names the accepted words";
     EXPECT_NE(std::string(e.what()).find("capsule"), std::string::npos) << "names the accepted words";
   }
 }
@@ -98,6 +108,10 @@ TEST(Collider, ValidateSaysWhatIsWrong) {
   EXPECT_NE(message(c).find("radius"), std::string::npos);
   c.shape = capsule(0.1, -1.0);
   EXPECT_NE(message(c).find("half length"), std::string::npos);
+  c.shape = cylinder(0.1, 0.0);
+  EXPECT_NE(message(c).find("cylinder half length"), std::string::npos) << "a cylinder has a length";
+  c.shape = cylinder(-0.1, 0.1);
+  EXPECT_NE(message(c).find("cylinder radius"), std::string::npos);
   c.shape = ColliderShape();
   c.shape.type = ColliderType::Mesh;
   EXPECT_NE(message(c).find("without a mesh"), std::string::npos);
@@ -168,10 +182,83 @@ TEST(ShapeDistance, BoxSphereCapsuleMatchTheirFormulas) {
   EXPECT_NEAR(n.z(), 0.0, 1e-15) << "on the axis, the nearest surface is radial";
 }
 
+TEST(ShapeDistance, CylinderIsExactOnItsSideItsEndsAndItsRims) {
+  // R = 0.1, H = 0.2: a flat-ended cylinder, not a capsule
+  const double R = 0.1, H = 0.2;
+  const ColliderShape c = cylinder(R, H);
+  Eigen::Vector3d n;
+  // beside the side: rho - R, radial
+  EXPECT_NEAR(shapeDistance(c, Eigen::Vector3d(0.0, 0.3, 0.15), n), 0.2, 1e-15);
+  EXPECT_TRUE(n.isApprox(Eigen::Vector3d::UnitY(), 1e-15));
+  // above an end disc (a capsule would give |p - (0, 0, H)| - R = 0.1 here): |z| - H
+  EXPECT_NEAR(shapeDistance(c, Eigen::Vector3d(0.06, 0.0, -0.25), n), 0.05, 1e-15);
+  EXPECT_TRUE(n.isApprox(-Eigen::Vector3d::UnitZ(), 1e-15));
+  // beyond a rim: the distance to the rim circle, along the line from it (a 3-4-5 triangle)
+  EXPECT_NEAR(shapeDistance(c, Eigen::Vector3d(R + 0.03, 0.0, H + 0.04), n), 0.05, 1e-15);
+  EXPECT_TRUE(n.isApprox(Eigen::Vector3d(0.6, 0.0, 0.8), 1e-15));
+  // inside: minus the distance to the nearer of the side and the end face
+  EXPECT_NEAR(shapeDistance(c, Eigen::Vector3d(0.0, 0.07, 0.0), n), -0.03, 1e-15);
+  EXPECT_TRUE(n.isApprox(Eigen::Vector3d::UnitY(), 1e-15));
+  EXPECT_NEAR(shapeDistance(c, Eigen::Vector3d(0.0, 0.0, 0.19), n), -0.01, 1e-15);
+  EXPECT_TRUE(n.isApprox(Eigen::Vector3d::UnitZ(), 1e-15));
+  // on the axis, at the centre: the side is nearer (R < H), any radial direction
+  EXPECT_NEAR(shapeDistance(c, Eigen::Vector3d::Zero(), n), -R, 1e-15);
+  EXPECT_NEAR(n.norm(), 1.0, 1e-15);
+  EXPECT_NEAR(n.z(), 0.0, 1e-15);
+
+  // Everywhere, against the nearest point found independently: outside, the point clamped in
+  // cylindrical coordinates (rho to R, z to [-H, H]); inside, the nearer face.
+  int inside = 0, capRegion = 0;
+  for (const Eigen::Vector3d& p : randomPoints(4000, 0.4, 5)) {
+    const double rho = std::hypot(p.x(), p.y());
+    double expected;
+    if (rho <= R && std::abs(p.z()) <= H) {
+      expected = -std::min(R - rho, H - std::abs(p.z()));
+      ++inside;
+    } else {
+      const double s = rho > R ? R / rho : 1.0;
+      const Eigen::Vector3d nearest(s * p.x(), s * p.y(), std::clamp(p.z(), -H, H));
+      expected = (p - nearest).norm();
+      capRegion += rho <= R;
+    }
+    EXPECT_NEAR(shapeDistance(c, p, n), expected, 1e-12) << p.transpose();
+    EXPECT_NEAR(n.norm(), 1.0, 1e-12);
+    EXPECT_TRUE(n.isApprox(numericGradient(c, p), 1e-5)) << "cylinder normal is the gradient at " << p.transpose();
+  }
+  EXPECT_GT(inside, 50) << "the sample should reach inside the cylinder";
+  EXPECT_GT(capRegion, 50) << "and over its end discs";
+}
+
+TEST(ColliderBounds, CylinderBoundsAreTightAtAnyTilt) {
+  // A link's cylinder is mostly tilted: its bounds are those of its two rim circles, so that the
+  // broad phase does not see a far tilted link as near.
+  const ColliderShape c = cylinder(0.05, 0.3);
+  for (const double tilt : {0.0, 0.4, M_PI / 4, 1.2, M_PI / 2}) {
+    const Eigen::Isometry3d pose(Eigen::Translation3d(0.2, -0.1, 0.3) *
+                                 Eigen::AngleAxisd(tilt, Eigen::Vector3d(1, 1, 0).normalized()));
+    Eigen::Vector3d lo, hi;
+    ASSERT_TRUE(colliderBounds(c, pose, lo, hi));
+    Eigen::Vector3d rimLo = Eigen::Vector3d::Constant(1e9), rimHi = -rimLo;
+    for (int k = 0; k < 3600; ++k) {
+      const double a = 2 * M_PI * k / 3600;
+      for (const double z : {-0.3, 0.3}) {
+        const Eigen::Vector3d x = pose * Eigen::Vector3d(0.05 * std::cos(a), 0.05 * std::sin(a), z);
+        rimLo = rimLo.cwiseMin(x);
+        rimHi = rimHi.cwiseMax(x);
+      }
+    }
+    // sampled every 0.1 degree: the true extreme is at most R (1 - cos(0.05 deg)) beyond
+    EXPECT_TRUE(lo.isApprox(rimLo, 1e-6) && hi.isApprox(rimHi, 1e-6))
+        << "tilt " << tilt << ": bounds " << lo.transpose() << " / " << hi.transpose() << ", rims "
+        << rimLo.transpose() << " / " << rimHi.transpose();
+  }
+}
+
 TEST(ColliderBounds, ContainTheShapeAtAnyPose) {
   const Eigen::Isometry3d pose(Eigen::Translation3d(0.5, -0.2, 0.1) *
                                Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()));
-  for (const ColliderShape& s : {box(Eigen::Vector3d(0.3, 0.2, 0.1)), sphere(0.2), capsule(0.1, 0.3)}) {
+  for (const ColliderShape& s :
+       {box(Eigen::Vector3d(0.3, 0.2, 0.1)), sphere(0.2), capsule(0.1, 0.3), cylinder(0.1, 0.3)}) {
     Eigen::Vector3d lo, hi, n;
     ASSERT_TRUE(colliderBounds(s, pose, lo, hi));
     for (const Eigen::Vector3d& p : randomPoints(3000, 1.0, 3)) {

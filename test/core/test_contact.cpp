@@ -199,6 +199,33 @@ TEST(Contact, BlockRestsOnAMeshTable) {
   EXPECT_EQ(s.contactWrench("table").contacts, 24u);
 }
 
+TEST(Contact, BlockRestsLevelOnACylinderPost) {
+  // the same block on the flat end of an upright cylinder (radius 8 cm, top face z = -0.01): a
+  // flat end carries the weight evenly on the whole bottom layer, where a capsule's round end
+  // would carry it on a few particles and tip the block
+  auto lattice = std::make_shared<const Lattice>(test::makeBox(6, 4, 3, 0.01), 1000.0, 1);
+  Solver s(lattice, sceneParams(*lattice, 0.3));
+  Collider post;
+  post.shape.type = ColliderType::Cylinder;
+  post.shape.radius = 0.08;
+  post.shape.halfLength = 0.05;
+  post.pose.translation() = Eigen::Vector3d(0.03, 0.02, -0.06);
+  s.setCollider("post", post);
+  const int steps = stepsFor(4.0, s), last = stepsFor(1.0, s);
+  double deepest = 0.0, fz = 0.0;
+  for (int i = 0; i < steps; ++i) {
+    s.step();
+    deepest = std::max(deepest, -0.01 + s.contactRadius() - lowestZ(s));
+    if (i >= steps - last) fz += s.contactWrench("post").force.z() / last;
+  }
+  EXPECT_LT(deepest, 1e-12) << "no sphere ends a sub-step inside the end face";
+  const double W = lattice->totalMass() * kG;
+  EXPECT_NEAR(fz, -W, 2e-3 * W) << "the post carries the block's weight";
+  EXPECT_EQ(s.contactWrench("post").contacts, 24u) << "the whole bottom layer touches the flat end";
+  const Eigen::AngleAxisd tilt(s.rigidFrame().linear());
+  EXPECT_LT(tilt.angle(), 1e-3) << "the block stays level";
+}
+
 TEST(Contact, PinnedParticlesAreNotMovedByContact) {
   auto lattice = std::make_shared<const Lattice>(test::makeBox(4, 4, 4, 0.01), 1000.0, 1);
   SolverParams p = sceneParams(*lattice);

@@ -1,6 +1,7 @@
 /// @file test_collider_follower.cpp
 /// Tests of ros/collider_follower.h (tf frames sampled without waiting, velocity from the last
-/// two transforms, unknown and stale frames held still and counted) and of the collider side of
+/// two transforms, a frame not seen yet waited for, frames lost or stale after they were seen
+/// held still and counted, short pauses harmless, the admission test at the first transform) and of the collider side of
 /// ros/simulation_loop.h (followed colliders join at their first pose, move along the sampled
 /// velocity for a bounded time; collider commands applied or refused with a reason).
 #include "deformable_flsm/ros/collider_follower.h"
@@ -29,10 +30,10 @@ struct Posted {
 };
 
 void setFrame(tf2::BufferCore& buffer, const Eigen::Isometry3d& T, double stamp,
-              bool isStatic = false) {
+              bool isStatic = false, const std::string& frame = "finger") {
   geometry_msgs::TransformStamped t = tf2::eigenToTransform(T);
   t.header.frame_id = "world";
-  t.child_frame_id = "finger";
+  t.child_frame_id = frame;
   t.header.stamp = ros::Time(stamp);
   buffer.setTransform(t, "test", isStatic);
 }
@@ -43,21 +44,27 @@ TEST(ColliderFollower, VelocityFromTheLastTwoTransformsOfTheOffsetPose) {
   const Eigen::Isometry3d offset(Eigen::Translation3d(0.0, 0.1, 0.0));
   follower.follow("s", "finger", offset);
   Posted posted;
-  std::vector<std::string> problems;
+  ColliderFollower::Report report;
+  std::vector<std::string>& problems = report.problems;
 
-  // Not seen yet: nothing posted, the miss counted.
-  follower.sample(ros::Time(100.0), posted.post(), problems);
+  // Not seen yet: nothing posted, the collider waits for its frame, named once; no miss.
+  follower.sample(ros::Time(100.0), posted.post(), report);
+  follower.sample(ros::Time(100.005), posted.post(), report);
   EXPECT_TRUE(posted.motions.empty());
-  ASSERT_EQ(problems.size(), 1u);
-  EXPECT_NE(problems[0].find("'finger' unknown"), std::string::npos) << problems[0];
-  EXPECT_EQ(follower.misses(), 1u);
+  EXPECT_TRUE(problems.empty());
+  ASSERT_EQ(report.waiting.size(), 1u) << "one line per waiting collider, not one per sample";
+  EXPECT_EQ(report.waiting[0].first, "s");
+  EXPECT_EQ(report.waiting[0].second, "finger");
+  EXPECT_EQ(follower.misses(), 0u);
+  EXPECT_EQ(follower.waiting(), 1u);
 
   // First transform: its pose (frame * offset), at rest.
   setFrame(buffer, Eigen::Isometry3d(Eigen::Translation3d(1.0, 0.0, 0.0)), 100.0);
-  problems.clear();
-  follower.sample(ros::Time(100.01), posted.post(), problems);
+  report.clear();
+  follower.sample(ros::Time(100.01), posted.post(), report);
   ASSERT_EQ(posted.motions.size(), 1u);
   EXPECT_TRUE(problems.empty());
+  EXPECT_EQ(follower.waiting(), 0u);
   EXPECT_TRUE(posted.motions[0].second.pose.translation().isApprox(Eigen::Vector3d(1.0, 0.1, 0.0)));
   EXPECT_TRUE(posted.motions[0].second.linearVelocity.isZero(0.0));
 
@@ -66,7 +73,7 @@ TEST(ColliderFollower, VelocityFromTheLastTwoTransformsOfTheOffsetPose) {
   const Eigen::Isometry3d T1 =
       Eigen::Translation3d(1.01, 0.0, 0.0) * Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitZ());
   setFrame(buffer, T1, 100.1);
-  follower.sample(ros::Time(100.11), posted.post(), problems);
+  follower.sample(ros::Time(100.11), posted.post(), report);
   ASSERT_EQ(posted.motions.size(), 2u);
   const ColliderMotion& m = posted.motions[1].second;
   const Eigen::Vector3d p1 = (T1 * offset).translation();
@@ -75,13 +82,13 @@ TEST(ColliderFollower, VelocityFromTheLastTwoTransformsOfTheOffsetPose) {
   EXPECT_TRUE(m.angularVelocity.isApprox(Eigen::Vector3d(0.0, 0.0, 1.0), 1e-6));
 
   // No new transform: nothing posted (the simulation moves on along the velocity).
-  follower.sample(ros::Time(100.15), posted.post(), problems);
+  follower.sample(ros::Time(100.15), posted.post(), report);
   EXPECT_EQ(posted.motions.size(), 2u);
 
   // Stale: held still at the last pose, once; every sample counted.
   const std::uint64_t misses = follower.misses();
-  follower.sample(ros::Time(100.1 + ColliderFollower::kStaleAfter + 0.1), posted.post(), problems);
-  follower.sample(ros::Time(100.1 + ColliderFollower::kStaleAfter + 0.2), posted.post(), problems);
+  follower.sample(ros::Time(100.1 + ColliderFollower::kStaleAfter + 0.1), posted.post(), report);
+  follower.sample(ros::Time(100.1 + ColliderFollower::kStaleAfter + 0.2), posted.post(), report);
   ASSERT_EQ(posted.motions.size(), 3u);
   EXPECT_TRUE(posted.motions[2].second.pose.isApprox(m.pose));
   EXPECT_TRUE(posted.motions[2].second.linearVelocity.isZero(0.0));
@@ -90,7 +97,7 @@ TEST(ColliderFollower, VelocityFromTheLastTwoTransformsOfTheOffsetPose) {
 
   // Back: the first new transform restarts from rest (no velocity across the gap).
   setFrame(buffer, Eigen::Isometry3d(Eigen::Translation3d(2.0, 0.0, 0.0)), 101.0);
-  follower.sample(ros::Time(101.0), posted.post(), problems);
+  follower.sample(ros::Time(101.0), posted.post(), report);
   ASSERT_EQ(posted.motions.size(), 4u);
   EXPECT_TRUE(posted.motions[3].second.linearVelocity.isZero(0.0));
 
@@ -104,9 +111,10 @@ TEST(ColliderFollower, StaticTransformNeverGoesStale) {
   follower.follow("s", "finger", Eigen::Isometry3d::Identity());
   setFrame(buffer, Eigen::Isometry3d(Eigen::Translation3d(0.0, 0.0, 1.0)), 0.0, true);
   Posted posted;
-  std::vector<std::string> problems;
-  follower.sample(ros::Time(1000.0), posted.post(), problems);
-  follower.sample(ros::Time(2000.0), posted.post(), problems);
+  ColliderFollower::Report report;
+  const std::vector<std::string>& problems = report.problems;
+  follower.sample(ros::Time(1000.0), posted.post(), report);
+  follower.sample(ros::Time(2000.0), posted.post(), report);
   EXPECT_TRUE(problems.empty());
   // Posted every time (a collider re-added on the frame gets its pose), always at rest.
   ASSERT_EQ(posted.motions.size(), 2u);
@@ -114,6 +122,94 @@ TEST(ColliderFollower, StaticTransformNeverGoesStale) {
     EXPECT_DOUBLE_EQ(m.second.pose.translation().z(), 1.0);
     EXPECT_TRUE(m.second.linearVelocity.isZero(0.0));
   }
+}
+
+TEST(ColliderFollower, AFrameThatOnlyAppearsLateIsWaitedForWithoutMisses) {
+  // The frame's publisher starts 2 s after the follower (robot_state_publisher still loading):
+  // every sample until then finds the frame unknown, none of them a miss.
+  tf2::BufferCore buffer;
+  ColliderFollower follower(buffer, "world");
+  follower.follow("s", "finger", Eigen::Isometry3d::Identity());
+  Posted posted;
+  ColliderFollower::Report report;
+  for (int k = 0; k < 120; ++k) follower.sample(ros::Time(10.0 + k / 60.0), posted.post(), report);
+  // A transform published long ago and never again is stale before it was ever used: waiting.
+  setFrame(buffer, Eigen::Isometry3d(Eigen::Translation3d(0.0, 0.0, 0.3)), 5.0);
+  follower.sample(ros::Time(12.0), posted.post(), report);
+  EXPECT_TRUE(posted.motions.empty());
+  EXPECT_TRUE(report.problems.empty());
+  EXPECT_EQ(report.waiting.size(), 1u);
+  EXPECT_EQ(follower.misses(), 0u);
+  setFrame(buffer, Eigen::Isometry3d(Eigen::Translation3d(0.0, 0.0, 0.3)), 12.01);
+  follower.sample(ros::Time(12.02), posted.post(), report);
+  ASSERT_EQ(posted.motions.size(), 1u);
+  EXPECT_DOUBLE_EQ(posted.motions[0].second.pose.translation().z(), 0.3);
+  EXPECT_EQ(follower.misses(), 0u);
+  // From now on a lost frame is a miss.
+  follower.sample(ros::Time(12.01 + ColliderFollower::kStaleAfter + 0.01), posted.post(), report);
+  EXPECT_EQ(follower.misses(), 1u);
+  EXPECT_EQ(report.problems.size(), 1u);
+}
+
+TEST(ColliderFollower, APauseShorterThanTheStaleTimeChangesNothing) {
+  // A publisher at 100 Hz moving the frame up at 0.1 m/s pauses for 0.4 s: no miss, no hold
+  // (the collider is not stopped), and the first transform after the pause carries the mean
+  // velocity over it, so the collider goes on as before.
+  tf2::BufferCore buffer;
+  ColliderFollower follower(buffer, "world");
+  follower.follow("s", "finger", Eigen::Isometry3d::Identity());
+  Posted posted;
+  ColliderFollower::Report report;
+  const double v = 0.1;
+  double t = 50.0;
+  for (int k = 0; k < 10; ++k, t += 0.01) {
+    setFrame(buffer, Eigen::Isometry3d(Eigen::Translation3d(0.0, 0.0, v * (t - 50.0))), t);
+    follower.sample(ros::Time(t + 0.001), posted.post(), report);
+  }
+  const std::size_t before = posted.motions.size();
+  const double last = t - 0.01;
+  // the pause: sampled every step, nothing new
+  for (double now = last + 0.0167; now < last + 0.4; now += 0.0167)
+    follower.sample(ros::Time(now), posted.post(), report);
+  EXPECT_EQ(posted.motions.size(), before) << "nothing posted during the pause (no hold)";
+  EXPECT_TRUE(report.problems.empty());
+  EXPECT_EQ(follower.misses(), 0u);
+  const double resumed = last + 0.4;
+  setFrame(buffer, Eigen::Isometry3d(Eigen::Translation3d(0.0, 0.0, v * (resumed - 50.0))), resumed);
+  follower.sample(ros::Time(resumed + 0.001), posted.post(), report);
+  ASSERT_EQ(posted.motions.size(), before + 1);
+  EXPECT_NEAR(posted.motions.back().second.linearVelocity.z(), v, 1e-9);
+  EXPECT_EQ(follower.misses(), 0u);
+}
+
+TEST(ColliderFollower, AdmitDecidesAtTheFirstTransform) {
+  // Two colliders on two frames; the admission test refuses poses below z = 0 (standing in for
+  // "starts inside the object"): the one that appears there is dropped and named, never posted.
+  tf2::BufferCore buffer;
+  ColliderFollower follower(buffer, "world");
+  const auto above = [](const Eigen::Isometry3d& pose) { return pose.translation().z() >= 0.0; };
+  follower.follow("low", "a", Eigen::Isometry3d::Identity(), above);
+  follower.follow("high", "b", Eigen::Isometry3d(Eigen::Translation3d(0.0, 0.0, 0.2)), above);
+  setFrame(buffer, Eigen::Isometry3d(Eigen::Translation3d(0.0, 0.0, -0.1)), 1.0, false, "a");
+  setFrame(buffer, Eigen::Isometry3d(Eigen::Translation3d(0.0, 0.0, -0.1)), 1.0, false, "b");
+  Posted posted;
+  ColliderFollower::Report report;
+  follower.sample(ros::Time(1.01), posted.post(), report);
+  ASSERT_EQ(report.excluded.size(), 1u);
+  EXPECT_EQ(report.excluded[0], "low");
+  ASSERT_EQ(posted.motions.size(), 1u);
+  EXPECT_EQ(posted.motions[0].first, "high") << "the offset lifts it to z = 0.1: admitted";
+  // The refused one is forgotten: later transforms below or above do not bring it back.
+  setFrame(buffer, Eigen::Isometry3d(Eigen::Translation3d(0.0, 0.0, 0.5)), 1.1, false, "a");
+  report.clear();
+  follower.sample(ros::Time(1.11), posted.post(), report);
+  for (const auto& m : posted.motions) EXPECT_NE(m.first, "low");
+  EXPECT_TRUE(report.excluded.empty());
+  // Admission is asked once: a later pose below z = 0 keeps the admitted one.
+  setFrame(buffer, Eigen::Isometry3d(Eigen::Translation3d(0.0, 0.0, -0.5)), 1.2, false, "b");
+  follower.sample(ros::Time(1.21), posted.post(), report);
+  EXPECT_TRUE(report.excluded.empty());
+  EXPECT_DOUBLE_EQ(posted.motions.back().second.pose.translation().z(), -0.3);
 }
 
 // --- the simulation loop's colliders ----------------------------------------------------------

@@ -2,7 +2,7 @@
 /// Tests of ros/collider_params.h, ros/collider_command_validator.h and
 /// ros/collider_messages.h: ~colliders entries parsed or refused naming entry and field, the
 /// ground below the object, ~collider commands checked and converted to the simulation frame,
-/// markers and wrenches in the colliders' frames.
+/// markers and wrenches in the colliders' frames, a robot link's elements summed in its frame.
 #include "deformable_flsm/ros/collider_command_validator.h"
 #include "deformable_flsm/ros/collider_messages.h"
 #include "deformable_flsm/ros/collider_params.h"
@@ -70,9 +70,13 @@ TEST(ColliderParams, ParsesEveryShapeWithItsPoseAndFriction) {
   list[2]["length"] = 0.08;
   list[3]["id"] = std::string("wall");
   list[3]["type"] = std::string("plane");
+  list[4]["id"] = std::string("post");
+  list[4]["type"] = std::string("cylinder");
+  list[4]["radius"] = 0.02;
+  list[4]["length"] = 0.3;
 
   const std::vector<ColliderSpec> specs = parseColliderList(list, "world");
-  ASSERT_EQ(specs.size(), 4u);
+  ASSERT_EQ(specs.size(), 5u);
   EXPECT_EQ(specs[0].id, "left_finger");
   EXPECT_EQ(specs[0].followFrame, "gripper");
   EXPECT_EQ(specs[0].collider.shape.type, ColliderType::Box);
@@ -87,6 +91,9 @@ TEST(ColliderParams, ParsesEveryShapeWithItsPoseAndFriction) {
   EXPECT_EQ(specs[2].collider.shape.radius, 1.0);
   EXPECT_DOUBLE_EQ(specs[2].collider.shape.halfLength, 0.04);
   EXPECT_EQ(specs[3].collider.shape.type, ColliderType::HalfSpace);
+  EXPECT_EQ(specs[4].collider.shape.type, ColliderType::Cylinder);
+  EXPECT_EQ(specs[4].collider.shape.radius, 0.02);
+  EXPECT_DOUBLE_EQ(specs[4].collider.shape.halfLength, 0.15) << "length is the full length";
 }
 
 TEST(ColliderParams, LoadsAMeshColliderWithItsDistanceField) {
@@ -110,7 +117,7 @@ TEST(ColliderParams, BadEntriesNameTheEntryAndTheField) {
   XmlRpc::XmlRpcValue l;
   l[0] = boxEntry("a");
   l[0]["type"] = std::string("cone");
-  expectMentions(parseError(l), {"entry 0", "'a'", "'cone'", "plane, box, sphere, capsule or mesh"});
+  expectMentions(parseError(l), {"entry 0", "'a'", "'cone'", "plane, box, sphere, capsule, cylinder or mesh"});
 
   l[0] = boxEntry("a");
   l[1] = boxEntry("b");
@@ -333,6 +340,46 @@ TEST(ColliderMessages, WrenchesAreInTheCollidersFrames) {
   ASSERT_EQ(tfs.size(), 2u);
   EXPECT_EQ(tfs[1].child_frame_id, "flsm_collider/turned");
   EXPECT_EQ(tfs[1].transform.translation.z, 3.0);
+}
+
+TEST(ColliderMessages, GroupedCollidersAreSummedInTheirBodyFrame) {
+  // A link at (1, 0, 0) turned 90 degrees about z, with two collision elements: A at (0.1, 0, 0)
+  // in the link frame, pushed down by 1 N; B at (0, 0.2, 0), pushed along the world's x by 1 N
+  // with 0.5 N m about z. About the link origin, in the world: F = (1, 0, -1),
+  // tau = (0, 0.1, 0) x (0, 0, -1) + (0, 0, 0.5) + (-0.2, 0, 0) x (1, 0, 0) = (-0.1, 0, 0.5);
+  // in the link frame (R^T: world x -> link -y, world y -> link x): F = (0, -1, -1),
+  // tau = (0, 0.1, 0.5).
+  const Eigen::Isometry3d link(Eigen::Translation3d(1, 0, 0) *
+                               Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));
+  const Eigen::Isometry3d offsetA(Eigen::Translation3d(0.1, 0, 0)), offsetB(Eigen::Translation3d(0, 0.2, 0));
+  std::map<std::string, Collider> colliders;
+  colliders["robot/hand/0"].pose = link * offsetA;
+  colliders["robot/hand/1"].pose = link * offsetB;
+  colliders["wall"] = Collider();
+  std::map<std::string, ContactWrench> wrenches;
+  wrenches["robot/hand/0"].force = Eigen::Vector3d(0, 0, -1);
+  wrenches["robot/hand/0"].contacts = 3;
+  wrenches["robot/hand/1"].force = Eigen::Vector3d(1, 0, 0);
+  wrenches["robot/hand/1"].torque = Eigen::Vector3d(0, 0, 0.5);
+  wrenches["robot/hand/1"].contacts = 4;
+  std::map<std::string, WrenchGroup> groups;
+  groups["robot/hand/0"] = WrenchGroup{"robot/hand", "hand", offsetA};
+  groups["robot/hand/1"] = WrenchGroup{"robot/hand", "hand", offsetB};
+  groups["robot/elbow/0"] = WrenchGroup{"robot/elbow", "elbow", Eigen::Isometry3d::Identity()};
+  ContactWrenches msg;
+  fillContactWrenches(colliders, wrenches, groups, ros::Time(2.0), msg);
+  ASSERT_EQ(msg.ids.size(), 2u) << "the wall, then one entry for the hand; none for the absent elbow";
+  EXPECT_EQ(msg.ids[0], "wall");
+  EXPECT_EQ(msg.ids[1], "robot/hand");
+  const geometry_msgs::WrenchStamped& w = msg.wrenches[1];
+  EXPECT_EQ(w.header.frame_id, "hand");
+  EXPECT_NEAR(w.wrench.force.x, 0.0, 1e-12);
+  EXPECT_NEAR(w.wrench.force.y, -1.0, 1e-12);
+  EXPECT_NEAR(w.wrench.force.z, -1.0, 1e-12);
+  EXPECT_NEAR(w.wrench.torque.x, 0.0, 1e-12);
+  EXPECT_NEAR(w.wrench.torque.y, 0.1, 1e-12);
+  EXPECT_NEAR(w.wrench.torque.z, 0.5, 1e-12);
+  EXPECT_EQ(msg.contacts[1], 7u);
 }
 
 TEST(ColliderMessages, MarkersShowEveryShape) {

@@ -1,6 +1,6 @@
 /// @file collider.h
 /// Rigid shapes the deformable object touches: a half-space (ground, wall), box, sphere,
-/// capsule, or a rigid triangle mesh. Each is static or kinematic: the caller gives its pose and
+/// capsule, cylinder, or a rigid triangle mesh. Each is static or kinematic: the caller gives its pose and
 /// velocity for every step; the object never moves it (one-way coupling), and the solver reports
 /// the force and torque the object exerts on it.
 #pragma once
@@ -27,14 +27,17 @@ enum class ColliderType {
   Sphere,
   /// points within radius of the segment from (0, 0, -halfLength) to (0, 0, +halfLength)
   Capsule,
+  /// the capped cylinder x^2 + y^2 <= radius^2, |z| <= halfLength (flat ends, as a URDF
+  /// <cylinder> of length 2 halfLength)
+  Cylinder,
   /// the inside of a closed triangle mesh given in the collider frame
   Mesh,
 };
 
-/// Parses "plane" (or "half_space"), "box", "sphere", "capsule", "mesh".
+/// Parses "plane" (or "half_space"), "box", "sphere", "capsule", "cylinder", "mesh".
 /// @throws std::invalid_argument naming the accepted words otherwise.
 ColliderType parseColliderType(const std::string& name);
-/// "plane", "box", "sphere", "capsule" or "mesh".
+/// "plane", "box", "sphere", "capsule", "cylinder" or "mesh".
 const char* toString(ColliderType type);
 
 /// Geometry in the collider's own frame (m).
@@ -42,9 +45,10 @@ struct ColliderShape {
   ColliderType type = ColliderType::HalfSpace;
   /// Box: half extents (m), each > 0
   Eigen::Vector3d halfExtents = Eigen::Vector3d::Zero();
-  /// Sphere, Capsule: radius (m), > 0
+  /// Sphere, Capsule, Cylinder: radius (m), > 0
   double radius = 0.0;
-  /// Capsule: half the length of the axis segment along the frame's z axis (m), >= 0
+  /// Capsule: half the length of the axis segment along the frame's z axis (m), >= 0;
+  /// Cylinder: half its length along the frame's z axis (m), > 0
   double halfLength = 0.0;
   /// Mesh: closed triangle mesh in the collider frame (non-empty)
   std::shared_ptr<const TriMesh> mesh;

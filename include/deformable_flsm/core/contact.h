@@ -16,13 +16,13 @@
 namespace deformable_flsm {
 
 /// Signed distance from a point to a shape's surface (m, negative inside) and the outward unit
-/// normal there, in the collider's own frame. Exact for the half-space, box, sphere and capsule;
-/// a mesh is read from shape.distanceField (see MeshDistanceField for its accuracy).
+/// normal there, in the collider's own frame. Exact for the half-space, box, sphere, capsule and
+/// cylinder; a mesh is read from shape.distanceField (see MeshDistanceField for its accuracy).
 /// @param[in]  shape   a valid shape; a mesh needs its distanceField
 /// @param[in]  p       3 by 1 point in the collider frame (m)
 /// @param[out] normal  3 by 1 outward unit normal (collider frame): the gradient of the distance;
-///                     where it is not unique (centre of a sphere, axis of a capsule, centre
-///                     plane of a box) one of the nearest surface directions
+///                     where it is not unique (centre of a sphere, axis of a capsule or
+///                     cylinder, centre plane of a box) one of the nearest surface directions
 /// @throws std::invalid_argument for a mesh shape without its distance field.
 double shapeDistance(const ColliderShape& shape, const Eigen::Vector3d& p, Eigen::Vector3d& normal);
 

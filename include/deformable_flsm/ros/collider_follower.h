@@ -1,8 +1,10 @@
 /// @file collider_follower.h
 /// Colliders that follow tf frames: samples each frame's latest transform without waiting
 /// (tf2::BufferCore, no timeout), derives the velocity from the last two transforms, and hands
-/// pose and velocity to the simulation (SimulationLoop::setColliderMotion). Needs no master:
-/// the tests fill a BufferCore by hand.
+/// pose and velocity to the simulation (SimulationLoop::setColliderMotion). A collider whose
+/// frame has not appeared yet waits for it (reported once, not counted as a miss); only a frame
+/// that was seen and is then lost or stale is a problem. Needs no master: the tests fill a
+/// BufferCore by hand.
 #pragma once
 
 #include "deformable_flsm/ros/simulation_loop.h"
@@ -12,11 +14,13 @@
 
 #include <Eigen/Geometry>
 
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <map>
 #include <mutex>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace deformable_flsm {
@@ -26,15 +30,41 @@ class ColliderFollower {
   /// Receives a collider's new pose and velocity (simulation frame).
   using Post = std::function<void(const std::string& id, const ColliderMotion& motion)>;
 
+  /// Decides, at a collider's first transform, whether it joins the simulation at that pose
+  /// (true) or is dropped (false; e.g. a robot link that starts inside the object).
+  using Admit = std::function<bool(const Eigen::Isometry3d& pose)>;
+
+  /// What one sample() found besides the motions it posted.
+  struct Report {
+    /// followed frames that were seen before and are now unknown, stale or not finite (every
+    /// sample while it lasts; each counted in misses())
+    std::vector<std::string> problems;
+    /// colliders found waiting for a frame that has not appeared yet, as (id, frame): each
+    /// named once, at the first sample that finds it waiting
+    std::vector<std::pair<std::string, std::string>> waiting;
+    /// colliders their Admit refused at their first transform: forgotten since
+    std::vector<std::string> excluded;
+    void clear() {
+      problems.clear();
+      waiting.clear();
+      excluded.clear();
+    }
+  };
+
   /// A frame whose newest transform is older than this (s) is stale: its collider holds still.
+  /// A publisher that pauses for less than this changes nothing: the collider moves on along
+  /// its last velocity (SimulationLoop::kMaxExtrapolation), and the first transform after the
+  /// pause gives the mean velocity over it.
   static constexpr double kStaleAfter = 0.5;
 
   /// @param[in] buffer    where transforms are looked up (latest available, never waiting)
   /// @param[in] simFrame  ~frame_id
   ColliderFollower(const tf2::BufferCore& buffer, std::string simFrame);
 
-  /// Collider `id` follows `frame`; `offset` is its pose in that frame. Any thread.
-  void follow(const std::string& id, const std::string& frame, const Eigen::Isometry3d& offset);
+  /// Collider `id` follows `frame`; `offset` is its pose in that frame; `admit`, when given, is
+  /// asked at the first transform whether it joins. Any thread.
+  void follow(const std::string& id, const std::string& frame, const Eigen::Isometry3d& offset,
+              Admit admit = nullptr);
   /// Collider `id` follows no frame any more (nothing happens if it did not). Any thread.
   void forget(const std::string& id);
   /// true when some collider follows a frame.
@@ -42,21 +72,30 @@ class ColliderFollower {
 
   /// Samples every followed frame at wall time `now` and posts, for each collider:
   ///   - a new transform: its pose and the velocity from the previous transform (zero for the
-  ///     first one and for a static transform);
-  ///   - an unknown or stale frame (seen before): the last pose with zero velocity, once, and
-  ///     the problem appended to `problems` (every call while it lasts) and counted in misses();
+  ///     first one and for a static transform); at the first one, a collider its Admit refuses
+  ///     is forgotten instead and named in report.excluded;
+  ///   - a frame not seen yet (unknown, or only stale transforms): nothing; the collider waits
+  ///     for it, named once in report.waiting, no miss counted;
+  ///   - an unknown or stale frame seen before: the last pose with zero velocity, once, and the
+  ///     problem appended to report.problems (every call while it lasts) and counted in
+  ///     misses();
   ///   - no new transform yet, still fresh: nothing (the simulation moves on along the
   ///     velocity); a static transform (stamp 0) is posted again every time, at rest.
-  void sample(const ros::Time& now, const Post& post, std::vector<std::string>& problems);
+  /// `report` is appended to.
+  void sample(const ros::Time& now, const Post& post, Report& report);
 
-  /// Samples so far that found a followed frame unknown or stale.
+  /// Samples so far that found a frame unknown or stale after it had been seen.
   std::uint64_t misses() const;
+  /// Colliders still waiting for the first transform of their frame.
+  std::size_t waiting() const;
 
  private:
   struct Entry {
     std::string frame;
     Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
+    Admit admit;             // asked at the first transform
     bool seen = false;       // a transform has been posted
+    bool announced = false;  // named in Report::waiting
     bool holding = false;    // posted with zero velocity because the frame is unknown or stale
     ros::Time stamp;         // of the newest transform
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // collider pose at `stamp`

@@ -6,6 +6,8 @@
 
 #include "deformable_flsm/core/collider.h"
 
+#include <Eigen/Geometry>
+
 #include <deformable_flsm/ContactWrenches.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/time.h>
@@ -19,7 +21,7 @@ namespace deformable_flsm {
 
 /// The colliders as markers in `frameId`, one namespace per collider id: a plane as a square
 /// slab `planeSize` wide and 1 % of it thick whose top face is the plane; a box as a CUBE; a
-/// sphere as a SPHERE; a capsule as a CYLINDER (id 0) and two SPHEREs (ids 1, 2); a mesh as a
+/// sphere as a SPHERE; a capsule as a CYLINDER (id 0) and two SPHEREs (ids 1, 2); a cylinder as a CYLINDER; a mesh as a
 /// TRIANGLE_LIST whose points are in the collider frame and whose pose is the collider's.
 /// The first marker is a DELETEALL, so that RViz forgets removed colliders.
 /// @param[in]  colliders  by id, poses in the simulation frame (m)
@@ -41,6 +43,25 @@ void fillColliderMarkers(const std::map<std::string, Collider>& colliders,
 void fillContactWrenches(const std::map<std::string, Collider>& colliders,
                          const std::map<std::string, ContactWrench>& wrenches,
                          const ros::Time& stamp, ContactWrenches& out);
+
+/// A collider reported together with others as one body (the collision elements of a robot
+/// link): the body's id in ~contact_wrenches, its tf frame, and the collider's pose in it.
+struct WrenchGroup {
+  std::string id;
+  std::string frame;
+  Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
+};
+
+/// fillContactWrenches() with the colliders named in `groups` summed per body instead: one entry
+/// per body (after the others, by body id) whose header.frame_id is the body's frame, with the
+/// force and the torque about the body frame's origin expressed in it,
+///   F_b = R_b^T sum F_c,  tau_b = R_b^T sum (tau_c + (o_c - o_b) x F_c),
+/// where the body frame (R_b, o_b) = the collider's pose times offset^-1 (simulation frame), and
+/// contacts summed. A body none of whose colliders is in `colliders` is left out.
+void fillContactWrenches(const std::map<std::string, Collider>& colliders,
+                         const std::map<std::string, ContactWrench>& wrenches,
+                         const std::map<std::string, WrenchGroup>& groups, const ros::Time& stamp,
+                         ContactWrenches& out);
 
 /// One transform per collider, from `frameId` to colliderFrameId(id).
 void colliderTransforms(const std::map<std::string, Collider>& colliders,

@@ -52,6 +52,8 @@ bool validColliderId(const std::string& id);
 /// @throws std::invalid_argument saying which file and why it cannot be used (unreadable, not a
 ///         closed triangle mesh, bad scale).
 void loadColliderMesh(const std::string& url, double scale, ColliderShape& shape);
+/// The same with a scale per axis (a URDF <mesh scale="x y z">), each a finite factor > 0.
+void loadColliderMesh(const std::string& url, const Eigen::Vector3d& scale, ColliderShape& shape);
 
 /// Parses the ~colliders parameter: a list of dictionaries (see README for the fields).
 /// @param[in] value     the parameter as read from the server

@@ -1,11 +1,13 @@
 /// @file collider_topics.h
 /// The colliders' ROS face: ~collider commands in, ~contact_wrenches, ~colliders markers and the
-/// colliders' tf frames out, and the tf frames that colliders follow sampled at the step rate.
+/// colliders' tf frames out, and the tf frames that colliders follow sampled at the step rate
+/// (the parameters' colliders and the robot's links, ~robot_description, from start-up on).
 /// SimulatorNode owns one and calls publish() from its publish timer.
 #pragma once
 
 #include "deformable_flsm/ros/collider_command_validator.h"
 #include "deformable_flsm/ros/collider_follower.h"
+#include "deformable_flsm/ros/collider_messages.h"
 #include "deformable_flsm/ros/commands.h"
 #include "deformable_flsm/ros/lazy_topic.h"
 #include "deformable_flsm/ros/param_loader.h"
@@ -22,6 +24,7 @@
 #include <visualization_msgs/MarkerArray.h>
 
 #include <functional>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -33,8 +36,9 @@ class ColliderTopics {
   /// Sends a validated command to the simulation thread (without waiting).
   using Send = std::function<void(CommandBody)>;
 
-  /// Registers the parameters' colliders that follow tf frames with the loop (call before
-  /// loop.start()), advertises the topics and starts the follow timer.
+  /// Registers the parameters' colliders that follow tf frames and the robot's colliders with
+  /// the loop (call before loop.start()), starts the tf listener when there are any, advertises
+  /// the topics and starts the follow timer.
   /// @param[in] pnh        private handle for the publishers and the timer (main queue)
   /// @param[in] commandNh  private handle on the command queue, for the ~collider subscriber
   /// @param[in] params     the node's parameters (colliders, frame, publish and step rates)
@@ -45,11 +49,14 @@ class ColliderTopics {
   /// @param[in] startTfListener  starts the node's tf listener (called when a frame is followed)
   /// @param[in] lookup     transform of a command's header frame (the node's command lookup)
   /// @param[in] send       hands a command to the simulation thread
-  /// @param[in] objectSize the object's size (m): sets the size the ground is drawn at
+  /// @param[in] lattice    the object's rest lattice: its size sets the size the ground is drawn
+  ///                       at; robot links that overlap its rest positions are left out
+  /// @param[in] contactRadius  the particles' contact radius (m)
   ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& commandNh, const NodeParams& params,
                  SimulationLoop& loop, std::shared_ptr<CommandStats> stats,
                  const tf2_ros::Buffer& tfBuffer, std::function<void()> startTfListener,
-                 CommandValidator::TransformLookup lookup, Send send, double objectSize);
+                 CommandValidator::TransformLookup lookup, Send send, const Lattice& lattice,
+                 double contactRadius);
 
   /// Every publish tick: ~contact_wrenches (also at rest), the colliders' tf frames, and
   /// ~colliders when it is due (LazyTopic::due(): while subscribed, like ~lattice).
@@ -60,6 +67,8 @@ class ColliderTopics {
  private:
   void onCommand(const ColliderCommand::ConstPtr& msg);
   void onFollowTimer(const ros::TimerEvent& event);
+  /// Registers the robot's colliders (params.robot) with the loop and the follower.
+  void addRobot(const RobotColliders& robot, const Lattice& lattice, double contactRadius);
 
   std::string simFrame_;
   SimulationLoop& loop_;
@@ -81,7 +90,9 @@ class ColliderTopics {
   ContactWrenches wrenches_;
   visualization_msgs::MarkerArray markerArray_;
   std::vector<geometry_msgs::TransformStamped> transforms_;
-  std::vector<std::string> problems_;
+  ColliderFollower::Report report_;
+  /// robot colliders: summed per link on ~contact_wrenches
+  std::map<std::string, WrenchGroup> robotLinks_;
 };
 
 }  // namespace deformable_flsm

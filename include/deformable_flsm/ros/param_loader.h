@@ -4,6 +4,7 @@
 
 #include "deformable_flsm/core/mesh.h"
 #include "deformable_flsm/ros/collider_params.h"
+#include "deformable_flsm/ros/robot_colliders.h"
 #include "deformable_flsm/core/solver_params.h"
 
 #include <ros/node_handle.h>
@@ -115,6 +116,9 @@ struct NodeParams {
   double groundClearance = 0.1;
   /// ~colliders: more colliders (parsed and validated, meshes loaded)
   std::vector<ColliderSpec> colliders;
+  /// ~robot_description and ~robot_*: the robot's collision model (no colliders when
+  /// robot.options.descriptionParam is empty)
+  RobotColliders robot;
   /// ~render_triangle_budget: simplify the render mesh to at most this many triangles at
   /// load (0 = render the mesh as loaded); the lattice is chosen from the full mesh
   int renderTriangleBudget = 0;
@@ -171,6 +175,10 @@ class ParamLoader {
   Eigen::Vector3d getVector3(const std::string& name, const Eigen::Vector3d& fallback) const;
   std::vector<Box> getBoxes(const std::string& name) const;
   std::vector<ColliderSpec> getColliders(const std::string& name, const std::string& simFrame) const;
+  std::vector<std::string> getStrings(const std::string& name,
+                                      const std::vector<std::string>& fallback) const;
+  /// ~robot_description (the URDF read from the parameter it names) and ~robot_*.
+  RobotColliders getRobot() const;
 
   ros::NodeHandle pnh_;
   /// the names the getters were asked for, set or not (unknownParams())
