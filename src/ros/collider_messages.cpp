@@ -169,8 +169,8 @@ void fillContactWrenches(const std::map<std::string, Collider>& colliders,
     geometry_msgs::WrenchStamped ws;
     ws.header.stamp = stamp;
     ws.header.frame_id = entry.second.group->frame;
-    ws.wrench.force = toVector(entry.second.force);
-    ws.wrench.torque = toVector(entry.second.torque);
+    tf2::toMsg(entry.second.force, ws.wrench.force);
+    tf2::toMsg(entry.second.torque, ws.wrench.torque);
     out.ids.push_back(entry.first);
     out.wrenches.push_back(ws);
     out.contacts.push_back(static_cast<std::uint32_t>(entry.second.contacts));
