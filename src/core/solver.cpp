@@ -133,6 +133,7 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
                            regionMass_[r];
 
   computeRegionWeights();
+  configureIntegrator();
 
   x_ = x0;
   v_.assign(n, Eigen::Vector3d::Zero());
@@ -368,6 +369,7 @@ void Solver::setParams(const SolverParams& params) {
     makeSummers();
   }
   computeRegionWeights();
+  configureIntegrator();
 }
 
 bool Solver::stiffnessSaturated() const {
@@ -442,7 +444,10 @@ void Solver::step() {
   beginContactStep();
   for (int s = 0; s < params_.substeps; ++s) {
     interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
-    substep(h);
+    if (params_.integrator == Integrator::Implicit)
+      implicitSubstep(h);
+    else
+      substep(h);
   }
   endContactStep();
   if (timed) {
