@@ -2,6 +2,8 @@
 
 #include <Eigen/Eigenvalues>
 
+#include <array>
+
 namespace deformable_flsm {
 
 namespace {
@@ -54,12 +56,26 @@ CorotatedHessian::CorotatedHessian(RegionSummer& summer, const std::vector<doubl
     restInertiaInverse_[r] = V * inv.asDiagonal() * V.transpose();
   }
   rotation_.assign(n, Eigen::Matrix3d::Identity());
+  rotatedCenter_ = regionRestCenter;
+  rotatedInertiaInverse_.resize(n);
+  for (std::size_t r = 0; r < n; ++r) {
+    const Eigen::Matrix3d& J = restInertiaInverse_[r];
+    rotatedInertiaInverse_[r] = {J(0, 0), J(1, 1), J(2, 2), J(0, 1), J(0, 2), J(1, 2)};
+  }
   coefficient_.assign(n, 0.0);
   coefficientSum_.assign(n, 0.0);
 }
 
+// Per region, what every product of the sub-step shares: R_r, the rotated rest centre R_r c0_r and
+// the rotated inverse inertia R_r I0_r^+ R_r^T (symmetric: its upper triangle).
 void CorotatedHessian::setRotations(const std::vector<Eigen::Quaterniond>& rotations) {
-  for (std::size_t r = 0; r < rotation_.size(); ++r) rotation_[r] = rotations[r].toRotationMatrix();
+  for (std::size_t r = 0; r < rotation_.size(); ++r) {
+    const Eigen::Matrix3d R = rotations[r].toRotationMatrix();
+    rotation_[r] = R;
+    rotatedCenter_[r] = R * regionRestCenter_[r];
+    const Eigen::Matrix3d J = R * restInertiaInverse_[r] * R.transpose();
+    rotatedInertiaInverse_[r] = {J(0, 0), J(1, 1), J(2, 2), J(0, 1), J(0, 2), J(1, 2)};
+  }
 }
 
 void CorotatedHessian::setCoefficients(double a, double b, const std::vector<double>& beta,
@@ -102,21 +118,25 @@ void CorotatedHessian::regionData(std::size_t begin, std::size_t end, const doub
     double* o = out + (r - begin) * 12;
     const Eigen::Matrix3d& R = rotation_[r];
     const Eigen::Vector3d mp(s[0], s[1], s[2]);
-    const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> S(s + 3);
-    const Eigen::Matrix3d A = S * R.transpose();  // sum m~ p (R q)^T
-    const Eigen::Vector3d Rc0 = R * regionRestCenter_[r];
+    // A = S R^T (S = sum m~ p q^T, row-major at s + 3): only its antisymmetric part is needed,
+    // A_ab = S_a . R_b (rows)
+    const auto A = [&](int a, int b) { return s[3 + 3 * a] * R(b, 0) + s[4 + 3 * a] * R(b, 1) + s[5 + 3 * a] * R(b, 2); };
+    const Eigen::Vector3d& Rc0 = rotatedCenter_[r];
     // sum m~ q~ x p, q~ = R (q - c0)
     const Eigen::Vector3d L = Eigen::Vector3d(A(2, 1) - A(1, 2), A(0, 2) - A(2, 0), A(1, 0) - A(0, 1)) - Rc0.cross(mp);
-    const Eigen::Vector3d theta = R * (restInertiaInverse_[r] * (R.transpose() * L));
-    const Eigen::Vector3d t = mp / regionMass_[r];
+    const std::array<double, 6>& J = rotatedInertiaInverse_[r];
+    const Eigen::Vector3d theta(J[0] * L.x() + J[3] * L.y() + J[4] * L.z(), J[3] * L.x() + J[1] * L.y() + J[5] * L.z(),
+                                J[4] * L.x() + J[5] * L.y() + J[2] * L.z());
     const double c = coefficient_[r];
-    // c [theta]x R: the fit's rotation part applied to q, theta x (R q) = ([theta]x R) q
-    Eigen::Matrix3d thetaCross;
-    thetaCross << 0.0, -theta.z(), theta.y(), theta.z(), 0.0, -theta.x(), -theta.y(), theta.x(), 0.0;
-    const Eigen::Matrix3d B = c * (thetaCross * R);
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) o[3 * a + b] = B(a, b);
-    const Eigen::Vector3d shift = c * (t - theta.cross(Rc0));
+    const Eigen::Vector3d ct = c * theta;
+    // c [theta]x R: column b is c theta x (R e_b); theta x (R q) = ([theta]x R) q
+    for (int b = 0; b < 3; ++b) {
+      const Eigen::Vector3d col = ct.cross(R.col(b));
+      o[b] = col.x();
+      o[3 + b] = col.y();
+      o[6 + b] = col.z();
+    }
+    const Eigen::Vector3d shift = (c / regionMass_[r]) * mp - ct.cross(Rc0);
     o[9] = shift.x();
     o[10] = shift.y();
     o[11] = shift.z();

@@ -214,6 +214,14 @@ NodeParams ParamLoader::loadNodeParams() const {
     throw ParamError("~solver is '" + kind + "': it must be 'fast' (FastLSM summation) or "
                      "'naive' (direct summation, for comparison)");
   }
+  const std::string integrator = getString("integrator", toString(s.integrator));
+  try {
+    s.integrator = parseIntegrator(integrator);
+  } catch (const std::invalid_argument&) {
+    throw ParamError("~integrator is '" + integrator + "': it must be 'explicit' (symplectic Euler, the "
+                     "modulus capped by the sub-step) or 'implicit' (backward Euler, any modulus at one "
+                     "sub-step)");
+  }
 
   p.publishRate = getDouble("publish_rate", p.publishRate);
   p.republishAtRest = getBool("republish_at_rest", p.republishAtRest);
@@ -235,7 +243,7 @@ std::vector<std::string> ParamLoader::unknownParams() const {
       "particle_budget", "max_particles", "region_radius", "region_half_width",
       "region_from_section", "stiffness",
       "youngs_modulus", "poissons_ratio", "material", "damping", "ambient_damping", "gravity",
-      "time_step", "substeps", "density", "solver", "publish_rate", "republish_at_rest",
+      "time_step", "substeps", "density", "solver", "integrator", "publish_rate", "republish_at_rest",
       "real_time_factor", "pinned", "render_triangle_budget", "threads", "gravity_x", "gravity_y",
       "gravity_z", "ground", "ground_clearance", "colliders", "contact_radius"};
   std::vector<std::string> all, unknown;

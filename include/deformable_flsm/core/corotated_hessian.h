@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <array>
 #include <cstddef>
 #include <vector>
 
@@ -70,6 +71,8 @@ class CorotatedHessian : public RegionKernel {
   const std::vector<Eigen::Vector3d>& regionRestCenter_;
   std::vector<Eigen::Matrix3d> restInertiaInverse_;  // (I0_r)^+, about c0_r
   std::vector<Eigen::Matrix3d> rotation_;            // R_r
+  std::vector<Eigen::Vector3d> rotatedCenter_;       // R_r c0_r
+  std::vector<std::array<double, 6>> rotatedInertiaInverse_;  // R_r I0_r^+ R_r^T: xx yy zz xy xz yz
   std::vector<double> coefficient_;                  // c_r
   std::vector<double> coefficientSum_;               // sum_{r contains i} c_r
   const std::vector<Eigen::Vector3d>* diagonal_ = nullptr;
