@@ -14,7 +14,7 @@ namespace deformable_flsm {
 
 struct PcgResult {
   int iterations = 0;
-  /// ||r||_P / reference at the end (P the preconditioner)
+  /// ||r||_P at the end over the larger of ||r_0||_P and the floor (P the preconditioner)
   double relativeResidual = 0.0;
   bool converged = false;
 };
@@ -54,13 +54,13 @@ class Pcg {
   /// @param[in]     normal       #P unit normals (read where the constraint is Normal)
   /// @param[in]     b            #P right-hand side
   /// @param[in,out] x            #P initial guess (prescribed values at fixed entries); solution
-  /// @param[in]     reference    the P-norm the residual is measured against (> 0)
-  /// @param[in]     tolerance    stop when ||r||_P <= tolerance * reference
+  /// @param[in]     floor        stop when ||r||_P <= floor ...
+  /// @param[in]     tolerance    ... or ||r||_P <= tolerance ||r_0||_P (r_0 the initial guess's)
   /// @param[in]     maxIterations  at most this many products with A
   template <class Apply>
   PcgResult solve(Apply&& apply, const std::vector<Eigen::Vector3d>& invDiagonal,
                   const std::vector<PcgConstraint>& constraint, const std::vector<Eigen::Vector3d>& normal,
-                  const std::vector<Eigen::Vector3d>& b, std::vector<Eigen::Vector3d>& x, double reference,
+                  const std::vector<Eigen::Vector3d>& b, std::vector<Eigen::Vector3d>& x, double floor,
                   double tolerance, int maxIterations) {
     const auto filter = [&](std::size_t i, const Eigen::Vector3d& v) -> Eigen::Vector3d {
       switch (constraint[i]) {
@@ -79,7 +79,8 @@ class Pcg {
       p_[i] = z_[i];
     }
     double rz = dot(r_, z_);
-    const double goal = tolerance * tolerance * reference * reference;
+    const double goal = std::max(tolerance * tolerance * rz, floor * floor);
+    const double reference = std::sqrt(std::max(rz, floor * floor));
     while (!(rz <= goal) && result.iterations < maxIterations) {
       apply(p_, q_);
       for (std::size_t i = 0; i < n; ++i) q_[i] = filter(i, q_[i]);
