@@ -18,7 +18,12 @@
 // runs only the cantilevers N cells across (2, 4 or 8; 8 takes minutes and a gigabyte for its
 // oracle).
 //
+// --integrator implicit prints, beside each explicit row, the same case with the implicit step
+// (SolverParams::Integrator::Implicit) at one sub-step (or --substeps N); --modulus E gives every
+// case the Young's modulus E (Pa) instead of the one that keeps the explicit step under its cap.
+//
 //   bench_material [--quick] [--nu NU] [--substeps N] [--across N] [--from-section]
+//                  [--integrator explicit|implicit] [--modulus E]
 
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/section.h"
@@ -45,6 +50,8 @@ constexpr double kBig = 1e3;          // a box bound beyond the objects (m)
 double gSettle = 10.0;
 /// --from-section: regions narrowed to the case's thinnest section
 bool gFromSection = false;
+/// --modulus: every case's Young's modulus (Pa); 0 for modulusFor()
+double gModulus = 0.0;
 /// The oracle splits each cell so that a bent section has at least this many elements across
 /// (fully integrated hexahedra are within ~3 % of beam theory there, test_fem_oracle).
 constexpr int kOracleElementsAcross = 8;
@@ -68,12 +75,15 @@ struct Setting {
   int w = 1;
   int substeps = 4;
   double nu = 0.0;
+  Integrator integrator = Integrator::Explicit;
 };
 
 /// Young's modulus for a lattice of spacing h: alpha = 0.3 at w = 1, 4 sub-steps, nu = 0 (Pa), under
 /// the cap for nu up to 0.3 (the cap softens a material by alpha / requested, and that is not
 /// what this table is about).
-double modulusFor(double h) { return 0.3 * kDensity * h * h * 2.0 / (3.0 * std::pow(kStep / 4, 2)); }
+double modulusFor(double h) {
+  return gModulus > 0.0 ? gModulus : 0.3 * kDensity * h * h * 2.0 / (3.0 * std::pow(kStep / 4, 2));
+}
 
 /// The region half-width a case runs with: the asked one, or with --from-section the widest
 /// regions no wider than the voxels' thinnest section.
@@ -89,6 +99,7 @@ SolverParams paramsFor(const Setting& s, int w, double E, const Eigen::Vector3d&
   p.regionHalfWidth = w;
   p.timeStep = kStep;
   p.substeps = s.substeps;
+  p.integrator = s.integrator;
   p.gravity = load;
   p.ambientDamping = settleRate;
   return p;
@@ -109,8 +120,10 @@ struct Row {
 };
 
 void print(const char* name, int across, const Setting& s, const Row& r, const char* unit, double scale) {
-  std::printf("%-12s %3d %2d %3d %5.2f %7.3f %12.4f %12.4f %8.3f%s%s\n", name, across, r.w, s.substeps, s.nu, r.alpha,
-              scale * r.lattice, scale * r.oracle, r.lattice / r.oracle, r.saturated ? "  (alpha capped)" : "", std::abs(r.residualSpeed / r.lattice) > 0.01 ? "  (not settled)" : "");
+  std::printf("%-12s %3d %2d %3d %5.2f %7.3f %12.4f %12.4f %8.3f%s%s%s\n", name, across, r.w, s.substeps, s.nu, r.alpha,
+              scale * r.lattice, scale * r.oracle, r.lattice / r.oracle,
+              s.integrator == Integrator::Implicit ? "  implicit" : "", r.saturated ? "  (alpha capped)" : "",
+              std::abs(r.residualSpeed / r.lattice) > 0.01 ? "  (not settled)" : "");
   if (std::getenv("FLSM_BENCH_RESIDUAL")) std::printf("   residual %.3g\n", r.residualSpeed / r.lattice);
 }
 
@@ -236,7 +249,7 @@ std::pair<Row, Row> stretch(double t, int across, const Setting& s) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false;
+  bool quick = false, implicit = false;
   int onlySubsteps = 0, onlyAcross = 0;
   std::vector<double> nus = {0.0, 0.3};
   for (int a = 1; a < argc; ++a) {
@@ -246,10 +259,22 @@ int main(int argc, char** argv) {
     if (std::strcmp(argv[a], "--from-section") == 0) gFromSection = true;
     if (std::strcmp(argv[a], "--substeps") == 0 && a + 1 < argc) onlySubsteps = std::atoi(argv[++a]);
     if (std::strcmp(argv[a], "--across") == 0 && a + 1 < argc) onlyAcross = std::atoi(argv[++a]);
+    if (std::strcmp(argv[a], "--integrator") == 0 && a + 1 < argc) implicit = parseIntegrator(argv[++a]) == Integrator::Implicit;
+    if (std::strcmp(argv[a], "--modulus") == 0 && a + 1 < argc) gModulus = std::atof(argv[++a]);
   }
+  // each setting, and with --integrator implicit the same at implicitSubsteps with the implicit step
+  const int implicitSubsteps = onlySubsteps > 0 ? onlySubsteps : 1;
+  int firstSubsteps = 0;  // set below: the implicit rows go beside the first explicit ones
+  auto settings = [&](int w, int sub, double nu) {
+    std::vector<Setting> out{Setting{w, sub, nu, Integrator::Explicit}};
+    if (implicit && sub == firstSubsteps) out.push_back(Setting{w, implicitSubsteps, nu, Integrator::Implicit});
+    return out;
+  };
   const std::vector<int> substeps = onlySubsteps > 0 ? std::vector<int>{onlySubsteps}
                                     : quick          ? std::vector<int>{4}
                                                      : std::vector<int>{4, 16};
+  firstSubsteps = substeps.front();
+  if (gModulus > 0.0) std::printf("E = %g Pa for every case\n", gModulus);
   std::printf("lattice = the settled solver, oracle = FEM on the same voxels (cantilever, column) or the\n"
               "analytic uniaxial-stress strains (stretch); E chosen per lattice (alpha 0.3 at w 1, 4 sub-steps)\n%s\n",
               gFromSection ? "regions narrowed to each case's thinnest section (--from-section): w asked 1 to 3, "
@@ -266,19 +291,20 @@ int main(int argc, char** argv) {
         for (int sub : substeps) {
           // minutes of settling; 4 sub-steps show the trend
           if (across == 8 && sub == 16 && onlySubsteps == 0) continue;
-          const Setting s{w, sub, nu};
-          print("cantilever", across, s, cantilever(0.1, 0.8, across, s), "mm", 1e3);
+          for (const Setting& s : settings(w, sub, nu))
+            print("cantilever", across, s, cantilever(0.1, 0.8, across, s), "mm", 1e3);
         }
     if (onlyAcross > 0) continue;
     for (int w = 1; w <= 3; ++w)
       for (int sub : substeps) {
-        const Setting s{w, sub, nu};
-        print("stubby", 4, s, cantilever(0.2, 0.4, 4, s), "mm", 1e3);
-        print("column", 4, s, column(0.1, 4, s), "mm", 1e3);
-        const auto [axial, lateral] = stretch(0.1, 4, s);
-        print("axial", 4, s, axial, "1e-3", 1e3);
-        print("lateral", 4, s, lateral, "1e-3", 1e3);
-        std::printf("%-12s %40s lateral/axial %.3f (nu %.2f)\n", "", "", lateral.lattice / axial.lattice, nu);
+        for (const Setting& s : settings(w, sub, nu)) {
+          print("stubby", 4, s, cantilever(0.2, 0.4, 4, s), "mm", 1e3);
+          print("column", 4, s, column(0.1, 4, s), "mm", 1e3);
+          const auto [axial, lateral] = stretch(0.1, 4, s);
+          print("axial", 4, s, axial, "1e-3", 1e3);
+          print("lateral", 4, s, lateral, "1e-3", 1e3);
+          std::printf("%-12s %40s lateral/axial %.3f (nu %.2f)\n", "", "", lateral.lattice / axial.lattice, nu);
+        }
       }
   }
   return 0;

@@ -17,7 +17,15 @@
 // and runs them on one thread while that is faster (ThreadGovernor). The last table repeats the
 // threads' figures with a busy loop of the benchmark's own in another process.
 //
+// Last, the implicit step (SolverParams::Integrator::Implicit, one sub-step of 1/60 s) against the
+// explicit step at the sub-steps it needs for the same material (the fewest at which alpha is not
+// capped), at 30 kPa, 1 MPa and 10 MPa (nu 0.3, w = 2), on the bunny at --particles and at a
+// quarter of it, dropped 2 cm onto a ground plane and left to settle (2 s): ns per particle per
+// 1/60 s step, and the implicit step's conjugate-gradient iterations per step (mean and largest).
+// --only implicit prints that table alone.
+//
 //   bench_solver [--mesh PATH] [--particles N] [--steps N] [--repeats N] [--max-naive-w W]
+//                [--only implicit]
 
 #include "deformable_flsm/core/fast_summation.h"
 #include "deformable_flsm/core/lattice.h"
@@ -52,6 +60,7 @@ struct Args {
   int steps = 40;
   int repeats = 11;
   int maxNaiveW = 4;
+  bool onlyImplicit = false;
 };
 
 Args parse(int argc, char** argv) {
@@ -64,6 +73,7 @@ Args parse(int argc, char** argv) {
     else if (k == "--steps") a.steps = std::atoi(v);
     else if (k == "--repeats") a.repeats = std::atoi(v);
     else if (k == "--max-naive-w") a.maxNaiveW = std::atoi(v);
+    else if (k == "--only" && std::string(v) == "implicit") a.onlyImplicit = true;
     else {
       std::fprintf(stderr, "unknown option %s\n", k.c_str());
       std::exit(2);
@@ -175,6 +185,79 @@ double threadedShare(const Timed& t) {
   return n > 0.0 ? threaded / n : 1.0;
 }
 
+/// The fewest sub-steps of a 1/60 s step at which the explicit step takes the material uncapped
+/// (at most kMaxSubsteps); `p` otherwise as given.
+int substepsNeeded(const std::shared_ptr<const Lattice>& lattice, SolverParams p) {
+  constexpr int kMaxSubsteps = 1000;
+  p.integrator = Integrator::Explicit;
+  int lo = 1, hi = kMaxSubsteps;  // hi: uncapped
+  while (lo < hi) {
+    const int mid = (lo + hi) / 2;
+    p.substeps = mid;
+    if (Solver(lattice, p).stiffnessSaturated())
+      lo = mid + 1;
+    else
+      hi = mid;
+  }
+  return lo;
+}
+
+/// A drop: the object 2 cm above a ground plane, stepped for `seconds`; wall time per particle per
+/// step (ns) and the implicit step's CG iterations per step (mean, largest).
+struct DropRun {
+  double ns = 0.0, meanIterations = 0.0;
+  int maxIterations = 0;
+};
+
+DropRun drop(const std::shared_ptr<const Lattice>& lattice, const SolverParams& p, double seconds) {
+  Solver s(lattice, p);
+  double lowest = s.positions()[0].z();
+  for (const auto& x : s.positions()) lowest = std::min(lowest, x.z());
+  Collider ground;
+  ground.shape.type = ColliderType::HalfSpace;
+  ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - s.contactRadius() - 0.02);
+  s.setCollider("ground", ground);
+  const int steps = static_cast<int>(std::lround(seconds / p.timeStep));
+  DropRun out;
+  long total = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int i = 0; i < steps; ++i) {
+    s.step();
+    total += s.lastImplicitSolve().iterations;
+    out.maxIterations = std::max(out.maxIterations, s.lastImplicitSolve().iterations);
+  }
+  const double ns = std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count();
+  out.ns = ns / (double(steps) * double(lattice->size()));
+  out.meanIterations = double(total) / steps;
+  return out;
+}
+
+void implicitTable(const TriMesh& mesh, std::size_t particles) {
+  std::printf("\nimplicit (1 sub-step) against explicit (the sub-steps it needs for the material), nu 0.3, w 2,\n"
+              "single thread, a drop of 2 cm onto a plane and 2 s of settling; ns per particle per 1/60 s step\n"
+              "%10s %10s %8s %16s %16s %8s %10s %8s\n",
+              "particles", "E (Pa)", "exp sub", "explicit ns/p", "implicit ns/p", "exp/imp", "CG mean", "CG max");
+  for (std::size_t target : {particles / 4, particles}) {
+    const Voxelization vox = voxelizeNear(mesh, target);
+    auto lattice = std::make_shared<const Lattice>(vox, 1000.0, 2);
+    for (double E : {30e3, 1e6, 10e6}) {
+      SolverParams p;
+      p.regionHalfWidth = 2;
+      p.youngsModulus = E;
+      p.poissonsRatio = 0.3;
+      p.substeps = 1;
+      p.integrator = Integrator::Implicit;
+      const DropRun imp = drop(lattice, p, 2.0);
+      SolverParams e = p;
+      e.integrator = Integrator::Explicit;
+      e.substeps = substepsNeeded(lattice, p);
+      const DropRun exp = drop(lattice, e, 2.0);
+      std::printf("%10zu %10.3g %8d %16.1f %16.1f %8.2f %10.1f %8d\n", lattice->size(), E, e.substeps, exp.ns, imp.ns,
+                  exp.ns / imp.ns, imp.meanIterations, imp.maxIterations);
+    }
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -184,6 +267,10 @@ int main(int argc, char** argv) {
   std::printf("mesh %s: %zu triangles; lattice %d x %d x %d cells, spacing %.4g m, %zu particles\n",
               args.mesh.c_str(), mesh.triangles.size(), vox.dims.x(), vox.dims.y(), vox.dims.z(), vox.spacing,
               vox.cells.size());
+  if (args.onlyImplicit) {
+    implicitTable(mesh, args.particles);
+    return 0;
+  }
   {
     // Memory a step works in: the solver's per-particle state and scratch arrays, measured as the
     // heap growth of building one (lattice and mesh excluded), divided by the particle count.
@@ -378,5 +465,6 @@ int main(int argc, char** argv) {
   for (const BusyRow& b : busyRows)
     std::printf("%10zu %14.1f %14.1f %8.2fx %8.0f%% %11.2f / %.2f ms %22.3g\n", b.particles, b.one, b.all, b.cost,
                 100.0 * b.threaded, b.msThreads, b.msOne, b.diff);
+  implicitTable(mesh, args.particles);
   return 0;
 }

@@ -102,6 +102,7 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
                            regionMass_[r];
 
   computeRegionWeights();
+  configureIntegrator();
 
   x_ = x0;
   v_.assign(n, Eigen::Vector3d::Zero());
@@ -138,6 +139,7 @@ void Solver::setParams(const SolverParams& params) {
     makeSummers();
   }
   computeRegionWeights();
+  configureIntegrator();
 }
 
 void Solver::reset() {
@@ -200,7 +202,10 @@ void Solver::step() {
   beginContactStep();
   for (int s = 0; s < params_.substeps; ++s) {
     interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
-    substep(h);
+    if (params_.integrator == Integrator::Implicit)
+      implicitSubstep(h);
+    else
+      substep(h);
   }
   endContactStep();
   if (timed) {

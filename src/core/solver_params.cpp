@@ -39,6 +39,16 @@ SolverKind parseSolverKind(const std::string& name) {
 
 const char* toString(SolverKind kind) { return kind == SolverKind::Fast ? "fast" : "naive"; }
 
+Integrator parseIntegrator(const std::string& name) {
+  if (name == "explicit") return Integrator::Explicit;
+  if (name == "implicit") return Integrator::Implicit;
+  throw std::invalid_argument("invalid integrator '" + name + "': expected 'explicit' or 'implicit'");
+}
+
+const char* toString(Integrator integrator) {
+  return integrator == Integrator::Implicit ? "implicit" : "explicit";
+}
+
 int regionHalfWidthForRadius(double radius, double spacing) {
   if (!std::isfinite(radius) || radius <= 0.0)
     fail("region_radius", str(radius), "expected a finite radius > 0 (m)");
@@ -93,6 +103,8 @@ void SolverParams::validate() const {
          "expected 0 (all hardware threads) or a count from 1 to " + std::to_string(kMaxThreads));
   if (!std::isfinite(density) || density <= 0.0)
     fail("density", str(density), "expected a finite density > 0 (kg/m^3)");
+  if (integrator != Integrator::Explicit && integrator != Integrator::Implicit)
+    fail("integrator", std::to_string(static_cast<int>(integrator)), "expected 'explicit' or 'implicit'");
   if (!std::isfinite(contactRadius) || contactRadius < 0.0)
     fail("contact_radius", str(contactRadius),
          "expected a finite radius >= 0 (m; 0 uses half the lattice spacing)");

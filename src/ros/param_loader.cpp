@@ -236,6 +236,14 @@ NodeParams ParamLoader::loadNodeParams() const {
     throw ParamError("~solver is '" + kind + "': it must be 'fast' (FastLSM summation) or "
                      "'naive' (direct summation, for comparison)");
   }
+  const std::string integrator = getString("integrator", toString(s.integrator));
+  try {
+    s.integrator = parseIntegrator(integrator);
+  } catch (const std::invalid_argument&) {
+    throw ParamError("~integrator is '" + integrator + "': it must be 'explicit' (symplectic Euler, the "
+                     "modulus capped by the sub-step) or 'implicit' (backward Euler, any modulus at one "
+                     "sub-step)");
+  }
 
   p.publishRate = getDouble("publish_rate", p.publishRate);
   p.republishAtRest = getBool("republish_at_rest", p.republishAtRest);

@@ -8,8 +8,10 @@
 #pragma once
 
 #include "deformable_flsm/core/collider.h"
+#include "deformable_flsm/core/corotated_hessian.h"
 #include "deformable_flsm/core/fast_summation.h"
 #include "deformable_flsm/core/lattice.h"
+#include "deformable_flsm/core/pcg.h"
 #include "deformable_flsm/core/solver_params.h"
 #include "deformable_flsm/core/thread_governor.h"
 
@@ -371,6 +373,68 @@ class Solver : private RegionKernel {
   double alpha_ = 1.0;
   double time_ = 0.0;
   std::uint64_t substeps_ = 0;
+
+ public:
+  // --- implicit integrator (solver_implicit.cpp) ------------------------------------------
+  /// The conjugate-gradient solve of the last implicit sub-step (zeros before the first);
+  /// iterations summed over its contact passes.
+  const PcgResult& lastImplicitSolve() const { return implicitSolve_; }
+
+ private:
+  /// One sub-step of linearly implicit backward Euler (see solver_implicit.cpp).
+  void implicitSubstep(double h);
+  /// After computeRegionWeights(): with the implicit integrator, alpha as requested (no cap) and
+  /// the step's buffers sized; called from the constructor and setParams(), never in a step.
+  void configureIntegrator();
+  /// y = A p, A the implicit step's matrix M + h C + h^2 K (rows of fixed entries meaningless).
+  void implicitProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y);
+  /// Adds the Poisson term's Gauss-Newton Hessian times p, h^2 H_vol p, to y.
+  void addVolumetricProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) const;
+  /// Restores the linear and angular momentum the external forces give (free object only).
+  void correctRigidModes(double h);
+  std::unique_ptr<CorotatedHessian> hessian_;
+  Pcg pcg_;
+  PcgResult implicitSolve_;
+  double implicitH_ = 0.0;                      // the sub-step being solved (s)
+  std::vector<double> weightSum_;               // sum_{r contains i} beta_r
+  std::vector<Eigen::Vector3d> implicitGoal_;   // goals at the start of the sub-step
+  std::vector<Eigen::Vector3d> implicitRhs_;    // M v_n + h f(x_n)
+  std::vector<Eigen::Vector3d> implicitVelocity_;  // v_{n+1}, the unknown
+  std::vector<Eigen::Vector3d> implicitDiagonal_;  // M (1 + h c) + h^2 spring stiffness
+  std::vector<Eigen::Vector3d> implicitInvPrecond_;  // inverse of the Jacobi diagonal
+  /// the last sub-step's v_{n+1} - v_n - h g (warm start: the next guess is v_n + h g + this)
+  std::vector<Eigen::Vector3d> implicitLastDv_;
+  /// Fixed: pinned, hard-dragged or a sticking contact; Normal: a sliding contact (normal
+  /// velocity prescribed)
+  std::vector<PcgConstraint> implicitConstraint_;
+  std::vector<Eigen::Vector3d> implicitNormal_;    // contact normal (Normal constraints)
+  std::vector<int> implicitContactBody_;           // the contact body of a contact, else -1
+  /// per particle: no contact, sticking, sliding or released (pulling) in the last sub-step
+  std::vector<char> implicitContactState_;
+  std::vector<Eigen::Vector3d> implicitResidual_;  // A v+ - b: the constraint impulses
+  /// Constrains the free particles that v_n + h g would carry into a collider (see
+  /// solver_implicit.cpp); returns whether any is.
+  bool constrainContacts(double h);
+  /// The contact active set after a solve: lets go of pulling contacts, turns sticking ones out
+  /// of the friction cone into sliding ones, adds particles the solution carries into a
+  /// collider; returns whether it changed.
+  bool updateContactSet(double h);
+  /// The collider (index into contactBodies_, at body.now) x is deepest in, or -1; its depth
+  /// phi - r (< 0), outward normal and surface velocity at x.
+  int deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, double& depth,
+                     Eigen::Vector3d& colliderVelocity) const;
+  /// Kinetic friction on the sliding contacts after the last solve, and every contact's impulse
+  /// on its collider.
+  void applyContactFriction(double h);
+  /// Per stencil of the Poisson term at x_n: its difference vectors F_ia scaled by 1 / d_ia, and
+  /// the weights of its Gauss-Newton Hessian (0 where the strain is clamped).
+  struct VolumetricLinearisation {
+    Eigen::Vector3d gradient[3];  // F_ia / d_ia
+    double weight = 0.0;          // lambda V_i, or 0
+    double deficit[3] = {0.0, 0.0, 0.0};
+    double stretch[3] = {0.0, 0.0, 0.0};  // max(0, sigma_a) / d_a^2, sigma_a = w e + D_a e_aa
+  };
+  std::vector<VolumetricLinearisation> volumetricLinear_;
 };
 
 }  // namespace deformable_flsm

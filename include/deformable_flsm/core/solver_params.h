@@ -23,6 +23,22 @@ SolverKind parseSolverKind(const std::string& name);
 /// "fast" or "naive".
 const char* toString(SolverKind kind);
 
+/// How a sub-step advances the state.
+enum class Integrator {
+  /// Symplectic Euler (Rivers & James 2007, eq. 7): cheap per sub-step, stable only while
+  /// (omega h)^2 stays under its bound, so a stiff material is capped (Solver::alpha())
+  Explicit,
+  /// Linearly implicit backward Euler with the co-rotated region stiffness (one Newton step per
+  /// sub-step, solved by conjugate gradients): no bound on the modulus from the sub-step, at the
+  /// price of numerical damping of the stiff modes (docs/method.md)
+  Implicit,
+};
+
+/// Parses "explicit" / "implicit". @throws std::invalid_argument otherwise.
+Integrator parseIntegrator(const std::string& name);
+/// "explicit" or "implicit".
+const char* toString(Integrator integrator);
+
 /// Largest region half-width w (cells) the solver accepts: (2w+1)^3 = 9261 cells per region at
 /// w = 10, beyond any useful stiffness.
 constexpr int kMaxRegionHalfWidth = 10;
@@ -91,6 +107,9 @@ struct SolverParams {
   /// Mass density of the object (kg/m^3); particle mass = density * filled cell volume.
   double density = 1000.0;
   SolverKind kind = SolverKind::Fast;
+  /// Explicit (symplectic Euler, alpha capped by stability) or implicit (backward Euler, alpha as
+  /// requested whatever the sub-step).
+  Integrator integrator = Integrator::Explicit;
   /// Threads a step uses (OpenMP); 0 for every hardware thread. Results do not depend on it:
   /// threads take whole blocks of z-slices, at whose starts every sliding window restarts, so
   /// each sum is the same sequence of additions (see SliceStreamSummer). Threads pay only on idle

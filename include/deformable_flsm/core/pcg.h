@@ -1,0 +1,122 @@
+/// @file pcg.h
+/// Preconditioned conjugate gradients on a field of 3-vectors, with prescribed entries (filtered
+/// CG, Baraff & Witkin 1998): the implicit step's linear solver.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <vector>
+
+namespace deformable_flsm {
+
+struct PcgResult {
+  int iterations = 0;
+  /// ||r||_P at the end over the larger of ||r_0||_P and the floor (P the preconditioner)
+  double relativeResidual = 0.0;
+  bool converged = false;
+};
+
+/// How an entry of the unknown is constrained (PCG's filter S_i).
+enum class PcgConstraint : char {
+  /// free: S_i = 1
+  Free = 0,
+  /// prescribed: x_i keeps its value, S_i = 0
+  Fixed = 1,
+  /// component along a unit normal n_i prescribed, the rest free: S_i = 1 - n_i n_i^T
+  Normal = 2,
+};
+
+/// Solves A x = b for a symmetric positive definite A given as a product y = A p, with a diagonal
+/// (Jacobi) preconditioner, on the entries and directions the constraints leave free: the
+/// residual, the preconditioned residual and the search directions are filtered by S (Baraff &
+/// Witkin 1998's modified PCG), so the constrained parts of x keep the values they have on entry.
+/// Buffers are sized by resize(), so that solve() allocates nothing. Dot products are summed in
+/// chunks of fixed size, in order: the result does not depend on how the products are computed
+/// in parallel.
+class Pcg {
+ public:
+  /// Entries per chunk of a dot product.
+  static constexpr std::size_t kChunk = 1024;
+
+  void resize(std::size_t n) {
+    r_.assign(n, Eigen::Vector3d::Zero());
+    z_.assign(n, Eigen::Vector3d::Zero());
+    p_.assign(n, Eigen::Vector3d::Zero());
+    q_.assign(n, Eigen::Vector3d::Zero());
+  }
+
+  /// @param[in]     apply        apply(p, y): y = A p for #P vectors (y sized)
+  /// @param[in]     invDiagonal  #P per-component inverse of the preconditioner's diagonal
+  /// @param[in]     constraint   #P constraint of each entry
+  /// @param[in]     normal       #P unit normals (read where the constraint is Normal)
+  /// @param[in]     b            #P right-hand side
+  /// @param[in,out] x            #P initial guess (prescribed values at fixed entries); solution
+  /// @param[in]     floor        stop when ||r||_P <= floor ...
+  /// @param[in]     tolerance    ... or ||r||_P <= tolerance ||r_0||_P (r_0 the initial guess's)
+  /// @param[in]     maxIterations  at most this many products with A
+  template <class Apply>
+  PcgResult solve(Apply&& apply, const std::vector<Eigen::Vector3d>& invDiagonal,
+                  const std::vector<PcgConstraint>& constraint, const std::vector<Eigen::Vector3d>& normal,
+                  const std::vector<Eigen::Vector3d>& b, std::vector<Eigen::Vector3d>& x, double floor,
+                  double tolerance, int maxIterations) {
+    const auto filter = [&](std::size_t i, const Eigen::Vector3d& v) -> Eigen::Vector3d {
+      switch (constraint[i]) {
+        case PcgConstraint::Free: return v;
+        case PcgConstraint::Fixed: return Eigen::Vector3d::Zero();
+        case PcgConstraint::Normal: return v - normal[i].dot(v) * normal[i];
+      }
+      return v;
+    };
+    const std::size_t n = b.size();
+    PcgResult result;
+    apply(x, q_);
+    for (std::size_t i = 0; i < n; ++i) {
+      r_[i] = filter(i, b[i] - q_[i]);
+      z_[i] = filter(i, invDiagonal[i].cwiseProduct(r_[i]));
+      p_[i] = z_[i];
+    }
+    double rz = dot(r_, z_);
+    const double goal = std::max(tolerance * tolerance * rz, floor * floor);
+    const double reference = std::sqrt(std::max(rz, floor * floor));
+    while (!(rz <= goal) && result.iterations < maxIterations) {
+      apply(p_, q_);
+      for (std::size_t i = 0; i < n; ++i) q_[i] = filter(i, q_[i]);
+      ++result.iterations;
+      const double pq = dot(p_, q_);
+      if (!(pq > 0.0)) break;  // A not positive on p: round-off at convergence
+      const double step = rz / pq;
+      for (std::size_t i = 0; i < n; ++i) {
+        x[i] += step * p_[i];
+        r_[i] -= step * q_[i];
+        z_[i] = filter(i, invDiagonal[i].cwiseProduct(r_[i]));
+      }
+      const double rzNext = dot(r_, z_);
+      const double beta = rzNext / rz;
+      rz = rzNext;
+      for (std::size_t i = 0; i < n; ++i) p_[i] = z_[i] + beta * p_[i];
+    }
+    result.relativeResidual = std::sqrt(std::max(0.0, rz)) / reference;
+    result.converged = rz <= goal;
+    return result;
+  }
+
+  /// sum a_i . b_i in chunks of kChunk entries, added in order.
+  static double dot(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b) {
+    double total = 0.0;
+    for (std::size_t c = 0; c < a.size(); c += kChunk) {
+      const std::size_t end = std::min(a.size(), c + kChunk);
+      double partial = 0.0;
+      for (std::size_t i = c; i < end; ++i) partial += a[i].dot(b[i]);
+      total += partial;
+    }
+    return total;
+  }
+
+ private:
+  std::vector<Eigen::Vector3d> r_, z_, p_, q_;
+};
+
+}  // namespace deformable_flsm

@@ -1,0 +1,158 @@
+#include "deformable_flsm/core/corotated_hessian.h"
+
+#include <Eigen/Eigenvalues>
+
+#include <array>
+
+namespace deformable_flsm {
+
+namespace {
+
+/// Rest-inertia eigenvalues below this fraction of the largest are treated as zero: a collinear
+/// region has no rotation about its own line to project out, so its inverse is the
+/// pseudo-inverse (as solveInertia() in the explicit step's damping).
+constexpr double kInertiaRankTolerance = 1e-10;
+
+}  // namespace
+
+CorotatedHessian::CorotatedHessian(RegionSummer& summer, const std::vector<double>& massFractions,
+                                   const std::vector<Eigen::Vector3d>& restCentered,
+                                   const std::vector<double>& regionMass,
+                                   const std::vector<Eigen::Vector3d>& regionRestCenter)
+    : massFractions_(massFractions),
+      restCentered_(restCentered),
+      regionMass_(regionMass),
+      regionRestCenter_(regionRestCenter) {
+  const std::size_t n = massFractions.size();
+  // I0_r = tr(P) 1 - P, P = sum m~ q q^T - M_r c0 c0^T the second moment about c0_r.
+  std::vector<double> second(6 * n), secondSum;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d& q = restCentered[i];
+    double* d = &second[6 * i];
+    const double m = massFractions[i];
+    d[0] = m * q.x() * q.x();
+    d[1] = m * q.y() * q.y();
+    d[2] = m * q.z() * q.z();
+    d[3] = m * q.x() * q.y();
+    d[4] = m * q.x() * q.z();
+    d[5] = m * q.y() * q.z();
+  }
+  summer.gather(second, 6, secondSum);
+  restInertiaInverse_.resize(n);
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+  for (std::size_t r = 0; r < n; ++r) {
+    const double* S = &secondSum[6 * r];
+    const Eigen::Vector3d& c0 = regionRestCenter[r];
+    Eigen::Matrix3d P;
+    P << S[0], S[3], S[4], S[3], S[1], S[5], S[4], S[5], S[2];
+    P -= regionMass[r] * c0 * c0.transpose();
+    const Eigen::Matrix3d I = P.trace() * Eigen::Matrix3d::Identity() - P;
+    eig.computeDirect(I);
+    const Eigen::Vector3d& lambda = eig.eigenvalues();
+    const double cutoff = kInertiaRankTolerance * lambda.cwiseAbs().maxCoeff();
+    Eigen::Vector3d inv;
+    for (int k = 0; k < 3; ++k) inv[k] = lambda[k] > cutoff ? 1.0 / lambda[k] : 0.0;
+    const Eigen::Matrix3d& V = eig.eigenvectors();
+    restInertiaInverse_[r] = V * inv.asDiagonal() * V.transpose();
+  }
+  rotation_.assign(n, Eigen::Matrix3d::Identity());
+  rotatedCenter_ = regionRestCenter;
+  rotatedInertiaInverse_.resize(n);
+  for (std::size_t r = 0; r < n; ++r) {
+    const Eigen::Matrix3d& J = restInertiaInverse_[r];
+    rotatedInertiaInverse_[r] = {J(0, 0), J(1, 1), J(2, 2), J(0, 1), J(0, 2), J(1, 2)};
+  }
+  coefficient_.assign(n, 0.0);
+  coefficientSum_.assign(n, 0.0);
+}
+
+// Per region, what every product of the sub-step shares: R_r, the rotated rest centre R_r c0_r and
+// the rotated inverse inertia R_r I0_r^+ R_r^T (symmetric: its upper triangle).
+void CorotatedHessian::setRotations(const std::vector<Eigen::Quaterniond>& rotations) {
+  for (std::size_t r = 0; r < rotation_.size(); ++r) {
+    const Eigen::Matrix3d R = rotations[r].toRotationMatrix();
+    rotation_[r] = R;
+    rotatedCenter_[r] = R * regionRestCenter_[r];
+    const Eigen::Matrix3d J = R * restInertiaInverse_[r] * R.transpose();
+    rotatedInertiaInverse_[r] = {J(0, 0), J(1, 1), J(2, 2), J(0, 1), J(0, 2), J(1, 2)};
+  }
+}
+
+void CorotatedHessian::setCoefficients(double a, double b, const std::vector<double>& beta,
+                                       const std::vector<double>& weightSum,
+                                       const std::vector<double>& invCount) {
+  for (std::size_t r = 0; r < coefficient_.size(); ++r) {
+    coefficient_[r] = a * beta[r] + b;
+    coefficientSum_[r] = a * weightSum[r] + b / invCount[r];
+  }
+}
+
+void CorotatedHessian::apply(RegionSummer& summer, const std::vector<Eigen::Vector3d>& diagonal,
+                             const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
+  diagonal_ = &diagonal;
+  input_ = &p;
+  output_ = &y;
+  summer.apply(*this);
+  diagonal_ = nullptr;
+  input_ = nullptr;
+  output_ = nullptr;
+}
+
+void CorotatedHessian::particleData(std::size_t begin, std::size_t end, double* out) {
+  const std::vector<Eigen::Vector3d>& p = *input_;
+  for (std::size_t i = begin; i < end; ++i) {
+    double* d = out + (i - begin) * 12;
+    const Eigen::Vector3d mp = massFractions_[i] * p[i];
+    const Eigen::Vector3d& q = restCentered_[i];
+    d[0] = mp.x();
+    d[1] = mp.y();
+    d[2] = mp.z();
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) d[3 + 3 * a + b] = mp[a] * q[b];
+  }
+}
+
+void CorotatedHessian::regionData(std::size_t begin, std::size_t end, const double* sums, double* out) {
+  for (std::size_t r = begin; r < end; ++r) {
+    const double* s = sums + (r - begin) * 12;
+    double* o = out + (r - begin) * 12;
+    const Eigen::Matrix3d& R = rotation_[r];
+    const Eigen::Vector3d mp(s[0], s[1], s[2]);
+    // A = S R^T (S = sum m~ p q^T, row-major at s + 3): only its antisymmetric part is needed,
+    // A_ab = S_a . R_b (rows)
+    const auto A = [&](int a, int b) { return s[3 + 3 * a] * R(b, 0) + s[4 + 3 * a] * R(b, 1) + s[5 + 3 * a] * R(b, 2); };
+    const Eigen::Vector3d& Rc0 = rotatedCenter_[r];
+    // sum m~ q~ x p, q~ = R (q - c0)
+    const Eigen::Vector3d L = Eigen::Vector3d(A(2, 1) - A(1, 2), A(0, 2) - A(2, 0), A(1, 0) - A(0, 1)) - Rc0.cross(mp);
+    const std::array<double, 6>& J = rotatedInertiaInverse_[r];
+    const Eigen::Vector3d theta(J[0] * L.x() + J[3] * L.y() + J[4] * L.z(), J[3] * L.x() + J[1] * L.y() + J[5] * L.z(),
+                                J[4] * L.x() + J[5] * L.y() + J[2] * L.z());
+    const double c = coefficient_[r];
+    const Eigen::Vector3d ct = c * theta;
+    // c [theta]x R: column b is c theta x (R e_b); theta x (R q) = ([theta]x R) q
+    for (int b = 0; b < 3; ++b) {
+      const Eigen::Vector3d col = ct.cross(R.col(b));
+      o[b] = col.x();
+      o[3 + b] = col.y();
+      o[6 + b] = col.z();
+    }
+    const Eigen::Vector3d shift = (c / regionMass_[r]) * mp - ct.cross(Rc0);
+    o[9] = shift.x();
+    o[10] = shift.y();
+    o[11] = shift.z();
+  }
+}
+
+void CorotatedHessian::particleResult(std::size_t begin, std::size_t end, const double* sums) {
+  const std::vector<Eigen::Vector3d>& p = *input_;
+  const std::vector<Eigen::Vector3d>& D = *diagonal_;
+  std::vector<Eigen::Vector3d>& y = *output_;
+  for (std::size_t i = begin; i < end; ++i) {
+    const double* s = sums + (i - begin) * 12;
+    const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> B(s);
+    const Eigen::Vector3d fit = B * restCentered_[i] + Eigen::Vector3d(s[9], s[10], s[11]);
+    y[i] = D[i].cwiseProduct(p[i]) + massFractions_[i] * (coefficientSum_[i] * p[i] - fit);
+  }
+}
+
+}  // namespace deformable_flsm

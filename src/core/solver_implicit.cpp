@@ -1,0 +1,459 @@
+// The implicit sub-step: linearly implicit backward Euler on FastLSM's shape-matching energy with
+// the co-rotated region stiffness (one Newton step per sub-step), solved by preconditioned
+// conjugate gradients. See docs/method.md, "The implicit step".
+//
+// Backward Euler, linearised about the state at the start of the sub-step (Baraff & Witkin 1998):
+//   (M + h C + h^2 K) dv = h (f(x_n, v_n) - h K v_n),   v+ = v_n + dv,   x+ = x_n + h v+
+// which, with f = f_el(x_n) - C v_n, is the same as solving for v+ directly:
+//   A v+ = M v_n + h f_el(x_n),   A = M + h C + h^2 K.
+// - f_el: shape matching k m~_i sum_r beta_r (T_r x0_i - x_i) = k m_i s_i (g_i - x_i) (g_i the
+//   beta-weighted goal of the ordinary region pass, k = alpha / h^2 with alpha as requested, no
+//   cap), gravity, timed forces, spring drags, the Poisson term;
+// - K: the co-rotated region stiffness k sum_r beta_r K_r (CorotatedHessian, the rotations R_r of
+//   the region pass at x_n), the Gauss-Newton Hessian of the Poisson term, and the spring drags'
+//   stiffness (diagonal);
+// - C: region damping, damping * sum_r K_r (the explicit step's pull of every particle towards
+//   its regions' rigid velocity fits, as a matrix), and ambient damping c M, relative to the
+//   object's rigid motion v_obj when free (right-hand side + h c M (v_obj + h g)) or to rest when
+//   the world holds the object.
+// Pinned and hard-dragged particles have their velocity prescribed: their rows and columns leave
+// the system (filtered CG). Contact is split off: the contact pass runs after the velocity solve,
+// as in the explicit step. Free of pins, drags and colliders, the step keeps the linear and
+// angular momentum the external forces give exactly: K annihilates translations but not the
+// rotation of a deformed region about its deformed centre, and CG stops at a residual, so the
+// six rigid modes of the solution are corrected (correctRigidModes()).
+#include "deformable_flsm/core/contact.h"
+#include "deformable_flsm/core/solver.h"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+
+namespace deformable_flsm {
+
+namespace {
+
+/// CG stops when the residual's preconditioned norm is this fraction of its initial one (the warm
+/// start's): the error is a fraction of what the warm start misses, so that at rest, where it
+/// misses nothing, the step stays at rest, and a vibration is not fed by a solve stopped along its
+/// last increment carried forward. (Against the whole right-hand side M v_n + h f a cantilever at
+/// 30 kPa gained 2 % of amplitude per period, and a resting object kept jittering at ~1e-3 g h.)
+/// docs/performance.md gives the iterations it costs.
+constexpr double kCgTolerance = 1e-3;
+/// ... or when it is this fraction of the step's force impulse (the larger of h f(x_n) and the
+/// gravity impulse M g h): a warm start this good needs no iteration.
+constexpr double kCgFloor = 1e-6;
+/// At most this many CG iterations per sub-step: a bound on the cost of a step, far above the
+/// counts measured (docs/performance.md); the step then takes the iterate reached.
+constexpr int kCgMaxIterations = 300;
+/// Largest volumetric strain the Poisson term acts on (as computeVolumetricForces()): beyond it
+/// the force is constant, so its Hessian is zero.
+constexpr double kMaxVolumetricStrain = 0.5;
+/// Solves per sub-step with contacts: the first, and again after letting go of the contacts that
+/// pulled (one-sided contact by an active set, at most this many passes; what remains pulling
+/// after the last is released by the next sub-step's prediction).
+constexpr int kContactPasses = 4;
+/// A free particle joins the contacts when the solution carries it deeper into a collider than
+/// this fraction of the contact radius (the contact pass after the solve takes what is less).
+constexpr double kContactSlop = 1e-3;
+/// The contact states kept from one sub-step to the next (implicitContactState_).
+constexpr char kNoContact = 0, kSticking = 1, kSliding = 2, kReleased = 3;
+/// Inertia eigenvalues below this fraction of the largest are treated as zero (a collinear object
+/// cannot spin about its own line).
+constexpr double kInertiaRankTolerance = 1e-10;
+
+}  // namespace
+
+void Solver::configureIntegrator() {
+  if (params_.integrator != Integrator::Implicit) return;
+  // No stability cap: alpha (and with it k = alpha / h^2, independent of h) as requested. The
+  // Poisson term was scaled by alpha / requested with the cap; undo that.
+  const double requested = params_.requestedAlpha(lattice_->spacing());
+  if (volumetric_ && alpha_ > 0.0) {
+    const double scale = requested / alpha_;
+    for (VolumetricStencil& st : stencil_) {
+      st.weight *= scale;
+      for (double& d : st.deficit) d *= scale;
+    }
+  }
+  alpha_ = requested;
+  alphaCap_ = requested;
+  const std::size_t n = lattice_->size();
+  if (!hessian_)
+    hessian_ = std::make_unique<CorotatedHessian>(*summer_, lattice_->regionMassFractions(), restCentered_,
+                                                  regionMass_, regionRestCenter_);
+  weightSum_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) weightSum_[i] = 1.0 / invWeightSum_[i];
+  if (implicitVelocity_.size() != n) {
+    pcg_.resize(n);
+    implicitGoal_.assign(n, Eigen::Vector3d::Zero());
+    implicitRhs_.assign(n, Eigen::Vector3d::Zero());
+    implicitVelocity_.assign(n, Eigen::Vector3d::Zero());
+    implicitDiagonal_.assign(n, Eigen::Vector3d::Zero());
+    implicitInvPrecond_.assign(n, Eigen::Vector3d::Zero());
+    implicitLastDv_.assign(n, Eigen::Vector3d::Zero());
+    implicitConstraint_.assign(n, PcgConstraint::Free);
+    implicitNormal_.assign(n, Eigen::Vector3d::Zero());
+    implicitContactBody_.assign(n, -1);
+    implicitContactState_.assign(n, kNoContact);
+    implicitResidual_.assign(n, Eigen::Vector3d::Zero());
+  }
+  volumetricLinear_.resize(volumetric_ ? n : 0);
+}
+
+void Solver::implicitSubstep(double h) {
+  const std::size_t n = x_.size();
+  const auto& m = lattice_->masses();
+  implicitH_ = h;
+  if (impulsePending_) {
+    for (std::size_t i = 0; i < n; ++i) v_[i] += impulseDv_[i];
+    std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
+    impulsePending_ = false;
+  }
+  accumulateForces(h);
+  // The linearisation point: one ordinary region pass gives the goals and the rotations R_r.
+  computeGoals(implicitGoal_);
+  if (volumetric_) {
+    computeVolumetricForces();
+    // The Poisson term linearised at x_n: E_i = w/2 e^2 + sum_a D_a/2 e_aa^2 has the Hessian
+    //   w grad e grad e^T + sum_a D_a grad e_aa grad e_aa^T + sum_a sigma_a hess e_aa,
+    // grad e_aa = +-F_a / d_a at the ends of axis a, sigma_a = w e + D_a e_aa the stress along a,
+    // hess e_aa = [1 -1; -1 1] / d_a^2 (x) 1. The last term is kept where it is positive (a
+    // stretched stencil: without it the force, linear in F, would be explicit and unstable) and
+    // dropped where negative (compression: Gauss-Newton), so the matrix stays positive
+    // semi-definite. Where the strain is clamped the force is sigma F / d with sigma constant:
+    // only the last term remains.
+    for (std::size_t i = 0; i < n; ++i) {
+      const VolumetricStencil& st = stencil_[i];
+      VolumetricLinearisation& lin = volumetricLinear_[i];
+      double e = 0.0, eaa[3] = {0.0, 0.0, 0.0};
+      for (int a = 0; a < 3; ++a) {
+        const Eigen::Vector3d F = (x_[st.plus[a]] - x_[st.minus[a]]) * st.invDistance[a];
+        if (st.invDistance[a] > 0.0) eaa[a] = 0.5 * (F.squaredNorm() - 1.0);
+        e += eaa[a];
+        lin.gradient[a] = F * st.invDistance[a];
+      }
+      lin.weight = std::abs(e) < kMaxVolumetricStrain ? st.weight : 0.0;
+      const double ec = std::clamp(e, -kMaxVolumetricStrain, kMaxVolumetricStrain);
+      for (int a = 0; a < 3; ++a) {
+        lin.deficit[a] = std::abs(eaa[a]) < kMaxVolumetricStrain ? st.deficit[a] : 0.0;
+        const double ea = std::clamp(eaa[a], -kMaxVolumetricStrain, kMaxVolumetricStrain);
+        lin.stretch[a] = std::max(0.0, st.weight * ec + st.deficit[a] * ea) * st.invDistance[a] * st.invDistance[a];
+      }
+    }
+  }
+  const bool relative = params_.ambientDamping > 0.0 && !heldByWorld();
+  if (relative) computeRigidMotion();
+
+  // The system: A = diag(M (1 + h c) + h^2 k_spring) + sum_r (h^2 k beta_r + h damping) K_r
+  // (+ h^2 H_vol), h^2 k = alpha.
+  hessian_->setRotations(rotations_);
+  hessian_->setCoefficients(alpha_, h * params_.damping, regionWeight_, weightSum_, invCount_);
+  const double c = params_.ambientDamping;
+  for (std::size_t i = 0; i < n; ++i) implicitDiagonal_[i].setConstant(m[i] * (1.0 + h * c));
+  for (const auto& entry : drags_) {
+    const Drag& drag = entry.second;
+    const Eigen::Isometry3d& frame = drag.frame;
+    double M = 0.0;
+    for (std::uint32_t p : drag.particles) M += m[p];
+    for (std::size_t e = 0; e < drag.particles.size(); ++e) {
+      const std::uint32_t p = drag.particles[e];
+      if (drag.stiffness > 0.0)
+        implicitDiagonal_[p].array() += h * h * drag.stiffness * m[p] / M;
+      else if (pinned_[p] == 0)
+        implicitVelocity_[p] = (frame * drag.offsets[e] - x_[p]) / h;  // reaches the target
+    }
+  }
+  // Right-hand side M v_n + h f_el(x_n), the initial guess and the Jacobi preconditioner.
+  const double pull = alpha_ / h;  // h k
+  double rhsNorm = 0.0, gravityNorm = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    Eigen::Vector3d a = params_.gravity;
+    if (!forcedParticles_.empty()) a += forceAccel_[i];
+    if (volumetric_) a += volumetricAccel_[i];
+    Eigen::Vector3d b = m[i] * (v_[i] + h * a + pull * stiffnessFactor_[i] * (implicitGoal_[i] - x_[i]));
+    // relative ambient damping pulls towards the object's rigid motion as gravity carries it
+    // over the sub-step (as the explicit step damps before adding gravity): free fall is exact
+    if (relative) b += (h * c * m[i]) * (rigidVelocity_ + rigidSpin_.cross(x_[i] - xref_) + h * params_.gravity);
+    implicitRhs_[i] = b;
+    implicitInvPrecond_[i] = (implicitDiagonal_[i].array() + hessian_->diagonalBound(i)).inverse();
+    implicitConstraint_[i] = (pinned_[i] != 0 || hardDragged_[i] != 0) ? PcgConstraint::Fixed : PcgConstraint::Free;
+    implicitContactBody_[i] = -1;
+    if (pinned_[i] != 0)
+      implicitVelocity_[i].setZero();
+    else if (hardDragged_[i] == 0)
+      implicitVelocity_[i] = v_[i] + implicitLastDv_[i] + h * params_.gravity;
+  }
+  if (volumetric_) {
+    // the Gauss-Newton Hessian's diagonal, for the preconditioner only
+    for (std::size_t i = 0; i < n; ++i) {
+      const VolumetricStencil& st = stencil_[i];
+      const VolumetricLinearisation& lin = volumetricLinear_[i];
+      for (int a = 0; a < 3; ++a) {
+        const Eigen::Vector3d d = (h * h * (lin.weight + lin.deficit[a])) * lin.gradient[a].cwiseAbs2() +
+                                  Eigen::Vector3d::Constant(h * h * lin.stretch[a]);
+        implicitInvPrecond_[st.plus[a]] = (implicitInvPrecond_[st.plus[a]].cwiseInverse() + d).cwiseInverse();
+        implicitInvPrecond_[st.minus[a]] = (implicitInvPrecond_[st.minus[a]].cwiseInverse() + d).cwiseInverse();
+      }
+    }
+  }
+  const bool contacts = !contactBodies_.empty();
+  constrainContacts(h);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
+    const Eigen::Vector3d impulse = implicitRhs_[i] - m[i] * v_[i];  // h f(x_n)
+    rhsNorm += impulse.dot(implicitInvPrecond_[i].cwiseProduct(impulse));
+    const Eigen::Vector3d g = (m[i] * h) * params_.gravity;
+    gravityNorm += g.dot(implicitInvPrecond_[i].cwiseProduct(g));
+  }
+  const double floor = kCgFloor * std::max({std::sqrt(rhsNorm), std::sqrt(gravityNorm), 1e-300});
+  // Contacts by an active set (see constrainContacts()): solve, let go of the contacts whose
+  // impulse pulls, turn the sticking ones whose impulse leaves the friction cone into sliding
+  // ones, and solve again from where it was.
+  const auto product = [this](const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
+    implicitProduct(p, y);
+  };
+  int iterations = 0;
+  for (int pass = 0;; ++pass) {
+    implicitSolve_ = pcg_.solve(product, implicitInvPrecond_, implicitConstraint_, implicitNormal_, implicitRhs_,
+                                implicitVelocity_, floor, kCgTolerance, kCgMaxIterations);
+    iterations += implicitSolve_.iterations;
+    if (!contacts || pass + 1 >= kContactPasses || !updateContactSet(h)) break;
+  }
+  implicitSolve_.iterations = iterations;
+  if (contacts) applyContactFriction(h);
+  if (!heldByWorld()) correctRigidModes(h);
+
+  // v+ and x+ = x_n + h v+ for the free particles; the pinned and hard-dragged ones are
+  // finishSubstep()'s, as in the explicit step.
+  for (std::size_t i = 0; i < n; ++i) {
+    if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
+    implicitLastDv_[i] = implicitVelocity_[i] - v_[i] - h * params_.gravity;
+    v_[i] = implicitVelocity_[i];
+    x_[i] += h * v_[i];
+  }
+  contactPass(h);
+  finishSubstep(h);
+  for (TimedForce& f : forces_) f.remaining -= h;
+  forces_.erase(std::remove_if(forces_.begin(), forces_.end(),
+                               [](const TimedForce& f) { return f.remaining <= 0.0; }),
+                forces_.end());
+  time_ += h;
+  ++substeps_;
+}
+
+// Contact inside the solve. A particle that its velocity with gravity's increment, v* = v_n + h g,
+// would carry into a collider, x_n + h v* at depth phi - r < 0, is constrained: its normal
+// velocity to the one that ends the sub-step on the surface, v.n = v*.n - (phi - r) / h (the
+// contact pass's normal response, contact.h), and, sticking, its tangential velocity to the
+// collider surface's. (v* rather than the warm start: a resting object's warm start already
+// holds the support and would predict no contact.) The impact then decelerates the whole object
+// through its stiffness within the step, instead of stopping the touching layer alone and leaving
+// the rest to crush it: the contact pass after an unconstrained solve, at a long step, flattens
+// the layers that travel more than a cell into the collider, and shape matching may not undo it.
+// Friction is in the solve too: a sticking contact whose tangential velocity were corrected after
+// the solve would leave the rest of the object moving as if it slid, and feed energy into it.
+bool Solver::constrainContacts(double h) {
+  if (contactBodies_.empty()) return false;
+  const double r = contactRadius();
+  // every collider where the contact pass will see it at the end of this sub-step (the contact
+  // pass sets the same pose and bounds again)
+  for (ContactBody& body : contactBodies_) {
+    const Collider& c = *body.collider;
+    body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_ + h);
+    body.bounded = colliderBounds(c.shape, body.now, body.lo, body.hi);
+    if (body.bounded) {
+      body.lo.array() -= r;
+      body.hi.array() += r;
+    }
+  }
+  bool any = false;
+  for (std::size_t i = 0; i < x_.size(); ++i) {
+    if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
+    const Eigen::Vector3d predicted = v_[i] + h * params_.gravity;
+    const Eigen::Vector3d x = x_[i] + h * predicted;
+    Eigen::Vector3d normal, vc;
+    double depth = 0.0;
+    const int b = deepestContact(x, normal, depth, vc);
+    const char last = implicitContactState_[i];
+    implicitContactState_[i] = b < 0 ? kNoContact : last == kSliding ? kSliding : kSticking;
+    if (b < 0) continue;
+    // a contact that slid in the last sub-step starts sliding (tangential velocity free, from the
+    // warm start), any other sticking: at rest the set then holds from step to step
+    const bool sliding = implicitContactState_[i] == kSliding;
+    const Eigen::Vector3d tangential = sliding ? implicitVelocity_[i] : vc;
+    implicitVelocity_[i] = tangential + (predicted.dot(normal) - depth / h - tangential.dot(normal)) * normal;
+    implicitConstraint_[i] = sliding ? PcgConstraint::Normal : PcgConstraint::Fixed;
+    implicitNormal_[i] = normal;
+    implicitContactBody_[i] = b;
+    any = true;
+  }
+  return any;
+}
+
+int Solver::deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, double& depth,
+                           Eigen::Vector3d& colliderVelocity) const {
+  const double r = contactRadius();
+  int deepest = -1;
+  depth = 0.0;
+  for (std::size_t b = 0; b < contactBodies_.size(); ++b) {
+    const ContactBody& body = contactBodies_[b];
+    if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
+    const Collider& c = *body.collider;
+    Eigen::Vector3d n;
+    const double d = colliderDistance(c.shape, body.now, x, n) - r;
+    if (!(d < depth)) continue;
+    deepest = static_cast<int>(b);
+    depth = d;
+    normal = n;
+    colliderVelocity = c.linearVelocity + c.angularVelocity.cross(x - body.now.translation());
+  }
+  return deepest;
+}
+
+// The active set after a solve, from the constraint impulse on each contact particle, what its
+// equation lacks: J = (A v+ - b)_i. A contact with J.n < 0 pulls the particle towards the
+// collider: let go. A sticking contact with |J_t| > mu_s J.n leaves Coulomb's cone: it slides
+// (normal velocity kept, tangential free, kinetic friction after the solve). A free particle that
+// the solution carries into a collider (deeper than kContactSlop) becomes a sticking contact.
+// Returns whether the set changed.
+bool Solver::updateContactSet(double h) {
+  implicitProduct(implicitVelocity_, implicitResidual_);
+  const double slop = kContactSlop * contactRadius();
+  bool changed = false;
+  for (std::size_t i = 0; i < x_.size(); ++i) {
+    if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
+    if (implicitContactBody_[i] < 0) {
+      Eigen::Vector3d normal, vc;
+      double depth = 0.0;
+      const int b = deepestContact(x_[i] + h * implicitVelocity_[i], normal, depth, vc);
+      if (b < 0 || depth > -slop) continue;
+      const Eigen::Vector3d v = implicitVelocity_[i];
+      implicitVelocity_[i] = vc + (v.dot(normal) - depth / h - vc.dot(normal)) * normal;
+      implicitConstraint_[i] = PcgConstraint::Fixed;
+      implicitNormal_[i] = normal;
+      implicitContactBody_[i] = b;
+      implicitContactState_[i] = kSticking;
+      changed = true;
+      continue;
+    }
+    const Collider& c = *contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])].collider;
+    const Eigen::Vector3d J = implicitResidual_[i] - implicitRhs_[i];
+    const double Jn = J.dot(implicitNormal_[i]);
+    if (Jn < 0.0) {
+      implicitConstraint_[i] = PcgConstraint::Free;
+      implicitContactBody_[i] = -1;
+      implicitContactState_[i] = kReleased;
+      changed = true;
+    } else if (implicitConstraint_[i] == PcgConstraint::Fixed &&
+               (J - Jn * implicitNormal_[i]).norm() > c.staticFriction * Jn) {
+      implicitConstraint_[i] = PcgConstraint::Normal;
+      implicitContactState_[i] = kSliding;
+      changed = true;
+    }
+  }
+  return changed;
+}
+
+// After the last solve: kinetic friction on the sliding contacts, reducing the tangential velocity
+// relative to the collider by mu_k |J.n| / m (not past zero), as contactVelocityChange(); the
+// impulses of every contact go to its collider's wrench, as the contact pass's do.
+void Solver::applyContactFriction(double h) {
+  implicitProduct(implicitVelocity_, implicitResidual_);
+  const auto& m = lattice_->masses();
+  const double r = contactRadius();
+  for (std::size_t i = 0; i < x_.size(); ++i) {
+    if (implicitContactBody_[i] < 0) continue;
+    ContactBody& body = contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])];
+    const Collider& c = *body.collider;
+    const Eigen::Vector3d& n = implicitNormal_[i];
+    const Eigen::Isometry3d& pose = body.now;
+    Eigen::Vector3d J = implicitResidual_[i] - implicitRhs_[i];
+    if (implicitConstraint_[i] == PcgConstraint::Normal) {
+      const double Jn = std::max(0.0, J.dot(n));
+      J = Jn * n;
+      const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
+      const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - pose.translation());
+      const Eigen::Vector3d rel = implicitVelocity_[i] - vc;
+      const Eigen::Vector3d tangential = rel - rel.dot(n) * n;
+      const double slip = tangential.norm(), reduce = c.kineticFriction * Jn / m[i];
+      const Eigen::Vector3d dv = slip <= reduce ? Eigen::Vector3d(-tangential)
+                                                : Eigen::Vector3d(-(reduce / slip) * tangential);
+      implicitVelocity_[i] += dv;
+      J += m[i] * dv;
+    }
+    const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
+    body.impulse += J;
+    body.moment += (x - r * n - pose.translation()).cross(J);
+  }
+}
+
+void Solver::implicitProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
+  hessian_->apply(*activeSummer_, implicitDiagonal_, p, y);
+  if (volumetric_) addVolumetricProduct(p, y);
+}
+
+// h^2 H_vol p with H_vol the Hessian linearised in implicitSubstep(): per stencil,
+// de_a = grad e_aa . p (the strain rate along a), de = sum_a de_a, and the ends of axis a get
+// +- h^2 [(w de + D_a de_a) grad e_aa + sigma_a^+ / d_a^2 (p_plus - p_minus)].
+void Solver::addVolumetricProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) const {
+  const double h2 = implicitH_ * implicitH_;
+  for (std::size_t i = 0; i < stencil_.size(); ++i) {
+    const VolumetricStencil& st = stencil_[i];
+    const VolumetricLinearisation& lin = volumetricLinear_[i];
+    double de[3], sum = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      de[a] = lin.gradient[a].dot(p[st.plus[a]] - p[st.minus[a]]);
+      sum += de[a];
+    }
+    for (int a = 0; a < 3; ++a) {
+      const Eigen::Vector3d f = (h2 * (lin.weight * sum + lin.deficit[a] * de[a])) * lin.gradient[a] +
+                                (h2 * lin.stretch[a]) * (p[st.plus[a]] - p[st.minus[a]]);
+      y[st.plus[a]] += f;
+      y[st.minus[a]] -= f;
+    }
+  }
+}
+
+// The free object's linear and angular momentum after the step are what the external forces give:
+//   P+ = sum m (v_n + h a_ext),   L+ = sum m x_n x (v_n + h a_ext)   (x+ = x_n + h v+, so
+//   sum m x+ x v+ = sum m x_n x v+),
+// a_ext = gravity + timed forces. The solution is corrected by the uniform velocity u and the
+// rotation w x (x - c) about the centre of mass c that restore both: u = dP / M, w = I_c^+ dL_c.
+void Solver::correctRigidModes(double h) {
+  const auto& m = lattice_->masses();
+  const std::size_t n = x_.size();
+  const Eigen::Vector3d ref = x_[anchor_];
+  double M = 0.0;
+  Eigen::Vector3d mp = Eigen::Vector3d::Zero(), dP = Eigen::Vector3d::Zero(), dL = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d mpp = Eigen::Matrix3d::Zero();
+  const bool forced = !forcedParticles_.empty();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d p = x_[i] - ref;
+    Eigen::Vector3d target = v_[i] + h * params_.gravity;
+    if (forced) target += h * forceAccel_[i];
+    const Eigen::Vector3d d = m[i] * (target - implicitVelocity_[i]);
+    M += m[i];
+    mp += m[i] * p;
+    dP += d;
+    dL += p.cross(d);
+    mpp.noalias() += m[i] * p * p.transpose();
+  }
+  const Eigen::Vector3d c = mp / M;
+  const Eigen::Vector3d u = dP / M;
+  const Eigen::Vector3d dLc = dL - c.cross(dP);  // what remains about c once u is added
+  const Eigen::Matrix3d P = mpp - M * c * c.transpose();
+  const Eigen::Matrix3d I = P.trace() * Eigen::Matrix3d::Identity() - P;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+  eig.computeDirect(I);
+  const Eigen::Vector3d& lambda = eig.eigenvalues();
+  const double cutoff = kInertiaRankTolerance * lambda.cwiseAbs().maxCoeff();
+  Eigen::Vector3d inv;
+  for (int a = 0; a < 3; ++a) inv[a] = lambda[a] > cutoff ? 1.0 / lambda[a] : 0.0;
+  const Eigen::Matrix3d& V = eig.eigenvectors();
+  const Eigen::Vector3d w = V * inv.asDiagonal() * (V.transpose() * dLc);
+  for (std::size_t i = 0; i < n; ++i) implicitVelocity_[i] += u + w.cross(x_[i] - ref - c);
+}
+
+}  // namespace deformable_flsm
