@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <stdexcept>
 #include <sstream>
 #include <string>
@@ -152,7 +153,10 @@ SpringLimit Solver::springLimit(const std::string& id, const std::vector<std::ui
     }
   }
   limit.mass = massOf(particles);
-  limit.stiffness = std::max(0.0, kMaxSpringRate - limit.taken) * limit.mass / (h * h);
+  // The implicit step has the springs' stiffness in its system matrix: stable at any stiffness.
+  limit.stiffness = params_.integrator == Integrator::Implicit
+                        ? std::numeric_limits<double>::infinity()
+                        : std::max(0.0, kMaxSpringRate - limit.taken) * limit.mass / (h * h);
   return limit;
 }
 

@@ -61,12 +61,14 @@ struct Drag {
 /// drag counts its rate k h^2 / M (k its stiffness, M its grabbed mass, h the sub-step), summed
 /// over the drags that hold the particle. Symplectic Euler is stable while that and shape
 /// matching's share (at most 2, see Solver::alpha()) stay below 4; 1 keeps a margin. Per drag
-/// alone, several spring drags on the same particles would add up past it.
+/// alone, several spring drags on the same particles would add up past it. The implicit
+/// integrator has no such limit (its springs are in the system it solves).
 constexpr double kMaxSpringRate = 1.0;
 
 /// How stiff a spring drag may be on a set of particles (Solver::springLimit()).
 struct SpringLimit {
-  /// the stiffest spring allowed (N/m): (kMaxSpringRate - taken) M / h^2, at least 0
+  /// the stiffest spring allowed (N/m): (kMaxSpringRate - taken) M / h^2, at least 0; infinite
+  /// with the implicit integrator
   double stiffness = 0.0;
   /// M, the particles' mass (kg)
   double mass = 0.0;
