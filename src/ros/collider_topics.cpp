@@ -48,7 +48,9 @@ ColliderTopics::ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& commandNh,
       this, false, !follower_.empty());
 }
 
-void ColliderTopics::onCommand(const ColliderCommand::ConstPtr& msg) {
+void ColliderTopics::onCommand(const ros::MessageEvent<const ColliderCommand>& event) {
+  const ColliderCommand::ConstPtr& msg = event.getMessage();
+  countMissed(gaps_, *stats_, "~collider", event.getPublisherName(), msg->header.seq);
   CommandBody body;
   Rejection why;
   if (!validator_.check(*msg, body, why)) {
