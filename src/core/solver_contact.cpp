@@ -115,10 +115,14 @@ void Solver::beginContactStep() {
 //     the ones before;
 //  3. safety projection: a sphere still inside a collider (a curved surface, pushed into one
 //     collider by another, or inside since before the sub-step: a collider set, moved or reset
-//     onto it) is moved out along the normal, position only. No velocity comes from this part:
-//     a penetration the particle did not move into is no motion of the particle, and where
-//     colliders overlap so that no place is outside both, velocity made of it would grow every
-//     sub-step (see contactVelocityChange()).
+//     onto it) is moved out along the normal, position only, by at most its radius r per
+//     sub-step. No velocity comes from this part: a penetration the particle did not move into
+//     is no motion of the particle, and where colliders overlap so that no place is outside
+//     both, velocity made of it would grow every sub-step (see contactVelocityChange()). The
+//     bound keeps the depenetration at most r / h (as physics engines bound theirs): a collider
+//     set around the object, as large as it may be (a sphere of 1e9 m), pushes it out over
+//     sub-steps instead of throwing its particles to a surface however far, whence shape
+//     matching would pull them back at that distance over h.
 // The impulses m dv, and their moments about each collider's origin taken at the contact point
 // x* - r n, are summed per chunk, then over the chunks in order.
 // Pinned and hard-dragged particles are left alone: their motion is prescribed.
@@ -207,7 +211,7 @@ void Solver::contactPass(double h) {
         if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
         Eigen::Vector3d normal;
         const double depth = colliderDistance(body.collider->shape, body.now, x, normal) - r;
-        if (depth < 0.0) x -= depth * normal;
+        if (depth < 0.0) x -= std::max(depth, -r) * normal;
       }
       x_[i] = x;
       v_[i] = v;

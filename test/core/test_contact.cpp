@@ -309,6 +309,34 @@ TEST(Contact, ColliderSetIntoTheObjectPushesItOutWithoutThrowingIt) {
   EXPECT_LT(deepest, 1e-9) << "pushed out all the same";
 }
 
+TEST(Contact, AColliderSetAroundTheObjectPushesItOutAtABoundedPace) {
+  // A sphere of 1e9 m set around a block (a size a client may send: finite and positive): every
+  // particle is deep inside. Moved out at most its contact radius r per sub-step, a particle is
+  // after n sub-steps at most n r from where it was by projection, and at most as much again by
+  // the velocity shape matching's spring-back gives it from that displacement; thrown to the
+  // surface at once it would be 1e9 m away, and shape matching pulling it back over one sub-step
+  // would blow the state up.
+  auto lattice = std::make_shared<const Lattice>(test::makeBox(4, 4, 4, 0.01), 1000.0, 1);
+  SolverParams p = sceneParams(*lattice);
+  p.gravity.setZero();
+  Solver s(lattice, p);
+  Collider giant;
+  giant.shape.type = ColliderType::Sphere;
+  giant.shape.radius = 1e9;
+  giant.pose.translation() = centreOfMass(s);
+  s.setCollider("giant", giant);
+  const int steps = stepsFor(0.5, s);
+  for (int i = 0; i < steps; ++i) s.step();
+  ASSERT_TRUE(allFinite(s));
+  double farthest = 0.0;
+  for (std::size_t i = 0; i < s.positions().size(); ++i)
+    farthest = std::max(farthest, (s.positions()[i] - lattice->restPositions()[i]).norm());
+  const double pace = steps * p.substeps * s.contactRadius();
+  std::printf("[ giant   ] after %d sub-steps the farthest particle moved %.3g m (bound %.3g m)\n",
+              steps * p.substeps, farthest, 2.0 * pace);
+  EXPECT_LE(farthest, 2.0 * pace);
+}
+
 TEST(Contact, TurntableCarriesTheBlockByFriction) {
   // a ground spinning about its normal at 1 rad/s under a block centred on the axis: friction on
   // the velocity relative to the surface (omega x r) turns the block with it
