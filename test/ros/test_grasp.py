@@ -88,7 +88,9 @@ def broadcast_fingers(conn, left, right):
         os.setpriority(os.PRIO_PROCESS, 0, -5)
     except (OSError, AttributeError):
         pass  # no privilege: the ordinary priority, still with nothing else in the process
-    rospy.init_node('test_grasp_fingers', anonymous=True, disable_signals=True)
+    # argv=[]: the spawned interpreter was given the test's own arguments, rostest's
+    # __name:= among them, and a second node of that name would shut the test down.
+    rospy.init_node('test_grasp_fingers', argv=[], anonymous=True, disable_signals=True)
     path = Path(left, right)
     broadcaster = tf2_ros.TransformBroadcaster()
     rate = rospy.Rate(100.0)
