@@ -5,7 +5,25 @@
 
 #include <ros/ros.h>
 
+#include <malloc.h>
+
+namespace {
+
+/// Allocations from this size on are mapped on their own and unmapped when freed (B).
+constexpr int kMmapThreshold = 128 * 1024;
+/// Free memory at the top of a heap beyond this goes back to the system (B).
+constexpr int kTrimThreshold = 1024 * 1024;
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  // glibc raises its mmap threshold to the largest block freed (up to 32 MiB) and its trim
+  // threshold to twice that (mallopt(3)): after the state messages and the colliders' distance
+  // fields have come and gone, each heap may keep tens of MiB it no longer uses, more the more
+  // threads allocate at once. Fixed thresholds keep the node's memory what it holds: the
+  // scene, its queues and its colliders (scripts/soak checks it against that bound).
+  mallopt(M_MMAP_THRESHOLD, kMmapThreshold);
+  mallopt(M_TRIM_THRESHOLD, kTrimThreshold);
   ros::init(argc, argv, "flsm_node");
   ros::NodeHandle nh, pnh("~");
   try {

@@ -107,12 +107,22 @@ void Solver::beginContactStep() {
 //     then those that miss a chunk's bounds (a slab of the lattice), then, per particle, those
 //     whose inflated bounds miss the particle;
 //  2. velocity-level response (contactVelocityChange()): a particle whose sphere ends inside a
-//     collider, at the collider's pose at the end of the sub-step, gets the velocity that ends
-//     it on the surface, with Coulomb friction relative to the collider's surface velocity;
-//     x* moves with it (x* = x + h v holds). Colliders are visited in id order, each seeing the
-//     corrections of the ones before;
-//  3. safety projection: a sphere still inside a collider (a curved surface, or pushed into one
-//     collider by another) is moved out along the normal, position only.
+//     collider, at the collider's pose at the end of the sub-step, gets the velocity that undoes
+//     the penetration its motion relative to the collider made in this sub-step (measured from
+//     its start x = x* - h v against the collider's pose at the start of the sub-step), with
+//     Coulomb friction relative to the collider's surface velocity; x* moves with it
+//     (x* = x + h v holds). Colliders are visited in id order, each seeing the corrections of
+//     the ones before;
+//  3. safety projection: a sphere still inside a collider (a curved surface, pushed into one
+//     collider by another, or inside since before the sub-step: a collider set, moved or reset
+//     onto it) is moved out along the normal, position only, by at most its radius r per
+//     sub-step. No velocity comes from this part: a penetration the particle did not move into
+//     is no motion of the particle, and where colliders overlap so that no place is outside
+//     both, velocity made of it would grow every sub-step (see contactVelocityChange()). The
+//     bound keeps the depenetration at most r / h (as physics engines bound theirs): a collider
+//     set around the object, as large as it may be (a sphere of 1e9 m), pushes it out over
+//     sub-steps instead of throwing its particles to a surface however far, whence shape
+//     matching would pull them back at that distance over h.
 // The impulses m dv, and their moments about each collider's origin taken at the contact point
 // x* - r n, are summed per chunk, then over the chunks in order.
 // Pinned and hard-dragged particles are left alone: their motion is prescribed.
@@ -129,6 +139,7 @@ void Solver::contactPass(double h) {
   for (std::size_t b = 0; b < contactBodies_.size(); ++b) {
     ContactBody& body = contactBodies_[b];
     const Collider& c = *body.collider;
+    body.before = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_ - h);
     body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_);
     body.contacts = 0;
     body.bounded = colliderBounds(c.shape, body.now, body.lo, body.hi);
@@ -169,6 +180,7 @@ void Solver::contactPass(double h) {
     for (std::size_t i = begin; i < end; ++i) {
       if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
       Eigen::Vector3d x = x_[i], v = v_[i];
+      const Eigen::Vector3d start = x - h * v;  // where the sub-step began: x* = x + h v
       bool touched = false;
       for (int k = 0; k < nearCount; ++k) {
         const int a = near[k];
@@ -178,10 +190,12 @@ void Solver::contactPass(double h) {
         Eigen::Vector3d normal;
         const double depth = colliderDistance(c.shape, body.now, x, normal) - r;
         if (!(depth < 0.0)) continue;
+        Eigen::Vector3d startNormal;
+        const double startDepth = colliderDistance(c.shape, body.before, start, startNormal) - r;
         const Eigen::Vector3d origin = body.now.translation();
         const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - origin);
-        const Eigen::Vector3d dv =
-            contactVelocityChange(depth, normal, v, vc, h, c.staticFriction, c.kineticFriction);
+        const Eigen::Vector3d dv = contactVelocityChange(depth, startDepth, normal, v, vc, h, c.staticFriction,
+                                                         c.kineticFriction);
         v += dv;
         x += h * dv;
         const Eigen::Vector3d J = m[i] * dv;
@@ -197,7 +211,7 @@ void Solver::contactPass(double h) {
         if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
         Eigen::Vector3d normal;
         const double depth = colliderDistance(body.collider->shape, body.now, x, normal) - r;
-        if (depth < 0.0) x -= depth * normal;
+        if (depth < 0.0) x -= std::max(depth, -r) * normal;
       }
       x_[i] = x;
       v_[i] = v;

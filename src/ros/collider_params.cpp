@@ -11,14 +11,25 @@
 
 #include <cctype>
 #include <cmath>
+#include <iterator>
 #include <limits>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
 
 namespace deformable_flsm {
 
 namespace {
+
+/// A collider mesh as loaded from a file, with its distance field.
+struct LoadedMesh {
+  std::shared_ptr<const TriMesh> mesh;
+  std::shared_ptr<const MeshDistanceField> distanceField;
+};
 
 constexpr const char kColliderFramePrefix[] = "flsm_collider/";
 
@@ -118,15 +129,39 @@ void loadColliderMesh(const std::string& url, const Eigen::Vector3d& scale, Coll
   } catch (const ParamError& e) {
     throw std::invalid_argument(std::string("mesh ") + e.what());
   }
+  // Colliders of the same file at the same scale share one mesh and one distance field while
+  // any of them (or a command carrying one, waiting in the simulation's queue) holds it: a flood
+  // of mesh colliders then holds one field per mesh, not one per queued command.
+  static std::mutex cacheMutex;
+  using Key = std::tuple<std::string, double, double, double>;
+  static std::map<Key, std::weak_ptr<const LoadedMesh>> cache;
+  const Key key(path, scale.x(), scale.y(), scale.z());
+  std::shared_ptr<const LoadedMesh> loaded;
+  {
+    std::lock_guard<std::mutex> lock(cacheMutex);
+    auto it = cache.find(key);
+    if (it != cache.end()) loaded = it->second.lock();
+  }
   try {
-    const bool uniform = scale.x() == scale.y() && scale.y() == scale.z();
-    TriMesh loaded = loadMesh(path, uniform ? scale.x() : 1.0);
-    if (!uniform) {
-      for (Eigen::Vector3d& v : loaded.vertices) v = v.cwiseProduct(scale);
+    if (!loaded) {
+      auto fresh = std::make_shared<LoadedMesh>();
+      const bool uniform = scale.x() == scale.y() && scale.y() == scale.z();
+      TriMesh read = loadMesh(path, uniform ? scale.x() : 1.0);
+      if (!uniform) {
+        for (Eigen::Vector3d& v : read.vertices) v = v.cwiseProduct(scale);
+      }
+      auto mesh = std::make_shared<const TriMesh>(std::move(read));
+      fresh->distanceField = std::make_shared<const MeshDistanceField>(*mesh);
+      fresh->mesh = std::move(mesh);
+      loaded = fresh;
+      std::lock_guard<std::mutex> lock(cacheMutex);
+      for (auto it = cache.begin(); it != cache.end();)  // forget meshes nobody holds
+        it = it->second.expired() ? cache.erase(it) : std::next(it);
+      cache[key] = loaded;
     }
-    auto mesh = std::make_shared<const TriMesh>(std::move(loaded));
-    shape.distanceField = std::make_shared<const MeshDistanceField>(*mesh);
-    shape.mesh = std::move(mesh);
+    // aliasing: the mesh and the field keep the whole entry alive
+    shape.mesh = std::shared_ptr<const TriMesh>(loaded, loaded->mesh.get());
+    shape.distanceField = std::shared_ptr<const MeshDistanceField>(loaded, loaded->distanceField.get());
   } catch (const MeshError& e) {
     throw std::invalid_argument("mesh '" + url + "' (file '" + path + "') cannot be used: " +
                                 e.what());

@@ -92,7 +92,9 @@ void ColliderTopics::addRobot(const RobotColliders& robot, const Lattice& lattic
   for (const std::string& w : robot.warnings) ROS_WARN("flsm_node: %s", w.c_str());
 }
 
-void ColliderTopics::onCommand(const ColliderCommand::ConstPtr& msg) {
+void ColliderTopics::onCommand(const ros::MessageEvent<const ColliderCommand>& event) {
+  const ColliderCommand::ConstPtr& msg = event.getMessage();
+  countMissed(gaps_, *stats_, "~collider", event.getPublisherName(), msg->header.seq);
   CommandBody body;
   Rejection why;
   if (!validator_.check(*msg, body, why)) {

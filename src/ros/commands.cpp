@@ -15,11 +15,15 @@ void CommandStats::accept() {
 }
 
 void CommandStats::reject(const std::string& reason, const std::string& detail) {
+  reject(reason, detail, 1);
+}
+
+void CommandStats::reject(const std::string& reason, const std::string& detail, std::uint64_t count) {
   RejectHook hook;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    ++counts_.rejected;
-    ++counts_.rejectedByReason[reason];
+    counts_.rejected += count;
+    counts_.rejectedByReason[reason] += count;
     counts_.lastRejection = detail;
     hook = hook_;
   }

@@ -39,7 +39,8 @@ constexpr double kAttachWarnPeriod = 5.0;  // s between two warnings about attac
 
 SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh,
                              const NodeParams& params, Scene scene)
-    : nh_(nh), pnh_(pnh), commandNh_(pnh), serviceNh_(pnh), params_(params), info_(scene.info),
+    : nh_(nh), pnh_(pnh), commandNh_(pnh), serviceNh_(pnh), reconfigureNh_(pnh), params_(params),
+      info_(scene.info),
       lattice_(scene.lattice), renderMesh_(std::move(scene.renderMesh)),
       embedding_(std::move(scene.embedding)), stats_(std::make_shared<CommandStats>()) {
   stats_->setRejectHook([](const std::string& reason, const std::string& detail) {
@@ -66,7 +67,8 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
       [this](const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
              std::string& why) { return lookupTransform(frame, stamp, T, why); },
       [this](CommandBody body) { send(std::move(body), false); }, *lattice_, info_.contactRadius);
-  reconfigure_ = std::make_unique<Reconfigure>(pnh_, params_,
+  reconfigureNh_.setCallbackQueue(&reconfigureQueue_);
+  reconfigure_ = std::make_unique<Reconfigure>(reconfigureNh_, params_,
                                                [this](const FlsmConfig& c) { return onReconfigure(c); });
   mouse_ = std::make_unique<InteractiveDrag>(pnh_, params_.frameId, *lattice_, renderMesh_,
                                              [this](const DragCommand& d) { return onMouseDrag(d); });
@@ -82,10 +84,13 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   commandSpinner_->start();
   serviceSpinner_ = std::make_unique<ros::AsyncSpinner>(1, &serviceQueue_);
   serviceSpinner_->start();
+  reconfigureSpinner_ = std::make_unique<ros::AsyncSpinner>(1, &reconfigureQueue_);
+  reconfigureSpinner_->start();
 }
 
 SimulatorNode::~SimulatorNode() {
   publishTimer_.stop();
+  reconfigureSpinner_->stop();
   loop_->stop();  // answers services still waiting, so the spinner can stop
   commandSpinner_->stop();
   serviceSpinner_->stop();
@@ -107,13 +112,19 @@ void SimulatorNode::advertise() {
 // State out
 
 void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
-  reporter_->publishingTook(event.profile.last_duration.toSec());
+  {
+    std::lock_guard<std::mutex> lock(paramsMutex_);
+    reporter_->publishingTook(event.profile.last_duration.toSec());
+  }
   const ros::Time stamp = ros::Time::now();
   const Snapshot& s = loop_->acquire();
   publisher_->publishTf(s, stamp);
   colliders_->publish(s, stamp);
   publisher_->publishState(s, stamp, colliders_->frameMisses());
-  reporter_->report(s.diag);
+  {
+    std::lock_guard<std::mutex> lock(paramsMutex_);
+    reporter_->report(s.diag);
+  }
   mouse_->follow(s.objectFrame);
   publisher_->publishHeavy(s, stamp);
 }
@@ -201,14 +212,18 @@ bool SimulatorNode::lookupTransform(const std::string& frame, const ros::Time& s
   }
 }
 
-void SimulatorNode::onDrag(const DragCommand::ConstPtr& msg) {
+void SimulatorNode::onDrag(const ros::MessageEvent<const DragCommand>& event) {
+  const DragCommand::ConstPtr& msg = event.getMessage();
+  countMissed(gaps_, *stats_, "~drag", event.getPublisherName(), msg->header.seq);
   CommandBody body;
   Rejection why;
   if (!validator_->drag(*msg, body, why)) return rejected(why);
   send(std::move(body), false);
 }
 
-void SimulatorNode::onForce(const ForceCommand::ConstPtr& msg) {
+void SimulatorNode::onForce(const ros::MessageEvent<const ForceCommand>& event) {
+  const ForceCommand::ConstPtr& msg = event.getMessage();
+  countMissed(gaps_, *stats_, "~force", event.getPublisherName(), msg->header.seq);
   CommandBody body;
   Rejection why;
   if (!validator_->force(*msg, body, why)) return rejected(why);
@@ -257,7 +272,9 @@ bool SimulatorNode::onPinBox(PinBox::Request& req, PinBox::Response& res) {
   return true;
 }
 
+// On reconfigureSpinner_'s thread; params_ is also read by the publish timer's reporter_.
 bool SimulatorNode::onReconfigure(const FlsmConfig& config) {
+  std::unique_lock<std::mutex> lock(paramsMutex_);
   NodeParams changed = params_;
   if (!Reconfigure::apply(config, changed)) {
     stats_->reject("invalid_params", "material '" + config.material +
@@ -286,14 +303,13 @@ bool SimulatorNode::onReconfigure(const FlsmConfig& config) {
   params_.poissonsRatio = changed.poissonsRatio;
   params_.solver = p;
   send(ParamsCommand{p}, false);
-  if (config.publish_rate != params_.publishRate) {
-    params_.publishRate = config.publish_rate;
-    publishTimer_.setPeriod(ros::Duration(1.0 / params_.publishRate));
-  }
-  if (config.real_time_factor != params_.realTimeFactor) {
-    params_.realTimeFactor = config.real_time_factor;
-    loop_->setRealTimeFactor(params_.realTimeFactor);
-  }
+  const bool newRate = config.publish_rate != params_.publishRate;
+  const bool newPace = config.real_time_factor != params_.realTimeFactor;
+  params_.publishRate = config.publish_rate;
+  params_.realTimeFactor = config.real_time_factor;
+  lock.unlock();  // the timer's own lock is not taken under ours
+  if (newRate) publishTimer_.setPeriod(ros::Duration(1.0 / config.publish_rate));
+  if (newPace) loop_->setRealTimeFactor(config.real_time_factor);
   return true;
 }
 

@@ -123,20 +123,40 @@ TEST(ContactVelocityChange, EndsOnTheSurfaceAndSticksWithinTheFrictionCone) {
   const double h = 0.01;
   // 1 mm deep, tangential slip 0.05 m/s: the normal change is 0.1 m/s, mu_s 0.6 holds 0.06
   const Eigen::Vector3d v(0.05, 0.0, -0.2);
-  Eigen::Vector3d dv = contactVelocityChange(-0.001, n, v, Eigen::Vector3d::Zero(), h, 0.6, 0.5);
+  Eigen::Vector3d dv = contactVelocityChange(-0.001, 0.0, n, v, Eigen::Vector3d::Zero(), h, 0.6, 0.5);
   EXPECT_NEAR(dv.z(), 0.1, 1e-15) << "the normal change ends the sub-step on the surface";
   EXPECT_NEAR((v + dv).x(), 0.0, 1e-15) << "static friction stops the slip";
   // slip 0.2 m/s exceeds 0.06: kinetic friction takes mu_k * 0.1 = 0.05 off it
-  dv = contactVelocityChange(-0.001, n, Eigen::Vector3d(0.2, 0, -0.2), Eigen::Vector3d::Zero(), h, 0.6, 0.5);
+  dv = contactVelocityChange(-0.001, 0.0, n, Eigen::Vector3d(0.2, 0, -0.2), Eigen::Vector3d::Zero(), h, 0.6, 0.5);
   EXPECT_NEAR(dv.x(), -0.05, 1e-15);
   EXPECT_NEAR(dv.z(), 0.1, 1e-15);
   // relative to a moving collider: a particle moving with the surface keeps its velocity
   const Eigen::Vector3d belt(0.3, 0.1, 0.0);
-  dv = contactVelocityChange(-0.001, n, belt, belt, h, 0.6, 0.5);
+  dv = contactVelocityChange(-0.001, 0.0, n, belt, belt, h, 0.6, 0.5);
   EXPECT_TRUE(dv.isApprox(Eigen::Vector3d(0, 0, 0.1), 1e-14));
   // frictionless: the tangential velocity stays
-  dv = contactVelocityChange(-0.001, n, Eigen::Vector3d(0.01, 0, 0), Eigen::Vector3d::Zero(), h, 0.0, 0.0);
+  dv = contactVelocityChange(-0.001, 0.0, n, Eigen::Vector3d(0.01, 0, 0), Eigen::Vector3d::Zero(), h, 0.0, 0.0);
   EXPECT_TRUE(dv.isApprox(Eigen::Vector3d(0, 0, 0.1), 1e-14));
+}
+
+TEST(ContactVelocityChange, PenetrationFromBeforeTheSubStepBecomesNoVelocity) {
+  const Eigen::Vector3d n = Eigen::Vector3d::UnitZ(), still = Eigen::Vector3d::Zero();
+  const double h = 0.01;
+  // 2 cm inside since before the sub-step (a collider set or moved onto the particle) and no
+  // deeper at its end: the collider at rest does no work on it (the old response gave it the
+  // 2 m/s that ends the sub-step on the surface)
+  EXPECT_TRUE(contactVelocityChange(-0.02, -0.02, n, still, still, h, 0.6, 0.5).isZero(0.0));
+  // on its way out (2 cm to 1.5 cm deep): left alone too
+  const Eigen::Vector3d out(0.3, 0.0, 0.5);
+  EXPECT_TRUE(contactVelocityChange(-0.015, -0.02, n, out, still, h, 0.6, 0.5).isZero(0.0));
+  // 5 mm deeper over the sub-step: only those 5 mm are undone (0.5 m/s), and friction acts on
+  // that normal change: slip 1 m/s > mu_s 0.5 m/s * 0.6, kinetic mu_k 0.5 takes 0.25 m/s off it
+  Eigen::Vector3d dv = contactVelocityChange(-0.025, -0.02, n, Eigen::Vector3d(1.0, 0.0, -0.5), still, h, 0.6, 0.5);
+  EXPECT_NEAR(dv.z(), 0.5, 1e-12) << "ends as deep as it started";
+  EXPECT_NEAR(dv.x(), -0.25, 1e-12);
+  // a particle that came from outside (start 1 mm above) ends on the surface as before
+  dv = contactVelocityChange(-0.001, 0.001, n, Eigen::Vector3d(0.0, 0.0, -0.2), still, h, 0.6, 0.5);
+  EXPECT_NEAR(dv.z(), 0.1, 1e-12);
 }
 
 // --- the contact pass ------------------------------------------------------------------------
@@ -267,6 +287,81 @@ TEST(Contact, KinematicColliderPushesAndFollowsItsVelocity) {
   EXPECT_GE(back - s.contactRadius(), face - 1e-12) << "nothing behind the wall's face";
   EXPECT_GT(centreOfMass(s).x(), 0.2) << "the block was pushed along";
   EXPECT_NEAR(s.linearMomentum().y(), 0.0, 1e-9);
+}
+
+TEST(Contact, ColliderSetIntoTheObjectPushesItOutWithoutThrowingIt) {
+  // A wall set (or moved, or the object reset) through a weightless, undamped block at rest:
+  // half of the block is inside it. The wall is at rest and does no work, so the energy the
+  // block can have afterwards is what pushing its particles out stores in shape matching's
+  // springs: moved d_i out against k_i = alpha m_i / h^2 (v += alpha (g - x) / h), at most
+  // E = sum_i alpha m_i d_i^2 / (2 h^2). Handing each particle the velocity d_i / h that ends
+  // it on the surface in one sub-step gives 1 / alpha times that as kinetic energy instead, and
+  // where colliders overlap it grew without bound (the soak's blown-up states).
+  auto lattice = std::make_shared<const Lattice>(test::makeBox(8, 8, 8, 0.01), 1000.0, 2);
+  SolverParams p;
+  p.regionHalfWidth = lattice->regionHalfWidth();
+  p.youngsModulus = 3e4;  // the node's default material and sub-steps: alpha 0.34
+  p.timeStep = 1.0 / 60.0;
+  p.substeps = 11;
+  p.gravity.setZero();
+  p.damping = 0.0;
+  p.ambientDamping = 0.0;
+  Solver s(lattice, p);
+  Collider wall;  // its solid is the side below a plane through the centre, tilted 45 degrees
+  wall.pose = Eigen::Translation3d(centreOfMass(s)) * Eigen::AngleAxisd(M_PI / 4, Eigen::Vector3d::UnitY());
+  wall.staticFriction = wall.kineticFriction = 0.0;
+  const double h = p.substepLength();
+  double stored = 0.0;
+  for (std::size_t i = 0; i < s.positions().size(); ++i) {
+    Eigen::Vector3d n;
+    const double d = colliderDistance(wall.shape, wall.pose, s.positions()[i], n) - s.contactRadius();
+    if (d < 0.0) stored += s.alpha() * lattice->masses()[i] * d * d / (2.0 * h * h);
+  }
+  ASSERT_GT(stored, 0.0);
+  s.setCollider("wall", wall);
+  double worst = 0.0;
+  for (int i = 0; i < stepsFor(2.0, s); ++i) {
+    s.step();
+    ASSERT_TRUE(allFinite(s));
+    worst = std::max(worst, s.kineticEnergy());
+  }
+  std::printf("[ set in  ] alpha %.3f: kinetic energy at most %.3g J; the push-out stores at most %.3g J\n",
+              s.alpha(), worst, stored);
+  EXPECT_LT(worst, stored);
+  double deepest = 0.0;
+  for (const auto& x : s.positions()) {
+    Eigen::Vector3d n;
+    deepest = std::max(deepest, s.contactRadius() - colliderDistance(wall.shape, wall.pose, x, n));
+  }
+  EXPECT_LT(deepest, 1e-9) << "pushed out all the same";
+}
+
+TEST(Contact, AColliderSetAroundTheObjectPushesItOutAtABoundedPace) {
+  // A sphere of 1e9 m set around a block (a size a client may send: finite and positive): every
+  // particle is deep inside. Moved out at most its contact radius r per sub-step, a particle is
+  // after n sub-steps at most n r from where it was by projection, and at most as much again by
+  // the velocity shape matching's spring-back gives it from that displacement; thrown to the
+  // surface at once it would be 1e9 m away, and shape matching pulling it back over one sub-step
+  // would blow the state up.
+  auto lattice = std::make_shared<const Lattice>(test::makeBox(4, 4, 4, 0.01), 1000.0, 1);
+  SolverParams p = sceneParams(*lattice);
+  p.gravity.setZero();
+  Solver s(lattice, p);
+  Collider giant;
+  giant.shape.type = ColliderType::Sphere;
+  giant.shape.radius = 1e9;
+  giant.pose.translation() = centreOfMass(s);
+  s.setCollider("giant", giant);
+  const int steps = stepsFor(0.5, s);
+  for (int i = 0; i < steps; ++i) s.step();
+  ASSERT_TRUE(allFinite(s));
+  double farthest = 0.0;
+  for (std::size_t i = 0; i < s.positions().size(); ++i)
+    farthest = std::max(farthest, (s.positions()[i] - lattice->restPositions()[i]).norm());
+  const double pace = steps * p.substeps * s.contactRadius();
+  std::printf("[ giant   ] after %d sub-steps the farthest particle moved %.3g m (bound %.3g m)\n",
+              steps * p.substeps, farthest, 2.0 * pace);
+  EXPECT_LE(farthest, 2.0 * pace);
 }
 
 TEST(Contact, TurntableCarriesTheBlockByFriction) {

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cstddef>
 #include <map>
 #include <string>
@@ -53,13 +54,25 @@ Eigen::Isometry3d advancePose(const Eigen::Isometry3d& pose, const Eigen::Vector
 /// Coulomb friction).
 ///
 /// The particle is a sphere whose predicted end-of-sub-step position x* = x + h v lies
-/// `depth` = phi(x*) - r < 0 inside the collider. The normal change dv_n = -depth / h moves it
-/// back to the surface (its end position x + h (v + dv) touches it). Then the tangential part of
-/// the velocity relative to the collider's surface, v_t = (I - n n^T)(v + dv_n n - v_c), is
-/// removed when that needs no more than mu_s dv_n (static friction: the particle sticks), else
-/// reduced by mu_k dv_n along -v_t (kinetic friction). The impulse m dv is what the collider
-/// receives, with the opposite sign.
+/// `depth` = phi(x*) - r < 0 inside the collider. Its start position x lay `startDepth` =
+/// phi(x) - r from the collider's surface as it was at the start of the sub-step. The normal
+/// change dv_n = (min(startDepth, 0) - depth) / h (none when that is negative) removes the
+/// penetration the sub-step's own relative motion made: a particle that came from outside ends
+/// on the surface (its end position x + h (v + dv) touches it), one that was already inside
+/// (a collider set or teleported onto it, a reset into it, another collider's correction)
+/// goes no deeper. Penetration that was there before the sub-step becomes no velocity: a
+/// collider at rest does no work, and the velocity -startDepth / h (the penetration over one
+/// sub-step, tens of m/s for a centimetre) is not handed to the particle. Turning it into
+/// velocity was unstable where colliders overlap: pushed out of one into another, the particle
+/// gets back every sub-step the distance it was moved over h, and its speed grows
+/// geometrically. The solver moves such a particle out by position only (Solver::contactPass()).
+/// Then the tangential part of the velocity relative to the collider's surface,
+/// v_t = (I - n n^T)(v + dv_n n - v_c), is removed when that needs no more than mu_s dv_n (static
+/// friction: the particle sticks), else reduced by mu_k dv_n along -v_t (kinetic friction). The
+/// impulse m dv is what the collider receives, with the opposite sign.
 /// @param[in] depth             phi(x*) - r (m), < 0
+/// @param[in] startDepth        phi(x) - r (m) at the start of the sub-step, the collider at its
+///                              pose then; >= 0 for a particle that came from outside
 /// @param[in] normal            3 by 1 outward unit normal at x*
 /// @param[in] velocity          3 by 1 particle velocity v (m/s)
 /// @param[in] colliderVelocity  3 by 1 velocity of the collider's material at x*, v_lin + omega x (x* - o)
@@ -67,11 +80,11 @@ Eigen::Isometry3d advancePose(const Eigen::Isometry3d& pose, const Eigen::Vector
 /// @param[in] staticFriction    mu_s >= 0
 /// @param[in] kineticFriction   mu_k in [0, mu_s]
 /// @return 3 by 1 velocity change dv (m/s)
-inline Eigen::Vector3d contactVelocityChange(double depth, const Eigen::Vector3d& normal,
+inline Eigen::Vector3d contactVelocityChange(double depth, double startDepth, const Eigen::Vector3d& normal,
                                              const Eigen::Vector3d& velocity,
                                              const Eigen::Vector3d& colliderVelocity, double h,
                                              double staticFriction, double kineticFriction) {
-  const double dvn = -depth / h;
+  const double dvn = std::max(0.0, std::min(startDepth, 0.0) - depth) / h;
   Eigen::Vector3d dv = dvn * normal;
   const Eigen::Vector3d rel = velocity + dv - colliderVelocity;
   const Eigen::Vector3d tangential = rel - rel.dot(normal) * normal;

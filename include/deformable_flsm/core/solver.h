@@ -314,6 +314,7 @@ class Solver : private RegionKernel {
     Collider* collider = nullptr;
     Eigen::Isometry3d start = Eigen::Isometry3d::Identity();  // pose at the start of the step
     Eigen::Isometry3d now = Eigen::Isometry3d::Identity();    // pose at the end of this sub-step
+    Eigen::Isometry3d before = Eigen::Isometry3d::Identity(); // pose at the start of this sub-step
     Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();  // bounds + radius
     bool bounded = false;
     Eigen::Vector3d impulse = Eigen::Vector3d::Zero();  // sum of m dv on the particles this step

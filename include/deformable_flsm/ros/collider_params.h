@@ -48,7 +48,8 @@ std::string colliderFrameId(const std::string& id);
 bool validColliderId(const std::string& id);
 
 /// Loads a mesh collider's mesh into `shape` (mesh and its distance field, built here rather
-/// than by the simulation thread): `url` a file path or package:// / file:// URL.
+/// than by the simulation thread): `url` a file path or package:// / file:// URL. Loads of the
+/// same file at the same scale share one mesh and field while any of them is held.
 /// @throws std::invalid_argument saying which file and why it cannot be used (unreadable, not a
 ///         closed triangle mesh, bad scale).
 void loadColliderMesh(const std::string& url, double scale, ColliderShape& shape);

@@ -11,6 +11,7 @@
 #include "deformable_flsm/ros/commands.h"
 #include "deformable_flsm/ros/lazy_topic.h"
 #include "deformable_flsm/ros/param_loader.h"
+#include "deformable_flsm/ros/sequence_gaps.h"
 #include "deformable_flsm/ros/simulation_loop.h"
 
 #include <deformable_flsm/ColliderCommand.h>
@@ -65,7 +66,7 @@ class ColliderTopics {
   std::uint64_t frameMisses() const { return follower_.misses(); }
 
  private:
-  void onCommand(const ColliderCommand::ConstPtr& msg);
+  void onCommand(const ros::MessageEvent<const ColliderCommand>& event);
   void onFollowTimer(const ros::TimerEvent& event);
   /// Registers the robot's colliders (params.robot) with the loop and the follower.
   void addRobot(const RobotColliders& robot, const Lattice& lattice, double contactRadius);
@@ -73,6 +74,7 @@ class ColliderTopics {
   std::string simFrame_;
   SimulationLoop& loop_;
   std::shared_ptr<CommandStats> stats_;
+  SequenceGaps gaps_;  ///< of ~collider (SimulatorNode counts those of ~drag, ~force)
   std::function<void()> startTfListener_;
   ColliderCommandValidator validator_;
   Send send_;

@@ -172,6 +172,8 @@ class CommandStats {
   void setRejectHook(RejectHook hook);
   void accept();
   void reject(const std::string& reason, const std::string& detail);
+  /// `count` rejections for one reason at once (messages lost before they could be looked at).
+  void reject(const std::string& reason, const std::string& detail, std::uint64_t count);
   Counts counts() const;
 
  private:

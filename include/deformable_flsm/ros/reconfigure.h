@@ -18,7 +18,8 @@
 namespace deformable_flsm {
 
 /// The server, started from the loaded parameters; calls `onChange` for every change a client
-/// makes (not for the initial echo of the parameters). Callbacks run on the main thread. When
+/// makes (not for the initial echo of the parameters). Callbacks run on the thread that serves
+/// `pnh`'s callback queue (flsm_node gives it a queue and a thread of its own). When
 /// `onChange` refuses a change (returns false), the server keeps and reports the configuration
 /// it had: a client reading back its parameters sees that nothing changed.
 class Reconfigure {

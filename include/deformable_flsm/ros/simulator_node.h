@@ -11,6 +11,7 @@
 #include "deformable_flsm/ros/problem_reporter.h"
 #include "deformable_flsm/ros/reconfigure.h"
 #include "deformable_flsm/ros/scene.h"
+#include "deformable_flsm/ros/sequence_gaps.h"
 #include "deformable_flsm/ros/simulation_loop.h"
 #include "deformable_flsm/ros/state_publisher.h"
 
@@ -44,9 +45,11 @@ namespace deformable_flsm {
 ///   srv  ~reset, ~release_all, ~pin_box; dynamic_reconfigure on ~
 ///
 /// Threads: the simulation thread (SimulationLoop) steps the solver; the main thread (ros::spin)
-/// runs the publish timer, dynamic_reconfigure and the RViz feedback; a second spinner thread
-/// with its own queue serves ~drag and ~force, and a third the services, so that a service
-/// waiting for the simulation never delays publishing nor another client's commands. Commands
+/// runs the publish timer and the RViz feedback; a second spinner thread with its own queue
+/// serves ~drag, ~force and ~collider, a third the services, so that a service waiting for the
+/// simulation never delays publishing nor another client's commands, and a fourth
+/// dynamic_reconfigure, whose every change writes each parameter to the master, one call each:
+/// on the main thread a slow master would hold up the publish timer behind them. Commands
 /// never wait for tf: a frame tf does not know now is refused at once (see lookupTransform), so
 /// that a client commanding in a frame nobody publishes cannot starve the others.
 ///
@@ -68,8 +71,10 @@ class SimulatorNode {
   void onPublishTimer(const ros::TimerEvent& event);
 
   // Commands in.
-  void onDrag(const DragCommand::ConstPtr& msg);
-  void onForce(const ForceCommand::ConstPtr& msg);
+  /// (the event names the publisher: messages missing from its numbering are counted, see
+  /// SequenceGaps)
+  void onDrag(const ros::MessageEvent<const DragCommand>& event);
+  void onForce(const ros::MessageEvent<const ForceCommand>& event);
   /// The RViz mouse's drags: validated and sent like ~drag; true when accepted.
   bool onMouseDrag(const DragCommand& drag);
   bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
@@ -97,12 +102,19 @@ class SimulatorNode {
   ros::CallbackQueue commandQueue_;
   ros::NodeHandle serviceNh_;  ///< private namespace, served by serviceSpinner_
   ros::CallbackQueue serviceQueue_;
+  /// private namespace, served by reconfigureSpinner_: dynamic_reconfigure writes every
+  /// parameter of a change to the master, one call each, and a slow master must not hold up
+  /// the publish timer on the main thread
+  ros::NodeHandle reconfigureNh_;
+  ros::CallbackQueue reconfigureQueue_;
+  std::mutex paramsMutex_;  ///< params_ between onReconfigure and the publish timer's reporter_
   NodeParams params_;
   SceneInfo info_;
   std::shared_ptr<const Lattice> lattice_;
   TriMesh renderMesh_;
   std::unique_ptr<Embedding> embedding_;
   std::shared_ptr<CommandStats> stats_;
+  SequenceGaps gaps_;  ///< of ~drag and ~force, on the command spinner's thread
   std::unique_ptr<SimulationLoop> loop_;
   std::unique_ptr<CommandValidator> validator_;
   std::unique_ptr<ColliderTopics> colliders_;  ///< ~collider, ~contact_wrenches, ~colliders
@@ -116,7 +128,7 @@ class SimulatorNode {
   ros::Subscriber dragSub_, forceSub_;
   ros::ServiceServer resetSrv_, releaseAllSrv_, pinBoxSrv_;
   ros::Timer publishTimer_;
-  std::unique_ptr<ros::AsyncSpinner> commandSpinner_, serviceSpinner_;
+  std::unique_ptr<ros::AsyncSpinner> commandSpinner_, serviceSpinner_, reconfigureSpinner_;
   std::unique_ptr<Reconfigure> reconfigure_;
   std::unique_ptr<InteractiveDrag> mouse_;
 };
