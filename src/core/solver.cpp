@@ -451,6 +451,12 @@ void Solver::substep(double h) {
   if (volumetric_) computeVolumetricForces();
   regionPass(step_.kd > 0.0);
   step_.integrate = false;
+  endSubstep(h);
+}
+
+// What both integrators do after their velocity update: contact, the prescribed particles, the
+// timed forces' countdown and the clock.
+void Solver::endSubstep(double h) {
   contactPass(h);
   finishSubstep(h);
   for (TimedForce& f : forces_) f.remaining -= h;

@@ -233,14 +233,7 @@ void Solver::implicitSubstep(double h) {
     v_[i] = implicitVelocity_[i];
     x_[i] += h * v_[i];
   }
-  contactPass(h);
-  finishSubstep(h);
-  for (TimedForce& f : forces_) f.remaining -= h;
-  forces_.erase(std::remove_if(forces_.begin(), forces_.end(),
-                               [](const TimedForce& f) { return f.remaining <= 0.0; }),
-                forces_.end());
-  time_ += h;
-  ++substeps_;
+  endSubstep(h);
 }
 
 // Contact inside the solve. A particle that its velocity with gravity's increment, v* = v_n + h g,

@@ -244,6 +244,9 @@ class Solver : private RegionKernel {
   /// step_.integrate, the sub-step's update of every free particle (see particleResult()),
   /// else the goals into *goalsOut_ (computeGoals()).
   void regionPass(bool withDamping);
+  /// the end of every sub-step, either integrator: contactPass(), finishSubstep(), the timed
+  /// forces' countdown, the clock
+  void endSubstep(double h);
   /// the sub-step's update of the pinned and hard-dragged particles
   void finishSubstep(double h);
   /// hardDragged_ from drags_ (solver_commands.cpp)
