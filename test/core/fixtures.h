@@ -3,6 +3,7 @@
 #pragma once
 
 #include "deformable_flsm/core/mesh.h"
+#include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/voxelizer.h"
 
 #include <Eigen/Core>
@@ -10,6 +11,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <functional>
+#include <random>
 #include <tuple>
 #include <vector>
 
@@ -67,6 +69,33 @@ inline double signedVolume(const TriMesh& mesh) {
     volume += mesh.vertices[t[0]].dot(mesh.vertices[t[1]].cross(mesh.vertices[t[2]])) / 6.0;
   }
   return volume;
+}
+
+
+/// Yardsticks of a momentum test's round-off: sum m |v| and sum m |x| |v| of a state.
+struct MomentumScale {
+  double linear = 0.0, angular = 0.0;
+};
+
+/// Gives `solver` a deformed, moving state: every position jittered by up to 2 mm, velocities a
+/// drift of 0.2 m/s along y, the spin `spin` (rad/s) about the origin and up to 0.3 m/s of noise
+/// (std::mt19937 seeded with `seed`). Returns the state's momentum yardsticks.
+inline MomentumScale deformAndSpin(Solver& solver, const Eigen::Vector3d& spin, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Eigen::Vector3d> x = solver.positions(), v(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    x[i] += 0.002 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    v[i] = Eigen::Vector3d(0.0, 0.2, 0.0) + spin.cross(x[i]) + 0.3 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+  }
+  solver.setPositions(x);
+  solver.setVelocities(v);
+  MomentumScale scale;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    scale.linear += solver.lattice().masses()[i] * v[i].norm();
+    scale.angular += solver.lattice().masses()[i] * x[i].norm() * v[i].norm();
+  }
+  return scale;
 }
 
 }  // namespace test

@@ -9,7 +9,6 @@
 
 #include <cmath>
 #include <memory>
-#include <random>
 
 using deformable_flsm::Collider;
 using deformable_flsm::ColliderType;
@@ -120,21 +119,8 @@ TEST(ImplicitStep, DeformedSpinningObjectKeepsItsMomentum) {
     p.gravity.setZero();
     p.ambientDamping = 2.0;
     Solver s(std::make_shared<const Lattice>(notched(), kDensity, 2), p);
-    std::mt19937 rng(17);
-    std::uniform_real_distribution<double> u(-1.0, 1.0);
-    std::vector<Eigen::Vector3d> x = s.positions(), v(x.size());
-    for (std::size_t i = 0; i < x.size(); ++i) {
-      x[i] += 0.002 * Eigen::Vector3d(u(rng), u(rng), u(rng));
-      v[i] = Eigen::Vector3d(0.0, 0.2, 0.0) + Eigen::Vector3d(2.0, 0.0, 5.0).cross(x[i]) +
-             0.3 * Eigen::Vector3d(u(rng), u(rng), u(rng));
-    }
-    s.setPositions(x);
-    s.setVelocities(v);
-    double pScale = 0.0, lScale = 0.0;
-    for (std::size_t i = 0; i < x.size(); ++i) {
-      pScale += s.lattice().masses()[i] * v[i].norm();
-      lScale += s.lattice().masses()[i] * x[i].norm() * v[i].norm();
-    }
+    const auto scale = deformable_flsm::test::deformAndSpin(s, Eigen::Vector3d(2.0, 0.0, 5.0), 17);
+    const double pScale = scale.linear, lScale = scale.angular;
     const Eigen::Vector3d P0 = s.linearMomentum(), L0 = s.angularMomentum();
     for (int i = 0; i < 120; ++i) s.step();
     EXPECT_LT((s.linearMomentum() - P0).norm(), 1e-10 * pScale) << "nu " << nu;

@@ -396,21 +396,8 @@ TEST(PhysicalMaterial, PoissonTermConservesMomentum) {
   p.gravity.setZero();
   p.ambientDamping = 0.0;
   Solver s(std::make_shared<const Lattice>(notched(), kDensity, 2), p);
-  std::mt19937 rng(17);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  std::vector<Eigen::Vector3d> x = s.positions(), v(x.size());
-  for (std::size_t i = 0; i < x.size(); ++i) {
-    x[i] += 0.002 * Eigen::Vector3d(u(rng), u(rng), u(rng));
-    v[i] = Eigen::Vector3d(0.0, 0.2, 0.0) + Eigen::Vector3d(2.0, 0.0, 0.0).cross(x[i]) +
-           0.3 * Eigen::Vector3d(u(rng), u(rng), u(rng));
-  }
-  s.setPositions(x);
-  s.setVelocities(v);
-  double pScale = 0.0, lScale = 0.0;
-  for (std::size_t i = 0; i < x.size(); ++i) {
-    pScale += s.lattice().masses()[i] * v[i].norm();
-    lScale += s.lattice().masses()[i] * x[i].norm() * v[i].norm();
-  }
+  const auto scale = deformable_flsm::test::deformAndSpin(s, Eigen::Vector3d(2.0, 0.0, 0.0), 17);
+  const double pScale = scale.linear, lScale = scale.angular;
   const Eigen::Vector3d P0 = s.linearMomentum(), L0 = s.angularMomentum();
   for (int i = 0; i < 200; ++i) s.step();
   EXPECT_LT((s.linearMomentum() - P0).norm(), 1e-11 * pScale);
