@@ -1,0 +1,113 @@
+/// @file world.h
+/// A scene of several deformable objects advanced by one step: each object is a Solver with its
+/// own lattice (mesh, pose, scale, resolution) and SolverParams (material, regions); the rigid
+/// colliders are shared; object-object contact and self-contact with Coulomb friction run in
+/// every sub-step beside the colliders' contact pass, found through a spatial hash so that their
+/// cost grows with the particles near each other, not with the square of the object count.
+#pragma once
+
+#include "deformable_flsm/core/collider.h"
+#include "deformable_flsm/core/lattice.h"
+#include "deformable_flsm/core/solver.h"
+#include "deformable_flsm/core/solver_params.h"
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <cstddef>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace deformable_flsm {
+
+/// How objects touch each other and themselves.
+struct ObjectContactParams {
+  /// contact between different objects
+  bool enabled = true;
+  /// contact of an object with itself: particles farther apart than `selfExclusion` lattice
+  /// cells in the rest lattice collide as spheres (an object bent onto itself)
+  bool selfContact = false;
+  /// rest-lattice neighbourhood (cells, Chebyshev distance) left out of self-contact
+  int selfExclusion = 2;
+  /// Coulomb friction between objects (the lower of the two objects' if they differ is not
+  /// modelled: one pair of coefficients for every object pair)
+  double staticFriction = 0.6;
+  double kineticFriction = 0.5;
+};
+
+/// What one object exerted on another over the last step.
+struct ObjectPairWrench {
+  std::string from;  ///< the object that pushed
+  std::string on;    ///< the object it pushed
+  /// force on `on` (N, simulation frame), torque about the simulation frame's origin (N m),
+  /// particle pairs in contact at the end of the last sub-step
+  ContactWrench wrench;
+};
+
+class World {
+ public:
+  /// @param timeStep  the step every object is advanced by (s); an object's
+  ///                  SolverParams::timeStep must equal it
+  /// @param substeps  sub-steps per step, shared by every object (object-object contact runs
+  ///                  after each); an object's SolverParams::substeps must equal it
+  /// @throws std::invalid_argument for a non-positive or non-finite time step or sub-steps < 1
+  World(double timeStep, int substeps, const ObjectContactParams& contact = ObjectContactParams());
+  ~World();
+  World(const World&) = delete;
+  World& operator=(const World&) = delete;
+
+  // --- objects ------------------------------------------------------------------------
+  /// Adds object `name` (its lattice already placed where it starts: voxelize the mesh at its
+  /// pose and scale). The world's colliders are given to it.
+  /// @throws std::invalid_argument for an empty or duplicate name, params whose time step or
+  ///         sub-steps differ from the world's, or an object that starts inside another
+  ///         (particles closer than the sum of their contact radii), naming both objects
+  Solver& addObject(const std::string& name, std::shared_ptr<const Lattice> lattice,
+                    const SolverParams& params);
+  /// Removes object `name`; false when there is none. Between steps only.
+  bool removeObject(const std::string& name);
+  /// nullptr when there is no such object
+  Solver* object(const std::string& name);
+  const Solver* object(const std::string& name) const;
+  /// the objects' names in the order they were added
+  const std::vector<std::string>& objectNames() const { return names_; }
+  std::size_t objectCount() const { return names_.size(); }
+
+  // --- colliders, shared by every object (the same semantics as Solver's) ---------------
+  void setCollider(const std::string& id, const Collider& collider);
+  bool moveCollider(const std::string& id, const Eigen::Isometry3d& pose,
+                    const Eigen::Vector3d& linearVelocity, const Eigen::Vector3d& angularVelocity);
+  bool removeCollider(const std::string& id);
+  /// what all objects together exerted on collider `id` over the last step
+  ContactWrench contactWrench(const std::string& id) const;
+
+  // --- object-object contact ----------------------------------------------------------
+  const ObjectContactParams& contactParams() const { return contact_; }
+  void setContactParams(const ObjectContactParams& contact);
+  /// Every ordered pair (from, on) of different objects that touched in the last step, with
+  /// what `from` exerted on `on` (the reverse pair carries the opposite force).
+  const std::vector<ObjectPairWrench>& objectWrenches() const;
+  /// what object `from` exerted on object `on` over the last step; zero when they did not touch
+  ContactWrench objectWrench(const std::string& from, const std::string& on) const;
+
+  // --- the step -----------------------------------------------------------------------
+  /// Advances every object by one time step: per sub-step each object's dynamics and collider
+  /// contact, then object-object and self-contact. Allocates nothing once the contacts' buffers
+  /// have grown to the scene's size.
+  void step();
+  double time() const { return time_; }
+  double timeStep() const { return timeStep_; }
+  int substeps() const { return substeps_; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::vector<std::string> names_;
+  ObjectContactParams contact_;
+  double timeStep_ = 0.0;
+  int substeps_ = 1;
+  double time_ = 0.0;
+};
+
+}  // namespace deformable_flsm
