@@ -29,8 +29,8 @@ std::string list(const std::vector<std::string>& items) {
 
 }  // namespace
 
-ColliderTopics::ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& commandNh,
-                               const NodeParams& params, SimulationLoop& loop,
+ColliderTopics::ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& stateNh,
+                               ros::NodeHandle& commandNh, const NodeParams& params, SimulationLoop& loop,
                                std::shared_ptr<CommandStats> stats,
                                const tf2_ros::Buffer& tfBuffer,
                                std::function<void()> startTfListener,
@@ -56,7 +56,7 @@ ColliderTopics::ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& commandNh,
   commandSub_ = commandNh.subscribe("collider", kCommandQueue, &ColliderTopics::onCommand, this);
   // Followed frames are sampled once per simulation step; the timer runs from the first
   // followed collider on (a node without any does not wake for it).
-  followTimer_ = pnh.createTimer(
+  followTimer_ = stateNh.createTimer(
       ros::Duration(params.solver.timeStep / params.realTimeFactor), &ColliderTopics::onFollowTimer,
       this, false, !follower_.empty());
 }
@@ -152,7 +152,7 @@ void ColliderTopics::onFollowTimer(const ros::TimerEvent&) {
   }
 }
 
-void ColliderTopics::publish(const Snapshot& s, const ros::Time& stamp) {
+void ColliderTopics::publishFrames(const Snapshot& s, const ros::Time& stamp) {
   fillContactWrenches(s.colliders, s.wrenches, robotLinks_, stamp, wrenches_);
   wrenches_.header.frame_id = simFrame_;
   wrenchPub_.publish(wrenches_);
@@ -160,6 +160,9 @@ void ColliderTopics::publish(const Snapshot& s, const ros::Time& stamp) {
     colliderTransforms(s.colliders, simFrame_, stamp, transforms_);
     tfBroadcaster_.sendTransform(transforms_);
   }
+}
+
+void ColliderTopics::publishMarkers(const Snapshot& s, const ros::Time& stamp) {
   if (markers_.due(s, republishAtRest_)) {
     markers_.publish(s, stamp, markerArray_, [&](visualization_msgs::MarkerArray& m) {
       fillColliderMarkers(s.colliders, simFrame_, planeSize_, stamp, m);

@@ -188,6 +188,19 @@ const Snapshot& SimulationLoop::acquire() {
   return buffers_[front_];
 }
 
+void SimulationLoop::copySummary(Snapshot& out) const {
+  // The newest complete buffer: ready_ while fresh, else the one acquire() handed out. The
+  // simulation thread writes only back_, and indices move only under the lock.
+  std::lock_guard<std::mutex> lock(snapshotMutex_);
+  const Snapshot& s = buffers_[fresh_ ? ready_ : front_];
+  out.sequence = s.sequence;
+  out.drags = s.drags;
+  out.objectFrame = s.objectFrame;
+  out.colliders = s.colliders;
+  out.wrenches = s.wrenches;
+  out.diag = s.diag;
+}
+
 Eigen::Vector3d SimulationLoop::centerOfMass() const {
   std::lock_guard<std::mutex> lock(snapshotMutex_);
   return centerOfMass_;

@@ -39,7 +39,7 @@ constexpr double kAttachWarnPeriod = 5.0;  // s between two warnings about attac
 
 SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh,
                              const NodeParams& params, Scene scene)
-    : nh_(nh), pnh_(pnh), commandNh_(pnh), serviceNh_(pnh), reconfigureNh_(pnh), params_(params),
+    : nh_(nh), pnh_(pnh), stateNh_(pnh), commandNh_(pnh), serviceNh_(pnh), reconfigureNh_(pnh), params_(params),
       info_(scene.info),
       lattice_(scene.lattice), renderMesh_(std::move(scene.renderMesh)),
       embedding_(std::move(scene.embedding)), stats_(std::make_shared<CommandStats>()) {
@@ -62,8 +62,9 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   publisher_ = std::make_unique<StatePublisher>(pnh_, params_, *lattice_, renderMesh_, *embedding_, *stats_);
   reporter_ = std::make_unique<ProblemReporter>(params_, info_, *lattice_);
   advertise();
+  stateNh_.setCallbackQueue(&stateQueue_);
   colliders_ = std::make_unique<ColliderTopics>(
-      pnh_, commandNh_, params_, *loop_, stats_, tfBuffer_, [this] { startTfListener(); },
+      pnh_, stateNh_, commandNh_, params_, *loop_, stats_, tfBuffer_, [this] { startTfListener(); },
       [this](const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
              std::string& why) { return lookupTransform(frame, stamp, T, why); },
       [this](CommandBody body) { send(std::move(body), false); }, *lattice_, info_.contactRadius);
@@ -80,6 +81,10 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   loop_->start();
   publishTimer_ = pnh_.createTimer(ros::Duration(1.0 / params_.publishRate),
                                    &SimulatorNode::onPublishTimer, this);
+  stateTimer_ = stateNh_.createTimer(ros::Duration(1.0 / params_.publishRate),
+                                     &SimulatorNode::onStateTimer, this);
+  stateSpinner_ = std::make_unique<ros::AsyncSpinner>(1, &stateQueue_);
+  stateSpinner_->start();
   commandSpinner_ = std::make_unique<ros::AsyncSpinner>(1, &commandQueue_);
   commandSpinner_->start();
   serviceSpinner_ = std::make_unique<ros::AsyncSpinner>(1, &serviceQueue_);
@@ -90,6 +95,8 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
 
 SimulatorNode::~SimulatorNode() {
   publishTimer_.stop();
+  stateTimer_.stop();
+  stateSpinner_->stop();
   reconfigureSpinner_->stop();
   loop_->stop();  // answers services still waiting, so the spinner can stop
   commandSpinner_->stop();
@@ -118,15 +125,19 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
   }
   const ros::Time stamp = ros::Time::now();
   const Snapshot& s = loop_->acquire();
-  publisher_->publishTf(s, stamp);
-  colliders_->publish(s, stamp);
-  publisher_->publishState(s, stamp, colliders_->frameMisses());
-  {
-    std::lock_guard<std::mutex> lock(paramsMutex_);
-    reporter_->report(s.diag);
-  }
+  colliders_->publishMarkers(s, stamp);
   mouse_->follow(s.objectFrame);
   publisher_->publishHeavy(s, stamp);
+}
+
+void SimulatorNode::onStateTimer(const ros::TimerEvent&) {
+  const ros::Time stamp = ros::Time::now();
+  loop_->copySummary(summary_);
+  publisher_->publishTf(summary_, stamp);
+  colliders_->publishFrames(summary_, stamp);
+  publisher_->publishState(summary_, stamp, colliders_->frameMisses());
+  std::lock_guard<std::mutex> lock(paramsMutex_);
+  reporter_->report(summary_.diag);
 }
 
 // --------------------------------------------------------------------------------------------
@@ -308,7 +319,10 @@ bool SimulatorNode::onReconfigure(const FlsmConfig& config) {
   params_.publishRate = config.publish_rate;
   params_.realTimeFactor = config.real_time_factor;
   lock.unlock();  // the timer's own lock is not taken under ours
-  if (newRate) publishTimer_.setPeriod(ros::Duration(1.0 / config.publish_rate));
+  if (newRate) {
+    publishTimer_.setPeriod(ros::Duration(1.0 / config.publish_rate));
+    stateTimer_.setPeriod(ros::Duration(1.0 / config.publish_rate));
+  }
   if (newPace) loop_->setRealTimeFactor(config.real_time_factor);
   return true;
 }

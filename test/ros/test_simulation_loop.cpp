@@ -92,6 +92,34 @@ TEST(SimulationLoop, FirstSnapshotIsTheRestState) {
     EXPECT_EQ(s.positions[i], rig.loop->lattice().restPositions()[i]);
 }
 
+// The state thread's summary (copySummary()) is the newest complete state, read beside the
+// mesh thread's acquire() while the loop steps: never older than what acquire() handed out, its
+// parts from one state (the drags and the diagnostics of the same snapshot).
+TEST(SimulationLoop, SummaryIsTheNewestStateBesideTheReader) {
+  Rig rig;
+  rig.holdByFarCorner();
+  rig.loop->start();
+  GrabCommand g;
+  g.id = "a";
+  g.particle = 0;
+  g.target = rig.loop->lattice().restPositions()[0] + Eigen::Vector3d(-0.01, 0, 0);
+  ASSERT_TRUE(rig.run(g).accepted);
+  Snapshot summary;
+  std::uint64_t seen = 0;
+  for (int k = 0; k < 200; ++k) {
+    const std::uint64_t acquired = rig.loop->acquire().sequence;
+    rig.loop->copySummary(summary);
+    EXPECT_GE(summary.sequence, acquired);
+    EXPECT_GE(summary.sequence, seen) << "the summary went back in time";
+    seen = summary.sequence;
+    EXPECT_TRUE(summary.positions.empty()) << "the summary carries no particles";
+    EXPECT_EQ(summary.diag.drags, summary.drags.size());
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  EXPECT_GT(seen, 1u) << "the loop never stepped";
+  EXPECT_EQ(summary.drags.size(), 1u) << "the grab never reached the summary";
+}
+
 TEST(SimulationLoop, HardGrabHoldsTheParticleAtTheTargetAndReleaseReturnsToRest) {
   Rig rig(quickIdle());
   rig.holdByFarCorner();

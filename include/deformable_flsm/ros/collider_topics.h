@@ -40,7 +40,8 @@ class ColliderTopics {
   /// Registers the parameters' colliders that follow tf frames and the robot's colliders with
   /// the loop (call before loop.start()), starts the tf listener when there are any, advertises
   /// the topics and starts the follow timer.
-  /// @param[in] pnh        private handle for the publishers and the timer (main queue)
+  /// @param[in] pnh        private handle for the publishers (main queue)
+  /// @param[in] stateNh    private handle on the state thread's queue, for the follow timer
   /// @param[in] commandNh  private handle on the command queue, for the ~collider subscriber
   /// @param[in] params     the node's parameters (colliders, frame, publish and step rates)
   /// @param[in] loop       the simulation, outlives this object
@@ -53,15 +54,19 @@ class ColliderTopics {
   /// @param[in] lattice    the object's rest lattice: its size sets the size the ground is drawn
   ///                       at; robot links that overlap its rest positions are left out
   /// @param[in] contactRadius  the particles' contact radius (m)
-  ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& commandNh, const NodeParams& params,
+  ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& stateNh, ros::NodeHandle& commandNh,
+                 const NodeParams& params,
                  SimulationLoop& loop, std::shared_ptr<CommandStats> stats,
                  const tf2_ros::Buffer& tfBuffer, std::function<void()> startTfListener,
                  CommandValidator::TransformLookup lookup, Send send, const Lattice& lattice,
                  double contactRadius);
 
-  /// Every publish tick: ~contact_wrenches (also at rest), the colliders' tf frames, and
-  /// ~colliders when it is due (LazyTopic::due(): while subscribed, like ~lattice).
-  void publish(const Snapshot& s, const ros::Time& stamp);
+  /// Every state tick (the state thread): ~contact_wrenches (also at rest) and the colliders'
+  /// tf frames; `s` needs only its summary (SimulationLoop::copySummary()).
+  void publishFrames(const Snapshot& s, const ros::Time& stamp);
+  /// Every publish tick (the main thread): ~colliders when it is due (LazyTopic::due(): while
+  /// subscribed, like ~lattice).
+  void publishMarkers(const Snapshot& s, const ros::Time& stamp);
   /// Samples that found a followed tf frame unknown or stale (for ~state).
   std::uint64_t frameMisses() const { return follower_.misses(); }
 
@@ -88,11 +93,12 @@ class ColliderTopics {
   ros::Timer followTimer_;
   tf2_ros::TransformBroadcaster tfBroadcaster_;
 
-  // Publish-timer state (main thread only).
+  // The state thread's (publishFrames(), the follow timer).
   ContactWrenches wrenches_;
-  visualization_msgs::MarkerArray markerArray_;
   std::vector<geometry_msgs::TransformStamped> transforms_;
   ColliderFollower::Report report_;
+  // The main thread's (publishMarkers()).
+  visualization_msgs::MarkerArray markerArray_;
   /// robot colliders: summed per link on ~contact_wrenches
   std::map<std::string, WrenchGroup> robotLinks_;
 };

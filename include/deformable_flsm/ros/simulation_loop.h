@@ -158,6 +158,10 @@ class SimulationLoop {
   /// The newest snapshot. Single reader: the reference stays valid and unchanged until the next
   /// call of acquire().
   const Snapshot& acquire();
+  /// Copies the newest snapshot's small part (sequence, drags, object frame, colliders and their
+  /// wrenches, diagnostics; not the particles) into `out`, from any one thread beside the reader
+  /// of acquire(): the state and tf go out on a thread of their own, never held up by the meshes.
+  void copySummary(Snapshot& out) const;
   /// The object's current centre of mass (m), for range checks from any thread.
   Eigen::Vector3d centerOfMass() const;
 

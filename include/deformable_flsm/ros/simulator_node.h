@@ -45,7 +45,11 @@ namespace deformable_flsm {
 ///   srv  ~reset, ~release_all, ~pin_box; dynamic_reconfigure on ~
 ///
 /// Threads: the simulation thread (SimulationLoop) steps the solver; the main thread (ros::spin)
-/// runs the publish timer and the RViz feedback; a second spinner thread with its own queue
+/// runs the publish timer of the meshes, clouds and markers and the RViz feedback; the state
+/// thread, with its own queue and timer, sends ~state, ~contact_wrenches and tf at the same rate
+/// and samples the frames colliders follow, so that on a starved machine a slow mesh (5 MB for
+/// the bunny) never holds up the small messages controllers and the colliders depend on; a
+/// further spinner thread with its own queue
 /// serves ~drag, ~force and ~collider, a third the services, so that a service waiting for the
 /// simulation never delays publishing nor another client's commands, and a fourth
 /// dynamic_reconfigure, whose every change writes each parameter to the master, one call each:
@@ -69,6 +73,7 @@ class SimulatorNode {
  private:
   void advertise();
   void onPublishTimer(const ros::TimerEvent& event);
+  void onStateTimer(const ros::TimerEvent& event);
 
   // Commands in.
   /// (the event names the publisher: messages missing from its numbering are counted, see
@@ -98,6 +103,9 @@ class SimulatorNode {
   bool attachedFrame(const std::string& frame, Eigen::Isometry3d& simFromFrame);
 
   ros::NodeHandle nh_, pnh_;
+  ros::NodeHandle stateNh_;  ///< private namespace, served by stateSpinner_ (the state thread)
+  ros::CallbackQueue stateQueue_;
+  Snapshot summary_;  ///< the state thread's copy of the newest snapshot's summary
   ros::NodeHandle commandNh_;  ///< private namespace, served by commandSpinner_
   ros::CallbackQueue commandQueue_;
   ros::NodeHandle serviceNh_;  ///< private namespace, served by serviceSpinner_
@@ -127,8 +135,8 @@ class SimulatorNode {
   std::unique_ptr<ProblemReporter> reporter_;
   ros::Subscriber dragSub_, forceSub_;
   ros::ServiceServer resetSrv_, releaseAllSrv_, pinBoxSrv_;
-  ros::Timer publishTimer_;
-  std::unique_ptr<ros::AsyncSpinner> commandSpinner_, serviceSpinner_, reconfigureSpinner_;
+  ros::Timer publishTimer_, stateTimer_;
+  std::unique_ptr<ros::AsyncSpinner> stateSpinner_, commandSpinner_, serviceSpinner_, reconfigureSpinner_;
   std::unique_ptr<Reconfigure> reconfigure_;
   std::unique_ptr<InteractiveDrag> mouse_;
 };
