@@ -52,9 +52,11 @@ void ProblemReporter::report(const LoopDiagnostics& d) {
   }
   if (d.solverResets > reportedResets_) {
     reportedResets_ = d.solverResets;
+    const std::string cause = resetCause_ ? resetCause_() : std::string();
     ROS_ERROR("flsm_node: the solver state became non-finite (or grew beyond 1e12 m or m/s) and was reset to rest (%llu "
-              "times so far). This should not happen: please report it with the commands sent.",
-              static_cast<unsigned long long>(d.solverResets));
+              "times so far). This should not happen: please report it with the commands sent "
+              "and this: %s",
+              static_cast<unsigned long long>(d.solverResets), cause.c_str());
   }
   if (d.droppedSteps > reportedDropped_) {
     reportedDropped_ = d.droppedSteps;

@@ -1,5 +1,6 @@
 #include "deformable_flsm/ros/simulation_loop.h"
 
+#include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/ros/collider_params.h"
 
 #include <algorithm>
@@ -7,6 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <utility>
+#include <variant>
 
 namespace deformable_flsm {
 
@@ -225,7 +227,10 @@ void SimulationLoop::run() {
       wakeRequested_ = false;
     }
     bool acted = false;
-    for (Command& c : batch) acted = apply(c) || acted;
+    for (Command& c : batch) {
+      ++appliedKinds_[c.body.index()];
+      acted = apply(c) || acted;
+    }
     batch.clear();
 
     const double rtf = realTimeFactor_.load();
@@ -293,9 +298,68 @@ void SimulationLoop::ensureFinite() {
   // It should not happen (the solver is unconditionally stable for finite input and every
   // command is range-checked); if it does, never let NaN, infinity (a float32 overflow) or a
   // rotation of NaN reach a subscriber.
+  {
+    std::string why = describeBlowUp();
+    std::lock_guard<std::mutex> lock(snapshotMutex_);
+    lastReset_ = std::move(why);
+  }
   solver_->reset();
   ++diag_.solverResets;
   restartStillness();
+}
+
+std::string SimulationLoop::lastResetCause() const {
+  std::lock_guard<std::mutex> lock(snapshotMutex_);
+  return lastReset_;
+}
+
+// What a user (or a bug report) needs to tell where a blown-up state came from: the first
+// particle out of bounds, the colliders by their distance from it, the drags and forces
+// acting, the material and the commands the loop applied since its last snapshot.
+std::string SimulationLoop::describeBlowUp() const {
+  const Solver& solver = *solver_;
+  const auto& x = solver.positions();
+  const auto& v = solver.velocities();
+  std::ostringstream out;
+  out.precision(3);
+  std::size_t bad = x.size();
+  for (std::size_t i = 0; i < x.size() && bad == x.size(); ++i) {
+    const bool ok = x[i].allFinite() && v[i].allFinite() && x[i].cwiseAbs().maxCoeff() <= kBlownUp &&
+                    v[i].cwiseAbs().maxCoeff() <= kBlownUp;
+    if (!ok) bad = i;
+  }
+  if (bad < x.size()) {
+    out << "particle " << bad << " at (" << x[bad].transpose() << ") m with velocity ("
+        << v[bad].transpose() << ") m/s";
+  } else {
+    out << "a region rotation is not finite";
+  }
+  const Eigen::Vector3d at = bad < x.size() ? lattice_->restPositions()[bad] : Eigen::Vector3d::Zero();
+  out << "; colliders (distance from that particle's rest position, m):";
+  for (const auto& entry : solver.colliders()) {
+    Eigen::Vector3d normal;
+    const double d = colliderDistance(entry.second.shape, entry.second.pose, at, normal);
+    out << ' ' << entry.first << " (" << toString(entry.second.shape.type) << ", " << d << ")";
+  }
+  out << "; " << solver.drags().size() << " drag(s), " << solver.activeForces().size()
+      << " timed force(s), " << solver.pinnedCount() << " pinned";
+  const SolverParams& p = solver.params();
+  out << "; alpha " << solver.alpha() << ", E " << p.youngsModulus << " Pa, damping " << p.damping
+      << ", ambient " << p.ambientDamping << ", gravity (" << p.gravity.transpose() << ")";
+  out << "; commands applied since the last snapshot:";
+  static const char* const kNames[] = {"grab", "attach", "move", "release", "force", "reset",
+                                       "release_all", "pin_box", "params", "set_collider",
+                                       "move_collider", "remove_collider"};
+  static_assert(sizeof(kNames) / sizeof(kNames[0]) == std::variant_size_v<CommandBody>,
+                "a name for every command");
+  bool any = false;
+  for (std::size_t k = 0; k < appliedKinds_.size(); ++k) {
+    if (appliedKinds_[k] == 0) continue;
+    out << ' ' << kNames[k] << ' ' << appliedKinds_[k];
+    any = true;
+  }
+  if (!any) out << " none";
+  return out.str();
 }
 
 void SimulationLoop::followFrames() {
@@ -413,6 +477,7 @@ void SimulationLoop::writeSnapshot() {
   centerOfMass_ = s.objectFrame.translation();
   std::swap(back_, ready_);
   fresh_ = true;
+  appliedKinds_.fill(0);
 }
 
 bool SimulationLoop::apply(Command& command) {

@@ -61,6 +61,7 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
 
   publisher_ = std::make_unique<StatePublisher>(pnh_, params_, *lattice_, renderMesh_, *embedding_, *stats_);
   reporter_ = std::make_unique<ProblemReporter>(params_, info_, *lattice_);
+  reporter_->setResetCause([this] { return loop_->lastResetCause(); });
   advertise();
   stateNh_.setCallbackQueue(&stateQueue_);
   colliders_ = std::make_unique<ColliderTopics>(

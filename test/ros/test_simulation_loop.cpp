@@ -570,6 +570,10 @@ TEST(SimulationLoop, BlownUpStateIsResetBeforeItOverflowsAFloat) {
   EXPECT_EQ(first.diag.solverResets, 1u);
   for (const Eigen::Vector3d& p : first.positions)
     for (int a = 0; a < 3; ++a) ASSERT_TRUE(std::isfinite(static_cast<float>(p[a])));
+  // The log says where it went wrong: the particle, and what acted on the object.
+  const std::string cause = rig.loop->lastResetCause();
+  EXPECT_NE(cause.find("particle 3 at"), std::string::npos) << cause;
+  EXPECT_NE(cause.find("colliders"), std::string::npos) << cause;
   // A far but sane coordinate (a long free fall) is left alone.
   Rig far(settings);
   x = far.solver->positions();
@@ -577,6 +581,7 @@ TEST(SimulationLoop, BlownUpStateIsResetBeforeItOverflowsAFloat) {
   far.solver->setPositions(x);
   far.loop->start();
   EXPECT_EQ(far.loop->acquire().diag.solverResets, 0u);
+  EXPECT_TRUE(far.loop->lastResetCause().empty());
 }
 
 TEST(SimulationLoop, RealTimeFactorChangesAtRunTime) {

@@ -4,12 +4,15 @@
 /// what to change, throttled so that a lasting problem does not flood the log.
 #pragma once
 
+
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/ros/param_loader.h"
 #include "deformable_flsm/ros/scene.h"
 #include "deformable_flsm/ros/simulation_loop.h"
 
 #include <cstdint>
+#include <functional>
+#include <string>
 
 namespace deformable_flsm {
 
@@ -24,6 +27,8 @@ class ProblemReporter {
   void warnAboutScene() const;
   /// Reports what changed in the loop's diagnostics since the last call.
   void report(const LoopDiagnostics& d);
+  /// Where the reason of the last reset of a blown-up state comes from (logged with the reset).
+  void setResetCause(std::function<std::string()> cause) { resetCause_ = std::move(cause); }
   /// Warns when publishing took longer than the publish period.
   void publishingTook(double seconds) const;
 
@@ -32,6 +37,7 @@ class ProblemReporter {
   const SceneInfo& info_;
   const Lattice& lattice_;
   std::uint64_t reportedResets_ = 0, reportedDropped_ = 0;
+  std::function<std::string()> resetCause_;
   bool reportedSaturated_ = false;
 };
 

@@ -162,6 +162,8 @@ class SimulationLoop {
   /// wrenches, diagnostics; not the particles) into `out`, from any one thread beside the reader
   /// of acquire(): the state and tf go out on a thread of their own, never held up by the meshes.
   void copySummary(Snapshot& out) const;
+  /// Why the last reset of a blown-up state happened (empty before the first), from any thread.
+  std::string lastResetCause() const;
   /// The object's current centre of mass (m), for range checks from any thread.
   Eigen::Vector3d centerOfMass() const;
 
@@ -188,6 +190,8 @@ class SimulationLoop {
   double massOf(const std::vector<std::uint32_t>& particles) const;
   /// Resets a non-finite state to rest and counts it.
   void ensureFinite();
+  /// Where the state that ensureFinite() is about to reset went wrong, in words.
+  std::string describeBlowUp() const;
   /// Moves every attached drag to where its frame is now (see FrameSource).
   void followFrames();
   void timedStep();
@@ -220,6 +224,9 @@ class SimulationLoop {
   std::array<Snapshot, 3> buffers_;
   int back_ = 0, ready_ = 1, front_ = 2;
   bool fresh_ = false;
+  std::string lastReset_;  ///< lastResetCause(), under snapshotMutex_
+  /// commands applied since the last snapshot, by CommandBody alternative (for describeBlowUp())
+  std::array<std::uint32_t, std::variant_size_v<CommandBody>> appliedKinds_{};
   Eigen::Vector3d centerOfMass_ = Eigen::Vector3d::Zero();
 
   // Followed colliders' motions, shared with setColliderMotion().
