@@ -159,6 +159,23 @@ TEST(ContactVelocityChange, PenetrationFromBeforeTheSubStepBecomesNoVelocity) {
   EXPECT_NEAR(dv.z(), 0.1, 1e-12);
 }
 
+TEST(ContactVelocityChange, PassingACurvedColliderCentreThrowsNothing) {
+  // Deep inside a sphere of radius R, a particle crosses its centre: from 1 cm on one side to
+  // 5 mm on the other along u. Its depth is 5 mm less at the end, but it moved away from the end
+  // normal's surface point along u = n, not into it: a collider at rest gives it nothing (the
+  // "no deeper" measure alone would add (1 cm - 5 mm) / h = 0.5 m/s along its motion, every
+  // sub-step it passes the centre).
+  const Eigen::Vector3d u = Eigen::Vector3d(1.0, 2.0, -0.5).normalized(), still = Eigen::Vector3d::Zero();
+  const double h = 0.01, R = 1e9, r = 0.005;
+  const Eigen::Vector3d v = (0.01 + 0.005) / h * u;
+  EXPECT_TRUE(contactVelocityChange(0.005 - R - r, 0.01 - R - r, u, v, still, h, 0.6, 0.5).isZero(0.0));
+  // moving into the end normal's surface (back towards the centre) it is stopped along n only
+  const Eigen::Vector3d in = -0.3 * u + 0.1 * u.unitOrthogonal();
+  const Eigen::Vector3d dv = contactVelocityChange(0.005 - R - r, 0.008 - R - r, u, in, still, h, 0.0, 0.0);
+  EXPECT_NEAR(dv.dot(u), 0.3, 1e-12) << "the approach is stopped, no more";
+  EXPECT_NEAR((dv - dv.dot(u) * u).norm(), 0.0, 1e-12);
+}
+
 // --- the contact pass ------------------------------------------------------------------------
 
 TEST(Contact, BlockRestsOnTheGroundAndItsWeightIsTheNormalForce) {
@@ -362,6 +379,56 @@ TEST(Contact, AColliderSetAroundTheObjectPushesItOutAtABoundedPace) {
   std::printf("[ giant   ] after %d sub-steps the farthest particle moved %.3g m (bound %.3g m)\n",
               steps * p.substeps, farthest, 2.0 * pace);
   EXPECT_LE(farthest, 2.0 * pace);
+}
+
+TEST(Contact, AHalfPinnedObjectInsideAGiantSphereAndBelowAPlaneStaysBounded) {
+  // The soak's blown-up states: half the bunny pinned, a stiff material at the cap on alpha, a
+  // sphere of 1e9 m set around it (its centre inside the object), a tilted plane through it, the
+  // gravity reconfigured upwards, friction, ambient damping. The pinned half keeps the free half
+  // near the sphere's centre, where the depth changes direction within a particle's path: a
+  // response of "no deeper than at the start" alone throws a particle passing the centre on
+  // along its motion, and the speeds grow geometrically (see contactVelocityChange()). The
+  // object cannot leave the sphere, so the push-out keeps stretching it at its bounded pace: the
+  // farthest particle is at most twice n r from rest after n sub-steps (as a free object's, see
+  // AColliderSetAroundTheObjectPushesItOutAtABoundedPace), and the speeds must not grow faster
+  // than that displacement does (linearly: the last third's at most twice the second's).
+  const BunnyScene scene = bunnyScene();
+  SolverParams p = sceneParams(*scene.lattice);
+  p.youngsModulus = 1e7;
+  p.substeps = 11;
+  p.damping = 12.4;
+  p.ambientDamping = 2.07;
+  p.gravity = Eigen::Vector3d(0, 0, 3.81);
+  Solver s(scene.lattice, p);
+  ASSERT_TRUE(s.stiffnessSaturated());
+  const Eigen::Vector3d c = centreOfMass(s);
+  ASSERT_GT(s.pinBox(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d(c.x(), 1.0, 1.0), true), 0u);
+  Collider giant;
+  giant.shape.type = ColliderType::Sphere;
+  giant.shape.radius = 1e9;
+  giant.pose.translation() = c + Eigen::Vector3d(0.01, 0.02, 0.005);
+  giant.staticFriction = giant.kineticFriction = 0.5;
+  s.setCollider("giant", giant);
+  Collider plane;  // the solid below a plane through the centre, tilted
+  plane.pose = Eigen::Translation3d(c) * Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitX());
+  plane.staticFriction = plane.kineticFriction = 0.5;
+  s.setCollider("plane", plane);
+  const int steps = 300;
+  double second = 0.0, last = 0.0;
+  for (int i = 0; i < steps; ++i) {
+    s.step();
+    ASSERT_TRUE(allFinite(s)) << "step " << i;
+    if (i >= 2 * steps / 3)
+      last = std::max(last, maxSpeed(s));
+    else if (i >= steps / 3)
+      second = std::max(second, maxSpeed(s));
+  }
+  const double pace = steps * p.substeps * s.contactRadius();
+  std::printf("[ flood   ] %zu of %zu pinned, alpha %.2f: farthest particle %.3g m from rest (bound %.3g m), "
+              "top speed %.3g m/s then %.3g m/s\n", s.pinnedCount(), s.positions().size(), s.alpha(),
+              s.maxDisplacement(), 2.0 * pace, second, last);
+  EXPECT_LE(s.maxDisplacement(), 2.0 * pace);
+  EXPECT_LE(last, 2.0 * second);
 }
 
 TEST(Contact, TurntableCarriesTheBlockByFriction) {
@@ -766,3 +833,4 @@ TEST(ContactScene, AbuseLeavesTheBunnyFiniteAndItRecoversItsShape) {
     EXPECT_LT(error, recovered);
   }
 }
+

@@ -66,6 +66,13 @@ Eigen::Isometry3d advancePose(const Eigen::Isometry3d& pose, const Eigen::Vector
 /// velocity was unstable where colliders overlap: pushed out of one into another, the particle
 /// gets back every sub-step the distance it was moved over h, and its speed grows
 /// geometrically. The solver moves such a particle out by position only (Solver::contactPass()).
+/// For a particle already inside, dv_n is moreover at most its approach along the end normal,
+/// max(0, -(v - v_c).n): an inelastic contact only stops motion into the surface. The signed
+/// distance of a convex shape is convex, so phi(x) - phi(x*) >= -h (v - v_c).n: the depths
+/// differ by more than the approach, by as much as the level sets curve over the path. Deep
+/// inside a large collider they curve most (near a sphere's centre: a particle passing it ends
+/// "shallower" on the far side while moving away from its new surface point), and "no deeper"
+/// there threw the particle on along its motion, every sub-step it passed, faster each time.
 /// Then the tangential part of the velocity relative to the collider's surface,
 /// v_t = (I - n n^T)(v + dv_n n - v_c), is removed when that needs no more than mu_s dv_n (static
 /// friction: the particle sticks), else reduced by mu_k dv_n along -v_t (kinetic friction). The
@@ -84,7 +91,10 @@ inline Eigen::Vector3d contactVelocityChange(double depth, double startDepth, co
                                              const Eigen::Vector3d& velocity,
                                              const Eigen::Vector3d& colliderVelocity, double h,
                                              double staticFriction, double kineticFriction) {
-  const double dvn = std::max(0.0, std::min(startDepth, 0.0) - depth) / h;
+  double dvn = std::max(0.0, std::min(startDepth, 0.0) - depth) / h;
+  // inside since before the sub-step: stop at most the approach (see above)
+  const double approach = -(velocity - colliderVelocity).dot(normal);
+  if (startDepth < 0.0) dvn = std::min(dvn, std::max(0.0, approach));
   Eigen::Vector3d dv = dvn * normal;
   const Eigen::Vector3d rel = velocity + dv - colliderVelocity;
   const Eigen::Vector3d tangential = rel - rel.dot(normal) * normal;
