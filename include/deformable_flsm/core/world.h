@@ -34,6 +34,12 @@ struct ObjectContactParams {
   /// modelled: one pair of coefficients for every object pair)
   double staticFriction = 0.6;
   double kineticFriction = 0.5;
+  /// Gauss-Seidel passes over the contacts per sub-step (>= 1): more make the impulses through a
+  /// stack of objects converge within a sub-step
+  int iterations = 8;
+
+  /// @throws std::invalid_argument saying which field is wrong
+  void validate() const;
 };
 
 /// What one object exerted on another over the last step.
