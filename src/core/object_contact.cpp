@@ -179,33 +179,21 @@ void ObjectContactSolver::gather(const std::vector<Solver*>& objects, const Obje
 // passed through another within the sub-step is found by its start, and its contact's normal,
 // from the start positions, puts it back on the side it came from; only a relative motion of
 // more than twice the reach in one sub-step (5 r: 4 m/s for r = 3.5 mm and h = 4 ms) can pass
-// unseen. The start hash is searched only around particles that moved at least the smallest
-// radius: two slower ones cannot have crossed (their relative motion is under r1 + r2), and a
-// pair near at the start and apart at the end needs no contact. Each pair once (k1 < k2; from
-// the start hash only when the end missed it), in the order of the particles and of the hash's
-// buckets: deterministic.
+// unseen. Each pair once (k1 < k2; from the start hash only when the end missed it), in the
+// order of the particles and of the hash's buckets: deterministic.
 void ObjectContactSolver::findPairs(const std::vector<Solver*>& objects, const ObjectContactParams& params,
                                     double h) {
   contacts_.clear();
   double cell = 0.0;
   for (std::size_t k = 0; k < count_; ++k) cell = std::max(cell, 2.0 * r_[k] * (1.0 + kContactMargin));
-  if (start_.size() < count_) {
-    start_.resize(x_.size());
-    fast_.resize(x_.size());
-  }
-  double rmin = r_[0];
-  for (std::size_t k = 0; k < count_; ++k) rmin = std::min(rmin, r_[k]);
-  for (std::size_t k = 0; k < count_; ++k) {
-    start_[k] = x_[k] - h * v_[k];
-    fast_[k] = h * v_[k].norm() >= rmin;
-  }
+  if (start_.size() < count_) start_.resize(x_.size());
+  for (std::size_t k = 0; k < count_; ++k) start_[k] = x_[k] - h * v_[k];
   hash_.build(x_, count_, cell);
   startHash_.build(start_, count_, cell);
   for (std::size_t k1 = 0; k1 < count_; ++k1) {
     const std::uint32_t o1 = object_[k1];
     auto consider = [&](std::uint32_t k2, bool fromStart) {
-      // from the start hash a pair is taken by the lower index of its fast particles
-      if (fromStart ? k2 == k1 || (fast_[k2] && k2 < k1) : k2 <= k1) return;
+      if (k2 <= k1) return;
       const std::uint32_t o2 = object_[k2];
       if (o1 == o2) {
         if (!params.selfContact) return;
@@ -242,7 +230,7 @@ void ObjectContactSolver::findPairs(const std::vector<Solver*>& objects, const O
       touched_[k1] = touched_[k2] = 1;
     };
     hash_.forEachNear(x_[k1], [&](std::uint32_t k2) { consider(k2, false); });
-    if (fast_[k1]) startHash_.forEachNear(start_[k1], [&](std::uint32_t k2) { consider(k2, true); });
+    startHash_.forEachNear(start_[k1], [&](std::uint32_t k2) { consider(k2, true); });
   }
   pairContacts_ = contacts_.size();
 }

@@ -122,7 +122,6 @@ class ObjectContactSolver {
   std::vector<Eigen::Vector3d> x_, v_;
   std::vector<double> w_, r_;
   std::vector<Eigen::Vector3d> start_;  // x - h v: where the particles began the sub-step
-  std::vector<char> fast_;              // moved at least the smallest radius in the sub-step
   std::vector<char> touched_;
   SpatialHash hash_, startHash_;  // of the end and of the start positions
   std::vector<Contact> contacts_;
