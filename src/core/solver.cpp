@@ -192,24 +192,38 @@ void Solver::makeSummers() {
 }
 
 void Solver::step() {
-  const double h = params_.timeStep / params_.substeps;
+  beginStep();
+  for (int s = 0; s < params_.substeps; ++s) advanceSubstep(s);
+  endStep();
+}
+
+void Solver::beginStep() {
   // With threads, each step runs on the threads or on one thread, whichever has been faster
   // lately (ThreadGovernor): the same sums in the same order either way, so the results do not
-  // depend on the choice.
+  // depend on the choice. The governor times the sub-steps only, so that a coordinator's work
+  // between them does not count.
   const bool timed = singleSummer_ != nullptr;
   activeSummer_ = timed && !governor_.threaded() ? singleSummer_.get() : summer_.get();
-  const auto t0 = timed ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point();
+  stepSeconds_ = 0.0;
   beginContactStep();
-  for (int s = 0; s < params_.substeps; ++s) {
-    interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
-    if (params_.integrator == Integrator::Implicit)
-      implicitSubstep(h);
-    else
-      substep(h);
-  }
+}
+
+void Solver::advanceSubstep(int s) {
+  const double h = params_.timeStep / params_.substeps;
+  const bool timed = singleSummer_ != nullptr;
+  const auto t0 = timed ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point();
+  interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
+  if (params_.integrator == Integrator::Implicit)
+    implicitSubstep(h);
+  else
+    substep(h);
+  if (timed) stepSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void Solver::endStep() {
   endContactStep();
-  if (timed) {
-    governor_.record(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  if (singleSummer_ != nullptr) {
+    governor_.record(stepSeconds_);
     activeSummer_ = summer_.get();
   }
   for (auto& entry : drags_) entry.second.reached = entry.second.pose;

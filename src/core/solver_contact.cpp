@@ -228,6 +228,18 @@ void Solver::contactPass(double h) {
   }
 }
 
+bool Solver::addColliderImpulse(const std::string& id, const Eigen::Vector3d& impulse, const Eigen::Vector3d& moment,
+                                std::size_t contacts) {
+  for (ContactBody& body : contactBodies_) {
+    if (*body.id != id) continue;
+    body.impulse += impulse;
+    body.moment += moment;
+    body.contacts += contacts;
+    return true;
+  }
+  return false;
+}
+
 // The object's impulse on a collider is minus the particles' m dv; averaged over the step.
 void Solver::endContactStep() {
   const double T = params_.timeStep;

@@ -238,6 +238,33 @@ class Solver : private RegionKernel {
   /// true while a drag, a timed force or an impulse is active: the object is being acted on.
   bool hasPendingCommands() const;
 
+  // --- the phases of a step, for a coordinator of several objects (World) ----------------
+  /// step() is beginStep(), advanceSubstep(s) for s = 0 .. params().substeps - 1, then
+  /// endStep(): a coordinator runs several objects' sub-steps interleaved and acts on their
+  /// states between them (contact between objects). Results equal step()'s.
+  void beginStep();
+  /// Sub-step s of the step begun: the drag frames at (s + 1) / substeps of the way, the
+  /// integrator's sub-step with the collider contact pass, the pinned and dragged particles.
+  void advanceSubstep(int s);
+  /// Closes the step: collider wrenches averaged over it, drag frames reached.
+  void endStep();
+  /// #P positions and velocities between sub-steps, for a contact solver that corrects them
+  /// (a correction dv moves x by h dv: x = x_start + h v holds, as in the collider pass).
+  std::vector<Eigen::Vector3d>& substepPositions() { return x_; }
+  std::vector<Eigen::Vector3d>& substepVelocities() { return v_; }
+  /// Whether particle p's motion is prescribed (pinned or hard-dragged): to contact, a
+  /// particle of infinite mass.
+  bool isPrescribed(std::uint32_t p) const { return pinned_[p] != 0 || hardDragged_[p] != 0; }
+  /// Counts into contactWrench(id) an impulse that another contact solver gave this object's
+  /// particles against collider `id` during the step begun (before endStep()): `impulse` the
+  /// sum of m dv on the particles, `moment` its moment about the collider's origin, `contacts`
+  /// the particles it touched in the last sub-step. Returns false if there is no such collider.
+  bool addColliderImpulse(const std::string& id, const Eigen::Vector3d& impulse, const Eigen::Vector3d& moment,
+                          std::size_t contacts);
+
+ private:
+  double stepSeconds_ = 0.0;  // time spent in this step's sub-steps, for the thread governor
+
  private:
   void substep(double h);
   /// The goals for the current state, with region damping when withDamping; when

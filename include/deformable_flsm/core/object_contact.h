@@ -1,0 +1,136 @@
+/// @file object_contact.h
+/// Contact between deformable objects, and of an object with itself, in one sub-step: the
+/// particles are spheres (each object's Solver::contactRadius()), found near each other through
+/// a spatial hash, and their contacts are resolved together with the colliders' contacts of the
+/// same particles by projected Gauss-Seidel on impulses, with Coulomb friction. World runs it
+/// after every object's sub-step; the pair and collider impulses it sums become the wrenches.
+#pragma once
+
+#include "deformable_flsm/core/collider.h"
+#include "deformable_flsm/core/solver.h"
+#include "deformable_flsm/core/spatial_hash.h"
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace deformable_flsm {
+
+struct ObjectContactParams;
+
+/// A collider as the object contact pass sees it in a sub-step.
+struct SubstepCollider {
+  const std::string* id = nullptr;
+  const Collider* collider = nullptr;
+  /// its pose at the start and at the end of the sub-step
+  Eigen::Isometry3d before = Eigen::Isometry3d::Identity(), now = Eigen::Isometry3d::Identity();
+};
+
+/// What one object pair's contacts did over a step: the impulse on the object of the higher
+/// index (b) from the lower (a), its moment about the origin, and the contacts of the last
+/// sub-step.
+struct PairImpulse {
+  std::uint32_t a = 0, b = 0;
+  Eigen::Vector3d impulse = Eigen::Vector3d::Zero();
+  Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+  std::size_t contacts = 0;
+};
+
+/// What the object contact pass gave one object's particles against one collider over a step
+/// (sum of m dv, its moment about the collider's origin, contacts of the last sub-step).
+struct ColliderImpulse {
+  Eigen::Vector3d impulse = Eigen::Vector3d::Zero();
+  Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+  std::size_t contacts = 0;
+};
+
+class ObjectContactSolver {
+ public:
+  /// Clears the step's sums for `objects` objects and `colliders` colliders.
+  void beginStep(std::size_t objects, std::size_t colliders);
+
+  /// The contact pass after every object's sub-step of length h:
+  ///  1. broad phase: each object's bounds over the sub-step (inflated by its contact radius
+  ///     and the margin); a particle enters the hash only where its object's bounds
+  ///     meet another's (or with self-contact), so that far objects cost nothing;
+  ///  2. spatial hashes (cell = the largest contact diameter with its margin) of the end and
+  ///     start positions give the particle pairs closer than the sum of their radii with the
+  ///     margin at either (a sphere that passed through another is caught): pairs of different
+  ///     objects, and with params.selfContact pairs of one object farther apart than
+  ///     params.selfExclusion cells in its rest lattice; each particle in such a pair also
+  ///     gets a contact with every collider it touches, so that an object pressed onto the
+  ///     ground by another is held by the ground in the same solve;
+  ///  3. projected Gauss-Seidel over the contacts in a fixed order (see object_contact.cpp);
+  ///  4. penetration left (from a start, a large step, a collider pushing) pushed out by
+  ///     position only, at most kPushPace of the smaller radius per sub-step.
+  /// @param[in,out] objects    the objects, their states after their own sub-step
+  /// @param[in]     colliders  the colliders at this sub-step, in the same order as for
+  ///                           beginStep()
+  /// @param[in]     last       whether this is the step's last sub-step (the contacts counted)
+  void substep(const std::vector<Solver*>& objects, const std::vector<SubstepCollider>& colliders,
+               const ObjectContactParams& params, double h, bool last);
+
+  /// The object pairs whose contacts carried an impulse in the step, in increasing (a, b).
+  const std::vector<PairImpulse>& pairImpulses() const { return pairs_; }
+  /// What object o's particles got from collider c in this pass over the step.
+  const ColliderImpulse& colliderImpulse(std::size_t o, std::size_t c) const {
+    return colliderImpulses_[o * colliderCount_ + c];
+  }
+  /// Sorts pairImpulses() by (a, b): call at the end of the step (the next beginStep() clears
+  /// them).
+  void endStep();
+
+ private:
+  struct Contact {
+    std::uint32_t k1 = 0;  // particle (index into the gathered arrays)
+    std::uint32_t k2 = 0;  // the other particle, or the collider's index
+    bool collider = false;
+    Eigen::Vector3d n = Eigen::Vector3d::Zero();  // from k2 (or the collider) to k1
+    double offset = 0.0;  // the gap is n . (x1 - x2) - offset, or n . x1 - offset (collider)
+    double target = 0.0;  // the least gap at the end of the sub-step: min(start gap, 0)
+    double wsum = 0.0;    // w1 + w2
+    double invW = 0.0, invHW = 0.0;  // 1 / wsum, 1 / (h wsum)
+    double muS = 0.0, muK = 0.0;
+    Eigen::Vector3d vc = Eigen::Vector3d::Zero();  // collider surface velocity
+    double lambda = 0.0;                           // normal impulse (N s)
+    Eigen::Vector3d friction = Eigen::Vector3d::Zero();  // tangential impulse on k1 (N s)
+  };
+  void gather(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h);
+  void findPairs(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h);
+  void findColliderContacts(const std::vector<SubstepCollider>& colliders, double h);
+  void solve(double h, int iterations);
+  void pushOut();
+  void scatter(const std::vector<Solver*>& objects);
+  void accumulate(const std::vector<SubstepCollider>& colliders, bool last);
+  PairImpulse& pairSlot(std::uint32_t a, std::uint32_t b);
+
+  // per object
+  std::vector<Eigen::Vector3d> lo_, hi_;  // bounds inflated by reach_
+  std::vector<double> radius_, reach_;    // contact radius, and radius with the margin
+  std::vector<char> near_;                // its bounds meet another object's (or self-contact)
+  std::vector<std::uint32_t> order_;  // objects by their lower x bound
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> objectPairs_;  // whose bounds meet
+  std::vector<std::uint32_t> neighborStart_, neighbors_;  // per object, the others its bounds meet
+  // the gathered particles
+  std::size_t count_ = 0;
+  std::vector<std::uint32_t> object_, index_;
+  std::vector<Eigen::Vector3d> x_, v_;
+  std::vector<double> w_, r_;
+  std::vector<Eigen::Vector3d> start_;  // x - h v: where the particles began the sub-step
+  std::vector<char> touched_;
+  SpatialHash hash_, startHash_;  // of the end and of the start positions
+  std::vector<Contact> contacts_;
+  std::size_t pairContacts_ = 0;  // contacts_[colliderContacts .. ] are pairs
+  // the step's sums
+  std::size_t colliderCount_ = 0;
+  std::vector<ColliderImpulse> colliderImpulses_;  // #objects x #colliders
+  std::vector<PairImpulse> pairs_;
+  std::vector<std::int32_t> pairTable_;  // open addressing: index into pairs_, or -1
+};
+
+}  // namespace deformable_flsm

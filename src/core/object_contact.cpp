@@ -1,0 +1,406 @@
+// Contact between deformable objects and of an object with itself (see object_contact.h).
+//
+// Each contact is a constraint on the gap at the end of the sub-step, linear in the velocity
+// corrections because a correction dv moves the end position by h dv (x = x_start + h v):
+//   pair      g = n . (x1 - x2) - (r1 + r2),   n the unit direction from x2 to x1 at the start
+//                                              of the sub-step (x - h v)
+//   collider  g = n . x1 - offset,             n the collider's outward normal at x1, offset so
+//                                              that g = phi(x1) - r1 (the surface as a plane)
+// and asks g >= min(g_start, 0): a particle that came from outside ends touching, one that was
+// already inside (penetration from a start, a large step, a collider's push) goes no deeper;
+// its old penetration becomes no velocity (see contactVelocityChange() in contact.h for why)
+// and is pushed out by position after the solve, at a bounded pace.
+// The normal impulse lambda >= 0 and the friction impulse f (tangential, |f| <= mu lambda) of
+// each contact are found by projected Gauss-Seidel with accumulated impulses (Catto 2005,
+// "Iterative Dynamics with Temporal Coherence"; Erleben 2007): per contact in a fixed order,
+//   dlambda = (target - g) / (h (w1 + w2)),  lambda <- max(0, lambda + dlambda)
+//   f <- f - u_t / (w1 + w2), u_t the tangential relative velocity; kept if |f| <= mu_s lambda
+//   (static friction: the contact sticks), else scaled to mu_k lambda (kinetic)
+// and each change dJ is applied equal and opposite, dv1 = w1 dJ, dv2 = -w2 dJ (w = 1/m, 0 for
+// a pinned or hard-dragged particle): linear momentum is conserved exactly. A pair's normal
+// impulse lies along the line of the particles at the start of the sub-step, where the
+// symplectic step's kick acts (x_end = x_start + h v_end), so frictionless contact conserves
+// angular momentum exactly too; a friction impulse between two particle centres 2r apart is a
+// couple the particles cannot spin with (they carry no rotation), of at most 2 r |f|.
+#include "deformable_flsm/core/object_contact.h"
+
+#include "deformable_flsm/core/contact.h"
+#include "deformable_flsm/core/world.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace deformable_flsm {
+
+namespace {
+
+/// Pairs are found closer than (r1 + r2)(1 + kContactMargin), and colliders within
+/// r kContactMargin: a pair just apart at the end of the sub-step is in the solve, so that the
+/// corrections of its neighbours cannot push it into each other unseen.
+constexpr double kContactMargin = 0.25;
+/// Penetration up to this fraction of r1 + r2 (of r for a collider) is left alone by the
+/// position push (Box2D's "linear slop"): resting contacts are not pushed every sub-step,
+/// which would shake a stack. The velocity solve still lets none of them grow.
+constexpr double kPenetrationSlop = 0.01;
+/// Old penetration is pushed out by at most this fraction of the smaller radius per sub-step,
+/// by position only (as the collider pass bounds its own at the radius).
+constexpr double kPushPace = 0.5;
+
+bool boxesMeet(const Eigen::Vector3d& lo1, const Eigen::Vector3d& hi1, const Eigen::Vector3d& lo2,
+               const Eigen::Vector3d& hi2) {
+  return (lo1.array() <= hi2.array()).all() && (lo2.array() <= hi1.array()).all();
+}
+
+}  // namespace
+
+void ObjectContactSolver::beginStep(std::size_t objects, std::size_t colliders) {
+  colliderCount_ = colliders;
+  colliderImpulses_.assign(objects * colliders, ColliderImpulse());
+  pairs_.clear();
+  std::fill(pairTable_.begin(), pairTable_.end(), -1);
+}
+
+void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std::vector<SubstepCollider>& colliders,
+                                  const ObjectContactParams& params, double h, bool last) {
+  for (PairImpulse& p : pairs_) p.contacts = 0;
+  for (ColliderImpulse& c : colliderImpulses_) c.contacts = 0;
+  if (!params.enabled && !params.selfContact) return;
+  gather(objects, params, h);
+  if (count_ == 0) return;
+  findPairs(objects, params, h);
+  if (contacts_.empty()) return;
+  findColliderContacts(colliders, h);
+  solve(h, params.iterations);
+  pushOut();
+  scatter(objects);
+  accumulate(colliders, last);
+}
+
+// Broad phase and gathering: the particles that may touch another object (or their own) are
+// copied into contiguous arrays, object by object in order, each object's in index order. All
+// of them, not the lattice's surface only: an impact deforms the object so that particles from
+// inside pass between the surface's (which have no contact with each other) into the other.
+void ObjectContactSolver::gather(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h) {
+  const std::size_t N = objects.size();
+  lo_.resize(N);
+  hi_.resize(N);
+  radius_.resize(N);
+  reach_.resize(N);
+  near_.assign(N, 0);
+  for (std::size_t o = 0; o < N; ++o) {
+    // the box swept by the particles over the sub-step, x - h v to x
+    const auto& x = objects[o]->positions();
+    const auto& v = objects[o]->velocities();
+    Eigen::Vector3d lo = x[0], hi = lo;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      const Eigen::Vector3d start = x[i] - h * v[i];
+      lo = lo.cwiseMin(x[i]).cwiseMin(start);
+      hi = hi.cwiseMax(x[i]).cwiseMax(start);
+    }
+    radius_[o] = objects[o]->contactRadius();
+    reach_[o] = radius_[o] * (1.0 + kContactMargin);
+    lo_[o] = lo.array() - reach_[o];
+    hi_[o] = hi.array() + reach_[o];
+  }
+  // per object pair by bounds, sweeping the objects in order of their lower x bound (a pair is
+  // tested only where the x intervals meet): nothing per particle of an object alone. Then each
+  // object's list of the others its bounds meet (flat arrays, capacity kept).
+  order_.resize(N);
+  for (std::size_t o = 0; o < N; ++o) order_[o] = static_cast<std::uint32_t>(o);
+  std::sort(order_.begin(), order_.end(), [&](std::uint32_t a, std::uint32_t b) {
+    return lo_[a].x() != lo_[b].x() ? lo_[a].x() < lo_[b].x() : a < b;
+  });
+  objectPairs_.clear();
+  if (params.enabled)
+    for (std::size_t i = 0; i < N; ++i) {
+      const std::uint32_t a = order_[i];
+      for (std::size_t j = i + 1; j < N && lo_[order_[j]].x() <= hi_[a].x(); ++j) {
+        const std::uint32_t b = order_[j];
+        if (boxesMeet(lo_[a], hi_[a], lo_[b], hi_[b])) objectPairs_.emplace_back(a, b);
+      }
+    }
+  neighborStart_.assign(N + 1, 0);
+  for (const auto& p : objectPairs_) {
+    ++neighborStart_[p.first + 1];
+    ++neighborStart_[p.second + 1];
+  }
+  for (std::size_t o = 0; o < N; ++o) {
+    neighborStart_[o + 1] += neighborStart_[o];
+    near_[o] = params.selfContact || neighborStart_[o + 1] > neighborStart_[o];
+  }
+  neighbors_.resize(neighborStart_[N]);
+  for (const auto& p : objectPairs_) {  // neighborStart_[o] as a cursor, restored below
+    neighbors_[neighborStart_[p.first]++] = p.second;
+    neighbors_[neighborStart_[p.second]++] = p.first;
+  }
+  for (std::size_t o = N; o > 0; --o) neighborStart_[o] = neighborStart_[o - 1];
+  neighborStart_[0] = 0;
+  count_ = 0;
+  for (std::size_t o = 0; o < N; ++o) {
+    if (!near_[o]) continue;
+    const Solver& s = *objects[o];
+    const auto& x = s.positions();
+    const auto& v = s.velocities();
+    const auto& m = s.lattice().masses();
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      bool wanted = params.selfContact;
+      // only where the particle's sphere with its margin meets another object's bounds
+      const Eigen::Vector3d start = x[i] - h * v[i];
+      const Eigen::Vector3d plo = x[i].cwiseMin(start).array() - reach_[o], phi = x[i].cwiseMax(start).array() + reach_[o];
+      for (std::uint32_t e = neighborStart_[o]; e < neighborStart_[o + 1] && !wanted; ++e) {
+        const std::uint32_t b = neighbors_[e];
+        wanted = boxesMeet(plo, phi, lo_[b], hi_[b]);
+      }
+      if (!wanted) continue;
+      if (object_.size() <= count_) {
+        const std::size_t grown = std::max<std::size_t>(64, 2 * object_.size());
+        object_.resize(grown);
+        index_.resize(grown);
+        x_.resize(grown);
+        v_.resize(grown);
+        w_.resize(grown);
+        r_.resize(grown);
+        touched_.resize(grown);
+      }
+      object_[count_] = static_cast<std::uint32_t>(o);
+      index_[count_] = static_cast<std::uint32_t>(i);
+      x_[count_] = x[i];
+      v_[count_] = v[i];
+      w_[count_] = s.isPrescribed(static_cast<std::uint32_t>(i)) ? 0.0 : 1.0 / m[i];
+      r_[count_] = radius_[o];
+      touched_[count_] = 0;
+      ++count_;
+    }
+  }
+}
+
+// The pairs within the sum of their radii with the margin at the end of the sub-step or at its
+// start (x - h v): two hashes, each searched in the 27 cells around a particle. A particle that
+// passed through another within the sub-step is found by its start, and its contact's normal,
+// from the start positions, puts it back on the side it came from; only a relative motion of
+// more than twice the reach in one sub-step (5 r: 4 m/s for r = 3.5 mm and h = 4 ms) can pass
+// unseen. Each pair once (k1 < k2; from the start hash only when the end missed it), in the
+// order of the particles and of the hash's buckets: deterministic.
+void ObjectContactSolver::findPairs(const std::vector<Solver*>& objects, const ObjectContactParams& params,
+                                    double h) {
+  contacts_.clear();
+  double cell = 0.0;
+  for (std::size_t k = 0; k < count_; ++k) cell = std::max(cell, 2.0 * r_[k] * (1.0 + kContactMargin));
+  if (start_.size() < count_) start_.resize(x_.size());
+  for (std::size_t k = 0; k < count_; ++k) start_[k] = x_[k] - h * v_[k];
+  hash_.build(x_, count_, cell);
+  startHash_.build(start_, count_, cell);
+  for (std::size_t k1 = 0; k1 < count_; ++k1) {
+    const std::uint32_t o1 = object_[k1];
+    auto consider = [&](std::uint32_t k2, bool fromStart) {
+      if (k2 <= k1) return;
+      const std::uint32_t o2 = object_[k2];
+      if (o1 == o2) {
+        if (!params.selfContact) return;
+        const auto& cells = objects[o1]->lattice().cells();
+        const Eigen::Vector3i d = cells[index_[k1]] - cells[index_[k2]];
+        if (d.cwiseAbs().maxCoeff() <= params.selfExclusion) return;
+      } else if (!params.enabled) {
+        return;
+      }
+      const double R = r_[k1] + r_[k2];
+      const double near2 = R * R * (1.0 + kContactMargin) * (1.0 + kContactMargin);
+      const Eigen::Vector3d end = x_[k1] - x_[k2];
+      const bool nearAtEnd = end.squaredNorm() < near2;
+      if (fromStart ? nearAtEnd || (start_[k1] - start_[k2]).squaredNorm() >= near2 : !nearAtEnd) return;
+      const double wsum = w_[k1] + w_[k2];
+      if (!(wsum > 0.0)) return;  // both prescribed
+      Contact c;
+      c.k1 = static_cast<std::uint32_t>(k1);
+      c.k2 = k2;
+      const Eigen::Vector3d start = start_[k1] - start_[k2];
+      double len = start.norm();
+      if (len > 1e-9 * R) {
+        c.n = start / len;
+      } else {  // centres met at the start: the end positions' direction, or any
+        c.n = end.norm() > 1e-9 * R ? Eigen::Vector3d(end.normalized()) : Eigen::Vector3d::UnitZ();
+        len = c.n.dot(start);
+      }
+      c.offset = R;
+      c.target = std::min(len - R, 0.0);
+      c.wsum = wsum;
+      c.muS = params.staticFriction;
+      c.muK = params.kineticFriction;
+      contacts_.push_back(c);
+      touched_[k1] = touched_[k2] = 1;
+    };
+    hash_.forEachNear(x_[k1], [&](std::uint32_t k2) { consider(k2, false); });
+    startHash_.forEachNear(start_[k1], [&](std::uint32_t k2) { consider(k2, true); });
+  }
+  pairContacts_ = contacts_.size();
+}
+
+// Colliders of the particles in a pair: a particle of an object pressed by another onto the
+// ground is held by the ground within this solve (otherwise the ground would push it back only
+// in the next sub-step, and the pair would chatter).
+void ObjectContactSolver::findColliderContacts(const std::vector<SubstepCollider>& colliders, double h) {
+  if (colliders.empty()) return;
+  for (std::size_t k = 0; k < count_; ++k) {
+    if (!touched_[k] || w_[k] == 0.0) continue;
+    const double r = r_[k];
+    for (std::size_t ci = 0; ci < colliders.size(); ++ci) {
+      const SubstepCollider& sc = colliders[ci];
+      const Collider& col = *sc.collider;
+      if (!boxNearCollider(col.shape, sc.now, x_[k], x_[k], r * (1.0 + kContactMargin))) continue;
+      Eigen::Vector3d n;
+      const double gap = colliderDistance(col.shape, sc.now, x_[k], n) - r;
+      if (!(gap < r * kContactMargin)) continue;
+      Eigen::Vector3d startNormal;
+      const double startGap = colliderDistance(col.shape, sc.before, x_[k] - h * v_[k], startNormal) - r;
+      Contact c;
+      c.k1 = static_cast<std::uint32_t>(k);
+      c.k2 = static_cast<std::uint32_t>(ci);
+      c.collider = true;
+      c.n = n;
+      c.offset = n.dot(x_[k]) - gap;
+      c.target = std::min(startGap, 0.0);
+      c.wsum = w_[k];
+      c.muS = col.staticFriction;
+      c.muK = col.kineticFriction;
+      c.vc = col.linearVelocity + col.angularVelocity.cross(x_[k] - sc.now.translation());
+      contacts_.push_back(c);
+    }
+  }
+  // the colliders' contacts first: the support below is settled before the pairs above it
+  std::rotate(contacts_.begin(), contacts_.begin() + static_cast<std::ptrdiff_t>(pairContacts_), contacts_.end());
+}
+
+void ObjectContactSolver::solve(double h, int iterations) {
+  for (Contact& c : contacts_) {
+    c.invHW = 1.0 / (h * c.wsum);
+    c.invW = 1.0 / c.wsum;
+  }
+  for (int it = 0; it < iterations; ++it) {
+    for (Contact& c : contacts_) {
+      Eigen::Vector3d& x1 = x_[c.k1];
+      Eigen::Vector3d& v1 = v_[c.k1];
+      const bool pair = !c.collider;
+      // normal
+      const double gap = pair ? c.n.dot(x1 - x_[c.k2]) - c.offset : c.n.dot(x1) - c.offset;
+      const double old = c.lambda;
+      c.lambda = std::max(0.0, old + (c.target - gap) * c.invHW);
+      // a contact that neither pushes nor holds (most of those found within the margin) has
+      // nothing to apply
+      if (c.lambda == 0.0 && old == 0.0 && c.friction.isZero(0.0)) continue;
+      const double w1 = w_[c.k1];
+      const double w2 = pair ? w_[c.k2] : 0.0;
+      Eigen::Vector3d J = (c.lambda - old) * c.n;
+      // friction on the relative velocity after the normal change
+      const Eigen::Vector3d u = v1 + w1 * J - (pair ? Eigen::Vector3d(v_[c.k2] - w2 * J) : c.vc);
+      const Eigen::Vector3d ut = u - u.dot(c.n) * c.n;
+      const Eigen::Vector3d oldF = c.friction;
+      Eigen::Vector3d f = oldF - ut * c.invW;
+      const double fn2 = f.squaredNorm(), cone = c.muS * c.lambda;
+      if (fn2 > cone * cone) f *= c.muK * c.lambda / std::sqrt(fn2);
+      c.friction = f;
+      J += f - oldF;
+      const Eigen::Vector3d dv1 = w1 * J;
+      v1 += dv1;
+      x1 += h * dv1;
+      if (pair) {
+        const Eigen::Vector3d dv2 = w2 * J;
+        v_[c.k2] -= dv2;
+        x_[c.k2] -= h * dv2;
+      }
+    }
+  }
+}
+
+void ObjectContactSolver::pushOut() {
+  for (const Contact& c : contacts_) {
+    Eigen::Vector3d& x1 = x_[c.k1];
+    if (c.collider) {
+      const double r = r_[c.k1];
+      const double depth = -(c.n.dot(x1) - c.offset) - kPenetrationSlop * r;
+      if (depth > 0.0) x1 += std::min(depth, kPushPace * r) * c.n;
+      continue;
+    }
+    const double depth = -(c.n.dot(x1 - x_[c.k2]) - c.offset) - kPenetrationSlop * c.offset;
+    if (!(depth > 0.0)) continue;
+    const double push = std::min(depth, kPushPace * std::min(r_[c.k1], r_[c.k2]));
+    x1 += (w_[c.k1] / c.wsum * push) * c.n;
+    x_[c.k2] -= (w_[c.k2] / c.wsum * push) * c.n;
+  }
+}
+
+void ObjectContactSolver::scatter(const std::vector<Solver*>& objects) {
+  for (const Contact& c : contacts_) {
+    touched_[c.k1] = 2;
+    if (!c.collider) touched_[c.k2] = 2;
+  }
+  for (std::size_t k = 0; k < count_; ++k) {
+    if (touched_[k] != 2) continue;
+    Solver& s = *objects[object_[k]];
+    s.substepPositions()[index_[k]] = x_[k];
+    s.substepVelocities()[index_[k]] = v_[k];
+  }
+}
+
+// The impulses of the sub-step into the step's sums: per object pair the impulse on b from a
+// (a < b) and its moment about the origin, taken at the point between the spheres' surfaces;
+// per object and collider the particles' impulse and its moment about the collider's origin,
+// taken at the contact point x - r n.
+void ObjectContactSolver::accumulate(const std::vector<SubstepCollider>& colliders, bool last) {
+  for (const Contact& c : contacts_) {
+    const Eigen::Vector3d J = c.lambda * c.n + c.friction;  // on k1
+    const bool active = c.lambda > 0.0;
+    if (c.collider) {
+      const double r = r_[c.k1];
+      ColliderImpulse& ci = colliderImpulses_[object_[c.k1] * colliderCount_ + c.k2];
+      ci.impulse += J;
+      ci.moment += (x_[c.k1] - r * c.n - colliders[c.k2].now.translation()).cross(J);
+      if (last && active) ++ci.contacts;
+      continue;
+    }
+    const std::uint32_t o1 = object_[c.k1], o2 = object_[c.k2];
+    if (o1 == o2) continue;  // self-contact: no wrench between objects
+    if (!active && c.friction.isZero(0.0)) continue;
+    const double r1 = r_[c.k1], r2 = r_[c.k2];
+    const Eigen::Vector3d point = x_[c.k2] + (r2 / (r1 + r2)) * (x_[c.k1] - x_[c.k2]);
+    // the slot holds the impulse on the object of the higher index: -J on o2, J on o1
+    const Eigen::Vector3d onB = o1 < o2 ? Eigen::Vector3d(-J) : J;
+    PairImpulse& p = pairSlot(std::min(o1, o2), std::max(o1, o2));
+    p.impulse += onB;
+    p.moment += point.cross(onB);
+    if (last && active) ++p.contacts;
+  }
+}
+
+PairImpulse& ObjectContactSolver::pairSlot(std::uint32_t a, std::uint32_t b) {
+  if (pairTable_.size() < 2 * (pairs_.size() + 1)) {
+    // grow the open-addressing table (a power of two, at most half full) and re-enter the pairs
+    std::size_t size = std::max<std::size_t>(64, pairTable_.size());
+    while (size < 4 * (pairs_.size() + 1)) size *= 2;
+    pairTable_.assign(size, -1);
+    for (std::size_t i = 0; i < pairs_.size(); ++i) {
+      std::size_t slot = (pairs_[i].a * 2654435761u + pairs_[i].b) & (size - 1);
+      while (pairTable_[slot] >= 0) slot = (slot + 1) & (size - 1);
+      pairTable_[slot] = static_cast<std::int32_t>(i);
+    }
+  }
+  const std::size_t mask = pairTable_.size() - 1;
+  std::size_t slot = (a * 2654435761u + b) & mask;
+  while (pairTable_[slot] >= 0) {
+    PairImpulse& p = pairs_[static_cast<std::size_t>(pairTable_[slot])];
+    if (p.a == a && p.b == b) return p;
+    slot = (slot + 1) & mask;
+  }
+  pairTable_[slot] = static_cast<std::int32_t>(pairs_.size());
+  PairImpulse p;
+  p.a = a;
+  p.b = b;
+  pairs_.push_back(p);
+  return pairs_.back();
+}
+
+void ObjectContactSolver::endStep() {
+  std::sort(pairs_.begin(), pairs_.end(),
+            [](const PairImpulse& l, const PairImpulse& r) { return l.a != r.a ? l.a < r.a : l.b < r.b; });
+}
+
+}  // namespace deformable_flsm

@@ -1,0 +1,293 @@
+// World: several deformable objects advanced together (see world.h).
+//
+// How to use it:
+//   World world(1.0 / 60.0, 8);                       // every object's timeStep and substeps
+//   world.setCollider("ground", ground);              // shared by every object, now and later
+//   Solver& a = world.addObject("sponge", lattice, params);  // lattice voxelized at its pose
+//   a.pinBox(...); a.grab(...);                       // commands go to the object's Solver
+//   world.step();                                     // all objects, one step
+//   world.objectWrench("sponge", "apple");            // what the sponge exerted on the apple
+//   world.contactWrench("ground");                    // what all objects exerted on the ground
+// Each object is a Solver: its state, commands, diagnostics and its own wrench on a collider
+// (Solver::contactWrench(), the object contact pass's share against the colliders included)
+// are read there. Do not call Solver::step() on an object of a World, nor change its
+// colliders through the Solver (World::setCollider() gives them to all); an object whose
+// timeStep or substeps is changed to differ from the world's makes step() throw.
+// Per sub-step: every object's dynamics and collider contact (Solver::advanceSubstep()), then
+// the contact between objects and of objects with themselves (ObjectContactSolver), which
+// also holds the particles it touches against the colliders in the same solve.
+#include "deformable_flsm/core/world.h"
+
+#include "deformable_flsm/core/contact.h"
+#include "deformable_flsm/core/mesh_distance_field.h"
+#include "deformable_flsm/core/object_contact.h"
+#include "deformable_flsm/core/spatial_hash.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+
+namespace deformable_flsm {
+
+namespace {
+
+/// Objects may start touching (a stack built face to face: particle spheres exactly r1 + r2
+/// apart) but not closer than r1 + r2 by more than this fraction of it, which round-off of
+/// placing them cannot reach.
+constexpr double kStartOverlapTolerance = 1e-6;
+
+std::string num(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+bool isRotation(const Eigen::Matrix3d& R) {
+  return (R.transpose() * R).isIdentity(1e-6) && R.determinant() > 0.0;
+}
+
+bool sameTime(double a, double b) { return std::abs(a - b) <= 1e-12 * std::max(std::abs(a), std::abs(b)); }
+
+}  // namespace
+
+void ObjectContactParams::validate() const {
+  if (selfExclusion < 1)
+    throw std::invalid_argument("object contact: self_exclusion must be >= 1 lattice cell (got " +
+                                std::to_string(selfExclusion) + "): neighbours touch at rest");
+  if (!std::isfinite(staticFriction) || staticFriction < 0.0)
+    throw std::invalid_argument("object contact: static friction must be finite and >= 0 (got " + num(staticFriction) + ")");
+  if (!std::isfinite(kineticFriction) || kineticFriction < 0.0 || kineticFriction > staticFriction)
+    throw std::invalid_argument("object contact: kinetic friction must be in [0, static friction " +
+                                num(staticFriction) + "] (got " + num(kineticFriction) + ")");
+  if (iterations < 1)
+    throw std::invalid_argument("object contact: iterations must be >= 1 (got " + std::to_string(iterations) + ")");
+}
+
+struct World::Impl {
+  std::vector<std::unique_ptr<Solver>> objects;
+  std::vector<Solver*> pointers;
+  std::map<std::string, Collider> colliders;
+  std::vector<SubstepCollider> substepColliders;
+  std::vector<Eigen::Isometry3d> colliderStart;
+  ObjectContactSolver contact;
+  std::vector<ObjectPairWrench> wrenches;
+
+  std::size_t indexOf(const std::vector<std::string>& names, const std::string& name) const {
+    return static_cast<std::size_t>(std::find(names.begin(), names.end(), name) - names.begin());
+  }
+};
+
+World::World(double timeStep, int substeps, const ObjectContactParams& contact)
+    : impl_(std::make_unique<Impl>()), contact_(contact), timeStep_(timeStep), substeps_(substeps) {
+  if (!std::isfinite(timeStep) || !(timeStep > 0.0))
+    throw std::invalid_argument("world: the time step must be positive and finite (got " + num(timeStep) + " s)");
+  if (substeps < 1) throw std::invalid_argument("world: substeps must be >= 1 (got " + std::to_string(substeps) + ")");
+  contact_.validate();
+}
+
+World::~World() = default;
+
+Solver& World::addObject(const std::string& name, std::shared_ptr<const Lattice> lattice, const SolverParams& params) {
+  if (name.empty()) throw std::invalid_argument("world: an object needs a name");
+  if (impl_->indexOf(names_, name) < names_.size())
+    throw std::invalid_argument("world: there is already an object named '" + name + "'");
+  if (!sameTime(params.timeStep, timeStep_) || params.substeps != substeps_)
+    throw std::invalid_argument("world: object '" + name + "' has time step " + num(params.timeStep) + " s in " +
+                                std::to_string(params.substeps) + " sub-steps, the world " + num(timeStep_) +
+                                " s in " + std::to_string(substeps_) + ": give it the world's");
+  auto solver = std::make_unique<Solver>(std::move(lattice), params);
+  // refuse a start inside another object: the contact pass would push it out over many sub-steps
+  const auto& x = solver->positions();
+  const double r = solver->contactRadius();
+  Eigen::Vector3d lo = x[0], hi = x[0];
+  for (const Eigen::Vector3d& p : x) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  SpatialHash hash;
+  bool hashed = false;
+  for (std::size_t o = 0; o < impl_->objects.size(); ++o) {
+    const Solver& other = *impl_->objects[o];
+    const double R = r + other.contactRadius();
+    const double limit = R * (1.0 - kStartOverlapTolerance);
+    if (!hashed) {
+      double reach = 0.0;
+      for (const auto& s : impl_->objects) reach = std::max(reach, r + s->contactRadius());
+      hash.build(x, x.size(), reach);
+      hashed = true;
+    }
+    for (std::size_t j = 0; j < other.positions().size(); ++j) {
+      const Eigen::Vector3d& y = other.positions()[j];
+      if ((y.array() < lo.array() - R).any() || (y.array() > hi.array() + R).any()) continue;
+      hash.forEachNear(y, [&](std::uint32_t i) {
+        const double d = (x[i] - y).norm();
+        if (d < limit)
+          throw std::invalid_argument("world: object '" + name + "' starts inside object '" + names_[o] +
+                                      "': its particle " + std::to_string(i) + " is " + num(d) + " m from their particle " +
+                                      std::to_string(j) + ", closer than the sum of their contact radii " + num(R) +
+                                      " m; place it apart");
+      });
+    }
+  }
+  for (const auto& entry : impl_->colliders) solver->setCollider(entry.first, entry.second);
+  Solver& added = *solver;
+  impl_->objects.push_back(std::move(solver));
+  impl_->pointers.push_back(&added);
+  names_.push_back(name);
+  return added;
+}
+
+bool World::removeObject(const std::string& name) {
+  const std::size_t o = impl_->indexOf(names_, name);
+  if (o >= names_.size()) return false;
+  impl_->objects.erase(impl_->objects.begin() + static_cast<std::ptrdiff_t>(o));
+  impl_->pointers.erase(impl_->pointers.begin() + static_cast<std::ptrdiff_t>(o));
+  names_.erase(names_.begin() + static_cast<std::ptrdiff_t>(o));
+  auto& w = impl_->wrenches;
+  w.erase(std::remove_if(w.begin(), w.end(),
+                         [&](const ObjectPairWrench& p) { return p.from == name || p.on == name; }),
+          w.end());
+  return true;
+}
+
+Solver* World::object(const std::string& name) {
+  const std::size_t o = impl_->indexOf(names_, name);
+  return o < names_.size() ? impl_->objects[o].get() : nullptr;
+}
+
+const Solver* World::object(const std::string& name) const {
+  const std::size_t o = impl_->indexOf(names_, name);
+  return o < names_.size() ? impl_->objects[o].get() : nullptr;
+}
+
+void World::setCollider(const std::string& id, const Collider& collider) {
+  collider.validate();
+  Collider c = collider;
+  // one distance field for every object
+  if (c.shape.type == ColliderType::Mesh && !c.shape.distanceField)
+    c.shape.distanceField = std::make_shared<const MeshDistanceField>(*c.shape.mesh);
+  for (auto& object : impl_->objects) object->setCollider(id, c);
+  impl_->colliders[id] = std::move(c);
+}
+
+bool World::moveCollider(const std::string& id, const Eigen::Isometry3d& pose, const Eigen::Vector3d& linearVelocity,
+                         const Eigen::Vector3d& angularVelocity) {
+  auto it = impl_->colliders.find(id);
+  if (it == impl_->colliders.end()) return false;
+  if (!pose.matrix().allFinite() || !linearVelocity.allFinite() || !angularVelocity.allFinite())
+    throw std::invalid_argument("world: collider '" + id + "' given a non-finite pose or velocity");
+  if (!isRotation(pose.linear()))
+    throw std::invalid_argument("world: collider '" + id +
+                                "' given a pose whose rotation is not orthonormal with determinant +1");
+  for (auto& object : impl_->objects) object->moveCollider(id, pose, linearVelocity, angularVelocity);
+  it->second.pose = pose;
+  it->second.linearVelocity = linearVelocity;
+  it->second.angularVelocity = angularVelocity;
+  return true;
+}
+
+bool World::removeCollider(const std::string& id) {
+  if (impl_->colliders.erase(id) == 0) return false;
+  for (auto& object : impl_->objects) object->removeCollider(id);
+  return true;
+}
+
+ContactWrench World::contactWrench(const std::string& id) const {
+  ContactWrench sum;
+  for (const auto& object : impl_->objects) {
+    const ContactWrench w = object->contactWrench(id);
+    sum.force += w.force;
+    sum.torque += w.torque;
+    sum.contacts += w.contacts;
+  }
+  return sum;
+}
+
+void World::setContactParams(const ObjectContactParams& contact) {
+  contact.validate();
+  contact_ = contact;
+}
+
+const std::vector<ObjectPairWrench>& World::objectWrenches() const { return impl_->wrenches; }
+
+ContactWrench World::objectWrench(const std::string& from, const std::string& on) const {
+  for (const ObjectPairWrench& w : impl_->wrenches)
+    if (w.from == from && w.on == on) return w.wrench;
+  return ContactWrench();
+}
+
+void World::step() {
+  Impl& im = *impl_;
+  const std::size_t N = im.objects.size();
+  for (std::size_t o = 0; o < N; ++o) {
+    const SolverParams& p = im.objects[o]->params();
+    if (!sameTime(p.timeStep, timeStep_) || p.substeps != substeps_)
+      throw std::logic_error("world: object '" + names_[o] + "' was set to a time step of " + num(p.timeStep) +
+                             " s in " + std::to_string(p.substeps) + " sub-steps, the world steps " +
+                             num(timeStep_) + " s in " + std::to_string(substeps_) + ": give it the world's");
+  }
+  const double h = timeStep_ / substeps_;
+  im.substepColliders.resize(im.colliders.size());
+  im.colliderStart.resize(im.colliders.size());
+  {
+    std::size_t c = 0;
+    for (const auto& entry : im.colliders) {
+      im.substepColliders[c].id = &entry.first;
+      im.substepColliders[c].collider = &entry.second;
+      im.colliderStart[c] = entry.second.pose;
+      ++c;
+    }
+  }
+  for (Solver* s : im.pointers) s->beginStep();
+  im.contact.beginStep(N, im.colliders.size());
+  for (int s = 0; s < substeps_; ++s) {
+    for (Solver* object : im.pointers) object->advanceSubstep(s);
+    if (N < 2 && !contact_.selfContact) continue;
+    for (std::size_t c = 0; c < im.substepColliders.size(); ++c) {
+      SubstepCollider& sc = im.substepColliders[c];
+      sc.before = advancePose(im.colliderStart[c], sc.collider->linearVelocity, sc.collider->angularVelocity, s * h);
+      sc.now = advancePose(im.colliderStart[c], sc.collider->linearVelocity, sc.collider->angularVelocity, (s + 1) * h);
+    }
+    im.contact.substep(im.pointers, im.substepColliders, contact_, h, s + 1 == substeps_);
+  }
+  // the clock as each object's: the sum of the sub-steps
+  for (int s = 0; s < substeps_; ++s) time_ += h;
+  for (std::size_t o = 0; o < N; ++o) {
+    for (std::size_t c = 0; c < im.substepColliders.size(); ++c) {
+      const ColliderImpulse& ci = im.contact.colliderImpulse(o, c);
+      if (ci.contacts == 0 && ci.impulse.isZero(0.0)) continue;
+      im.objects[o]->addColliderImpulse(*im.substepColliders[c].id, ci.impulse, ci.moment, ci.contacts);
+    }
+    im.objects[o]->endStep();
+  }
+  im.contact.endStep();
+  {
+    std::size_t c = 0;
+    for (auto& entry : im.colliders) {
+      Collider& col = entry.second;
+      col.pose = advancePose(im.colliderStart[c++], col.linearVelocity, col.angularVelocity, timeStep_);
+    }
+  }
+  // the pair impulses as wrenches, both ways
+  const auto& pairs = im.contact.pairImpulses();
+  im.wrenches.resize(2 * pairs.size());
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    const PairImpulse& p = pairs[i];
+    ObjectPairWrench& onB = im.wrenches[2 * i];
+    ObjectPairWrench& onA = im.wrenches[2 * i + 1];
+    onB.from = names_[p.a];
+    onB.on = names_[p.b];
+    onB.wrench.force = p.impulse / timeStep_;
+    onB.wrench.torque = p.moment / timeStep_;
+    onB.wrench.contacts = p.contacts;
+    onA.from = names_[p.b];
+    onA.on = names_[p.a];
+    onA.wrench.force = -onB.wrench.force;
+    onA.wrench.torque = -onB.wrench.torque;
+    onA.wrench.contacts = p.contacts;
+  }
+}
+
+}  // namespace deformable_flsm
