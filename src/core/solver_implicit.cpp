@@ -59,6 +59,9 @@ constexpr int kContactPasses = 4;
 constexpr double kContactSlop = 1e-3;
 /// The contact states kept from one sub-step to the next (implicitContactState_).
 constexpr char kNoContact = 0, kSticking = 1, kSliding = 2, kReleased = 3;
+/// At most this many aggregates in the preconditioner's coarse space (3 unknowns each, a dense
+/// Cholesky factorisation per sub-step): docs/performance.md gives the iterations and the cost.
+constexpr int kCoarseAggregates = 128;
 /// Inertia eigenvalues below this fraction of the largest are treated as zero (a collinear object
 /// cannot spin about its own line).
 constexpr double kInertiaRankTolerance = 1e-10;
@@ -83,6 +86,12 @@ void Solver::configureIntegrator() {
   if (!hessian_)
     hessian_ = std::make_unique<CorotatedHessian>(*summer_, lattice_->regionMassFractions(), restCentered_,
                                                   regionMass_, regionRestCenter_);
+  if (!coarse_)
+    coarse_ = std::make_unique<TwoLevelPreconditioner>(*lattice_, lattice_->regionMassFractions(), restCentered_,
+                                                       regionMass_, regionRestCenter_, kCoarseAggregates);
+  // the region moments of the coarse space, gathered here rather than in the first step (the
+  // constructor sizes the pins after this)
+  if (pinned_.size() == n) coarse_->setFixed(*summer_, pinned_, hardDragged_);
   weightSum_.resize(n);
   for (std::size_t i = 0; i < n; ++i) weightSum_[i] = 1.0 / invWeightSum_[i];
   if (implicitVelocity_.size() != n) {
@@ -200,6 +209,7 @@ void Solver::implicitSubstep(double h) {
   }
   const bool contacts = !contactBodies_.empty();
   constrainContacts(h);
+  assembleCoarse(h);
   for (std::size_t i = 0; i < n; ++i) {
     if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
     const Eigen::Vector3d impulse = implicitRhs_[i] - m[i] * v_[i];  // h f(x_n)
@@ -214,10 +224,13 @@ void Solver::implicitSubstep(double h) {
   const auto product = [this](const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
     implicitProduct(p, y);
   };
+  const auto precondition = [this](const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
+    coarse_->apply(implicitInvPrecond_, r, z);
+  };
   int iterations = 0;
   for (int pass = 0;; ++pass) {
-    implicitSolve_ = pcg_.solve(product, implicitInvPrecond_, implicitConstraint_, implicitNormal_, implicitRhs_,
-                                implicitVelocity_, floor, kCgTolerance, kCgMaxIterations);
+    implicitSolve_ = pcg_.solveWith(product, precondition, implicitConstraint_, implicitNormal_, implicitRhs_,
+                                    implicitVelocity_, floor, kCgTolerance, kCgMaxIterations);
     iterations += implicitSolve_.iterations;
     if (!contacts || pass + 1 >= kContactPasses || !updateContactSet(h)) break;
   }
@@ -380,6 +393,37 @@ void Solver::applyContactFriction(double h) {
     body.impulse += J;
     body.moment += (x - r * n - pose.translation()).cross(J);
   }
+}
+
+// The preconditioner's coarse matrix P^T A P for this sub-step (TwoLevelPreconditioner): the
+// diagonal (mass, damping, springs), the regions' co-rotated stiffness and the Poisson term's
+// Hessian as addVolumetricProduct() applies it, per stencil h^2 [w (sum_a g_a . d_a)^2 +
+// sum_a D_a (g_a . d_a)^2 + sum_a sigma_a^+ / d_a^2 |d_a|^2], d_a = p_plus - p_minus on axis a.
+// Pinned and hard-dragged particles are outside the coarse space; contacts are left in it (they
+// change within the sub-step; PCG's filter keeps them prescribed).
+void Solver::assembleCoarse(double h) {
+  coarse_->setFixed(*activeSummer_, pinned_, hardDragged_);
+  coarse_->beginAssembly(implicitDiagonal_);
+  coarse_->addRegions(*hessian_);
+  if (volumetric_) {
+    const double h2 = h * h;
+    std::uint32_t ends[6];
+    Eigen::Vector3d g[6];
+    for (std::size_t i = 0; i < stencil_.size(); ++i) {
+      const VolumetricStencil& st = stencil_[i];
+      const VolumetricLinearisation& lin = volumetricLinear_[i];
+      for (int a = 0; a < 3; ++a) {
+        ends[2 * a] = st.plus[a];
+        ends[2 * a + 1] = st.minus[a];
+        g[2 * a] = lin.gradient[a];
+        g[2 * a + 1] = -lin.gradient[a];
+        if (lin.deficit[a] != 0.0) coarse_->addOuter(&ends[2 * a], &g[2 * a], 2, h2 * lin.deficit[a]);
+        if (lin.stretch[a] != 0.0) coarse_->addEdge(st.plus[a], st.minus[a], h2 * lin.stretch[a]);
+      }
+      if (lin.weight != 0.0) coarse_->addOuter(ends, g, 6, h2 * lin.weight);
+    }
+  }
+  coarse_->factorize();
 }
 
 void Solver::implicitProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {

@@ -14,6 +14,7 @@
 #include "deformable_flsm/core/pcg.h"
 #include "deformable_flsm/core/solver_params.h"
 #include "deformable_flsm/core/thread_governor.h"
+#include "deformable_flsm/core/two_level_preconditioner.h"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -398,7 +399,11 @@ class Solver : private RegionKernel {
   void addVolumetricProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) const;
   /// Restores the linear and angular momentum the external forces give (free object only).
   void correctRigidModes(double h);
+  /// Assembles and factorises the preconditioner's coarse matrix for the sub-step h.
+  void assembleCoarse(double h);
   std::unique_ptr<CorotatedHessian> hessian_;
+  /// PCG's preconditioner: Jacobi plus the aggregates' coarse solve
+  std::unique_ptr<TwoLevelPreconditioner> coarse_;
   Pcg pcg_;
   PcgResult implicitSolve_;
   double implicitH_ = 0.0;                      // the sub-step being solved (s)
