@@ -251,9 +251,13 @@ void Solver::implicitSubstep(double h) {
 
 // Contact inside the solve. A particle that its velocity with gravity's increment, v* = v_n + h g,
 // would carry into a collider, x_n + h v* at depth phi - r < 0, is constrained: its normal
-// velocity to the one that ends the sub-step on the surface, v.n = v*.n - (phi - r) / h (the
-// contact pass's normal response, contact.h), and, sticking, its tangential velocity to the
-// collider surface's. (v* rather than the warm start: a resting object's warm start already
+// velocity to the one that undoes the penetration the sub-step's own motion makes,
+// v.n = v*.n + (min(phi_0 - r, 0) - (phi - r)) / h with phi_0 - r its depth at the start of the
+// sub-step (the contact pass's normal response, contactVelocityChange() in contact.h: one that
+// came from outside ends on the surface, one already inside goes no deeper and is moved out by
+// position only, at most r per sub-step, by the contact pass after the solve; a start
+// penetration becomes no velocity), and, sticking, its tangential velocity to the collider
+// surface's. (v* rather than the warm start: a resting object's warm start already
 // holds the support and would predict no contact.) The impact then decelerates the whole object
 // through its stiffness within the step, instead of stopping the touching layer alone and leaving
 // the rest to crush it: the contact pass after an unconstrained solve, at a long step, flattens
@@ -267,6 +271,7 @@ bool Solver::constrainContacts(double h) {
   // pass sets the same pose and bounds again)
   for (ContactBody& body : contactBodies_) {
     const Collider& c = *body.collider;
+    body.before = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_);
     body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_ + h);
     body.bounded = colliderBounds(c.shape, body.now, body.lo, body.hi);
     if (body.bounded) {
@@ -289,13 +294,20 @@ bool Solver::constrainContacts(double h) {
     // warm start), any other sticking: at rest the set then holds from step to step
     const bool sliding = implicitContactState_[i] == kSliding;
     const Eigen::Vector3d tangential = sliding ? implicitVelocity_[i] : vc;
-    implicitVelocity_[i] = tangential + (predicted.dot(normal) - depth / h - tangential.dot(normal)) * normal;
+    const double undo = (std::min(startDepth(i, b), 0.0) - depth) / h;
+    implicitVelocity_[i] = tangential + (predicted.dot(normal) + undo - tangential.dot(normal)) * normal;
     implicitConstraint_[i] = sliding ? PcgConstraint::Normal : PcgConstraint::Fixed;
     implicitNormal_[i] = normal;
     implicitContactBody_[i] = b;
     any = true;
   }
   return any;
+}
+
+double Solver::startDepth(std::size_t i, int b) const {
+  const ContactBody& body = contactBodies_[static_cast<std::size_t>(b)];
+  Eigen::Vector3d normal;
+  return colliderDistance(body.collider->shape, body.before, x_[i], normal) - contactRadius();
 }
 
 int Solver::deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, double& depth,
@@ -336,7 +348,8 @@ bool Solver::updateContactSet(double h) {
       const int b = deepestContact(x_[i] + h * implicitVelocity_[i], normal, depth, vc);
       if (b < 0 || depth > -slop) continue;
       const Eigen::Vector3d v = implicitVelocity_[i];
-      implicitVelocity_[i] = vc + (v.dot(normal) - depth / h - vc.dot(normal)) * normal;
+      const double undo = (std::min(startDepth(i, b), 0.0) - depth) / h;
+      implicitVelocity_[i] = vc + (v.dot(normal) + undo - vc.dot(normal)) * normal;
       implicitConstraint_[i] = PcgConstraint::Fixed;
       implicitNormal_[i] = normal;
       implicitContactBody_[i] = b;

@@ -289,3 +289,67 @@ TEST(ImplicitStep, StepDoesNotAllocate) {
     EXPECT_EQ(gAllocations.load() - before, 0) << "threads " << threads;
   }
 }
+
+// A block dropped 5 mm onto the ground comes to rest and stays there: after 2 s no particle is
+// faster than 1e-4 m/s, and over the next 2 s none moves farther than the node's rest criterion
+// (2e-5 object sizes in a second, SimulationLoopSettings::restFraction), so the node can stop
+// stepping it.
+TEST(ImplicitStep, BlockOnTheGroundComesToRestAndStays) {
+  constexpr double kRestSpeed = 1e-4;       // m/s, after 2 s
+  constexpr double kRestFraction = 2e-5;    // object sizes per second
+  for (double E : {30e3, 1e6}) {
+    SolverParams p = implicitParams(E, 0.3, 1, 1.0 / 60.0);
+    auto lattice = std::make_shared<const Lattice>(deformable_flsm::test::makeBox(8, 8, 8, 0.01), kDensity, 1);
+    Solver s(lattice, p);
+    double lowest = kBig;
+    for (const auto& xi : s.positions()) lowest = std::min(lowest, xi.z());
+    Collider ground;
+    ground.shape.type = ColliderType::HalfSpace;
+    ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - s.contactRadius() - 0.005);
+    s.setCollider("ground", ground);
+    const auto maxSpeed = [&s] {
+      double v = 0.0;
+      for (const auto& vi : s.velocities()) v = std::max(v, vi.norm());
+      return v;
+    };
+    for (int i = 0; i < 120; ++i) s.step();
+    EXPECT_LT(maxSpeed(), kRestSpeed) << "E " << E;
+    for (int second = 0; second < 2; ++second) {
+      const std::vector<Eigen::Vector3d> from = s.positions();
+      for (int i = 0; i < 60; ++i) {
+        s.step();
+        ASSERT_LT(maxSpeed(), kRestSpeed) << "E " << E << " second " << second << " step " << i;
+      }
+      double moved = 0.0;
+      for (std::size_t k = 0; k < from.size(); ++k) moved = std::max(moved, (s.positions()[k] - from[k]).norm());
+      EXPECT_LT(moved, kRestFraction * lattice->objectSize()) << "E " << E << " second " << second;
+    }
+  }
+}
+
+// A block set 4 mm into the ground (less than the contact radius) is moved out by position: the
+// first step leaves it on the surface without turning the penetration into velocity (the old
+// in-solve rule gave the bottom layer the full 4 mm over h, 0.24 m/s), as the explicit contact
+// pass does (contactVelocityChange()).
+TEST(ImplicitStep, StartPenetrationIsPushedOutByPosition) {
+  constexpr double kDepth = 0.004;
+  for (double E : {30e3, 1e6}) {
+    SolverParams p = implicitParams(E, 0.3, 1, 1.0 / 60.0);
+    auto lattice = std::make_shared<const Lattice>(deformable_flsm::test::makeBox(8, 8, 8, 0.01), kDensity, 1);
+    Solver s(lattice, p);
+    double lowest = kBig;
+    for (const auto& xi : s.positions()) lowest = std::min(lowest, xi.z());
+    const double r = s.contactRadius();
+    ASSERT_LT(kDepth, r);
+    Collider ground;
+    ground.shape.type = ColliderType::HalfSpace;
+    ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - r + kDepth);
+    s.setCollider("ground", ground);
+    s.step();
+    double speed = 0.0, low = kBig;
+    for (const auto& vi : s.velocities()) speed = std::max(speed, vi.norm());
+    for (const auto& xi : s.positions()) low = std::min(low, xi.z());
+    EXPECT_LT(speed, 0.25 * kDepth * 60.0) << "E " << E;
+    EXPECT_GT(low, ground.pose.translation().z() + r - 1e-9) << "out of the ground in one step, E " << E;
+  }
+}

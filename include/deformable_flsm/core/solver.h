@@ -432,6 +432,9 @@ class Solver : private RegionKernel {
   bool updateContactSet(double h);
   /// The collider (index into contactBodies_, at body.now) x is deepest in, or -1; its depth
   /// phi - r (< 0), outward normal and surface velocity at x.
+  /// phi - r of particle i at the start of the sub-step against contact body b at its pose then
+  /// (negative: a penetration the sub-step did not make).
+  double startDepth(std::size_t i, int b) const;
   int deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, double& depth,
                      Eigen::Vector3d& colliderVelocity) const;
   /// Kinetic friction on the sliding contacts after the last solve, and every contact's impulse
