@@ -42,8 +42,9 @@ namespace {
 /// docs/performance.md gives the iterations it costs.
 constexpr double kCgTolerance = 1e-3;
 /// ... or when it is this fraction of the step's force impulse (the larger of h f(x_n) and the
-/// gravity impulse M g h): a warm start this good needs no iteration.
-constexpr double kCgFloor = 1e-6;
+/// gravity impulse M g h): a warm start this good needs no iteration, and the velocity error left
+/// (~1e-4 g h) is far below the rest tests' bound (test_solver_implicit).
+constexpr double kCgFloor = 1e-4;
 /// At most this many CG iterations per sub-step: a bound on the cost of a step, far above the
 /// counts measured (docs/performance.md); the step then takes the iterate reached.
 constexpr int kCgMaxIterations = 300;
