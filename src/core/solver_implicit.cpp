@@ -107,6 +107,7 @@ void Solver::configureIntegrator() {
     implicitNormal_.assign(n, Eigen::Vector3d::Zero());
     implicitContactBody_.assign(n, -1);
     implicitContactState_.assign(n, kNoContact);
+    implicitFriction_.assign(n, Eigen::Vector3d::Zero());
     implicitResidual_.assign(n, Eigen::Vector3d::Zero());
   }
   volumetricLinear_.resize(volumetric_ ? n : 0);
@@ -236,7 +237,7 @@ void Solver::implicitSubstep(double h) {
     if (!contacts || pass + 1 >= kContactPasses || !updateContactSet(h)) break;
   }
   implicitSolve_.iterations = iterations;
-  if (contacts) applyContactFriction(h);
+  if (contacts) sumContactImpulses(h);
   if (!heldByWorld()) correctRigidModes(h);
 
   // v+ and x+ = x_n + h v+ for the free particles; the pinned and hard-dragged ones are
@@ -288,16 +289,14 @@ bool Solver::constrainContacts(double h) {
     Eigen::Vector3d normal, vc;
     double depth = 0.0;
     const int b = deepestContact(x, normal, depth, vc);
-    const char last = implicitContactState_[i];
-    implicitContactState_[i] = b < 0 ? kNoContact : last == kSliding ? kSliding : kSticking;
+    implicitFriction_[i].setZero();
+    implicitContactState_[i] = b < 0 ? kNoContact : kSticking;
     if (b < 0) continue;
-    // a contact that slid in the last sub-step starts sliding (tangential velocity free, from the
-    // warm start), any other sticking: at rest the set then holds from step to step
-    const bool sliding = implicitContactState_[i] == kSliding;
-    const Eigen::Vector3d tangential = sliding ? implicitVelocity_[i] : vc;
+    // every contact starts sticking (the solve then says whether its impulse stays in the cone):
+    // at rest the set holds from step to step
     const double undo = (std::min(startDepth(i, b), 0.0) - depth) / h;
-    implicitVelocity_[i] = tangential + (predicted.dot(normal) + undo - tangential.dot(normal)) * normal;
-    implicitConstraint_[i] = sliding ? PcgConstraint::Normal : PcgConstraint::Fixed;
+    implicitVelocity_[i] = vc + (predicted.dot(normal) + undo - vc.dot(normal)) * normal;
+    implicitConstraint_[i] = PcgConstraint::Fixed;
     implicitNormal_[i] = normal;
     implicitContactBody_[i] = b;
     any = true;
@@ -334,9 +333,14 @@ int Solver::deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, do
 // The active set after a solve, from the constraint impulse on each contact particle, what its
 // equation lacks: J = (A v+ - b)_i. A contact with J.n < 0 pulls the particle towards the
 // collider: let go. A sticking contact with |J_t| > mu_s J.n leaves Coulomb's cone: it slides
-// (normal velocity kept, tangential free, kinetic friction after the solve). A free particle that
-// the solution carries into a collider (deeper than kContactSlop) becomes a sticking contact.
-// Returns whether the set changed.
+// (normal velocity kept, tangential free) under kinetic friction mu_k J.n along J_t, a force of
+// the next solve: the slip it allows moves the whole object, which relaxes the shear that pushed
+// the contact out of the cone. A sliding contact whose slip the friction turned backwards (slip
+// along the friction force) has stopped: it sticks again. (Friction applied to the contact
+// particles after the solve, instead, left the object's shear in place and the contacts sliding
+// at rest for as long as they touched: the object never came to rest after a drag.) A free
+// particle that the solution carries into a collider (deeper than kContactSlop) becomes a
+// sticking contact. Returns whether the set changed.
 bool Solver::updateContactSet(double h) {
   implicitProduct(implicitVelocity_, implicitResidual_);
   const double slop = kContactSlop * contactRadius();
@@ -361,48 +365,60 @@ bool Solver::updateContactSet(double h) {
     const Collider& c = *contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])].collider;
     const Eigen::Vector3d J = implicitResidual_[i] - implicitRhs_[i];
     const double Jn = J.dot(implicitNormal_[i]);
+    const Eigen::Vector3d& n = implicitNormal_[i];
     if (Jn < 0.0) {
+      implicitRhs_[i] -= implicitFriction_[i];
+      implicitFriction_[i].setZero();
       implicitConstraint_[i] = PcgConstraint::Free;
       implicitContactBody_[i] = -1;
       implicitContactState_[i] = kReleased;
       changed = true;
-    } else if (implicitConstraint_[i] == PcgConstraint::Fixed &&
-               (J - Jn * implicitNormal_[i]).norm() > c.staticFriction * Jn) {
-      implicitConstraint_[i] = PcgConstraint::Normal;
-      implicitContactState_[i] = kSliding;
-      changed = true;
+    } else if (implicitConstraint_[i] == PcgConstraint::Fixed) {
+      const Eigen::Vector3d Jt = J - Jn * n;
+      const double t = Jt.norm();
+      if (t > c.staticFriction * Jn) {
+        // out of the cone: slide, with kinetic friction mu_k J.n along the impulse that held it
+        // (against the slip it resisted) as a force of the solve, so that the rest of the object
+        // moves with the slip
+        implicitFriction_[i] = (c.kineticFriction * Jn / t) * Jt;
+        implicitRhs_[i] += implicitFriction_[i];
+        implicitConstraint_[i] = PcgConstraint::Normal;
+        implicitContactState_[i] = kSliding;
+        changed = true;
+      }
+    } else {
+      // sliding: friction that carried the particle backwards (its slip along the friction
+      // force) means it stops: it sticks
+      const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
+      const Eigen::Isometry3d& pose = contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])].now;
+      const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - pose.translation());
+      const Eigen::Vector3d rel = implicitVelocity_[i] - vc;
+      if ((rel - rel.dot(n) * n).dot(implicitFriction_[i]) > 0.0) {
+        implicitRhs_[i] -= implicitFriction_[i];
+        implicitFriction_[i].setZero();
+        implicitVelocity_[i] = vc + (implicitVelocity_[i] - vc).dot(n) * n;
+        implicitConstraint_[i] = PcgConstraint::Fixed;
+        implicitContactState_[i] = kSticking;
+        changed = true;
+      }
     }
   }
   return changed;
 }
 
-// After the last solve: kinetic friction on the sliding contacts, reducing the tangential velocity
-// relative to the collider by mu_k |J.n| / m (not past zero), as contactVelocityChange(); the
-// impulses of every contact go to its collider's wrench, as the contact pass's do.
-void Solver::applyContactFriction(double h) {
+// After the last solve: the impulses of every contact go to its collider's wrench, as the contact
+// pass's do.
+void Solver::sumContactImpulses(double h) {
   implicitProduct(implicitVelocity_, implicitResidual_);
-  const auto& m = lattice_->masses();
   const double r = contactRadius();
   for (std::size_t i = 0; i < x_.size(); ++i) {
     if (implicitContactBody_[i] < 0) continue;
     ContactBody& body = contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])];
-    const Collider& c = *body.collider;
     const Eigen::Vector3d& n = implicitNormal_[i];
     const Eigen::Isometry3d& pose = body.now;
     Eigen::Vector3d J = implicitResidual_[i] - implicitRhs_[i];
-    if (implicitConstraint_[i] == PcgConstraint::Normal) {
-      const double Jn = std::max(0.0, J.dot(n));
-      J = Jn * n;
-      const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
-      const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - pose.translation());
-      const Eigen::Vector3d rel = implicitVelocity_[i] - vc;
-      const Eigen::Vector3d tangential = rel - rel.dot(n) * n;
-      const double slip = tangential.norm(), reduce = c.kineticFriction * Jn / m[i];
-      const Eigen::Vector3d dv = slip <= reduce ? Eigen::Vector3d(-tangential)
-                                                : Eigen::Vector3d(-(reduce / slip) * tangential);
-      implicitVelocity_[i] += dv;
-      J += m[i] * dv;
-    }
+    // a sliding contact's impulse: the normal one and the kinetic friction the solve applied
+    if (implicitConstraint_[i] == PcgConstraint::Normal) J = std::max(0.0, J.dot(n)) * n + implicitFriction_[i];
     const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
     body.impulse += J;
     body.moment += (x - r * n - pose.translation()).cross(J);

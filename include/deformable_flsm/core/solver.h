@@ -423,6 +423,7 @@ class Solver : private RegionKernel {
   /// per particle: no contact, sticking, sliding or released (pulling) in the last sub-step
   std::vector<char> implicitContactState_;
   std::vector<Eigen::Vector3d> implicitResidual_;  // A v+ - b: the constraint impulses
+  std::vector<Eigen::Vector3d> implicitFriction_;  // kinetic friction impulse of a sliding contact
   /// Constrains the free particles that v_n + h g would carry into a collider (see
   /// solver_implicit.cpp); returns whether any is.
   bool constrainContacts(double h);
@@ -437,9 +438,8 @@ class Solver : private RegionKernel {
   double startDepth(std::size_t i, int b) const;
   int deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, double& depth,
                      Eigen::Vector3d& colliderVelocity) const;
-  /// Kinetic friction on the sliding contacts after the last solve, and every contact's impulse
-  /// on its collider.
-  void applyContactFriction(double h);
+  /// Every contact's impulse on its collider after the last solve.
+  void sumContactImpulses(double h);
   /// Per stencil of the Poisson term at x_n: its difference vectors F_ia scaled by 1 / d_ia, and
   /// the weights of its Gauss-Newton Hessian (0 where the strain is clamped).
   struct VolumetricLinearisation {
