@@ -105,9 +105,21 @@ SolverParams paramsFor(const Setting& s, int w, double E, const Eigen::Vector3d&
   return p;
 }
 
+/// The implicit step's CG iterations per step over the last settle(): mean and largest.
+double gMeanIterations = 0.0;
+int gMaxIterations = 0;
+
 /// Runs the solver for `seconds` of simulated time; returns the largest particle speed at the end.
 double settle(Solver& s, double seconds) {
-  for (int i = 0, n = static_cast<int>(std::ceil(seconds / kStep)); i < n; ++i) s.step();
+  long total = 0;
+  gMaxIterations = 0;
+  const int steps = static_cast<int>(std::ceil(seconds / kStep));
+  for (int i = 0; i < steps; ++i) {
+    s.step();
+    total += s.lastImplicitSolve().iterations;
+    gMaxIterations = std::max(gMaxIterations, s.lastImplicitSolve().iterations);
+  }
+  gMeanIterations = steps > 0 ? double(total) / steps : 0.0;
   double v = 0.0;
   for (const auto& vi : s.velocities()) v = std::max(v, vi.norm());
   return v;
@@ -117,13 +129,17 @@ struct Row {
   int w = 0;  // the region half-width used
   double lattice = 0.0, oracle = 0.0, alpha = 0.0, residualSpeed = 0.0;
   bool saturated = false;
+  double meanIterations = 0.0;  // the implicit step's CG iterations per step, mean and largest
+  int maxIterations = 0;
 };
 
 void print(const char* name, int across, const Setting& s, const Row& r, const char* unit, double scale) {
+  char iterations[64] = "";
+  if (s.integrator == Integrator::Implicit)
+    std::snprintf(iterations, sizeof iterations, "  implicit, CG %.1f / %d", r.meanIterations, r.maxIterations);
   std::printf("%-12s %3d %2d %3d %5.2f %7.3f %12.4f %12.4f %8.3f%s%s%s\n", name, across, r.w, s.substeps, s.nu, r.alpha,
-              scale * r.lattice, scale * r.oracle, r.lattice / r.oracle,
-              s.integrator == Integrator::Implicit ? "  implicit" : "", r.saturated ? "  (alpha capped)" : "",
-              std::abs(r.residualSpeed / r.lattice) > 0.01 ? "  (not settled)" : "");
+              scale * r.lattice, scale * r.oracle, r.lattice / r.oracle, iterations,
+              r.saturated ? "  (alpha capped)" : "", std::abs(r.residualSpeed / r.lattice) > 0.01 ? "  (not settled)" : "");
   if (std::getenv("FLSM_BENCH_RESIDUAL")) std::printf("   residual %.3g\n", r.residualSpeed / r.lattice);
 }
 
@@ -143,6 +159,8 @@ Row cantilever(double t, double L, int across, const Setting& s) {
   solver.pinBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(0.0, kBig, kBig), true);
   Row r;
   r.residualSpeed = settle(solver, gSettle / omega) / omega;
+  r.meanIterations = gMeanIterations;
+  r.maxIterations = gMaxIterations;
   FemOracle fem(vox, FemMaterial{E, s.nu, kDensity}, std::max(2, kOracleElementsAcross / across));
   // supported where the lattice is: at the pinned particles (cell centres)
   fem.fixNodesInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(-0.5 * h + 1e-9, kBig, kBig));
@@ -179,6 +197,8 @@ Row column(double t, int across, const Setting& s) {
   solver.pinBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(kBig, kBig, 0.0), true);
   Row r;
   r.residualSpeed = settle(solver, gSettle / omega) / omega;
+  r.meanIterations = gMeanIterations;
+  r.maxIterations = gMaxIterations;
   FemOracle fem(vox, FemMaterial{E, s.nu, kDensity}, std::max(2, 4 / across));
   fem.fixNodesInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(kBig, kBig, -0.5 * h + 1e-9));
   const FemSolution u = fem.solveStatic(p.gravity);
@@ -221,6 +241,8 @@ std::pair<Row, Row> stretch(double t, int across, const Setting& s) {
   solver.applyForce(right, Eigen::Vector3d(F, 0, 0), 1e9);
   Row axial, lateral;
   axial.residualSpeed = lateral.residualSpeed = settle(solver, 1.2 * gSettle / omega) / omega / (4 * t);
+  axial.meanIterations = lateral.meanIterations = gMeanIterations;
+  axial.maxIterations = lateral.maxIterations = gMaxIterations;
   // middle half: mean x of the layers at 1/4 and 3/4 length; width from the side layers there
   const int i1 = along / 4, i2 = 3 * along / 4;
   double a1 = 0, a2 = 0, lo = 0, hi = 0;

@@ -42,8 +42,9 @@ namespace {
 /// docs/performance.md gives the iterations it costs.
 constexpr double kCgTolerance = 1e-3;
 /// ... or when it is this fraction of the step's force impulse (the larger of h f(x_n) and the
-/// gravity impulse M g h): a warm start this good needs no iteration.
-constexpr double kCgFloor = 1e-6;
+/// gravity impulse M g h): a warm start this good needs no iteration, and the velocity error left
+/// (~1e-4 g h) is far below the rest tests' bound (test_solver_implicit).
+constexpr double kCgFloor = 1e-4;
 /// At most this many CG iterations per sub-step: a bound on the cost of a step, far above the
 /// counts measured (docs/performance.md); the step then takes the iterate reached.
 constexpr int kCgMaxIterations = 300;
@@ -59,6 +60,9 @@ constexpr int kContactPasses = 4;
 constexpr double kContactSlop = 1e-3;
 /// The contact states kept from one sub-step to the next (implicitContactState_).
 constexpr char kNoContact = 0, kSticking = 1, kSliding = 2, kReleased = 3;
+/// At most this many aggregates in the preconditioner's coarse space (3 unknowns each, a dense
+/// Cholesky factorisation per sub-step): docs/performance.md gives the iterations and the cost.
+constexpr int kCoarseAggregates = 128;
 /// Inertia eigenvalues below this fraction of the largest are treated as zero (a collinear object
 /// cannot spin about its own line).
 constexpr double kInertiaRankTolerance = 1e-10;
@@ -83,6 +87,12 @@ void Solver::configureIntegrator() {
   if (!hessian_)
     hessian_ = std::make_unique<CorotatedHessian>(*summer_, lattice_->regionMassFractions(), restCentered_,
                                                   regionMass_, regionRestCenter_);
+  if (!coarse_)
+    coarse_ = std::make_unique<TwoLevelPreconditioner>(*lattice_, lattice_->regionMassFractions(), restCentered_,
+                                                       regionMass_, regionRestCenter_, kCoarseAggregates);
+  // the region moments of the coarse space, gathered here rather than in the first step (the
+  // constructor sizes the pins after this)
+  if (pinned_.size() == n) coarse_->setFixed(*summer_, pinned_, hardDragged_);
   weightSum_.resize(n);
   for (std::size_t i = 0; i < n; ++i) weightSum_[i] = 1.0 / invWeightSum_[i];
   if (implicitVelocity_.size() != n) {
@@ -97,6 +107,7 @@ void Solver::configureIntegrator() {
     implicitNormal_.assign(n, Eigen::Vector3d::Zero());
     implicitContactBody_.assign(n, -1);
     implicitContactState_.assign(n, kNoContact);
+    implicitFriction_.assign(n, Eigen::Vector3d::Zero());
     implicitResidual_.assign(n, Eigen::Vector3d::Zero());
   }
   volumetricLinear_.resize(volumetric_ ? n : 0);
@@ -200,6 +211,7 @@ void Solver::implicitSubstep(double h) {
   }
   const bool contacts = !contactBodies_.empty();
   constrainContacts(h);
+  assembleCoarse(h);
   for (std::size_t i = 0; i < n; ++i) {
     if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
     const Eigen::Vector3d impulse = implicitRhs_[i] - m[i] * v_[i];  // h f(x_n)
@@ -214,15 +226,18 @@ void Solver::implicitSubstep(double h) {
   const auto product = [this](const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
     implicitProduct(p, y);
   };
+  const auto precondition = [this](const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
+    coarse_->apply(implicitInvPrecond_, r, z);
+  };
   int iterations = 0;
   for (int pass = 0;; ++pass) {
-    implicitSolve_ = pcg_.solve(product, implicitInvPrecond_, implicitConstraint_, implicitNormal_, implicitRhs_,
-                                implicitVelocity_, floor, kCgTolerance, kCgMaxIterations);
+    implicitSolve_ = pcg_.solveWith(product, precondition, implicitConstraint_, implicitNormal_, implicitRhs_,
+                                    implicitVelocity_, floor, kCgTolerance, kCgMaxIterations);
     iterations += implicitSolve_.iterations;
     if (!contacts || pass + 1 >= kContactPasses || !updateContactSet(h)) break;
   }
   implicitSolve_.iterations = iterations;
-  if (contacts) applyContactFriction(h);
+  if (contacts) sumContactImpulses(h);
   if (!heldByWorld()) correctRigidModes(h);
 
   // v+ and x+ = x_n + h v+ for the free particles; the pinned and hard-dragged ones are
@@ -238,9 +253,13 @@ void Solver::implicitSubstep(double h) {
 
 // Contact inside the solve. A particle that its velocity with gravity's increment, v* = v_n + h g,
 // would carry into a collider, x_n + h v* at depth phi - r < 0, is constrained: its normal
-// velocity to the one that ends the sub-step on the surface, v.n = v*.n - (phi - r) / h (the
-// contact pass's normal response, contact.h), and, sticking, its tangential velocity to the
-// collider surface's. (v* rather than the warm start: a resting object's warm start already
+// velocity to the one that undoes the penetration the sub-step's own motion makes,
+// v.n = v*.n + (min(phi_0 - r, 0) - (phi - r)) / h with phi_0 - r its depth at the start of the
+// sub-step (the contact pass's normal response, contactVelocityChange() in contact.h: one that
+// came from outside ends on the surface, one already inside goes no deeper and is moved out by
+// position only, at most r per sub-step, by the contact pass after the solve; a start
+// penetration becomes no velocity), and, sticking, its tangential velocity to the collider
+// surface's. (v* rather than the warm start: a resting object's warm start already
 // holds the support and would predict no contact.) The impact then decelerates the whole object
 // through its stiffness within the step, instead of stopping the touching layer alone and leaving
 // the rest to crush it: the contact pass after an unconstrained solve, at a long step, flattens
@@ -254,6 +273,7 @@ bool Solver::constrainContacts(double h) {
   // pass sets the same pose and bounds again)
   for (ContactBody& body : contactBodies_) {
     const Collider& c = *body.collider;
+    body.before = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_);
     body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_ + h);
     body.bounded = colliderBounds(c.shape, body.now, body.lo, body.hi);
     if (body.bounded) {
@@ -269,20 +289,25 @@ bool Solver::constrainContacts(double h) {
     Eigen::Vector3d normal, vc;
     double depth = 0.0;
     const int b = deepestContact(x, normal, depth, vc);
-    const char last = implicitContactState_[i];
-    implicitContactState_[i] = b < 0 ? kNoContact : last == kSliding ? kSliding : kSticking;
+    implicitFriction_[i].setZero();
+    implicitContactState_[i] = b < 0 ? kNoContact : kSticking;
     if (b < 0) continue;
-    // a contact that slid in the last sub-step starts sliding (tangential velocity free, from the
-    // warm start), any other sticking: at rest the set then holds from step to step
-    const bool sliding = implicitContactState_[i] == kSliding;
-    const Eigen::Vector3d tangential = sliding ? implicitVelocity_[i] : vc;
-    implicitVelocity_[i] = tangential + (predicted.dot(normal) - depth / h - tangential.dot(normal)) * normal;
-    implicitConstraint_[i] = sliding ? PcgConstraint::Normal : PcgConstraint::Fixed;
+    // every contact starts sticking (the solve then says whether its impulse stays in the cone):
+    // at rest the set holds from step to step
+    const double undo = (std::min(startDepth(i, b), 0.0) - depth) / h;
+    implicitVelocity_[i] = vc + (predicted.dot(normal) + undo - vc.dot(normal)) * normal;
+    implicitConstraint_[i] = PcgConstraint::Fixed;
     implicitNormal_[i] = normal;
     implicitContactBody_[i] = b;
     any = true;
   }
   return any;
+}
+
+double Solver::startDepth(std::size_t i, int b) const {
+  const ContactBody& body = contactBodies_[static_cast<std::size_t>(b)];
+  Eigen::Vector3d normal;
+  return colliderDistance(body.collider->shape, body.before, x_[i], normal) - contactRadius();
 }
 
 int Solver::deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, double& depth,
@@ -308,9 +333,14 @@ int Solver::deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, do
 // The active set after a solve, from the constraint impulse on each contact particle, what its
 // equation lacks: J = (A v+ - b)_i. A contact with J.n < 0 pulls the particle towards the
 // collider: let go. A sticking contact with |J_t| > mu_s J.n leaves Coulomb's cone: it slides
-// (normal velocity kept, tangential free, kinetic friction after the solve). A free particle that
-// the solution carries into a collider (deeper than kContactSlop) becomes a sticking contact.
-// Returns whether the set changed.
+// (normal velocity kept, tangential free) under kinetic friction mu_k J.n along J_t, a force of
+// the next solve: the slip it allows moves the whole object, which relaxes the shear that pushed
+// the contact out of the cone. A sliding contact whose slip the friction turned backwards (slip
+// along the friction force) has stopped: it sticks again. (Friction applied to the contact
+// particles after the solve, instead, left the object's shear in place and the contacts sliding
+// at rest for as long as they touched: the object never came to rest after a drag.) A free
+// particle that the solution carries into a collider (deeper than kContactSlop) becomes a
+// sticking contact. Returns whether the set changed.
 bool Solver::updateContactSet(double h) {
   implicitProduct(implicitVelocity_, implicitResidual_);
   const double slop = kContactSlop * contactRadius();
@@ -323,7 +353,8 @@ bool Solver::updateContactSet(double h) {
       const int b = deepestContact(x_[i] + h * implicitVelocity_[i], normal, depth, vc);
       if (b < 0 || depth > -slop) continue;
       const Eigen::Vector3d v = implicitVelocity_[i];
-      implicitVelocity_[i] = vc + (v.dot(normal) - depth / h - vc.dot(normal)) * normal;
+      const double undo = (std::min(startDepth(i, b), 0.0) - depth) / h;
+      implicitVelocity_[i] = vc + (v.dot(normal) + undo - vc.dot(normal)) * normal;
       implicitConstraint_[i] = PcgConstraint::Fixed;
       implicitNormal_[i] = normal;
       implicitContactBody_[i] = b;
@@ -334,52 +365,95 @@ bool Solver::updateContactSet(double h) {
     const Collider& c = *contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])].collider;
     const Eigen::Vector3d J = implicitResidual_[i] - implicitRhs_[i];
     const double Jn = J.dot(implicitNormal_[i]);
+    const Eigen::Vector3d& n = implicitNormal_[i];
     if (Jn < 0.0) {
+      implicitRhs_[i] -= implicitFriction_[i];
+      implicitFriction_[i].setZero();
       implicitConstraint_[i] = PcgConstraint::Free;
       implicitContactBody_[i] = -1;
       implicitContactState_[i] = kReleased;
       changed = true;
-    } else if (implicitConstraint_[i] == PcgConstraint::Fixed &&
-               (J - Jn * implicitNormal_[i]).norm() > c.staticFriction * Jn) {
-      implicitConstraint_[i] = PcgConstraint::Normal;
-      implicitContactState_[i] = kSliding;
-      changed = true;
+    } else if (implicitConstraint_[i] == PcgConstraint::Fixed) {
+      const Eigen::Vector3d Jt = J - Jn * n;
+      const double t = Jt.norm();
+      if (t > c.staticFriction * Jn) {
+        // out of the cone: slide, with kinetic friction mu_k J.n along the impulse that held it
+        // (against the slip it resisted) as a force of the solve, so that the rest of the object
+        // moves with the slip
+        implicitFriction_[i] = (c.kineticFriction * Jn / t) * Jt;
+        implicitRhs_[i] += implicitFriction_[i];
+        implicitConstraint_[i] = PcgConstraint::Normal;
+        implicitContactState_[i] = kSliding;
+        changed = true;
+      }
+    } else {
+      // sliding: friction that carried the particle backwards (its slip along the friction
+      // force) means it stops: it sticks
+      const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
+      const Eigen::Isometry3d& pose = contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])].now;
+      const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - pose.translation());
+      const Eigen::Vector3d rel = implicitVelocity_[i] - vc;
+      if ((rel - rel.dot(n) * n).dot(implicitFriction_[i]) > 0.0) {
+        implicitRhs_[i] -= implicitFriction_[i];
+        implicitFriction_[i].setZero();
+        implicitVelocity_[i] = vc + (implicitVelocity_[i] - vc).dot(n) * n;
+        implicitConstraint_[i] = PcgConstraint::Fixed;
+        implicitContactState_[i] = kSticking;
+        changed = true;
+      }
     }
   }
   return changed;
 }
 
-// After the last solve: kinetic friction on the sliding contacts, reducing the tangential velocity
-// relative to the collider by mu_k |J.n| / m (not past zero), as contactVelocityChange(); the
-// impulses of every contact go to its collider's wrench, as the contact pass's do.
-void Solver::applyContactFriction(double h) {
+// After the last solve: the impulses of every contact go to its collider's wrench, as the contact
+// pass's do.
+void Solver::sumContactImpulses(double h) {
   implicitProduct(implicitVelocity_, implicitResidual_);
-  const auto& m = lattice_->masses();
   const double r = contactRadius();
   for (std::size_t i = 0; i < x_.size(); ++i) {
     if (implicitContactBody_[i] < 0) continue;
     ContactBody& body = contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])];
-    const Collider& c = *body.collider;
     const Eigen::Vector3d& n = implicitNormal_[i];
     const Eigen::Isometry3d& pose = body.now;
     Eigen::Vector3d J = implicitResidual_[i] - implicitRhs_[i];
-    if (implicitConstraint_[i] == PcgConstraint::Normal) {
-      const double Jn = std::max(0.0, J.dot(n));
-      J = Jn * n;
-      const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
-      const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - pose.translation());
-      const Eigen::Vector3d rel = implicitVelocity_[i] - vc;
-      const Eigen::Vector3d tangential = rel - rel.dot(n) * n;
-      const double slip = tangential.norm(), reduce = c.kineticFriction * Jn / m[i];
-      const Eigen::Vector3d dv = slip <= reduce ? Eigen::Vector3d(-tangential)
-                                                : Eigen::Vector3d(-(reduce / slip) * tangential);
-      implicitVelocity_[i] += dv;
-      J += m[i] * dv;
-    }
+    // a sliding contact's impulse: the normal one and the kinetic friction the solve applied
+    if (implicitConstraint_[i] == PcgConstraint::Normal) J = std::max(0.0, J.dot(n)) * n + implicitFriction_[i];
     const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
     body.impulse += J;
     body.moment += (x - r * n - pose.translation()).cross(J);
   }
+}
+
+// The preconditioner's coarse matrix P^T A P for this sub-step (TwoLevelPreconditioner): the
+// diagonal (mass, damping, springs), the regions' co-rotated stiffness and the Poisson term's
+// Hessian as addVolumetricProduct() applies it, per stencil h^2 [w (sum_a g_a . d_a)^2 +
+// sum_a D_a (g_a . d_a)^2 + sum_a sigma_a^+ / d_a^2 |d_a|^2], d_a = p_plus - p_minus on axis a.
+// Pinned and hard-dragged particles are outside the coarse space; contacts are left in it (they
+// change within the sub-step; PCG's filter keeps them prescribed).
+void Solver::assembleCoarse(double h) {
+  coarse_->setFixed(*activeSummer_, pinned_, hardDragged_);
+  coarse_->beginAssembly(implicitDiagonal_);
+  coarse_->addRegions(*hessian_);
+  if (volumetric_) {
+    const double h2 = h * h;
+    std::uint32_t ends[6];
+    Eigen::Vector3d g[6];
+    for (std::size_t i = 0; i < stencil_.size(); ++i) {
+      const VolumetricStencil& st = stencil_[i];
+      const VolumetricLinearisation& lin = volumetricLinear_[i];
+      for (int a = 0; a < 3; ++a) {
+        ends[2 * a] = st.plus[a];
+        ends[2 * a + 1] = st.minus[a];
+        g[2 * a] = lin.gradient[a];
+        g[2 * a + 1] = -lin.gradient[a];
+        if (lin.deficit[a] != 0.0) coarse_->addOuter(&ends[2 * a], &g[2 * a], 2, h2 * lin.deficit[a]);
+        if (lin.stretch[a] != 0.0) coarse_->addEdge(st.plus[a], st.minus[a], h2 * lin.stretch[a]);
+      }
+      if (lin.weight != 0.0) coarse_->addOuter(ends, g, 6, h2 * lin.weight);
+    }
+  }
+  coarse_->factorize();
 }
 
 void Solver::implicitProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {

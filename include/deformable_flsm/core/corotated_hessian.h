@@ -57,6 +57,16 @@ class CorotatedHessian : public RegionKernel {
   /// sum_{r contains i} c_r m~_i: the diagonal of sum_r c_r K_r without its projection part, an
   /// upper bound of that diagonal (for a Jacobi preconditioner).
   double diagonalBound(std::size_t i) const { return coefficientSum_[i] * massFractions_[i]; }
+  /// Region r's coefficient c_r, rotation R_r and rotated inverse rest inertia R_r I0_r^+ R_r^T
+  /// (as last set): what an assembly of P^T K P needs (TwoLevelPreconditioner).
+  double regionCoefficient(std::size_t r) const { return coefficient_[r]; }
+  const Eigen::Matrix3d& regionRotation(std::size_t r) const { return rotation_[r]; }
+  Eigen::Matrix3d rotatedInertiaInverse(std::size_t r) const {
+    const std::array<double, 6>& J = rotatedInertiaInverse_[r];
+    Eigen::Matrix3d M;
+    M << J[0], J[3], J[4], J[3], J[1], J[5], J[4], J[5], J[2];
+    return M;
+  }
 
   int gatherChannels() const override { return 12; }
   int scatterChannels() const override { return 12; }

@@ -62,6 +62,19 @@ class Pcg {
                   const std::vector<PcgConstraint>& constraint, const std::vector<Eigen::Vector3d>& normal,
                   const std::vector<Eigen::Vector3d>& b, std::vector<Eigen::Vector3d>& x, double floor,
                   double tolerance, int maxIterations) {
+    const auto jacobi = [&invDiagonal](const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
+      for (std::size_t i = 0; i < r.size(); ++i) z[i] = invDiagonal[i].cwiseProduct(r[i]);
+    };
+    return solveWith(apply, jacobi, constraint, normal, b, x, floor, tolerance, maxIterations);
+  }
+
+  /// As solve(), with a general symmetric positive definite preconditioner:
+  /// precondition(r, z) sets z = P^-1 r for #P vectors (z sized, not aliasing r); the result is
+  /// filtered, so PCG runs with S P^-1 S.
+  template <class Apply, class Precondition>
+  PcgResult solveWith(Apply&& apply, Precondition&& precondition, const std::vector<PcgConstraint>& constraint,
+                      const std::vector<Eigen::Vector3d>& normal, const std::vector<Eigen::Vector3d>& b,
+                      std::vector<Eigen::Vector3d>& x, double floor, double tolerance, int maxIterations) {
     const auto filter = [&](std::size_t i, const Eigen::Vector3d& v) -> Eigen::Vector3d {
       switch (constraint[i]) {
         case PcgConstraint::Free: return v;
@@ -73,9 +86,10 @@ class Pcg {
     const std::size_t n = b.size();
     PcgResult result;
     apply(x, q_);
+    for (std::size_t i = 0; i < n; ++i) r_[i] = filter(i, b[i] - q_[i]);
+    precondition(r_, z_);
     for (std::size_t i = 0; i < n; ++i) {
-      r_[i] = filter(i, b[i] - q_[i]);
-      z_[i] = filter(i, invDiagonal[i].cwiseProduct(r_[i]));
+      z_[i] = filter(i, z_[i]);
       p_[i] = z_[i];
     }
     double rz = dot(r_, z_);
@@ -91,8 +105,9 @@ class Pcg {
       for (std::size_t i = 0; i < n; ++i) {
         x[i] += step * p_[i];
         r_[i] -= step * q_[i];
-        z_[i] = filter(i, invDiagonal[i].cwiseProduct(r_[i]));
       }
+      precondition(r_, z_);
+      for (std::size_t i = 0; i < n; ++i) z_[i] = filter(i, z_[i]);
       const double rzNext = dot(r_, z_);
       const double beta = rzNext / rz;
       rz = rzNext;

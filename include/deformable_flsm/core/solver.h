@@ -14,6 +14,7 @@
 #include "deformable_flsm/core/pcg.h"
 #include "deformable_flsm/core/solver_params.h"
 #include "deformable_flsm/core/thread_governor.h"
+#include "deformable_flsm/core/two_level_preconditioner.h"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -425,7 +426,11 @@ class Solver : private RegionKernel {
   void addVolumetricProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) const;
   /// Restores the linear and angular momentum the external forces give (free object only).
   void correctRigidModes(double h);
+  /// Assembles and factorises the preconditioner's coarse matrix for the sub-step h.
+  void assembleCoarse(double h);
   std::unique_ptr<CorotatedHessian> hessian_;
+  /// PCG's preconditioner: Jacobi plus the aggregates' coarse solve
+  std::unique_ptr<TwoLevelPreconditioner> coarse_;
   Pcg pcg_;
   PcgResult implicitSolve_;
   double implicitH_ = 0.0;                      // the sub-step being solved (s)
@@ -445,6 +450,7 @@ class Solver : private RegionKernel {
   /// per particle: no contact, sticking, sliding or released (pulling) in the last sub-step
   std::vector<char> implicitContactState_;
   std::vector<Eigen::Vector3d> implicitResidual_;  // A v+ - b: the constraint impulses
+  std::vector<Eigen::Vector3d> implicitFriction_;  // kinetic friction impulse of a sliding contact
   /// Constrains the free particles that v_n + h g would carry into a collider (see
   /// solver_implicit.cpp); returns whether any is.
   bool constrainContacts(double h);
@@ -454,11 +460,13 @@ class Solver : private RegionKernel {
   bool updateContactSet(double h);
   /// The collider (index into contactBodies_, at body.now) x is deepest in, or -1; its depth
   /// phi - r (< 0), outward normal and surface velocity at x.
+  /// phi - r of particle i at the start of the sub-step against contact body b at its pose then
+  /// (negative: a penetration the sub-step did not make).
+  double startDepth(std::size_t i, int b) const;
   int deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, double& depth,
                      Eigen::Vector3d& colliderVelocity) const;
-  /// Kinetic friction on the sliding contacts after the last solve, and every contact's impulse
-  /// on its collider.
-  void applyContactFriction(double h);
+  /// Every contact's impulse on its collider after the last solve.
+  void sumContactImpulses(double h);
   /// Per stencil of the Poisson term at x_n: its difference vectors F_ia scaled by 1 / d_ia, and
   /// the weights of its Gauss-Newton Hessian (0 where the strain is clamped).
   struct VolumetricLinearisation {

@@ -1,0 +1,117 @@
+/// @file two_level_preconditioner.h
+/// The implicit step's preconditioner: Jacobi on the particles plus an exact solve on aggregates of
+/// lattice cells (a two-level additive Schwarz method on the regular grid).
+#pragma once
+
+#include "deformable_flsm/core/corotated_hessian.h"
+#include "deformable_flsm/core/lattice.h"
+#include "deformable_flsm/core/region_summer.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace deformable_flsm {
+
+/// M^-1 = D^-1 + P A_c^-1 P^T with A_c = P^T A P (Galerkin), for the implicit step's matrix
+/// A = D_m + sum_r c_r K_r + H_vol (CorotatedHessian, the Poisson term's Hessian). P is
+/// piecewise constant: aggregate a, the free particles of an s x s x s block of lattice cells,
+/// moves by one translation u_a. Jacobi alone propagates a correction by one region per
+/// iteration, so its iterations grow with the lattice and with the stiffness over the mass; the
+/// aggregates carry the long-wave part of the error in one solve (Toselli & Widlund 2005, ch. 2,
+/// additive two-level Schwarz: M is symmetric positive definite whatever A_c is, as long as A_c is,
+/// so PCG stays valid).
+///
+/// A_c is assembled from the region structure without a product with A. With s >= 2w every region
+/// meets at most two aggregates per axis, told apart by the parity of their index, so one gather
+/// of eight parity classes gives, per region r and aggregate a, m_ra = sum m~ and
+/// f_ra = sum m~ (x0 - c0_r) over the free particles of r in a; then, u the aggregates'
+/// translations, the region energy c_r/2 p^T K_r p at p = P u is
+///   c_r/2 [ sum_a m_ra |u_a|^2 - |sum_a m_ra u_a|^2 / M_r - L^T J_r L ],  L = sum_a (R_r f_ra) x u_a,
+/// J_r = R_r I0_r^+ R_r^T: the block (a, b) is
+///   c_r [ delta_ab m_ra 1 - m_ra m_rb / M_r 1 + [F_a]x J_r [F_b]x ],  F_a = R_r f_ra.
+/// A region wholly inside one aggregate adds nothing (K_r is zero on translations). A_c is dense
+/// (at most maxAggregates aggregates) and factorised by Cholesky once per sub-step.
+class TwoLevelPreconditioner {
+ public:
+  /// @param[in] lattice           the lattice (cells, region half-width w)
+  /// @param[in] massFractions     #P m~_i (kg)
+  /// @param[in] restCentered      #P q_i = x0_i - rest centre of mass (m)
+  /// @param[in] regionMass        #P M_r (kg)
+  /// @param[in] regionRestCenter  #P c0_r, in the frame of restCentered (m)
+  /// @param[in] maxAggregates     the aggregate edge s starts at max(2, 2w) cells and grows until
+  ///                              at most this many aggregates hold particles
+  TwoLevelPreconditioner(const Lattice& lattice, const std::vector<double>& massFractions,
+                         const std::vector<Eigen::Vector3d>& restCentered, const std::vector<double>& regionMass,
+                         const std::vector<Eigen::Vector3d>& regionRestCenter, int maxAggregates);
+
+  /// Aggregate edge s (cells).
+  int aggregateSize() const { return s_; }
+  /// Aggregates holding at least one particle.
+  std::size_t aggregates() const { return static_cast<std::size_t>(count_); }
+  /// Aggregate of particle i, or -1 while i is fixed.
+  int aggregateOf(std::size_t i) const { return fixed_[i] != 0 ? -1 : aggregate_[i]; }
+
+  /// The particles whose velocity is prescribed for the whole sub-step (pinned, hard-dragged)
+  /// leave the coarse space; the region moments are gathered again (one pass of `summer`, which
+  /// allocates) only when this set differs from the last one.
+  /// @param[in] pinned       #P nonzero where pinned
+  /// @param[in] hardDragged  #P nonzero where hard-dragged
+  void setFixed(RegionSummer& summer, const std::vector<char>& pinned, const std::vector<char>& hardDragged);
+
+  /// Starts A_c with P^T D P.
+  /// @param[in] diagonal  #P per-component diagonal of A outside the regions' stiffness (kg)
+  void beginAssembly(const std::vector<Eigen::Vector3d>& diagonal);
+  /// Adds P^T (sum_r c_r K_r) P, with K's coefficients and rotations as last set.
+  void addRegions(const CorotatedHessian& hessian);
+  /// Adds P^T (weight v v^T) P for v = sum_k e_{particles[k]} (x) g[k] (a rank-one term of A
+  /// between up to 8 particles).
+  void addOuter(const std::uint32_t* particles, const Eigen::Vector3d* g, int count, double weight);
+  /// Adds P^T of the term k |p_i - p_j|^2 / 2 (k 1 on the pair i, j).
+  void addEdge(std::uint32_t i, std::uint32_t j, double k);
+  /// Factorises A_c; false (and apply() is Jacobi alone) if it is not numerically positive
+  /// definite.
+  bool factorize();
+
+  /// A_c as last assembled (3 rows per aggregate, x y z), before factorize() decouples the
+  /// aggregates of fixed particles only.
+  const Eigen::MatrixXd& coarseMatrix() const { return coarse_; }
+
+  /// z = D^-1 r + P A_c^-1 P^T r.
+  /// @param[in]  invDiagonal  #P per-component inverse of the Jacobi diagonal
+  /// @param[in]  r            #P residual (filtered: zero where fixed)
+  /// @param[out] z            #P, sized by the caller
+  void apply(const std::vector<Eigen::Vector3d>& invDiagonal, const std::vector<Eigen::Vector3d>& r,
+             std::vector<Eigen::Vector3d>& z);
+
+ private:
+  /// A region meets at most 2 aggregates per axis.
+  static constexpr int kPerRegion = 8;
+  void gatherMoments(RegionSummer& summer);
+  void addBlock(int a, int b, const Eigen::Matrix3d& block);
+
+  const std::vector<double>& massFractions_;
+  const std::vector<Eigen::Vector3d>& restCentered_;
+  const std::vector<double>& regionMass_;
+  const std::vector<Eigen::Vector3d>& regionRestCenter_;
+  int s_ = 2;
+  int count_ = 0;
+  std::vector<int> aggregate_;          // per particle
+  std::vector<char> parity_;            // per particle: bit a = parity of its aggregate index on axis a
+  std::vector<int> regionAggregate_;    // per region, kPerRegion: the aggregate of each parity class
+  std::vector<double> regionAggMass_;   // m_ra
+  std::vector<Eigen::Vector3d> regionAggMoment_;  // f_ra
+  std::vector<char> regionActive_;      // the region adds to A_c
+  std::vector<char> fixed_;
+  bool gathered_ = false;
+  bool factorized_ = false;
+  std::vector<double> gatherIn_, gatherOut_;
+  Eigen::MatrixXd coarse_;
+  Eigen::LLT<Eigen::MatrixXd> llt_;
+  Eigen::VectorXd coarseRhs_;
+};
+
+}  // namespace deformable_flsm

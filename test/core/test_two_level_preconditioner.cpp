@@ -1,0 +1,174 @@
+// The implicit step's two-level preconditioner (core/two_level_preconditioner.h): its coarse
+// matrix, assembled from the region moments, is the Galerkin product P^T A P that the matrix-free
+// product gives column by column, with fixed particles outside the coarse space; the
+// preconditioner is symmetric and positive definite (what PCG needs).
+#include "deformable_flsm/core/corotated_hessian.h"
+#include "deformable_flsm/core/fast_summation.h"
+#include "deformable_flsm/core/lattice.h"
+#include "deformable_flsm/core/two_level_preconditioner.h"
+#include "fixtures.h"
+
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <random>
+
+using deformable_flsm::CorotatedHessian;
+using deformable_flsm::Lattice;
+using deformable_flsm::RegionSummer;
+using deformable_flsm::SliceStreamSummer;
+using deformable_flsm::TwoLevelPreconditioner;
+
+namespace {
+
+/// Rest data of a lattice as the solver keeps it (rest positions about the rest centre of mass).
+struct Rest {
+  std::vector<Eigen::Vector3d> q, c0;
+  std::vector<double> regionMass;
+  Rest(const Lattice& L, RegionSummer& summer) {
+    const std::size_t n = L.size();
+    Eigen::Vector3d com = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < n; ++i) com += L.masses()[i] * L.restPositions()[i];
+    com /= L.totalMass();
+    q.resize(n);
+    for (std::size_t i = 0; i < n; ++i) q[i] = L.restPositions()[i] - com;
+    std::vector<double> m = L.regionMassFractions(), mq(3 * n), Ms, mqs;
+    for (std::size_t i = 0; i < n; ++i)
+      for (int a = 0; a < 3; ++a) mq[3 * i + a] = m[i] * q[i][a];
+    summer.gather(m, 1, Ms);
+    summer.gather(mq, 3, mqs);
+    regionMass = Ms;
+    c0.resize(n);
+    for (std::size_t r = 0; r < n; ++r) c0[r] = Eigen::Vector3d(mqs[3 * r], mqs[3 * r + 1], mqs[3 * r + 2]) / Ms[r];
+  }
+};
+
+/// An L-shaped lattice (regions clipped by the surface and by the notch, aggregates cut by both).
+std::shared_ptr<const Lattice> lShape(int w) {
+  const auto vox = deformable_flsm::test::makeVoxels(Eigen::Vector3i(9, 7, 6), 0.01,
+                                                     [](int i, int j, int) { return i < 4 || j < 3; });
+  return std::make_shared<const Lattice>(vox, 1000.0, w);
+}
+
+/// Random region rotations, coefficients and diagonal: a linearisation point of a deformed object.
+struct Point {
+  std::vector<Eigen::Quaterniond> rotations;
+  std::vector<double> beta, weightSum, invCount;
+  std::vector<Eigen::Vector3d> diagonal;
+  Point(const Lattice& L, RegionSummer& summer, unsigned seed) {
+    const std::size_t n = L.size();
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(0.5, 1.5);
+    for (std::size_t r = 0; r < n; ++r)
+      rotations.push_back(Eigen::Quaterniond(Eigen::AngleAxisd(u(rng), Eigen::Vector3d(u(rng), u(rng) - 1.0, 0.3).normalized())));
+    beta.resize(n);
+    for (double& b : beta) b = u(rng);
+    std::vector<double> one(n, 1.0), count;
+    summer.scatter(beta, 1, weightSum);  // sum over the regions that contain i
+    summer.scatter(one, 1, count);
+    for (double c : count) invCount.push_back(1.0 / c);
+    for (std::size_t i = 0; i < n; ++i) diagonal.push_back(Eigen::Vector3d(u(rng), u(rng), u(rng)) * L.masses()[i]);
+  }
+};
+
+}  // namespace
+
+// P^T (D + sum_r c_r K_r) P from the regions' moments equals the product with each coarse
+// column; pinned particles are outside P; a rank-one term and an edge add what their quadratic
+// forms say.
+TEST(TwoLevelPreconditioner, CoarseMatrixIsTheGalerkinProduct) {
+  for (int w : {1, 2}) {
+    const auto L = lShape(w);
+    const std::size_t n = L->size();
+    SliceStreamSummer summer(*L, 1);
+    const Rest rest(*L, summer);
+    CorotatedHessian K(summer, L->regionMassFractions(), rest.q, rest.regionMass, rest.c0);
+    const Point point(*L, summer, 7u + static_cast<unsigned>(w));
+    K.setRotations(point.rotations);
+    K.setCoefficients(3.0, 0.5, point.beta, point.weightSum, point.invCount);
+    TwoLevelPreconditioner pre(*L, L->regionMassFractions(), rest.q, rest.regionMass, rest.c0, 1000);
+    EXPECT_GE(pre.aggregateSize(), 2 * w);
+    std::vector<char> pinned(n, 0), dragged(n, 0);
+    for (std::size_t i = 0; i < n; ++i) pinned[i] = L->cells()[i].x() == 0 ? 1 : 0;
+    pre.setFixed(summer, pinned, dragged);
+    pre.beginAssembly(point.diagonal);
+    pre.addRegions(K);
+    const Eigen::MatrixXd& Ac = pre.coarseMatrix();
+    const Eigen::Index N = 3 * static_cast<Eigen::Index>(pre.aggregates());
+    ASSERT_EQ(Ac.rows(), N);
+    // the oracle: A applied to each column of P
+    std::vector<std::vector<Eigen::Vector3d>> AP(static_cast<std::size_t>(N), std::vector<Eigen::Vector3d>(n));
+    for (Eigen::Index c = 0; c < N; ++c) {
+      std::vector<Eigen::Vector3d> column(n, Eigen::Vector3d::Zero());
+      for (std::size_t i = 0; i < n; ++i)
+        if (pre.aggregateOf(i) == c / 3) column[i][c % 3] = 1.0;
+      K.apply(summer, point.diagonal, column, AP[static_cast<std::size_t>(c)]);
+    }
+    double scale = 0.0;
+    for (Eigen::Index c = 0; c < N; ++c) scale = std::max(scale, std::abs(Ac(c, c)));
+    for (Eigen::Index a = 0; a < N; ++a)
+      for (Eigen::Index b = 0; b < N; ++b) {
+        double expected = 0.0;
+        for (std::size_t i = 0; i < n; ++i)
+          if (pre.aggregateOf(i) == a / 3) expected += AP[static_cast<std::size_t>(b)][i][a % 3];
+        // round-off of the window sums and of the sums over up to a few hundred particles
+        ASSERT_NEAR(Ac(a, b), expected, 1e-10 * scale) << "w " << w << " entry " << a << ", " << b;
+      }
+    // rank-one and edge terms: u^T A_c u grows by weight (v . P u)^2 and k |(P u)_i - (P u)_j|^2
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> uni(-1.0, 1.0);
+    Eigen::VectorXd u(N);
+    for (Eigen::Index c = 0; c < N; ++c) u[c] = uni(rng);
+    const auto field = [&](std::size_t i) -> Eigen::Vector3d {
+      const int a = pre.aggregateOf(i);
+      return a < 0 ? Eigen::Vector3d::Zero() : Eigen::Vector3d(u.segment<3>(3 * a));
+    };
+    const double before = u.dot(Ac * u);
+    const std::uint32_t ends[3] = {0, static_cast<std::uint32_t>(n / 2), static_cast<std::uint32_t>(n - 1)};
+    const Eigen::Vector3d g[3] = {Eigen::Vector3d(1, 2, 3), Eigen::Vector3d(-2, 0.5, 1), Eigen::Vector3d(0.3, -1, 2)};
+    pre.addOuter(ends, g, 3, 2.0);
+    pre.addEdge(ends[1], ends[2], 5.0);
+    double vp = 0.0;
+    for (int k = 0; k < 3; ++k) vp += g[k].dot(field(ends[k]));
+    const double expected = before + 2.0 * vp * vp + 5.0 * (field(ends[1]) - field(ends[2])).squaredNorm();
+    EXPECT_NEAR(u.dot(pre.coarseMatrix() * u), expected, 1e-12 * std::abs(expected));
+  }
+}
+
+// z = D^-1 r + P A_c^-1 P^T r is symmetric and positive: a . M^-1 b = b . M^-1 a, a . M^-1 a > 0.
+TEST(TwoLevelPreconditioner, IsSymmetricPositiveDefinite) {
+  const auto L = lShape(1);
+  const std::size_t n = L->size();
+  SliceStreamSummer summer(*L, 1);
+  const Rest rest(*L, summer);
+  CorotatedHessian K(summer, L->regionMassFractions(), rest.q, rest.regionMass, rest.c0);
+  const Point point(*L, summer, 11u);
+  K.setRotations(point.rotations);
+  K.setCoefficients(1e3, 1.0, point.beta, point.weightSum, point.invCount);
+  TwoLevelPreconditioner pre(*L, L->regionMassFractions(), rest.q, rest.regionMass, rest.c0, 16);
+  EXPECT_LE(pre.aggregates(), 16u);
+  std::vector<char> pinned(n, 0), dragged(n, 0);
+  pre.setFixed(summer, pinned, dragged);
+  pre.beginAssembly(point.diagonal);
+  pre.addRegions(K);
+  ASSERT_TRUE(pre.factorize());
+  std::vector<Eigen::Vector3d> invD(n), a(n), b(n), za(n), zb(n);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> uni(-1.0, 1.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    invD[i] = point.diagonal[i].cwiseInverse();
+    a[i] = Eigen::Vector3d(uni(rng), uni(rng), uni(rng));
+    b[i] = Eigen::Vector3d(uni(rng), uni(rng), uni(rng));
+  }
+  pre.apply(invD, a, za);
+  pre.apply(invD, b, zb);
+  double ab = 0.0, ba = 0.0, aa = 0.0, jacobi = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    ab += a[i].dot(zb[i]);
+    ba += b[i].dot(za[i]);
+    aa += a[i].dot(za[i]);
+    jacobi += a[i].dot(invD[i].cwiseProduct(a[i]));
+  }
+  EXPECT_NEAR(ab, ba, 1e-10 * aa);
+  EXPECT_GT(aa, jacobi) << "the coarse part adds a positive term";
+}
