@@ -3,6 +3,7 @@
 #include "deformable_flsm/ros/collider_params.h"
 
 #include <algorithm>
+#include <iterator>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -67,26 +68,33 @@ CommandOutcome accepted(std::string message, std::size_t particles = 0) {
 
 }  // namespace
 
-SimulationLoop::SimulationLoop(std::unique_ptr<Solver> solver, const LoopSettings& settings,
+SimulationLoop::SimulationLoop(std::unique_ptr<World> world, const LoopSettings& settings,
                                std::shared_ptr<CommandStats> stats, std::shared_ptr<LoopClock> clock)
-    : solver_(std::move(solver)), settings_(settings), stats_(std::move(stats)),
+    : world_(std::move(world)), settings_(settings), stats_(std::move(stats)),
       clock_(clock ? std::move(clock) : std::make_shared<SteadyLoopClock>()),
       realTimeFactor_(settings.realTimeFactor) {
-  if (!solver_) throw std::invalid_argument("SimulationLoop: no solver");
+  if (!world_ || world_->objectCount() == 0)
+    throw std::invalid_argument("SimulationLoop: no object to simulate");
   if (!stats_) throw std::invalid_argument("SimulationLoop: no command statistics");
   if (!(settings_.realTimeFactor > 0.0) || settings_.maxCatchUpSteps < 1)
     throw std::invalid_argument("SimulationLoop: real-time factor must be > 0 and catch-up >= 1");
-  lattice_ = &solver_->lattice();  // immutable, owned through the solver
-  const Lattice& L = solver_->lattice();
-  for (std::size_t i = 0; i < L.size(); ++i)
-    restCenterOfMass_ += L.masses()[i] * L.restPositions()[i];
-  restCenterOfMass_ /= L.totalMass();
+  if (!(settings_.restFraction >= 0.0))
+    throw std::invalid_argument("SimulationLoop: rest fraction must be >= 0");
+  names_ = world_->objectNames();
+  for (const std::string& name : names_) {
+    Solver* solver = world_->object(name);
+    solvers_.push_back(solver);
+    const Lattice& L = solver->lattice();  // immutable, owned through the solver
+    lattices_.push_back(&L);
+    Eigen::Vector3d com = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < L.size(); ++i) com += L.masses()[i] * L.restPositions()[i];
+    restCenterOfMass_.push_back(com / L.totalMass());
+    stillFrom_.push_back(solver->positions());
+  }
+  target_ = solvers_.front();
   centerOfMass_ = restCenterOfMass_;
   diag_.requestedRealTimeFactor = settings_.realTimeFactor;
   queue_.reserve(CommandLimits::kQueueCapacity);
-  if (!(settings_.restFraction >= 0.0))
-    throw std::invalid_argument("SimulationLoop: rest fraction must be >= 0");
-  stillFrom_ = solver_->positions();
 }
 
 SimulationLoop::~SimulationLoop() { stop(); }
@@ -188,9 +196,9 @@ const Snapshot& SimulationLoop::acquire() {
   return buffers_[front_];
 }
 
-Eigen::Vector3d SimulationLoop::centerOfMass() const {
+Eigen::Vector3d SimulationLoop::centerOfMass(std::size_t object) const {
   std::lock_guard<std::mutex> lock(snapshotMutex_);
-  return centerOfMass_;
+  return centerOfMass_.at(object);
 }
 
 void SimulationLoop::run() {
@@ -238,7 +246,7 @@ void SimulationLoop::run() {
     const Clock::time_point now = clock_->now();
     owed += seconds(now - last) * rtf;
     last = now;
-    const double dt = solver_->params().timeStep;
+    const double dt = world_->timeStep();
     auto steps = static_cast<std::int64_t>(std::floor(owed / dt));
     if (steps > settings_.maxCatchUpSteps) {
       diag_.droppedSteps += static_cast<std::uint64_t>(steps - settings_.maxCatchUpSteps);
@@ -274,14 +282,26 @@ void SimulationLoop::run() {
 }
 
 void SimulationLoop::ensureFinite() {
-  if (allBounded(solver_->positions()) && allBounded(solver_->velocities()) &&
-      allFinite(solver_->regionRotations()))
-    return;
-  // It should not happen (the solver is unconditionally stable for finite input and every
-  // command is range-checked); if it does, never let NaN, infinity (a float32 overflow) or a
-  // rotation of NaN reach a subscriber.
-  solver_->reset();
-  ++diag_.solverResets;
+  for (Solver* solver : solvers_) {
+    if (allBounded(solver->positions()) && allBounded(solver->velocities()) &&
+        allFinite(solver->regionRotations()))
+      continue;
+    // It should not happen (the solver is unconditionally stable for finite input and every
+    // command is range-checked); if it does, never let NaN, infinity (a float32 overflow) or a
+    // rotation of NaN reach a subscriber.
+    solver->reset();
+    for (auto it = attachedFrames_.begin(); it != attachedFrames_.end();)
+      it = it->first.first == solver ? attachedFrames_.erase(it) : std::next(it);
+    ++diag_.solverResets;
+    if (solvers_.size() == 1) timeOrigin_ = world_->time();  // the scene is back at its start
+    restartStillness();
+  }
+}
+
+void SimulationLoop::resetAll() {
+  for (Solver* solver : solvers_) solver->reset();
+  timeOrigin_ = world_->time();
+  attachedFrames_.clear();
   restartStillness();
 }
 
@@ -292,7 +312,7 @@ void SimulationLoop::followFrames() {
     if (!frameSource_(entry.second, pose)) continue;  // unknown or stale: hold
     // The source gives rigid, finite frames; should one not be, holding beats a crash.
     try {
-      solver_->moveDrag(entry.first, pose);
+      entry.first.first->moveDrag(entry.first.second, pose);
     } catch (const std::invalid_argument&) {
     }
   }
@@ -300,10 +320,10 @@ void SimulationLoop::followFrames() {
 
 void SimulationLoop::timedStep() {
   const Clock::time_point t0 = clock_->now();
-  solver_->step();
+  world_->step();
   const Clock::time_point t1 = clock_->now();
   ++diag_.steps;
-  const double dt = solver_->params().timeStep;
+  const double dt = world_->timeStep();
   ensureFinite();
   windowSteps_ += 1.0;
   windowStepSeconds_ += seconds(t1 - t0);
@@ -329,16 +349,23 @@ void SimulationLoop::restartWindow(Clock::time_point now) {
 }
 
 void SimulationLoop::updateStillness(double simulated) {
-  const std::vector<Eigen::Vector3d>& x = solver_->positions();
-  double maxSpeed2 = 0.0;
-  for (const Eigen::Vector3d& v : solver_->velocities()) maxSpeed2 = std::max(maxSpeed2, v.squaredNorm());
+  double maxSpeed2 = 0.0, energy = 0.0;
+  bool moving = collidersMoving_;
+  for (std::size_t k = 0; k < solvers_.size(); ++k) {
+    const Solver& solver = *solvers_[k];
+    for (const Eigen::Vector3d& v : solver.velocities()) maxSpeed2 = std::max(maxSpeed2, v.squaredNorm());
+    energy += solver.kineticEnergy();
+    // each object against its own size: a small object among large ones rests as precisely
+    const std::vector<Eigen::Vector3d>& x = solver.positions();
+    const std::vector<Eigen::Vector3d>& from = stillFrom_[k];
+    double moved2 = 0.0;
+    for (std::size_t i = 0; i < x.size(); ++i) moved2 = std::max(moved2, (x[i] - from[i]).squaredNorm());
+    const double limit = settings_.restFraction * lattices_[k]->objectSize();
+    moving = moving || moved2 > limit * limit || solver.hasPendingCommands();
+  }
   diag_.maxSpeed = std::sqrt(maxSpeed2);
-  diag_.kineticEnergy = solver_->kineticEnergy();
-  double moved2 = 0.0;
-  for (std::size_t i = 0; i < x.size(); ++i)
-    moved2 = std::max(moved2, (x[i] - stillFrom_[i]).squaredNorm());
-  const double limit = settings_.restFraction * lattice_->objectSize();
-  if (moved2 > limit * limit || solver_->hasPendingCommands() || collidersMoving_) {
+  diag_.kineticEnergy = energy;
+  if (moving) {
     restartStillness();
   } else {
     stillFor_ += simulated;
@@ -353,57 +380,102 @@ void SimulationLoop::updateStillness(double simulated) {
 
 void SimulationLoop::restartStillness() {
   stillFor_ = 0.0;
-  std::copy(solver_->positions().begin(), solver_->positions().end(), stillFrom_.begin());
+  for (std::size_t k = 0; k < solvers_.size(); ++k)
+    std::copy(solvers_[k]->positions().begin(), solvers_[k]->positions().end(), stillFrom_[k].begin());
+}
+
+void SimulationLoop::writeObject(const Solver& solver, std::size_t k, ObjectSnapshot& o) {
+  const std::size_t n = solver.positions().size();
+  o.name = names_[k];
+  o.positions = solver.positions();  // same size every time: copies, no allocation
+  o.rotations = solver.regionRotations();
+  o.pinned.resize(n);
+  for (std::size_t i = 0; i < n; ++i) o.pinned[i] = solver.isPinned(static_cast<std::uint32_t>(i));
+  o.drags.clear();
+  for (const auto& entry : solver.drags()) {
+    DragView d;
+    d.id = entry.first;
+    for (std::uint32_t p : entry.second.particles) d.centroid += o.positions[p];
+    d.centroid /= static_cast<double>(entry.second.particles.size());
+    d.target = entry.second.centroidTarget();
+    o.drags.push_back(std::move(d));
+  }
+  const Eigen::Isometry3d rigid = solver.rigidFrame();
+  o.objectFrame = rigid * Eigen::Translation3d(restCenterOfMass_[k]);
+
+  // Figures that need the whole state, computed once here for every reader.
+  LoopDiagnostics& d = o.diag;
+  d = diag_;  // the loop's pace and counts
+  const auto& x0 = lattices_[k]->restPositions();
+  double shape2 = 0.0;
+  for (std::size_t i = 0; i < n; ++i) shape2 += (o.positions[i] - rigid * x0[i]).squaredNorm();
+  d.shapeError = n > 0 ? std::sqrt(shape2 / static_cast<double>(n)) : 0.0;
+  d.maxDisplacement = solver.maxDisplacement();
+  d.kineticEnergy = solver.kineticEnergy();
+  double maxSpeed2 = 0.0;
+  for (const Eigen::Vector3d& v : solver.velocities()) maxSpeed2 = std::max(maxSpeed2, v.squaredNorm());
+  d.maxSpeed = std::sqrt(maxSpeed2);
+  d.pinned = solver.pinnedCount();
+  d.drags = solver.drags().size();
+  d.forces = solver.activeForces().size();
+  d.stiffnessSaturated = solver.stiffnessSaturated();
+  d.alpha = solver.alpha();
 }
 
 void SimulationLoop::writeSnapshot() {
   Snapshot& s = buffers_[back_];
-  const Solver& solver = *solver_;
-  const std::size_t n = solver.positions().size();
   s.sequence = ++sequence_;
-  s.positions = solver.positions();  // same size every time: copies, no allocation
-  s.rotations = solver.regionRotations();
-  s.pinned.resize(n);
-  for (std::size_t i = 0; i < n; ++i) s.pinned[i] = solver.isPinned(static_cast<std::uint32_t>(i));
-  s.drags.clear();
-  for (const auto& entry : solver.drags()) {
-    DragView d;
-    d.id = entry.first;
-    for (std::uint32_t p : entry.second.particles) d.centroid += s.positions[p];
-    d.centroid /= static_cast<double>(entry.second.particles.size());
-    d.target = entry.second.centroidTarget();
-    s.drags.push_back(std::move(d));
-  }
-  s.colliders = solver.colliders();
-  s.wrenches.clear();
-  for (const auto& entry : s.colliders) s.wrenches[entry.first] = solver.contactWrench(entry.first);
-  const Eigen::Isometry3d rigid = solver.rigidFrame();
-  s.objectFrame = rigid * Eigen::Translation3d(restCenterOfMass_);
-
-  // Diagnostics that need the whole state, computed once here for every reader.
-  const auto& x0 = lattice_->restPositions();
-  double shape2 = 0.0;
-  for (std::size_t i = 0; i < n; ++i) shape2 += (s.positions[i] - rigid * x0[i]).squaredNorm();
-  diag_.shapeError = n > 0 ? std::sqrt(shape2 / static_cast<double>(n)) : 0.0;
-  diag_.maxDisplacement = solver.maxDisplacement();
-  diag_.kineticEnergy = solver.kineticEnergy();
-  diag_.simTime = solver.time();
-  diag_.pinned = solver.pinnedCount();
-  diag_.drags = solver.drags().size();
-  diag_.forces = solver.activeForces().size();
-  diag_.stiffnessSaturated = solver.stiffnessSaturated();
-  diag_.alpha = solver.alpha();
+  diag_.simTime = world_->time() - timeOrigin_;
   diag_.idle = idle_;
+  s.objects.resize(solvers_.size());
+  LoopDiagnostics whole = diag_;
+  whole.shapeError = whole.maxDisplacement = whole.kineticEnergy = whole.maxSpeed = 0.0;
+  whole.pinned = whole.drags = whole.forces = 0;
+  whole.stiffnessSaturated = false;
+  for (std::size_t k = 0; k < solvers_.size(); ++k) {
+    ObjectSnapshot& o = s.objects[k];
+    writeObject(*solvers_[k], k, o);
+    whole.shapeError = std::max(whole.shapeError, o.diag.shapeError);
+    whole.maxDisplacement = std::max(whole.maxDisplacement, o.diag.maxDisplacement);
+    whole.maxSpeed = std::max(whole.maxSpeed, o.diag.maxSpeed);
+    whole.kineticEnergy += o.diag.kineticEnergy;
+    whole.pinned += o.diag.pinned;
+    whole.drags += o.diag.drags;
+    whole.forces += o.diag.forces;
+    whole.stiffnessSaturated = whole.stiffnessSaturated || o.diag.stiffnessSaturated;
+  }
+  whole.alpha = s.objects.front().diag.alpha;
+  diag_ = whole;
   s.diag = diag_;
+  // The colliders are the world's, the same in every object.
+  s.colliders = solvers_.front()->colliders();
+  s.wrenches.clear();
+  for (const auto& entry : s.colliders) s.wrenches[entry.first] = world_->contactWrench(entry.first);
+  s.objectWrenches = world_->objectWrenches();
 
   std::lock_guard<std::mutex> lock(snapshotMutex_);
-  centerOfMass_ = s.objectFrame.translation();
+  for (std::size_t k = 0; k < s.objects.size(); ++k) centerOfMass_[k] = s.objects[k].objectFrame.translation();
   std::swap(back_, ready_);
   fresh_ = true;
 }
 
 bool SimulationLoop::apply(Command& command) {
-  CommandOutcome outcome = std::visit(
+  CommandOutcome outcome;
+  target_ = command.object.empty() ? solvers_.front() : world_->object(command.object);
+  if (target_ == nullptr) {
+    outcome = reject("unknown_object", "object '" + command.object +
+                                           "' is not in the scene (removed): command refused");
+  } else {
+    outcome = applyBody(command);
+  }
+  if (outcome.accepted) stats_->accept();
+  outcome.pinnedTotal = target_ != nullptr ? target_->pinnedCount() : 0;
+  if (command.outcome) command.outcome->set_value(outcome);
+  return outcome.accepted;
+}
+
+CommandOutcome SimulationLoop::applyBody(Command& command) {
+  return std::visit(
       [&](const auto& c) -> CommandOutcome {
         using T = std::decay_t<decltype(c)>;
         if constexpr (std::is_same_v<T, GrabCommand>) {
@@ -417,13 +489,14 @@ bool SimulationLoop::apply(Command& command) {
         } else if constexpr (std::is_same_v<T, ApplyForceCommand>) {
           return force(c);
         } else if constexpr (std::is_same_v<T, ResetCommand>) {
-          solver_->reset();
-          attachedFrames_.clear();
-          restartStillness();
+          resetAll();
           return accepted("reset to rest; pins kept, drags and forces released");
         } else if constexpr (std::is_same_v<T, ReleaseAllCommand>) {
-          const std::size_t n = solver_->drags().size();
-          solver_->releaseAll();
+          std::size_t n = 0;
+          for (Solver* solver : solvers_) {
+            n += solver->drags().size();
+            solver->releaseAll();
+          }
           attachedFrames_.clear();
           return accepted("released " + std::to_string(n) + " drag(s)");
         } else if constexpr (std::is_same_v<T, PinBoxCommand>) {
@@ -440,10 +513,6 @@ bool SimulationLoop::apply(Command& command) {
         }
       },
       command.body);
-  if (outcome.accepted) stats_->accept();
-  outcome.pinnedTotal = solver_->pinnedCount();
-  if (command.outcome) command.outcome->set_value(outcome);
-  return outcome.accepted;
 }
 
 CommandOutcome SimulationLoop::reject(const std::string& reason, const std::string& detail) {
@@ -455,25 +524,25 @@ CommandOutcome SimulationLoop::reject(const std::string& reason, const std::stri
 
 double SimulationLoop::massOf(const std::vector<std::uint32_t>& particles) const {
   double m = 0.0;
-  for (std::uint32_t p : particles) m += lattice_->masses()[p];
+  for (std::uint32_t p : particles) m += target_->lattice().masses()[p];
   return m;
 }
 
 CommandOutcome SimulationLoop::grab(const GrabCommand& c, const AttachCommand* attach) {
-  const std::size_t n = lattice_->size();
+  const std::size_t n = target_->lattice().size();
   if (c.particle >= static_cast<std::int64_t>(n))
     return reject("bad_index", "drag '" + c.id + "': particle " + std::to_string(c.particle) +
                                    " out of range [0, " + std::to_string(n) + ")");
-  if (solver_->drags().count(c.id) == 0 && solver_->drags().size() >= CommandLimits::kMaxDrags)
+  if (target_->drags().count(c.id) == 0 && target_->drags().size() >= CommandLimits::kMaxDrags)
     return reject("too_many_drags", "drag '" + c.id + "': already " +
                                         std::to_string(CommandLimits::kMaxDrags) +
                                         " drags; release one first");
   const std::vector<std::uint32_t> particles =
       c.particle >= 0 ? std::vector<std::uint32_t>{static_cast<std::uint32_t>(c.particle)}
-                      : solver_->nearestParticles(c.point, c.count);
+                      : target_->nearestParticles(c.point, c.count);
   if (c.stiffness > 0.0) {
     // the core's rule (Solver::springLimit()), refused here with its reason and counted
-    const SpringLimit limit = solver_->springLimit(c.id, particles);
+    const SpringLimit limit = target_->springLimit(c.id, particles);
     if (c.stiffness > limit.stiffness)
       return reject("spring_too_stiff",
                     "drag '" + c.id + "': spring stiffness " + num(c.stiffness) +
@@ -486,21 +555,21 @@ CommandOutcome SimulationLoop::grab(const GrabCommand& c, const AttachCommand* a
                         ": at most " + num(limit.stiffness) + " N/m (or 0 for a hard drag)");
   }
   if (attach == nullptr) {
-    solver_->grab(c.id, particles, c.target, c.stiffness);
-    attachedFrames_.erase(c.id);
+    target_->grab(c.id, particles, c.target, c.stiffness);
+    attachedFrames_.erase({target_, c.id});
     return accepted("drag '" + c.id + "' holds " + std::to_string(particles.size()) +
                         " particle(s)",
                     particles.size());
   }
   try {
-    solver_->attach(c.id, particles, attach->pose, c.stiffness);
+    target_->attach(c.id, particles, attach->pose, c.stiffness);
   } catch (const std::invalid_argument& e) {
     return reject("bad_frame", "attach '" + c.id + "' to frame '" + attach->frame + "': " + e.what());
   }
   if (attach->frame.empty())
-    attachedFrames_.erase(c.id);
+    attachedFrames_.erase({target_, c.id});
   else
-    attachedFrames_[c.id] = attach->frame;
+    attachedFrames_[{target_, c.id}] = attach->frame;
   return accepted("drag '" + c.id + "' holds " + std::to_string(particles.size()) +
                       " particle(s)" +
                       (attach->frame.empty() ? std::string(" where they are")
@@ -509,29 +578,29 @@ CommandOutcome SimulationLoop::grab(const GrabCommand& c, const AttachCommand* a
 }
 
 CommandOutcome SimulationLoop::move(const MoveCommand& c) {
-  const auto attached = attachedFrames_.find(c.id);
+  const auto attached = attachedFrames_.find({target_, c.id});
   if (attached != attachedFrames_.end())
     return reject("attached_drag", "move of drag '" + c.id + "': it follows frame '" +
                                        attached->second +
                                        "'; RELEASE it, or ATTACH it to another frame");
-  if (!solver_->moveDrag(c.id, c.target))
+  if (!target_->moveDrag(c.id, c.target))
     return reject("unknown_drag", "move of drag '" + c.id + "': no such drag (grab first)");
   return accepted("drag '" + c.id + "' moved");
 }
 
 CommandOutcome SimulationLoop::release(const ReleaseCommand& c) {
-  attachedFrames_.erase(c.id);
-  if (!solver_->release(c.id))
+  attachedFrames_.erase({target_, c.id});
+  if (!target_->release(c.id))
     return reject("unknown_drag", "release of drag '" + c.id + "': no such drag");
   return accepted("drag '" + c.id + "' released");
 }
 
 CommandOutcome SimulationLoop::force(const ApplyForceCommand& c) {
-  const std::size_t n = lattice_->size();
+  const std::size_t n = target_->lattice().size();
   if (c.particle >= static_cast<std::int64_t>(n))
     return reject("bad_index", "force: particle " + std::to_string(c.particle) +
                                    " out of range [0, " + std::to_string(n) + ")");
-  if (!c.impulse && solver_->activeForces().size() >= CommandLimits::kMaxForces)
+  if (!c.impulse && target_->activeForces().size() >= CommandLimits::kMaxForces)
     return reject("too_many_forces", "force: already " +
                                          std::to_string(CommandLimits::kMaxForces) +
                                          " forces acting; wait for some to end");
@@ -539,14 +608,14 @@ CommandOutcome SimulationLoop::force(const ApplyForceCommand& c) {
   if (c.particle >= 0)
     particles.push_back(static_cast<std::uint32_t>(c.particle));
   else if (c.radius > 0.0)
-    particles = solver_->particlesWithin(c.point, c.radius);
+    particles = target_->particlesWithin(c.point, c.radius);
   else
-    particles = solver_->nearestParticles(c.point, 1);
+    particles = target_->nearestParticles(c.point, 1);
   if (particles.empty())
     return reject("empty_selection", "force: no particle within " + num(c.radius) +
                                          " m of the point; aim at the object or widen the radius");
   const double mass = massOf(particles);
-  const double size = lattice_->objectSize();
+  const double size = target_->lattice().objectSize();
   const double magnitude = c.force.norm();
   if (c.impulse) {
     const double limit = CommandLimits::kMaxSpeedChange * size * mass;
@@ -555,7 +624,7 @@ CommandOutcome SimulationLoop::force(const ApplyForceCommand& c) {
                                      " kg would change their speed by more than " +
                                      num(CommandLimits::kMaxSpeedChange * size) +
                                      " m/s: at most " + num(limit) + " N s");
-    solver_->applyImpulse(particles, c.force);
+    target_->applyImpulse(particles, c.force);
   } else {
     const double limit = CommandLimits::kMaxAcceleration * size * mass;
     if (magnitude > limit)
@@ -563,7 +632,7 @@ CommandOutcome SimulationLoop::force(const ApplyForceCommand& c) {
                                      " kg would accelerate them by more than " +
                                      num(CommandLimits::kMaxAcceleration * size) +
                                      " m/s^2: at most " + num(limit) + " N");
-    solver_->applyForce(particles, c.force, c.duration);
+    target_->applyForce(particles, c.force, c.duration);
   }
   return accepted(std::string(c.impulse ? "impulse" : "force") + " on " +
                       std::to_string(particles.size()) + " particle(s)",
@@ -571,7 +640,7 @@ CommandOutcome SimulationLoop::force(const ApplyForceCommand& c) {
 }
 
 CommandOutcome SimulationLoop::pinBox(const PinBoxCommand& c) {
-  const std::size_t count = solver_->pinBox(c.lo, c.hi, c.pin);
+  const std::size_t count = target_->pinBox(c.lo, c.hi, c.pin);
   return accepted(std::string(c.pin ? "pinned " : "freed ") + std::to_string(count) +
                       " particle(s) in the box",
                   count);
@@ -579,7 +648,7 @@ CommandOutcome SimulationLoop::pinBox(const PinBoxCommand& c) {
 
 CommandOutcome SimulationLoop::setParams(const ParamsCommand& c) {
   try {
-    solver_->setParams(c.params);
+    target_->setParams(c.params);
   } catch (const std::invalid_argument& e) {
     return reject("invalid_params", e.what());
   }
@@ -587,8 +656,8 @@ CommandOutcome SimulationLoop::setParams(const ParamsCommand& c) {
 }
 
 CommandOutcome SimulationLoop::setCollider(const SetColliderCommand& c) {
-  const bool known = solver_->colliders().count(c.id) > 0 || followed_.count(c.id) > 0;
-  std::size_t count = solver_->colliders().size();
+  const bool known = target_->colliders().count(c.id) > 0 || followed_.count(c.id) > 0;
+  std::size_t count = target_->colliders().size();
   for (const auto& entry : followed_) count += entry.second.inSolver ? 0 : 1;
   if (!known && count >= ColliderLimits::kMaxColliders)
     return reject("too_many_colliders", "collider '" + c.id + "': already " +
@@ -597,10 +666,10 @@ CommandOutcome SimulationLoop::setCollider(const SetColliderCommand& c) {
   try {
     c.collider.validate();
     if (c.followFrame.empty()) {
-      solver_->setCollider(c.id, c.collider);
+      world_->setCollider(c.id, c.collider);
     } else {
       // In the solver from its first sampled pose on (followColliders()).
-      solver_->removeCollider(c.id);
+      world_->removeCollider(c.id);
     }
   } catch (const std::exception& e) {  // invalid_argument, or MeshError for an open mesh
     return reject("bad_collider", "collider '" + c.id + "': " + e.what());
@@ -624,7 +693,7 @@ CommandOutcome SimulationLoop::moveCollider(const MoveColliderCommand& c) {
                   "move of collider '" + c.id + "': it follows a tf frame; move the frame, or "
                   "ADD it again without follow_frame");
   try {
-    if (!solver_->moveCollider(c.id, c.pose, c.linearVelocity, c.angularVelocity))
+    if (!world_->moveCollider(c.id, c.pose, c.linearVelocity, c.angularVelocity))
       return reject("unknown_collider",
                     "move of collider '" + c.id + "': no such collider (ADD it first)");
   } catch (const std::invalid_argument& e) {
@@ -635,7 +704,7 @@ CommandOutcome SimulationLoop::moveCollider(const MoveColliderCommand& c) {
 
 CommandOutcome SimulationLoop::removeCollider(const RemoveColliderCommand& c) {
   const bool followed = followed_.erase(c.id) > 0;
-  if (!solver_->removeCollider(c.id) && !followed)
+  if (!world_->removeCollider(c.id) && !followed)
     return reject("unknown_collider", "removal of collider '" + c.id + "': no such collider");
   return accepted("collider '" + c.id + "' removed");
 }
@@ -668,10 +737,10 @@ void SimulationLoop::followColliders(double dt) {
         c.pose = m.pose;
         c.linearVelocity = m.linearVelocity;
         c.angularVelocity = m.angularVelocity;
-        solver_->setCollider(entry.first, c);
+        world_->setCollider(entry.first, c);
         f.inSolver = true;
       } else {
-        solver_->moveCollider(entry.first, m.pose, m.linearVelocity, m.angularVelocity);
+        world_->moveCollider(entry.first, m.pose, m.linearVelocity, m.angularVelocity);
       }
     } catch (const std::invalid_argument&) {
       continue;  // a non-finite sample (the node sends none): the collider stays where it was

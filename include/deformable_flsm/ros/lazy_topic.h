@@ -25,12 +25,12 @@ class LazyTopic {
   LazyTopic(const LazyTopic&) = delete;  // the connect callback holds `this`
   LazyTopic& operator=(const LazyTopic&) = delete;
 
-  /// Advertises `name` (queue 1, not latched: a new subscriber is served by the connect
-  /// callback with a fresh stamp) on `nh`.
+  /// Advertises `name` (queue `queue`, 1 unless several publishers share the topic; not
+  /// latched: a new subscriber is served by the connect callback with a fresh stamp) on `nh`.
   template <typename Msg>
-  void advertise(ros::NodeHandle& nh, const std::string& name) {
+  void advertise(ros::NodeHandle& nh, const std::string& name, std::uint32_t queue = 1) {
     ros::AdvertiseOptions options;
-    options.template init<Msg>(name, 1, [this](const ros::SingleSubscriberPublisher&) { newSubscriber_ = true; });
+    options.template init<Msg>(name, queue, [this](const ros::SingleSubscriberPublisher&) { newSubscriber_ = true; });
     options.latch = false;
     pub_ = nh.advertise(options);
   }
