@@ -90,6 +90,7 @@ SimulationLoop::SimulationLoop(std::unique_ptr<World> world, const LoopSettings&
     for (std::size_t i = 0; i < L.size(); ++i) com += L.masses()[i] * L.restPositions()[i];
     restCenterOfMass_.push_back(com / L.totalMass());
     stillFrom_.push_back(solver->positions());
+    versions_.emplace_back();
   }
   target_ = solvers_.front();
   centerOfMass_ = restCenterOfMass_;
@@ -402,6 +403,21 @@ void SimulationLoop::writeObject(const Solver& solver, std::size_t k, ObjectSnap
   }
   const Eigen::Isometry3d rigid = solver.rigidFrame();
   o.objectFrame = rigid * Eigen::Translation3d(restCenterOfMass_[k]);
+
+  // A new version when the object moved visibly (the rest threshold) or its pins or drags
+  // changed since the last one; the first snapshot is the first version.
+  Version& v = versions_[k];
+  bool changed = v.sequence == 0 || v.pinned != solver.pinnedCount() || v.drags != o.drags.size();
+  const double limit = settings_.restFraction * lattices_[k]->objectSize();
+  for (std::size_t i = 0; i < n && !changed; ++i)
+    changed = (o.positions[i] - v.positions[i]).squaredNorm() > limit * limit;
+  if (changed) {
+    v.sequence = sequence_;
+    v.positions = o.positions;  // same size every time: copies, no allocation after the first
+    v.pinned = solver.pinnedCount();
+    v.drags = o.drags.size();
+  }
+  o.version = v.sequence;
 
   // Figures that need the whole state, computed once here for every reader.
   LoopDiagnostics& d = o.diag;

@@ -58,7 +58,7 @@ class StatePublisher::ObjectTopics {
  public:
   ObjectTopics(ros::NodeHandle& pnh, const NodeParams& params, const SceneObject& object,
                std::size_t index, std::size_t count, bool namespaced)
-      : params_(params), object_(object), index_(index) {
+      : params_(params), object_(object), index_(index), namespaced_(namespaced) {
     ros::NodeHandle nh = namespaced ? ros::NodeHandle(pnh, "objects/" + object.name) : pnh;
     initTriangleListMarker(params_.frameId, namespaced ? object.name : kMarkerNamespace,
                            objectColor(index), marker_);
@@ -78,17 +78,22 @@ class StatePublisher::ObjectTopics {
   void publishHeavy(const Snapshot& s, const ros::Time& stamp) {
     const ObjectSnapshot& o = s.objects[index_];
     const Lattice& lattice = *object_.lattice;
+    // One object of several is at rest while its version stays, although others move: its
+    // messages are neither rebuilt nor, for the markers, re-sent. The single object rests with
+    // the node, as it always did.
+    const std::uint64_t seq = namespaced_ ? o.version : s.sequence;
+    const bool resting = s.diag.idle || (namespaced_ && o.version != s.sequence);
     // The clouds keep the rate at rest (resent with a new stamp: no simulation, no rebuild);
     // the markers only with ~republish_at_rest (the bunny's ~mesh is 5 MB a message).
     const bool markersAtRest = params_.republishAtRest;
-    const bool meshDue = mesh_.due(s, markersAtRest);
-    const bool surfaceDue = surface_.due(s, kCloudsAtRest);
-    if ((meshDue && mesh_.stale(s)) || (surfaceDue && surface_.stale(s))) {
-      if (verticesSequence_ != s.sequence) {
+    const bool meshDue = mesh_.due(seq, resting, markersAtRest);
+    const bool surfaceDue = surface_.due(seq, resting, kCloudsAtRest);
+    if ((meshDue && mesh_.stale(seq)) || (surfaceDue && surface_.stale(seq))) {
+      if (verticesSequence_ != seq) {
         object_.embedding->deform(o.positions, o.rotations, vertices_);
         // The embedded surface may dip below a collider the particles rest on: not on screen.
         projectOutOfColliders(vertices_, s.colliders, 0.0);
-        verticesSequence_ = s.sequence;
+        verticesSequence_ = seq;
         verticesFinite_ = allFinite(vertices_);
       }
     }
@@ -101,23 +106,23 @@ class StatePublisher::ObjectTopics {
                          static_cast<unsigned long long>(nonFiniteSkips_));
     }
     if (meshDue && verticesOk) {
-      mesh_.publish(s, stamp, marker_, [&](visualization_msgs::Marker& m) {
+      mesh_.publish(seq, stamp, marker_, [&](visualization_msgs::Marker& m) {
         setTriangleListPoints(vertices_, object_.renderMesh.triangles, m);
       });
     }
     if (surfaceDue && verticesOk) {
-      surface_.publish(s, stamp, surfaceCloud_, [&](sensor_msgs::PointCloud2& cloud) {
+      surface_.publish(seq, stamp, surfaceCloud_, [&](sensor_msgs::PointCloud2& cloud) {
         fillVertexCloud(vertices_, params_.frameId, cloud);
       });
     }
     // Particle positions are finite: the simulation thread resets a non-finite state.
-    if (particles_.due(s, kCloudsAtRest)) {
-      particles_.publish(s, stamp, particleCloud_, [&](sensor_msgs::PointCloud2& cloud) {
+    if (particles_.due(seq, resting, kCloudsAtRest)) {
+      particles_.publish(seq, stamp, particleCloud_, [&](sensor_msgs::PointCloud2& cloud) {
         fillParticleCloud(o.positions, lattice.restPositions(), params_.frameId, cloud);
       });
     }
-    if (latticeMarkers_.due(s, markersAtRest)) {
-      latticeMarkers_.publish(s, stamp, latticeMarkerArray_, [&](visualization_msgs::MarkerArray& markers) {
+    if (latticeMarkers_.due(seq, resting, markersAtRest)) {
+      latticeMarkers_.publish(seq, stamp, latticeMarkerArray_, [&](visualization_msgs::MarkerArray& markers) {
         dragLines_.clear();
         for (const DragView& d : o.drags) dragLines_.emplace_back(d.centroid, d.target);
         fillLatticeMarkers(o.positions, o.pinned, dragLines_, lattice.spacing(), params_.frameId, markers);
@@ -129,6 +134,7 @@ class StatePublisher::ObjectTopics {
   const NodeParams& params_;
   const SceneObject& object_;
   std::size_t index_;
+  bool namespaced_;
   LazyTopic mesh_, surface_, particles_, latticeMarkers_;
   ros::Publisher statePub_;
   SimulationState state_;

@@ -279,6 +279,10 @@ TEST(SimulationLoop, ACommandMovesTheObjectItAddressesAndNoOther) {
     ASSERT_LT((s.objects[0].positions[i] - lattice->restPositions()[i]).norm(), 1e-12)
         << "a moved at particle " << i;
   EXPECT_EQ(s.diag.drags, 1u);  // the scene's figures sum the objects'
+  // a, which did not move, still shows its first state; b has newer ones (its messages are
+  // rebuilt, a's are not)
+  EXPECT_EQ(s.objects[0].version, 1u);
+  EXPECT_GT(s.objects[1].version, 1u);
 
   // An object the scene does not have: refused, counted, nothing else changes.
   Command toNobody{ReleaseCommand{"hand"}, std::make_shared<std::promise<CommandOutcome>>(), "gone"};

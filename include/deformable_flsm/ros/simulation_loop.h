@@ -91,6 +91,11 @@ struct DragView {
 struct ObjectSnapshot {
   /// the object's name in the World
   std::string name;
+  /// Snapshot::sequence of the last snapshot in which this object had moved (any particle
+  /// farther than LoopSettings::restFraction object sizes from where it was at the version
+  /// before) or its pins or drags changed: while it stays, the object looks the same, and
+  /// its messages need not be rebuilt or re-sent although others move
+  std::uint64_t version = 0;
   /// #P particle positions (m) and region rotations
   std::vector<Eigen::Vector3d> positions;
   std::vector<Eigen::Quaterniond> rotations;
@@ -280,6 +285,13 @@ class SimulationLoop {
   double stillFor_ = 0.0;  // simulated seconds of stillness
   /// per object, positions at the start of the stillness window
   std::vector<std::vector<Eigen::Vector3d>> stillFrom_;
+  /// per object, the positions, pins and drags of its current version (ObjectSnapshot::version)
+  struct Version {
+    std::uint64_t sequence = 0;
+    std::vector<Eigen::Vector3d> positions;
+    std::size_t pinned = 0, drags = 0;
+  };
+  std::vector<Version> versions_;
   double windowSteps_ = 0.0, windowStepSeconds_ = 0.0, windowSimulated_ = 0.0;
   std::chrono::steady_clock::time_point windowStart_;
   bool windowComplete_ = false;  // a full window has passed since the last restart
