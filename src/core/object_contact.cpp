@@ -66,7 +66,7 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
   for (PairImpulse& p : pairs_) p.contacts = 0;
   for (ColliderImpulse& c : colliderImpulses_) c.contacts = 0;
   if (!params.enabled && !params.selfContact) return;
-  gather(objects, params);
+  gather(objects, params, h);
   if (count_ == 0) return;
   findPairs(objects, params, h);
   if (contacts_.empty()) return;
@@ -78,8 +78,10 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
 }
 
 // Broad phase and gathering: the particles that may touch another object (or their own) are
-// copied into contiguous arrays, object by object in order, each object's in index order.
-void ObjectContactSolver::gather(const std::vector<Solver*>& objects, const ObjectContactParams& params) {
+// copied into contiguous arrays, object by object in order, each object's in index order. All
+// of them, not the lattice's surface only: an impact deforms the object so that particles from
+// inside pass between the surface's (which have no contact with each other) into the other.
+void ObjectContactSolver::gather(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h) {
   const std::size_t N = objects.size();
   lo_.resize(N);
   hi_.resize(N);
@@ -87,24 +89,53 @@ void ObjectContactSolver::gather(const std::vector<Solver*>& objects, const Obje
   reach_.resize(N);
   near_.assign(N, 0);
   for (std::size_t o = 0; o < N; ++o) {
+    // the box swept by the particles over the sub-step, x - h v to x
     const auto& x = objects[o]->positions();
-    Eigen::Vector3d lo = x[0], hi = x[0];
-    for (const Eigen::Vector3d& p : x) {
-      lo = lo.cwiseMin(p);
-      hi = hi.cwiseMax(p);
+    const auto& v = objects[o]->velocities();
+    Eigen::Vector3d lo = x[0], hi = lo;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      const Eigen::Vector3d start = x[i] - h * v[i];
+      lo = lo.cwiseMin(x[i]).cwiseMin(start);
+      hi = hi.cwiseMax(x[i]).cwiseMax(start);
     }
     radius_[o] = objects[o]->contactRadius();
     reach_[o] = radius_[o] * (1.0 + kContactMargin);
     lo_[o] = lo.array() - reach_[o];
     hi_[o] = hi.array() + reach_[o];
   }
-  // per object pair by bounds: O(N^2) box tests, nothing per particle of an object alone
-  for (std::size_t a = 0; a < N; ++a) {
-    if (params.selfContact) near_[a] = 1;
-    if (!params.enabled) continue;
-    for (std::size_t b = a + 1; b < N; ++b)
-      if (boxesMeet(lo_[a], hi_[a], lo_[b], hi_[b])) near_[a] = near_[b] = 1;
+  // per object pair by bounds, sweeping the objects in order of their lower x bound (a pair is
+  // tested only where the x intervals meet): nothing per particle of an object alone. Then each
+  // object's list of the others its bounds meet (flat arrays, capacity kept).
+  order_.resize(N);
+  for (std::size_t o = 0; o < N; ++o) order_[o] = static_cast<std::uint32_t>(o);
+  std::sort(order_.begin(), order_.end(), [&](std::uint32_t a, std::uint32_t b) {
+    return lo_[a].x() != lo_[b].x() ? lo_[a].x() < lo_[b].x() : a < b;
+  });
+  objectPairs_.clear();
+  if (params.enabled)
+    for (std::size_t i = 0; i < N; ++i) {
+      const std::uint32_t a = order_[i];
+      for (std::size_t j = i + 1; j < N && lo_[order_[j]].x() <= hi_[a].x(); ++j) {
+        const std::uint32_t b = order_[j];
+        if (boxesMeet(lo_[a], hi_[a], lo_[b], hi_[b])) objectPairs_.emplace_back(a, b);
+      }
+    }
+  neighborStart_.assign(N + 1, 0);
+  for (const auto& p : objectPairs_) {
+    ++neighborStart_[p.first + 1];
+    ++neighborStart_[p.second + 1];
   }
+  for (std::size_t o = 0; o < N; ++o) {
+    neighborStart_[o + 1] += neighborStart_[o];
+    near_[o] = params.selfContact || neighborStart_[o + 1] > neighborStart_[o];
+  }
+  neighbors_.resize(neighborStart_[N]);
+  for (const auto& p : objectPairs_) {  // neighborStart_[o] as a cursor, restored below
+    neighbors_[neighborStart_[p.first]++] = p.second;
+    neighbors_[neighborStart_[p.second]++] = p.first;
+  }
+  for (std::size_t o = N; o > 0; --o) neighborStart_[o] = neighborStart_[o - 1];
+  neighborStart_[0] = 0;
   count_ = 0;
   for (std::size_t o = 0; o < N; ++o) {
     if (!near_[o]) continue;
@@ -115,9 +146,11 @@ void ObjectContactSolver::gather(const std::vector<Solver*>& objects, const Obje
     for (std::size_t i = 0; i < x.size(); ++i) {
       bool wanted = params.selfContact;
       // only where the particle's sphere with its margin meets another object's bounds
-      for (std::size_t b = 0; b < N && !wanted && params.enabled; ++b) {
-        if (b == o) continue;
-        wanted = (x[i].array() + reach_[o] >= lo_[b].array()).all() && (x[i].array() - reach_[o] <= hi_[b].array()).all();
+      const Eigen::Vector3d start = x[i] - h * v[i];
+      const Eigen::Vector3d plo = x[i].cwiseMin(start).array() - reach_[o], phi = x[i].cwiseMax(start).array() + reach_[o];
+      for (std::uint32_t e = neighborStart_[o]; e < neighborStart_[o + 1] && !wanted; ++e) {
+        const std::uint32_t b = neighbors_[e];
+        wanted = boxesMeet(plo, phi, lo_[b], hi_[b]);
       }
       if (!wanted) continue;
       if (object_.size() <= count_) {
@@ -129,6 +162,7 @@ void ObjectContactSolver::gather(const std::vector<Solver*>& objects, const Obje
         w_.resize(grown);
         r_.resize(grown);
         touched_.resize(grown);
+        moved_.resize(grown);
       }
       object_[count_] = static_cast<std::uint32_t>(o);
       index_[count_] = static_cast<std::uint32_t>(i);
@@ -136,14 +170,19 @@ void ObjectContactSolver::gather(const std::vector<Solver*>& objects, const Obje
       v_[count_] = v[i];
       w_[count_] = s.isPrescribed(static_cast<std::uint32_t>(i)) ? 0.0 : 1.0 / m[i];
       r_[count_] = radius_[o];
+      moved_[count_] = h * v[i].norm();
       touched_[count_] = 0;
       ++count_;
     }
   }
 }
 
-// The pairs closer than their radii with the margin, each once (k1 < k2), in the order of k1
-// and of the hash's buckets: deterministic.
+// The pairs closer than their radii with the margin plus how far both moved in the sub-step
+// (so that a particle that passed through another within the sub-step is found: its contact's
+// normal, from the start positions, puts it back on the side it came from). Each pair is taken
+// once, by the particle that moved farther (the lower index on a tie), whose query reaches
+// reach + 2 d >= reach + d1 + d2; in the order of the particles and of the hash's buckets:
+// deterministic.
 void ObjectContactSolver::findPairs(const std::vector<Solver*>& objects, const ObjectContactParams& params,
                                     double h) {
   contacts_.clear();
@@ -153,8 +192,11 @@ void ObjectContactSolver::findPairs(const std::vector<Solver*>& objects, const O
   for (std::size_t k1 = 0; k1 < count_; ++k1) {
     const Eigen::Vector3d x1 = x_[k1];
     const std::uint32_t o1 = object_[k1];
-    hash_.forEachNear(x1, [&](std::uint32_t k2) {
-      if (k2 <= k1) return;
+    const double d1 = moved_[k1];
+    hash_.forEachWithin(x1, cell + 2.0 * d1, buckets_, [&](std::uint32_t k2) {
+      if (k2 == k1) return;
+      const double d2 = moved_[k2];
+      if (d2 > d1 || (d2 == d1 && k2 < k1)) return;  // the other one takes it
       const std::uint32_t o2 = object_[k2];
       if (o1 == o2) {
         if (!params.selfContact) return;
@@ -165,7 +207,7 @@ void ObjectContactSolver::findPairs(const std::vector<Solver*>& objects, const O
         return;
       }
       const double R = r_[k1] + r_[k2];
-      const double reach = R * (1.0 + kContactMargin);
+      const double reach = R * (1.0 + kContactMargin) + d1 + d2;
       if ((x1 - x_[k2]).squaredNorm() >= reach * reach) return;
       const double wsum = w_[k1] + w_[k2];
       if (!(wsum > 0.0)) return;  // both prescribed
@@ -229,25 +271,32 @@ void ObjectContactSolver::findColliderContacts(const std::vector<SubstepCollider
 }
 
 void ObjectContactSolver::solve(double h, int iterations) {
+  for (Contact& c : contacts_) {
+    c.invHW = 1.0 / (h * c.wsum);
+    c.invW = 1.0 / c.wsum;
+  }
   for (int it = 0; it < iterations; ++it) {
     for (Contact& c : contacts_) {
       Eigen::Vector3d& x1 = x_[c.k1];
       Eigen::Vector3d& v1 = v_[c.k1];
-      const double w1 = w_[c.k1];
       const bool pair = !c.collider;
-      const double w2 = pair ? w_[c.k2] : 0.0;
       // normal
       const double gap = pair ? c.n.dot(x1 - x_[c.k2]) - c.offset : c.n.dot(x1) - c.offset;
       const double old = c.lambda;
-      c.lambda = std::max(0.0, old + (c.target - gap) / (h * c.wsum));
+      c.lambda = std::max(0.0, old + (c.target - gap) * c.invHW);
+      // a contact that neither pushes nor holds (most of those found within the margin) has
+      // nothing to apply
+      if (c.lambda == 0.0 && old == 0.0 && c.friction.isZero(0.0)) continue;
+      const double w1 = w_[c.k1];
+      const double w2 = pair ? w_[c.k2] : 0.0;
       Eigen::Vector3d J = (c.lambda - old) * c.n;
       // friction on the relative velocity after the normal change
-      Eigen::Vector3d u = v1 + w1 * J - (pair ? Eigen::Vector3d(v_[c.k2] - w2 * J) : c.vc);
+      const Eigen::Vector3d u = v1 + w1 * J - (pair ? Eigen::Vector3d(v_[c.k2] - w2 * J) : c.vc);
       const Eigen::Vector3d ut = u - u.dot(c.n) * c.n;
       const Eigen::Vector3d oldF = c.friction;
-      Eigen::Vector3d f = oldF - ut / c.wsum;
-      const double fn = f.norm();
-      if (fn > c.muS * c.lambda) f *= (fn > 0.0 ? c.muK * c.lambda / fn : 0.0);
+      Eigen::Vector3d f = oldF - ut * c.invW;
+      const double fn2 = f.squaredNorm(), cone = c.muS * c.lambda;
+      if (fn2 > cone * cone) f *= c.muK * c.lambda / std::sqrt(fn2);
       c.friction = f;
       J += f - oldF;
       const Eigen::Vector3d dv1 = w1 * J;
@@ -313,10 +362,11 @@ void ObjectContactSolver::accumulate(const std::vector<SubstepCollider>& collide
     if (!active && c.friction.isZero(0.0)) continue;
     const double r1 = r_[c.k1], r2 = r_[c.k2];
     const Eigen::Vector3d point = x_[c.k2] + (r2 / (r1 + r2)) * (x_[c.k1] - x_[c.k2]);
-    // k1 precedes k2 in the gathered order, so o1 < o2: the impulse on o2 is -J
-    PairImpulse& p = pairSlot(o1, o2);
-    p.impulse -= J;
-    p.moment -= point.cross(J);
+    // the slot holds the impulse on the object of the higher index: -J on o2, J on o1
+    const Eigen::Vector3d onB = o1 < o2 ? Eigen::Vector3d(-J) : J;
+    PairImpulse& p = pairSlot(std::min(o1, o2), std::max(o1, o2));
+    p.impulse += onB;
+    p.moment += point.cross(onB);
     if (last && active) ++p.contacts;
   }
 }

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -253,4 +254,308 @@ TEST(WorldScene, AStackOfThreeCarriesTheWeightAboveEachContact) {
   EXPECT_NEAR(world.objectWrench("top", "middle").force.z(), -mt.force.z(), 0.1 * Wt) << "equal and opposite";
   EXPECT_LT(overlap, 0.1) << "no two spheres of different objects overlap by a tenth of a radius";
   EXPECT_LT(maxSpeed(world), 1e-3) << "the stack is at rest";
+}
+
+// --- squeezed by a collider ------------------------------------------------------------------
+
+TEST(WorldScene, TwoBlocksSqueezedByAColliderDoNotPassThroughAndRecover) {
+  World world(kStep, kSubsteps);
+  world.setCollider("ground", ground(0.0));
+  // a wall at x = 0, the blocks side by side, a pusher at their right face
+  world.setCollider("wall", box(Eigen::Vector3d(-0.05, 0.02, 0.05), Eigen::Vector3d(0.05, 0.1, 0.1)));
+  auto a = boxAt(4, 4, 3, 0.01, Eigen::Vector3d(0.0, 0.0, 0.0));
+  auto b = boxAt(4, 4, 3, 0.01, Eigen::Vector3d(0.04, 0.0, 0.0));
+  Solver& A = world.addObject("a", a, paramsFor(*a, 1.0, 2.0));
+  Solver& B = world.addObject("b", b, paramsFor(*b, 1.0, 2.0));
+  const Collider pusher = box(Eigen::Vector3d(0.13, 0.02, 0.05), Eigen::Vector3d(0.05, 0.1, 0.1));
+  world.setCollider("pusher", pusher);
+  for (int i = 0; i < stepsFor(1.0); ++i) world.step();
+  const double restA = A.shapeError(), restB = B.shapeError();
+  // push 2 cm (a quarter of the two blocks' width) in 1 s, hold, then back away
+  const Eigen::Vector3d in(-0.02, 0.0, 0.0);
+  world.moveCollider("pusher", world.object("a") ? pusher.pose : pusher.pose, in, Eigen::Vector3d::Zero());
+  double overlap = 0.0, squeezed = 0.0, push = 0.0;
+  for (int i = 0; i < stepsFor(1.0); ++i) {
+    world.step();
+    overlap = std::max(overlap, deepestOverlap(world));
+  }
+  Eigen::Isometry3d held = pusher.pose;
+  held.translation() += in;
+  world.moveCollider("pusher", held, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  for (int i = 0; i < stepsFor(0.5); ++i) {
+    world.step();
+    overlap = std::max(overlap, deepestOverlap(world));
+  }
+  squeezed = std::min(A.shapeError(), B.shapeError());
+  push = world.contactWrench("pusher").force.x();
+  const double between = world.objectWrench("a", "b").force.x();
+  world.moveCollider("pusher", pusher.pose, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  for (int i = 0; i < stepsFor(2.0); ++i) world.step();
+  std::printf("squeeze: pusher %.3f N, a on b %.3f N; shape error at rest %.3g/%.3g m, squeezed %.3g m, "
+              "released %.3g/%.3g m; deepest overlap %.3g r\n",
+              push, between, restA, restB, squeezed, A.shapeError(), B.shapeError(), overlap);
+  EXPECT_GT(push, 0.1) << "the pusher presses the blocks against the wall";
+  // statics along x: the wall holds what the pusher pushes, through both blocks (the ground's
+  // friction takes a share)
+  EXPECT_GT(between, 0.5 * push);
+  EXPECT_GT(squeezed, 10.0 * std::max(restA, restB)) << "the squeeze deforms both";
+  EXPECT_LT(overlap, 0.1) << "neither passes through the other";
+  EXPECT_LT(A.shapeError(), 2.0 * restA + 1e-5) << "released, a recovers its shape";
+  EXPECT_LT(B.shapeError(), 2.0 * restB + 1e-5) << "released, b recovers its shape";
+}
+
+// --- a bin -----------------------------------------------------------------------------------
+
+TEST(WorldScene, TwentyObjectsDroppedIntoABinComeToRestInside) {
+  World world(kStep, kSubsteps);
+  // a 14 x 14 cm bin 10 cm deep: a floor and four walls (thicker than a particle can be pushed
+  // into: a box pushes out through its nearest face)
+  const double inner = 0.07, depth = 0.1, wall = 0.05;
+  world.setCollider("floor", box(Eigen::Vector3d(0, 0, -wall), Eigen::Vector3d(inner + 2 * wall, inner + 2 * wall, wall)));
+  world.setCollider("wall_x+", box(Eigen::Vector3d(inner + wall, 0, depth / 2), Eigen::Vector3d(wall, inner + 2 * wall, depth / 2)));
+  world.setCollider("wall_x-", box(Eigen::Vector3d(-inner - wall, 0, depth / 2), Eigen::Vector3d(wall, inner + 2 * wall, depth / 2)));
+  world.setCollider("wall_y+", box(Eigen::Vector3d(0, inner + wall, depth / 2), Eigen::Vector3d(inner + 2 * wall, wall, depth / 2)));
+  world.setCollider("wall_y-", box(Eigen::Vector3d(0, -inner - wall, depth / 2), Eigen::Vector3d(inner + 2 * wall, wall, depth / 2)));
+  // five layers of four 3 x 3 x 3 cm blocks, each layer shifted, every block spinning so that
+  // they tumble onto each other
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int n = 0; n < 20; ++n) {
+    const int layer = n / 4, corner = n % 4;
+    const double shift = (layer % 2 == 0 ? -0.01 : 0.01);
+    const Eigen::Vector3d lo((corner % 2 == 0 ? -0.045 : 0.005) + shift, (corner / 2 == 0 ? -0.045 : 0.005) - shift,
+                             0.01 + 0.045 * layer);
+    auto lattice = boxAt(3, 3, 3, 0.01, lo);
+    Solver& s = world.addObject("block" + std::to_string(n), lattice, paramsFor(*lattice, 1.0, 2.0));
+    const Eigen::Vector3d centre = lo + Eigen::Vector3d::Constant(0.015);
+    const Eigen::Vector3d spin = 5.0 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    std::vector<Eigen::Vector3d> v(lattice->size());
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = spin.cross(s.positions()[i] - centre);
+    s.setVelocities(v);
+  }
+  double overlap = 0.0;
+  for (int i = 0; i < stepsFor(4.0); ++i) {
+    world.step();
+    if (i % 6 == 0) overlap = std::max(overlap, deepestOverlap(world));
+  }
+  overlap = std::max(overlap, deepestOverlap(world));
+  // how far the deepest sphere reaches into a wall or the floor (r = 5 mm)
+  const double r = 0.005;
+  double intoWalls = -r, highest = 0.0;
+  for (const std::string& name : world.objectNames())
+    for (const auto& x : world.object(name)->positions()) {
+      intoWalls = std::max({intoWalls, std::abs(x.x()) + r - inner, std::abs(x.y()) + r - inner, r - x.z()});
+      highest = std::max(highest, x.z());
+    }
+  std::printf("bin: 20 blocks, max speed %.3g m/s, deepest overlap %.3g r, deepest into a wall %.3g r, "
+              "top of the pile %.3f m\n",
+              maxSpeed(world), overlap, intoWalls / r, highest);
+  EXPECT_TRUE(allFinite(world));
+  EXPECT_LT(intoWalls, 0.1 * r) << "nothing escapes the bin or sinks into its walls";
+  EXPECT_LT(highest, depth) << "the pile settles below the rim";
+  EXPECT_LT(overlap, 0.1) << "no two blocks interpenetrate";
+  EXPECT_LT(maxSpeed(world), 0.02) << "the pile comes to rest";
+}
+
+// --- a gripper lifting two objects -----------------------------------------------------------
+
+namespace {
+
+/// Two blocks side by side between two fingers, the left finger with friction, the right one
+/// smooth: squeezed, then lifted 3 cm. Returns how far the right block (held by the smooth
+/// finger and its neighbour only) rose.
+double liftTwoBlocks(double objectFriction, double* leftRise) {
+  ObjectContactParams contact;
+  contact.staticFriction = contact.kineticFriction = objectFriction;
+  World world(kStep, kSubsteps, contact);
+  world.setCollider("ground", ground(0.0));
+  auto a = boxAt(3, 3, 3, 0.01, Eigen::Vector3d(0.0, 0.0, 0.0));
+  auto b = boxAt(3, 3, 3, 0.01, Eigen::Vector3d(0.03, 0.0, 0.0));
+  Solver& A = world.addObject("a", a, paramsFor(*a, 1.0, 2.0));
+  Solver& B = world.addObject("b", b, paramsFor(*b, 1.0, 2.0));
+  const Eigen::Vector3d half(0.01, 0.03, 0.03);
+  Collider left = box(Eigen::Vector3d(-0.01, 0.015, 0.025), half, 1.0);
+  Collider right = box(Eigen::Vector3d(0.07, 0.015, 0.025), half, 0.0);
+  world.setCollider("left", left);
+  world.setCollider("right", right);
+  for (int i = 0; i < stepsFor(0.5); ++i) world.step();
+  const double a0 = centreOfMass(A).z(), b0 = centreOfMass(B).z();
+  // squeeze 3 mm each in 0.3 s, then lift at 10 cm/s for 0.3 s, then hold
+  const Eigen::Vector3d squeeze(0.01, 0.0, 0.0), up(0.0, 0.0, 0.1);
+  world.moveCollider("left", left.pose, squeeze, Eigen::Vector3d::Zero());
+  world.moveCollider("right", right.pose, -squeeze, Eigen::Vector3d::Zero());
+  for (int i = 0; i < stepsFor(0.3); ++i) world.step();
+  left.pose.translation() += 0.3 * squeeze;
+  right.pose.translation() -= 0.3 * squeeze;
+  world.moveCollider("left", left.pose, up, Eigen::Vector3d::Zero());
+  world.moveCollider("right", right.pose, up, Eigen::Vector3d::Zero());
+  for (int i = 0; i < stepsFor(0.3); ++i) world.step();
+  left.pose.translation() += 0.3 * up;
+  right.pose.translation() += 0.3 * up;
+  world.moveCollider("left", left.pose, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  world.moveCollider("right", right.pose, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  for (int i = 0; i < stepsFor(0.5); ++i) world.step();
+  *leftRise = centreOfMass(A).z() - a0;
+  return centreOfMass(B).z() - b0;
+}
+
+}  // namespace
+
+TEST(WorldScene, AGripperLiftsTwoObjectsThroughTheFrictionBetweenThem) {
+  double aRise = 0.0, aRiseSmooth = 0.0;
+  const double bRise = liftTwoBlocks(0.8, &aRise);
+  const double bRiseSmooth = liftTwoBlocks(0.0, &aRiseSmooth);
+  std::printf("gripper lifts 3 cm: with friction between the blocks a rises %.4f m, b %.4f m; "
+              "without, a %.4f m, b %.4f m\n",
+              aRise, bRise, aRiseSmooth, bRiseSmooth);
+  EXPECT_NEAR(aRise, 0.03, 0.006) << "the block on the rough finger rises with the gripper";
+  EXPECT_NEAR(bRise, 0.03, 0.006) << "the block on the smooth finger is carried by its neighbour";
+  EXPECT_LT(bRiseSmooth, 0.01) << "without friction between them it is left behind";
+}
+
+// --- self-contact ----------------------------------------------------------------------------
+
+namespace {
+
+/// The deepest overlap of two spheres of one object farther apart than `exclusion` cells in
+/// the rest lattice, as a fraction of the radius (brute force).
+double deepestSelfOverlap(const Solver& s, int exclusion) {
+  const auto& x = s.positions();
+  const auto& cells = s.lattice().cells();
+  const double r = s.contactRadius();
+  double deepest = 0.0;
+  for (std::size_t i = 0; i < x.size(); ++i)
+    for (std::size_t j = i + 1; j < x.size(); ++j)
+      if ((cells[i] - cells[j]).cwiseAbs().maxCoeff() > exclusion)
+        deepest = std::max(deepest, (2.0 * r - (x[i] - x[j]).norm()) / r);
+  return deepest;
+}
+
+/// A 20 x 2 x 2 bar whose left half is pinned, its right end pulled by a spring drag up, over
+/// the pinned half and down through it (no gravity). Returns the deepest self-overlap over the
+/// fold.
+double foldBar(bool selfContact) {
+  ObjectContactParams contact;
+  contact.selfContact = selfContact;
+  World world(kStep, kSubsteps, contact);
+  auto bar = boxAt(20, 2, 2, 0.01, Eigen::Vector3d(0, 0, 0));
+  SolverParams p = paramsFor(*bar, 1.0, 2.0);
+  p.gravity.setZero();
+  Solver& s = world.addObject("bar", bar, p);
+  s.pinBox(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(0.1, 1, 1), true);
+  std::vector<std::uint32_t> end;
+  for (std::uint32_t i = 0; i < bar->size(); ++i)
+    if (bar->cells()[i].x() >= 18) end.push_back(i);
+  const Eigen::Vector3d start(0.19, 0.01, 0.01);
+  // a soft spring: a near-hard one crushes the thin bar between its end and the pinned half
+  s.grab("end", end, start, 0.05 * s.springLimit("end", end).stiffness);
+  // a half circle about the fold from x = 0.19 to x = 0.03, then down through the pinned half
+  const Eigen::Vector3d centre(0.11, 0.01, 0.01);
+  const int arc = stepsFor(1.0), down = stepsFor(0.5), hold = stepsFor(0.5);
+  double deepest = 0.0;
+  for (int i = 1; i <= arc + down + hold; ++i) {
+    Eigen::Vector3d target;
+    if (i <= arc) {
+      const double phi = M_PI * i / arc;
+      target = centre + 0.08 * Eigen::Vector3d(std::cos(phi), 0.0, std::sin(phi));
+    } else {
+      target = Eigen::Vector3d(0.03, 0.01, 0.01 - 0.04 * std::min(1.0, double(i - arc) / down));
+    }
+    s.moveDrag("end", target);
+    world.step();
+    deepest = std::max(deepest, deepestSelfOverlap(s, contact.selfExclusion));
+  }
+  return deepest;
+}
+
+}  // namespace
+
+TEST(WorldScene, ABarFoldedOntoItselfDoesNotPassThroughWithSelfContact) {
+  const double with = foldBar(true), without = foldBar(false);
+  std::printf("folded bar: deepest self-overlap %.3g r with self-contact, %.3g r without\n", with, without);
+  EXPECT_LT(with, 0.1) << "self-contact keeps the end out of the bar";
+  EXPECT_GT(without, 1.0) << "without it the end passes through the bar";
+}
+
+// --- run-time changes and refusals -----------------------------------------------------------
+
+TEST(World, ObjectsAreAddedAndRemovedAtRunTime) {
+  World world(kStep, kSubsteps);
+  world.setCollider("ground", ground(0.0));
+  auto a = boxAt(3, 3, 2, 0.01, Eigen::Vector3d(0, 0, 0));
+  auto b = boxAt(3, 3, 2, 0.01, Eigen::Vector3d(0, 0, 0.02));
+  world.addObject("a", a, paramsFor(*a));
+  world.addObject("b", b, paramsFor(*b));
+  for (int i = 0; i < 30; ++i) world.step();
+  EXPECT_GT(world.objectWrench("a", "b").force.z(), 0.0);
+  // a third one dropped on top later, given the ground set before it came
+  auto c = boxAt(3, 3, 2, 0.01, Eigen::Vector3d(0, 0, 0.06));
+  world.addObject("c", c, paramsFor(*c));
+  EXPECT_EQ(world.objectCount(), 3u);
+  EXPECT_EQ(world.object("c")->colliders().count("ground"), 1u);
+  for (int i = 0; i < 60; ++i) world.step();
+  EXPECT_GT(world.objectWrench("b", "c").force.z(), 0.0) << "c landed on b";
+  // take the middle one out: c falls onto a
+  EXPECT_TRUE(world.removeObject("b"));
+  EXPECT_FALSE(world.removeObject("b"));
+  EXPECT_EQ(world.object("b"), nullptr);
+  EXPECT_EQ(world.objectNames(), (std::vector<std::string>{"a", "c"}));
+  for (const ObjectPairWrench& w : world.objectWrenches()) EXPECT_TRUE(w.from != "b" && w.on != "b");
+  for (int i = 0; i < 60; ++i) world.step();
+  EXPECT_GT(world.objectWrench("a", "c").force.z(), 0.0) << "c fell onto a";
+  EXPECT_LT(deepestOverlap(world), 0.1);
+}
+
+TEST(World, RefusesDuplicatesOverlapsAndOtherTimeSteps) {
+  World world(kStep, kSubsteps);
+  auto a = boxAt(3, 3, 3, 0.01, Eigen::Vector3d(0, 0, 0));
+  world.addObject("a", a, paramsFor(*a));
+  EXPECT_THROW(world.addObject("a", boxAt(2, 2, 2, 0.01, Eigen::Vector3d(1, 0, 0)), paramsFor(*a)), std::invalid_argument);
+  EXPECT_THROW(world.addObject("", boxAt(2, 2, 2, 0.01, Eigen::Vector3d(1, 0, 0)), paramsFor(*a)), std::invalid_argument);
+  try {
+    world.addObject("inside", boxAt(2, 2, 2, 0.01, Eigen::Vector3d(0.015, 0.015, 0.015)), paramsFor(*a));
+    ADD_FAILURE() << "an object starting inside another is refused";
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("'inside'"), std::string::npos) << what;
+    EXPECT_NE(what.find("'a'"), std::string::npos) << what;
+  }
+  SolverParams other = paramsFor(*a);
+  other.substeps = kSubsteps + 1;
+  EXPECT_THROW(world.addObject("b", boxAt(2, 2, 2, 0.01, Eigen::Vector3d(1, 0, 0)), other), std::invalid_argument);
+  // touching face to face is not overlapping
+  EXPECT_NO_THROW(world.addObject("beside", boxAt(2, 2, 2, 0.01, Eigen::Vector3d(0.03, 0, 0)), paramsFor(*a)));
+  EXPECT_EQ(world.objectNames(), (std::vector<std::string>{"a", "beside"}));
+  EXPECT_THROW(World(0.0, 4), std::invalid_argument);
+  EXPECT_THROW(World(kStep, 0), std::invalid_argument);
+  ObjectContactParams bad;
+  bad.kineticFriction = bad.staticFriction + 0.1;
+  EXPECT_THROW(World(kStep, kSubsteps, bad), std::invalid_argument);
+  // an object set to another time step stops the world's step, naming it
+  world.object("a")->setParams(other);
+  EXPECT_THROW(world.step(), std::logic_error);
+}
+
+TEST(World, ResultsDoNotDependOnTheThreadCount) {
+  auto run = [](int threads) {
+    World world(kStep, kSubsteps);
+    world.setCollider("ground", ground(0.0));
+    std::vector<std::shared_ptr<const Lattice>> lattices = {boxAt(8, 8, 4, 0.01, Eigen::Vector3d(0, 0, 0)),
+                                                            boxAt(4, 4, 4, 0.01, Eigen::Vector3d(0.02, 0.02, 0.045))};
+    for (std::size_t o = 0; o < lattices.size(); ++o) {
+      SolverParams p = paramsFor(*lattices[o]);
+      p.threads = threads;
+      world.addObject("o" + std::to_string(o), lattices[o], p);
+    }
+    for (int i = 0; i < 60; ++i) world.step();
+    std::vector<Eigen::Vector3d> x;
+    for (const std::string& name : world.objectNames())
+      x.insert(x.end(), world.object(name)->positions().begin(), world.object(name)->positions().end());
+    x.push_back(world.objectWrench("o0", "o1").force);
+    return x;
+  };
+  const auto one = run(1), two = run(2);
+  ASSERT_EQ(one.size(), two.size());
+  EXPECT_NE(one.back(), Eigen::Vector3d::Zero()) << "the objects touch";
+  for (std::size_t i = 0; i < one.size(); ++i) ASSERT_EQ(one[i], two[i]) << i;
 }

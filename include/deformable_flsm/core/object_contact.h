@@ -16,6 +16,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace deformable_flsm {
@@ -54,11 +55,12 @@ class ObjectContactSolver {
   void beginStep(std::size_t objects, std::size_t colliders);
 
   /// The contact pass after every object's sub-step of length h:
-  ///  1. broad phase: each object's bounds (inflated by its contact radius and the margin); a
-  ///     particle enters the hash only where its object's bounds meet another's (or with
-  ///     self-contact), so that far objects cost nothing;
+  ///  1. broad phase: each object's bounds over the sub-step (inflated by its contact radius
+  ///     and the margin); a particle enters the hash only where its object's bounds
+  ///     meet another's (or with self-contact), so that far objects cost nothing;
   ///  2. the spatial hash (cell = the largest contact diameter with its margin) gives the
-  ///     particle pairs closer than the sum of their radii with the margin: pairs of different
+  ///     particle pairs closer than the sum of their radii with the margin and the distances
+  ///     they moved in the sub-step (a sphere that passed through another is caught): pairs of different
   ///     objects, and with params.selfContact pairs of one object farther apart than
   ///     params.selfExclusion cells in its rest lattice; each particle in such a pair also
   ///     gets a contact with every collider it touches, so that an object pressed onto the
@@ -92,12 +94,13 @@ class ObjectContactSolver {
     double offset = 0.0;  // the gap is n . (x1 - x2) - offset, or n . x1 - offset (collider)
     double target = 0.0;  // the least gap at the end of the sub-step: min(start gap, 0)
     double wsum = 0.0;    // w1 + w2
+    double invW = 0.0, invHW = 0.0;  // 1 / wsum, 1 / (h wsum)
     double muS = 0.0, muK = 0.0;
     Eigen::Vector3d vc = Eigen::Vector3d::Zero();  // collider surface velocity
     double lambda = 0.0;                           // normal impulse (N s)
     Eigen::Vector3d friction = Eigen::Vector3d::Zero();  // tangential impulse on k1 (N s)
   };
-  void gather(const std::vector<Solver*>& objects, const ObjectContactParams& params);
+  void gather(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h);
   void findPairs(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h);
   void findColliderContacts(const std::vector<SubstepCollider>& colliders, double h);
   void solve(double h, int iterations);
@@ -110,13 +113,18 @@ class ObjectContactSolver {
   std::vector<Eigen::Vector3d> lo_, hi_;  // bounds inflated by reach_
   std::vector<double> radius_, reach_;    // contact radius, and radius with the margin
   std::vector<char> near_;                // its bounds meet another object's (or self-contact)
+  std::vector<std::uint32_t> order_;  // objects by their lower x bound
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> objectPairs_;  // whose bounds meet
+  std::vector<std::uint32_t> neighborStart_, neighbors_;  // per object, the others its bounds meet
   // the gathered particles
   std::size_t count_ = 0;
   std::vector<std::uint32_t> object_, index_;
   std::vector<Eigen::Vector3d> x_, v_;
   std::vector<double> w_, r_;
+  std::vector<double> moved_;  // h |v|: how far the particle moved in the sub-step
   std::vector<char> touched_;
   SpatialHash hash_;
+  std::vector<std::uint32_t> buckets_;  // a query's buckets
   std::vector<Contact> contacts_;
   std::size_t pairContacts_ = 0;  // contacts_[colliderContacts .. ] are pairs
   // the step's sums

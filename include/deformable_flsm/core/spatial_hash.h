@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -49,6 +50,24 @@ class SpatialHash {
         }
     for (int k = 0; k < n; ++k)
       for (std::uint32_t e = start_[buckets[k]]; e < start_[buckets[k] + 1]; ++e) f(entries_[e]);
+  }
+
+  /// Calls f(j) for every point j sorted into the cells that the cube of half-edge `radius`
+  /// around p meets (27 cells or fewer when radius <= cellSize()), each bucket once, in the
+  /// order of forEachNear(). Finds every point closer to p than `radius`, and some farther.
+  /// @param[in,out] scratch  the buckets' list, kept by the caller (no allocation once grown)
+  template <class F>
+  void forEachWithin(const Eigen::Vector3d& p, double radius, std::vector<std::uint32_t>& scratch, F&& f) const {
+    if (count_ == 0) return;
+    const Eigen::Vector3i lo = cellOf(p.array() - radius), hi = cellOf(p.array() + radius);
+    scratch.clear();
+    for (int z = lo.z(); z <= hi.z(); ++z)
+      for (int y = lo.y(); y <= hi.y(); ++y)
+        for (int x = lo.x(); x <= hi.x(); ++x) scratch.push_back(bucketOf(Eigen::Vector3i(x, y, z)));
+    std::sort(scratch.begin(), scratch.end());
+    scratch.erase(std::unique(scratch.begin(), scratch.end()), scratch.end());
+    for (std::uint32_t b : scratch)
+      for (std::uint32_t e = start_[b]; e < start_[b + 1]; ++e) f(entries_[e]);
   }
 
   double cellSize() const { return cellSize_; }

@@ -36,7 +36,7 @@ struct ObjectContactParams {
   double kineticFriction = 0.5;
   /// Gauss-Seidel passes over the contacts per sub-step (>= 1): more make the impulses through a
   /// stack of objects converge within a sub-step
-  int iterations = 8;
+  int iterations = 4;
 
   /// @throws std::invalid_argument saying which field is wrong
   void validate() const;
