@@ -45,6 +45,9 @@ int main(int argc, char** argv) {
       if (!clamped.empty()) ROS_WARN("flsm_node: %s%s", who.c_str(), clamped.c_str());
       const std::string thin = sectionWarning(o.info, o.params);
       if (!thin.empty()) ROS_WARN("flsm_node: %s%s", who.c_str(), thin.c_str());
+      // (the first object's is ProblemReporter's, as for the single object)
+      const std::string saturated = &o == &scene.objects.front() ? "" : saturationWarning(o.info, o.params);
+      if (!saturated.empty()) ROS_WARN("flsm_node: %s%s", who.c_str(), saturated.c_str());
     }
     SimulatorNode node(nh, pnh, params, std::move(scene), !objects.empty());
     ros::spin();

@@ -64,7 +64,16 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
 
   const SceneObject& first = objects_.front();
   publisher_ = std::make_unique<StatePublisher>(pnh_, params_, objects_, namespaced_, *stats_);
-  reporter_ = std::make_unique<ProblemReporter>(params_, first.info, *first.lattice);
+  // The pins of the whole scene: a ~pinned box holds nothing only if it holds no object's
+  // particle. The material warnings are the first object's (flsm_node warns of the others').
+  sceneInfo_ = first.info;
+  for (std::size_t k = 1; k < objects_.size(); ++k) {
+    const SceneInfo& other = objects_[k].info;
+    sceneInfo_.pinned += other.pinned;
+    for (std::size_t b = 0; b < sceneInfo_.pinnedPerBox.size() && b < other.pinnedPerBox.size(); ++b)
+      sceneInfo_.pinnedPerBox[b] += other.pinnedPerBox[b];
+  }
+  reporter_ = std::make_unique<ProblemReporter>(params_, sceneInfo_, *first.lattice);
   advertise();
   colliders_ = std::make_unique<ColliderTopics>(
       pnh_, commandNh_, params_, *loop_, stats_, tfBuffer_, [this] { startTfListener(); },

@@ -125,6 +125,8 @@ class SimulatorNode {
   NodeParams params_;
   /// the objects (lattice, render mesh, embedding, start-up figures), in the World's order
   std::vector<SceneObject> objects_;
+  /// what ProblemReporter warns about: the first object's, with the pins of every object
+  SceneInfo sceneInfo_;
   bool namespaced_ = false;
   std::shared_ptr<CommandStats> stats_;
   SequenceGaps gaps_;  ///< of ~drag and ~force, on the command spinner's thread
