@@ -46,7 +46,7 @@ struct Args {
   int resolution = 7;
   int objects = 150;
   std::size_t triangles = 1000;
-  int rounds = 5;
+  int rounds = 3;
 };
 
 Args parse(int argc, char** argv) {
@@ -163,11 +163,11 @@ std::unique_ptr<World> apart(const Shape& shape, int n) {
   return world;
 }
 
-/// A bin of floor and four walls sized for n objects, the objects in a grid of layers above
+/// A bin of floor and four walls sized for n objects in about three layers, the objects in a grid of layers above
 /// its floor, each spinning; `vertices` receives each object's render vertices.
 std::unique_ptr<World> bin(const Shape& shape, int n, std::vector<Placed>* placed) {
   auto world = std::make_unique<World>(kStep, kSubsteps);
-  const int side = std::max(1, static_cast<int>(std::lround(std::sqrt(n / 6.0))));
+  const int side = std::max(1, static_cast<int>(std::lround(std::sqrt(n / 3.0))));
   const double pitch = 1.15 * shape.extent.head<2>().maxCoeff();
   const double inner = 0.5 * side * pitch + 0.01, wall = 0.05, height = 0.3;
   world->setCollider("floor", boxCollider(Eigen::Vector3d(0, 0, -wall), Eigen::Vector3d(inner + 2 * wall, inner + 2 * wall, wall)));

@@ -29,7 +29,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 
 namespace deformable_flsm {
 
@@ -162,7 +161,6 @@ void ObjectContactSolver::gather(const std::vector<Solver*>& objects, const Obje
         w_.resize(grown);
         r_.resize(grown);
         touched_.resize(grown);
-        moved_.resize(grown);
       }
       object_[count_] = static_cast<std::uint32_t>(o);
       index_[count_] = static_cast<std::uint32_t>(i);
@@ -170,33 +168,32 @@ void ObjectContactSolver::gather(const std::vector<Solver*>& objects, const Obje
       v_[count_] = v[i];
       w_[count_] = s.isPrescribed(static_cast<std::uint32_t>(i)) ? 0.0 : 1.0 / m[i];
       r_[count_] = radius_[o];
-      moved_[count_] = h * v[i].norm();
       touched_[count_] = 0;
       ++count_;
     }
   }
 }
 
-// The pairs closer than their radii with the margin plus how far both moved in the sub-step
-// (so that a particle that passed through another within the sub-step is found: its contact's
-// normal, from the start positions, puts it back on the side it came from). Each pair is taken
-// once, by the particle that moved farther (the lower index on a tie), whose query reaches
-// reach + 2 d >= reach + d1 + d2; in the order of the particles and of the hash's buckets:
-// deterministic.
+// The pairs within the sum of their radii with the margin at the end of the sub-step or at its
+// start (x - h v): two hashes, each searched in the 27 cells around a particle. A particle that
+// passed through another within the sub-step is found by its start, and its contact's normal,
+// from the start positions, puts it back on the side it came from; only a relative motion of
+// more than twice the reach in one sub-step (5 r: 4 m/s for r = 3.5 mm and h = 4 ms) can pass
+// unseen. Each pair once (k1 < k2; from the start hash only when the end missed it), in the
+// order of the particles and of the hash's buckets: deterministic.
 void ObjectContactSolver::findPairs(const std::vector<Solver*>& objects, const ObjectContactParams& params,
                                     double h) {
   contacts_.clear();
   double cell = 0.0;
   for (std::size_t k = 0; k < count_; ++k) cell = std::max(cell, 2.0 * r_[k] * (1.0 + kContactMargin));
+  if (start_.size() < count_) start_.resize(x_.size());
+  for (std::size_t k = 0; k < count_; ++k) start_[k] = x_[k] - h * v_[k];
   hash_.build(x_, count_, cell);
+  startHash_.build(start_, count_, cell);
   for (std::size_t k1 = 0; k1 < count_; ++k1) {
-    const Eigen::Vector3d x1 = x_[k1];
     const std::uint32_t o1 = object_[k1];
-    const double d1 = moved_[k1];
-    hash_.forEachWithin(x1, cell + 2.0 * d1, buckets_, [&](std::uint32_t k2) {
-      if (k2 == k1) return;
-      const double d2 = moved_[k2];
-      if (d2 > d1 || (d2 == d1 && k2 < k1)) return;  // the other one takes it
+    auto consider = [&](std::uint32_t k2, bool fromStart) {
+      if (k2 <= k1) return;
       const std::uint32_t o2 = object_[k2];
       if (o1 == o2) {
         if (!params.selfContact) return;
@@ -207,19 +204,20 @@ void ObjectContactSolver::findPairs(const std::vector<Solver*>& objects, const O
         return;
       }
       const double R = r_[k1] + r_[k2];
-      const double reach = R * (1.0 + kContactMargin) + d1 + d2;
-      if ((x1 - x_[k2]).squaredNorm() >= reach * reach) return;
+      const double near2 = R * R * (1.0 + kContactMargin) * (1.0 + kContactMargin);
+      const Eigen::Vector3d end = x_[k1] - x_[k2];
+      const bool nearAtEnd = end.squaredNorm() < near2;
+      if (fromStart ? nearAtEnd || (start_[k1] - start_[k2]).squaredNorm() >= near2 : !nearAtEnd) return;
       const double wsum = w_[k1] + w_[k2];
       if (!(wsum > 0.0)) return;  // both prescribed
       Contact c;
       c.k1 = static_cast<std::uint32_t>(k1);
       c.k2 = k2;
-      const Eigen::Vector3d start = (x1 - h * v_[k1]) - (x_[k2] - h * v_[k2]);
+      const Eigen::Vector3d start = start_[k1] - start_[k2];
       double len = start.norm();
       if (len > 1e-9 * R) {
         c.n = start / len;
       } else {  // centres met at the start: the end positions' direction, or any
-        const Eigen::Vector3d end = x1 - x_[k2];
         c.n = end.norm() > 1e-9 * R ? Eigen::Vector3d(end.normalized()) : Eigen::Vector3d::UnitZ();
         len = c.n.dot(start);
       }
@@ -230,7 +228,9 @@ void ObjectContactSolver::findPairs(const std::vector<Solver*>& objects, const O
       c.muK = params.kineticFriction;
       contacts_.push_back(c);
       touched_[k1] = touched_[k2] = 1;
-    });
+    };
+    hash_.forEachNear(x_[k1], [&](std::uint32_t k2) { consider(k2, false); });
+    startHash_.forEachNear(start_[k1], [&](std::uint32_t k2) { consider(k2, true); });
   }
   pairContacts_ = contacts_.size();
 }

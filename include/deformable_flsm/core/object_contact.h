@@ -58,9 +58,9 @@ class ObjectContactSolver {
   ///  1. broad phase: each object's bounds over the sub-step (inflated by its contact radius
   ///     and the margin); a particle enters the hash only where its object's bounds
   ///     meet another's (or with self-contact), so that far objects cost nothing;
-  ///  2. the spatial hash (cell = the largest contact diameter with its margin) gives the
-  ///     particle pairs closer than the sum of their radii with the margin and the distances
-  ///     they moved in the sub-step (a sphere that passed through another is caught): pairs of different
+  ///  2. spatial hashes (cell = the largest contact diameter with its margin) of the end and
+  ///     start positions give the particle pairs closer than the sum of their radii with the
+  ///     margin at either (a sphere that passed through another is caught): pairs of different
   ///     objects, and with params.selfContact pairs of one object farther apart than
   ///     params.selfExclusion cells in its rest lattice; each particle in such a pair also
   ///     gets a contact with every collider it touches, so that an object pressed onto the
@@ -121,10 +121,9 @@ class ObjectContactSolver {
   std::vector<std::uint32_t> object_, index_;
   std::vector<Eigen::Vector3d> x_, v_;
   std::vector<double> w_, r_;
-  std::vector<double> moved_;  // h |v|: how far the particle moved in the sub-step
+  std::vector<Eigen::Vector3d> start_;  // x - h v: where the particles began the sub-step
   std::vector<char> touched_;
-  SpatialHash hash_;
-  std::vector<std::uint32_t> buckets_;  // a query's buckets
+  SpatialHash hash_, startHash_;  // of the end and of the start positions
   std::vector<Contact> contacts_;
   std::size_t pairContacts_ = 0;  // contacts_[colliderContacts .. ] are pairs
   // the step's sums

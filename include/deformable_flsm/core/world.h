@@ -36,7 +36,7 @@ struct ObjectContactParams {
   double kineticFriction = 0.5;
   /// Gauss-Seidel passes over the contacts per sub-step (>= 1): more make the impulses through a
   /// stack of objects converge within a sub-step
-  int iterations = 4;
+  int iterations = 16;
 
   /// @throws std::invalid_argument saying which field is wrong
   void validate() const;
@@ -57,7 +57,8 @@ class World {
   ///                  SolverParams::timeStep must equal it
   /// @param substeps  sub-steps per step, shared by every object (object-object contact runs
   ///                  after each); an object's SolverParams::substeps must equal it
-  /// @throws std::invalid_argument for a non-positive or non-finite time step or sub-steps < 1
+  /// @throws std::invalid_argument for a non-positive or non-finite time step, sub-steps < 1 or
+  ///         contact parameters that fail ObjectContactParams::validate()
   World(double timeStep, int substeps, const ObjectContactParams& contact = ObjectContactParams());
   ~World();
   World(const World&) = delete;
@@ -90,6 +91,7 @@ class World {
 
   // --- object-object contact ----------------------------------------------------------
   const ObjectContactParams& contactParams() const { return contact_; }
+  /// @throws std::invalid_argument when contact.validate() fails (the old parameters stay)
   void setContactParams(const ObjectContactParams& contact);
   /// Every ordered pair (from, on) of different objects that touched in the last step, with
   /// what `from` exerted on `on` (the reverse pair carries the opposite force).
@@ -101,6 +103,8 @@ class World {
   /// Advances every object by one time step: per sub-step each object's dynamics and collider
   /// contact, then object-object and self-contact. Allocates nothing once the contacts' buffers
   /// have grown to the scene's size.
+  /// @throws std::logic_error when an object's timeStep or substeps was changed (through its
+  ///         Solver::setParams()) to differ from the world's, naming it; nothing is stepped
   void step();
   double time() const { return time_; }
   double timeStep() const { return timeStep_; }
