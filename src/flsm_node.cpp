@@ -1,4 +1,5 @@
 // flsm_node: reads ~parameters and the mesh, builds the scene, hands it to SimulatorNode.
+#include "deformable_flsm/ros/object_params.h"
 #include "deformable_flsm/ros/param_loader.h"
 #include "deformable_flsm/ros/scene.h"
 #include "deformable_flsm/ros/simulator_node.h"
@@ -30,16 +31,25 @@ int main(int argc, char** argv) {
     using namespace deformable_flsm;
     const ParamLoader loader(pnh);
     const NodeParams params = loader.loadNodeParams();
+    const std::vector<ObjectSpec> objects = loader.loadObjects(params);
     for (const std::string& name : loader.unknownParams()) {
       ROS_WARN("flsm_node: ~%s is not a parameter of flsm_node (misspelt?); ignored", name.c_str());
     }
-    Scene scene = buildScene(params, loadMeshParam(params));
-    ROS_INFO_STREAM("flsm_node: mesh '" << params.mesh << "'\n" << describeScene(scene.info, params));
-    const std::string clamped = regionClampWarning(scene.info, params);
-    if (!clamped.empty()) ROS_WARN("flsm_node: %s", clamped.c_str());
-    const std::string thin = sectionWarning(scene.info, params);
-    if (!thin.empty()) ROS_WARN("flsm_node: %s", thin.c_str());
-    SimulatorNode node(nh, pnh, params, std::move(scene));
+    WorldScene scene = objects.empty() ? worldOfOne(buildScene(params, loadMeshParam(params)), params)
+                                       : buildWorld(params, objects);
+    for (const SceneObject& o : scene.objects) {
+      const std::string who = objects.empty() ? "" : "object '" + o.name + "': ";
+      ROS_INFO_STREAM("flsm_node: " << who << "mesh '" << o.params.mesh << "'\n"
+                                    << describeScene(o.info, o.params));
+      const std::string clamped = regionClampWarning(o.info, o.params);
+      if (!clamped.empty()) ROS_WARN("flsm_node: %s%s", who.c_str(), clamped.c_str());
+      const std::string thin = sectionWarning(o.info, o.params);
+      if (!thin.empty()) ROS_WARN("flsm_node: %s%s", who.c_str(), thin.c_str());
+      // (the first object's is ProblemReporter's, as for the single object)
+      const std::string saturated = &o == &scene.objects.front() ? "" : saturationWarning(o.info, o.params);
+      if (!saturated.empty()) ROS_WARN("flsm_node: %s%s", who.c_str(), saturated.c_str());
+    }
+    SimulatorNode node(nh, pnh, params, std::move(scene), !objects.empty());
     ros::spin();
   } catch (const std::exception& e) {
     ROS_FATAL("flsm_node cannot start: %s", e.what());

@@ -190,4 +190,22 @@ void colliderTransforms(const std::map<std::string, Collider>& colliders,
   }
 }
 
+std::string objectWrenchId(const std::string& from, const std::string& on) {
+  return "object/" + from + "/" + on;
+}
+
+void appendObjectWrenches(const std::vector<ObjectPairWrench>& pairs, const std::string& simFrame,
+                          const ros::Time& stamp, ContactWrenches& out) {
+  for (const ObjectPairWrench& pair : pairs) {
+    geometry_msgs::WrenchStamped ws;
+    ws.header.stamp = stamp;
+    ws.header.frame_id = simFrame;
+    tf2::toMsg(pair.wrench.force, ws.wrench.force);
+    tf2::toMsg(pair.wrench.torque, ws.wrench.torque);
+    out.ids.push_back(objectWrenchId(pair.from, pair.on));
+    out.wrenches.push_back(ws);
+    out.contacts.push_back(static_cast<std::uint32_t>(pair.wrench.contacts));
+  }
+}
+
 }  // namespace deformable_flsm

@@ -56,55 +56,65 @@ Eigen::Vector3d restCenterOfMass(const Lattice& L) {
 }  // namespace
 
 InteractiveDrag::InteractiveDrag(const ros::NodeHandle& pnh, const std::string& frameId,
-                                 const Lattice& lattice, const TriMesh& renderMesh, SendDrag sendDrag)
-    : objectSize_(lattice.objectSize()), sendDrag_(std::move(sendDrag)) {
+                                 const std::vector<Handle>& handles, SendDrag sendDrag)
+    : sendDrag_(std::move(sendDrag)) {
   server_ = std::make_unique<interactive_markers::InteractiveMarkerServer>(
       pnh.resolveName("drag_marker"), "", false);
-  const Eigen::Vector3d com = restCenterOfMass(lattice);
-  handlePose_ = Eigen::Translation3d(com);
+  states_.resize(handles.size());
+  for (std::size_t k = 0; k < handles.size(); ++k) {
+    const Lattice& lattice = *handles[k].lattice;
+    State& state = states_[k];
+    state.name = handles[k].name;
+    state.objectSize = lattice.objectSize();
+    const Eigen::Vector3d com = restCenterOfMass(lattice);
+    state.handlePose = Eigen::Translation3d(com);
 
-  visualization_msgs::InteractiveMarker im;
-  im.header.frame_id = frameId;
-  im.name = "object";
-  im.description = "";
-  im.scale = static_cast<float>(objectSize_);
-  im.pose = tf2::toMsg(handlePose_);
+    visualization_msgs::InteractiveMarker im;
+    im.header.frame_id = frameId;
+    im.name = state.name;
+    im.description = "";
+    im.scale = static_cast<float>(state.objectSize);
+    im.pose = tf2::toMsg(state.handlePose);
 
-  // What RViz picks: a coarse copy of the object, invisible, in the object's frame.
-  visualization_msgs::Marker handle;
-  initTriangleListMarker(frameId, "flsm_handle", {1.0f, 1.0f, 1.0f, kHandleAlpha}, handle);
-  TriMesh coarse = simplifyMesh(renderMesh, kHandleTriangles).mesh;
-  offsetAlongNormals(coarse, kHandleOffsetSpacings * lattice.spacing());
-  for (Eigen::Vector3d& v : coarse.vertices) v -= com;
-  setTriangleListPoints(coarse.vertices, coarse.triangles, handle);
-  handle.header.frame_id.clear();  // in the interactive marker's frame
+    // What RViz picks: a coarse copy of the object, invisible, in the object's frame.
+    visualization_msgs::Marker handle;
+    initTriangleListMarker(frameId, "flsm_handle", {1.0f, 1.0f, 1.0f, kHandleAlpha}, handle);
+    TriMesh coarse = simplifyMesh(*handles[k].renderMesh, kHandleTriangles).mesh;
+    offsetAlongNormals(coarse, kHandleOffsetSpacings * lattice.spacing());
+    for (Eigen::Vector3d& v : coarse.vertices) v -= com;
+    setTriangleListPoints(coarse.vertices, coarse.triangles, handle);
+    handle.header.frame_id.clear();  // in the interactive marker's frame
 
-  visualization_msgs::InteractiveMarkerControl control;
-  control.name = "drag";
-  control.interaction_mode = visualization_msgs::InteractiveMarkerControl::MOVE_3D;
-  control.orientation.w = 1.0;
-  control.always_visible = true;
-  control.markers.push_back(handle);
-  im.controls.push_back(control);
+    visualization_msgs::InteractiveMarkerControl control;
+    control.name = "drag";
+    control.interaction_mode = visualization_msgs::InteractiveMarkerControl::MOVE_3D;
+    control.orientation.w = 1.0;
+    control.always_visible = true;
+    control.markers.push_back(handle);
+    im.controls.push_back(control);
 
-  server_->insert(im, [this](const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback) {
-    onFeedback(feedback);
-  });
+    server_->insert(im, [this, k](const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback) {
+      onFeedback(k, feedback);
+    });
+  }
   server_->applyChanges();
 }
 
-void InteractiveDrag::follow(const Eigen::Isometry3d& objectFrame) {
-  if (dragging_) return;  // RViz owns the handle while the mouse holds it
-  const double moved = (objectFrame.translation() - handlePose_.translation()).norm();
-  const Eigen::AngleAxisd turned(objectFrame.linear().transpose() * handlePose_.linear());
-  if (moved < kHandleMoveFraction * objectSize_ && std::abs(turned.angle()) < kHandleTurn) return;
-  handlePose_ = objectFrame;
-  server_->setPose("object", tf2::toMsg(handlePose_));
+void InteractiveDrag::follow(std::size_t object, const Eigen::Isometry3d& objectFrame) {
+  State& state = states_[object];
+  if (state.dragging) return;  // RViz owns the handle while the mouse holds it
+  const double moved = (objectFrame.translation() - state.handlePose.translation()).norm();
+  const Eigen::AngleAxisd turned(objectFrame.linear().transpose() * state.handlePose.linear());
+  if (moved < kHandleMoveFraction * state.objectSize && std::abs(turned.angle()) < kHandleTurn) return;
+  state.handlePose = objectFrame;
+  server_->setPose(state.name, tf2::toMsg(state.handlePose));
   server_->applyChanges();
 }
 
-void InteractiveDrag::onFeedback(const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback) {
+void InteractiveDrag::onFeedback(std::size_t object,
+                                 const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback) {
   using visualization_msgs::InteractiveMarkerFeedback;
+  State& state = states_[object];
   DragCommand drag;
   drag.header = feedback->header;
   drag.id = kMouseDragId;
@@ -119,26 +129,26 @@ void InteractiveDrag::onFeedback(const visualization_msgs::InteractiveMarkerFeed
       drag.point = feedback->mouse_point;
       drag.count = kMouseGrabCount;
       drag.target = feedback->mouse_point;
-      grabPoint_ = toEigen(feedback->mouse_point);
-      grabPose_ = pose;
+      state.grabPoint = toEigen(feedback->mouse_point);
+      state.grabPose = pose;
       break;
     case InteractiveMarkerFeedback::POSE_UPDATE:
-      if (!dragging_) return;
+      if (!state.dragging) return;
       drag.action = DragCommand::MOVE;
-      drag.target = tf2::toMsg(Eigen::Vector3d(grabPoint_ + (pose - grabPose_)));
+      drag.target = tf2::toMsg(Eigen::Vector3d(state.grabPoint + (pose - state.grabPose)));
       break;
     case InteractiveMarkerFeedback::MOUSE_UP:
-      if (!dragging_) return;
+      if (!state.dragging) return;
       drag.action = DragCommand::RELEASE;
       break;
     default:
       return;
   }
-  if (!sendDrag_(drag)) return;
-  if (drag.action == DragCommand::GRAB) dragging_ = true;
+  if (!sendDrag_(object, drag)) return;
+  if (drag.action == DragCommand::GRAB) state.dragging = true;
   if (drag.action == DragCommand::RELEASE) {
-    dragging_ = false;
-    handlePose_.translation().setConstant(std::nan(""));  // snap back at the next tick
+    state.dragging = false;
+    state.handlePose.translation().setConstant(std::nan(""));  // snap back at the next tick
   }
 }
 

@@ -2,6 +2,7 @@
 
 #include "xmlrpc_value.h"
 
+#include "deformable_flsm/ros/object_params.h"
 #include "deformable_flsm/ros/render_mesh.h"
 
 #include <ros/package.h>
@@ -142,6 +143,14 @@ void NodeParams::validate() const {
                            "link '" + r.link + "': rename the entry");
       }
     }
+    if (!std::isfinite(objectContact.kineticFriction) || objectContact.kineticFriction < 0.0 ||
+        !std::isfinite(objectContact.staticFriction) ||
+        objectContact.staticFriction < objectContact.kineticFriction) {
+      throw ParamError("~object_static_friction " + std::to_string(objectContact.staticFriction) +
+                       ", ~object_kinetic_friction " +
+                       std::to_string(objectContact.kineticFriction) +
+                       ": they must satisfy 0 <= kinetic <= static");
+    }
     const RobotColliderOptions& ro = robot.options;
     if (!std::isfinite(ro.kineticFriction) || ro.kineticFriction < 0.0 ||
         !std::isfinite(ro.staticFriction) || ro.staticFriction < ro.kineticFriction) {
@@ -254,9 +263,22 @@ NodeParams ParamLoader::loadNodeParams() const {
   p.groundClearance = getDouble("ground_clearance", p.groundClearance);
   p.colliders = getColliders("colliders", p.frameId);
   p.robot = getRobot();
+  ObjectContactParams& oc = p.objectContact;
+  oc.enabled = getBool("object_contact", oc.enabled);
+  oc.selfContact = getBool("self_contact", oc.selfContact);
+  oc.staticFriction = getDouble("object_static_friction", oc.staticFriction);
+  oc.kineticFriction = getDouble("object_kinetic_friction", oc.kineticFriction);
   p.validate();
   p.applyMaterial();
   return p;
+}
+
+std::vector<ObjectSpec> ParamLoader::loadObjects(const NodeParams& params) const {
+  read_.push_back("objects");
+  if (!pnh_.hasParam("objects")) return {};
+  XmlRpc::XmlRpcValue value;
+  pnh_.getParam("objects", value);
+  return parseObjectList(value, params);
 }
 
 std::vector<std::string> ParamLoader::unknownParams() const {

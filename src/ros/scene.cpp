@@ -6,6 +6,9 @@
 #include "deformable_flsm/ros/render_mesh.h"
 
 #include <chrono>
+#include <limits>
+#include <map>
+#include <tuple>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -62,12 +65,14 @@ int substepsForModulus(const Solver& solver) {
 
 }  // namespace
 
-Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps) {
-  Scene scene;
-  SceneInfo& info = scene.info;
-  const Voxelization voxels = chooseLattice(params, mesh, info);
+namespace {
 
-  SolverParams solverParams = params.solver;
+/// The lattice of one object and its solver parameters (regions resolved), with what was
+/// chosen in `info`.
+std::shared_ptr<const Lattice> buildLattice(const NodeParams& params, const TriMesh& mesh,
+                                            SceneInfo& info, SolverParams& solverParams) {
+  const Voxelization voxels = chooseLattice(params, mesh, info);
+  solverParams = params.solver;
   info.regionHalfWidthAsked = params.resolveRegionHalfWidth(voxels.spacing, &info.regionAskedCells);
   try {
     info.sectionCells = measureSectionThickness(voxels).thinnest;
@@ -80,27 +85,66 @@ Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps
                                      : info.regionHalfWidthAsked;
   info.regionHalfWidth = solverParams.regionHalfWidth;
   try {
-    scene.lattice = std::make_shared<const Lattice>(voxels, solverParams.density,
-                                                    solverParams.regionHalfWidth);
+    return std::make_shared<const Lattice>(voxels, solverParams.density, solverParams.regionHalfWidth);
+  } catch (const std::invalid_argument& e) {
+    throw ParamError(std::string("the solver cannot be built: ") + e.what());
+  }
+}
+
+/// What the solver chose from the parameters on this lattice.
+void describeSolver(const Solver& solver, SceneInfo& info) {
+  const Lattice& L = solver.lattice();
+  info.objectSize = L.objectSize();
+  info.totalMass = L.totalMass();
+  info.requestedAlpha = solver.params().requestedAlpha(L.spacing());
+  info.alpha = solver.alpha();
+  info.substepsForModulus = substepsForModulus(solver);
+  info.contactRadius = solver.contactRadius();
+}
+
+/// The render mesh (simplified when ~render_triangle_budget asks) and its embedding.
+void buildRender(const NodeParams& params, const TriMesh& mesh, const Lattice& lattice,
+                 SceneInfo& info, TriMesh& renderMesh, std::unique_ptr<Embedding>& embedding) {
+  info.loadedTriangles = mesh.triangles.size();
+  if (params.renderTriangleBudget > 0) {
+    SimplifyResult simple =
+        simplifyMesh(mesh, static_cast<std::size_t>(params.renderTriangleBudget));
+    renderMesh = std::move(simple.mesh);
+    info.simplifyError = simple.relativeError;
+  } else {
+    renderMesh = mesh;
+  }
+  info.renderTriangles = renderMesh.triangles.size();
+  info.renderVertices = renderMesh.vertices.size();
+  embedding = std::make_unique<Embedding>(lattice, renderMesh.vertices);
+}
+
+double heightAlong(const Collider& ground) {
+  return ground.pose.translation().dot(ground.pose.linear().col(2));
+}
+
+}  // namespace
+
+Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps) {
+  Scene scene;
+  SceneInfo& info = scene.info;
+  SolverParams solverParams;
+  scene.lattice = buildLattice(params, mesh, info, solverParams);
+  try {
     scene.solver = std::make_unique<Solver>(scene.lattice, solverParams);
   } catch (const std::invalid_argument& e) {
     throw ParamError(std::string("the solver cannot be built: ") + e.what());
   }
   const Lattice& L = *scene.lattice;
   Solver& solver = *scene.solver;
-  info.objectSize = L.objectSize();
-  info.totalMass = L.totalMass();
-  info.requestedAlpha = solverParams.requestedAlpha(L.spacing());
-  info.alpha = solver.alpha();
-  info.substepsForModulus = substepsForModulus(solver);
+  describeSolver(solver, info);
 
   // Colliders before the measurement, so that it includes their cost (reset() keeps them).
-  info.contactRadius = solver.contactRadius();
   try {
     if (params.ground) {
       const Collider ground = groundCollider(L, mesh, solverParams.gravity, info.contactRadius,
                                              params.groundClearance);
-      info.groundHeight = ground.pose.translation().dot(ground.pose.linear().col(2));
+      info.groundHeight = heightAlong(ground);
       solver.setCollider(ColliderLimits::kGroundId, ground);
     }
     for (const ColliderSpec& spec : params.colliders) {
@@ -127,20 +171,115 @@ Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps
     info.pinnedPerBox.push_back(solver.pinBox(box.lo, box.hi, true));
   }
   info.pinned = solver.pinnedCount();
-
-  info.loadedTriangles = mesh.triangles.size();
-  if (params.renderTriangleBudget > 0) {
-    SimplifyResult simple =
-        simplifyMesh(mesh, static_cast<std::size_t>(params.renderTriangleBudget));
-    scene.renderMesh = std::move(simple.mesh);
-    info.simplifyError = simple.relativeError;
-  } else {
-    scene.renderMesh = mesh;
-  }
-  info.renderTriangles = scene.renderMesh.triangles.size();
-  info.renderVertices = scene.renderMesh.vertices.size();
-  scene.embedding = std::make_unique<Embedding>(L, scene.renderMesh.vertices);
+  buildRender(params, mesh, L, info, scene.renderMesh, scene.embedding);
   return scene;
+}
+
+WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& objects) {
+  WorldScene scene;
+  try {
+    scene.world = std::make_unique<World>(params.solver.timeStep, params.solver.substeps,
+                                          params.objectContact);
+  } catch (const std::invalid_argument& e) {
+    throw ParamError(std::string("the scene cannot be built: ") + e.what());
+  }
+  World& world = *scene.world;
+  // Objects of the same mesh file, scale and orientation share one load.
+  std::map<std::tuple<std::string, double, double, double, double>, TriMesh> loaded;
+  std::vector<TriMesh> meshes;  // each object's mesh at its pose, for the ground
+  for (const ObjectSpec& spec : objects) {
+    const NodeParams& p = spec.params;
+    const auto key = std::make_tuple(p.mesh, p.meshScale, p.meshRpy.x(), p.meshRpy.y(), p.meshRpy.z());
+    auto it = loaded.find(key);
+    if (it == loaded.end()) {
+      try {
+        it = loaded.emplace(key, loadMeshParam(p)).first;
+      } catch (const ParamError& e) {
+        throw ParamError("object '" + spec.name + "': " + e.what());
+      }
+    }
+    TriMesh mesh = it->second;
+    for (Eigen::Vector3d& v : mesh.vertices) v = spec.pose * v;
+
+    SceneObject object;
+    object.name = spec.name;
+    object.params = p;
+    object.info.stepMeasured = false;
+    SolverParams solverParams;
+    try {
+      object.lattice = buildLattice(p, mesh, object.info, solverParams);
+      Solver& solver = world.addObject(spec.name, object.lattice, solverParams);
+      describeSolver(solver, object.info);
+      for (const Box& box : params.pinned) {
+        object.info.pinnedPerBox.push_back(solver.pinBox(box.lo, box.hi, true));
+      }
+      object.info.pinned = solver.pinnedCount();
+    } catch (const ParamError& e) {
+      throw ParamError("object '" + spec.name + "': " + e.what());
+    } catch (const std::invalid_argument& e) {  // World: objects inside each other
+      throw ParamError("object '" + spec.name + "' cannot be added: " + e.what() +
+                       ". Move the objects apart with their pose.");
+    }
+    buildRender(p, mesh, *object.lattice, object.info, object.renderMesh, object.embedding);
+    meshes.push_back(std::move(mesh));
+    scene.objects.push_back(std::move(object));
+  }
+
+  try {
+    if (params.ground) {
+      // Below the lowest object: the ground of each object alone, the lowest of them.
+      Collider ground;
+      double lowest = std::numeric_limits<double>::infinity();
+      for (std::size_t k = 0; k < scene.objects.size(); ++k) {
+        const SceneObject& o = scene.objects[k];
+        const Collider g = groundCollider(*o.lattice, meshes[k], params.solver.gravity,
+                                          o.info.contactRadius, params.groundClearance);
+        if (heightAlong(g) < lowest) {
+          lowest = heightAlong(g);
+          ground = g;
+        }
+      }
+      world.setCollider(ColliderLimits::kGroundId, ground);
+      for (SceneObject& o : scene.objects) o.info.groundHeight = lowest;
+    }
+    for (const ColliderSpec& spec : params.colliders) {
+      if (spec.followFrame.empty()) world.setCollider(spec.id, spec.collider);
+    }
+  } catch (const std::exception& e) {  // invalid_argument, MeshError
+    throw ParamError(std::string("a collider cannot be used: ") + e.what());
+  }
+  const std::size_t colliders = world.object(world.objectNames().front())->colliders().size();
+  for (SceneObject& o : scene.objects) o.info.colliders = colliders;
+  return scene;
+}
+
+namespace {
+
+std::unique_ptr<World> worldHolding(const Solver& solver, std::shared_ptr<const Lattice> lattice,
+                                    const std::string& name, const ObjectContactParams& contact) {
+  const SolverParams& p = solver.params();
+  auto world = std::make_unique<World>(p.timeStep, p.substeps, contact);
+  Solver& object = world->addObject(name, std::move(lattice), p);
+  for (std::uint32_t i = 0; i < solver.lattice().size(); ++i)
+    if (solver.isPinned(i)) object.setPinned(i, true);
+  for (const auto& entry : solver.colliders()) world->setCollider(entry.first, entry.second);
+  return world;
+}
+
+}  // namespace
+
+WorldScene worldOfOne(Scene scene, const NodeParams& params) {
+  WorldScene world;
+  world.world = worldHolding(*scene.solver, scene.lattice, params.objectFrameId, params.objectContact);
+  SceneObject object;
+  object.name = params.objectFrameId;
+  object.params = params;
+  object.lattice = scene.lattice;
+  object.renderMesh = std::move(scene.renderMesh);
+  object.embedding = std::move(scene.embedding);
+  object.info = scene.info;
+  world.objects.push_back(std::move(object));
+  return world;
 }
 
 std::string describeScene(const SceneInfo& info, const NodeParams& params) {
@@ -198,12 +337,14 @@ std::string describeScene(const SceneInfo& info, const NodeParams& params) {
                   "(~material classic), density %.4g kg/m^3", s.stiffness, s.density);
   }
   out << buf << "\n";
-  std::snprintf(buf, sizeof buf,
-                "step: %.3g s in %d sub-steps (%s solver) measured at %.2f ms = %.0f ns per "
-                "particle-substep; at real-time factor %.3g the solver takes %.0f%% of a core",
-                s.timeStep, s.substeps, toString(s.kind), 1e3 * info.stepSeconds,
-                info.nsPerParticleSubstep, params.realTimeFactor, 100.0 * info.cpuFraction);
-  out << buf << "\n";
+  if (info.stepMeasured) {
+    std::snprintf(buf, sizeof buf,
+                  "step: %.3g s in %d sub-steps (%s solver) measured at %.2f ms = %.0f ns per "
+                  "particle-substep; at real-time factor %.3g the solver takes %.0f%% of a core",
+                  s.timeStep, s.substeps, toString(s.kind), 1e3 * info.stepSeconds,
+                  info.nsPerParticleSubstep, params.realTimeFactor, 100.0 * info.cpuFraction);
+    out << buf << "\n";
+  }
   std::snprintf(buf, sizeof buf, "render mesh: %zu triangles, %zu vertices", info.renderTriangles,
                 info.renderVertices);
   out << buf;

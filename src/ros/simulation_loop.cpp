@@ -4,6 +4,7 @@
 #include "deformable_flsm/ros/collider_params.h"
 
 #include <algorithm>
+#include <iterator>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -69,26 +70,34 @@ CommandOutcome accepted(std::string message, std::size_t particles = 0) {
 
 }  // namespace
 
-SimulationLoop::SimulationLoop(std::unique_ptr<Solver> solver, const LoopSettings& settings,
+SimulationLoop::SimulationLoop(std::unique_ptr<World> world, const LoopSettings& settings,
                                std::shared_ptr<CommandStats> stats, std::shared_ptr<LoopClock> clock)
-    : solver_(std::move(solver)), settings_(settings), stats_(std::move(stats)),
+    : world_(std::move(world)), settings_(settings), stats_(std::move(stats)),
       clock_(clock ? std::move(clock) : std::make_shared<SteadyLoopClock>()),
       realTimeFactor_(settings.realTimeFactor) {
-  if (!solver_) throw std::invalid_argument("SimulationLoop: no solver");
+  if (!world_ || world_->objectCount() == 0)
+    throw std::invalid_argument("SimulationLoop: no object to simulate");
   if (!stats_) throw std::invalid_argument("SimulationLoop: no command statistics");
   if (!(settings_.realTimeFactor > 0.0) || settings_.maxCatchUpSteps < 1)
     throw std::invalid_argument("SimulationLoop: real-time factor must be > 0 and catch-up >= 1");
-  lattice_ = &solver_->lattice();  // immutable, owned through the solver
-  const Lattice& L = solver_->lattice();
-  for (std::size_t i = 0; i < L.size(); ++i)
-    restCenterOfMass_ += L.masses()[i] * L.restPositions()[i];
-  restCenterOfMass_ /= L.totalMass();
+  if (!(settings_.restFraction >= 0.0))
+    throw std::invalid_argument("SimulationLoop: rest fraction must be >= 0");
+  names_ = world_->objectNames();
+  for (const std::string& name : names_) {
+    Solver* solver = world_->object(name);
+    solvers_.push_back(solver);
+    const Lattice& L = solver->lattice();  // immutable, owned through the solver
+    lattices_.push_back(&L);
+    Eigen::Vector3d com = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < L.size(); ++i) com += L.masses()[i] * L.restPositions()[i];
+    restCenterOfMass_.push_back(com / L.totalMass());
+    stillFrom_.push_back(solver->positions());
+    versions_.emplace_back();
+  }
+  target_ = solvers_.front();
   centerOfMass_ = restCenterOfMass_;
   diag_.requestedRealTimeFactor = settings_.realTimeFactor;
   queue_.reserve(CommandLimits::kQueueCapacity);
-  if (!(settings_.restFraction >= 0.0))
-    throw std::invalid_argument("SimulationLoop: rest fraction must be >= 0");
-  stillFrom_ = solver_->positions();
 }
 
 SimulationLoop::~SimulationLoop() { stop(); }
@@ -196,16 +205,25 @@ void SimulationLoop::copySummary(Snapshot& out) const {
   std::lock_guard<std::mutex> lock(snapshotMutex_);
   const Snapshot& s = buffers_[fresh_ ? ready_ : front_];
   out.sequence = s.sequence;
-  out.drags = s.drags;
-  out.objectFrame = s.objectFrame;
+  out.objects.resize(s.objects.size());
+  for (std::size_t k = 0; k < s.objects.size(); ++k) {
+    const ObjectSnapshot& from = s.objects[k];
+    ObjectSnapshot& to = out.objects[k];
+    to.name = from.name;
+    to.version = from.version;
+    to.drags = from.drags;
+    to.objectFrame = from.objectFrame;
+    to.diag = from.diag;
+  }
+  out.objectWrenches = s.objectWrenches;
   out.colliders = s.colliders;
   out.wrenches = s.wrenches;
   out.diag = s.diag;
 }
 
-Eigen::Vector3d SimulationLoop::centerOfMass() const {
+Eigen::Vector3d SimulationLoop::centerOfMass(std::size_t object) const {
   std::lock_guard<std::mutex> lock(snapshotMutex_);
-  return centerOfMass_;
+  return centerOfMass_.at(object);
 }
 
 void SimulationLoop::run() {
@@ -256,7 +274,7 @@ void SimulationLoop::run() {
     const Clock::time_point now = clock_->now();
     owed += seconds(now - last) * rtf;
     last = now;
-    const double dt = solver_->params().timeStep;
+    const double dt = world_->timeStep();
     auto steps = static_cast<std::int64_t>(std::floor(owed / dt));
     if (steps > settings_.maxCatchUpSteps) {
       diag_.droppedSteps += static_cast<std::uint64_t>(steps - settings_.maxCatchUpSteps);
@@ -292,19 +310,32 @@ void SimulationLoop::run() {
 }
 
 void SimulationLoop::ensureFinite() {
-  if (allBounded(solver_->positions()) && allBounded(solver_->velocities()) &&
-      allFinite(solver_->regionRotations()))
-    return;
-  // It should not happen (the solver is unconditionally stable for finite input and every
-  // command is range-checked); if it does, never let NaN, infinity (a float32 overflow) or a
-  // rotation of NaN reach a subscriber.
-  {
-    std::string why = describeBlowUp();
-    std::lock_guard<std::mutex> lock(snapshotMutex_);
-    lastReset_ = std::move(why);
+  for (std::size_t k = 0; k < solvers_.size(); ++k) {
+    Solver* solver = solvers_[k];
+    if (allBounded(solver->positions()) && allBounded(solver->velocities()) &&
+        allFinite(solver->regionRotations()))
+      continue;
+    // It should not happen (the solver is unconditionally stable for finite input and every
+    // command is range-checked); if it does, never let NaN, infinity (a float32 overflow) or a
+    // rotation of NaN reach a subscriber.
+    {
+      std::string why = describeBlowUp(k);
+      std::lock_guard<std::mutex> lock(snapshotMutex_);
+      lastReset_ = std::move(why);
+    }
+    solver->reset();
+    for (auto it = attachedFrames_.begin(); it != attachedFrames_.end();)
+      it = it->first.first == solver ? attachedFrames_.erase(it) : std::next(it);
+    ++diag_.solverResets;
+    if (solvers_.size() == 1) timeOrigin_ = world_->time();  // the scene is back at its start
+    restartStillness();
   }
-  solver_->reset();
-  ++diag_.solverResets;
+}
+
+void SimulationLoop::resetAll() {
+  for (Solver* solver : solvers_) solver->reset();
+  timeOrigin_ = world_->time();
+  attachedFrames_.clear();
   restartStillness();
 }
 
@@ -316,12 +347,13 @@ std::string SimulationLoop::lastResetCause() const {
 // What a user (or a bug report) needs to tell where a blown-up state came from: the first
 // particle out of bounds, the colliders by their distance from it, the drags and forces
 // acting, the material and the commands the loop applied since its last snapshot.
-std::string SimulationLoop::describeBlowUp() const {
-  const Solver& solver = *solver_;
+std::string SimulationLoop::describeBlowUp(std::size_t k) const {
+  const Solver& solver = *solvers_[k];
   const auto& x = solver.positions();
   const auto& v = solver.velocities();
   std::ostringstream out;
   out.precision(3);
+  out << "object '" << names_[k] << "': ";
   std::size_t bad = x.size();
   for (std::size_t i = 0; i < x.size() && bad == x.size(); ++i) {
     const bool ok = x[i].allFinite() && v[i].allFinite() && x[i].cwiseAbs().maxCoeff() <= kBlownUp &&
@@ -334,7 +366,7 @@ std::string SimulationLoop::describeBlowUp() const {
   } else {
     out << "a region rotation is not finite";
   }
-  const Eigen::Vector3d at = bad < x.size() ? lattice_->restPositions()[bad] : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d at = bad < x.size() ? lattices_[k]->restPositions()[bad] : Eigen::Vector3d::Zero();
   out << "; colliders (distance from that particle's rest position, m):";
   for (const auto& entry : solver.colliders()) {
     Eigen::Vector3d normal;
@@ -369,7 +401,7 @@ void SimulationLoop::followFrames() {
     if (!frameSource_(entry.second, pose)) continue;  // unknown or stale: hold
     // The source gives rigid, finite frames; should one not be, holding beats a crash.
     try {
-      solver_->moveDrag(entry.first, pose);
+      entry.first.first->moveDrag(entry.first.second, pose);
     } catch (const std::invalid_argument&) {
     }
   }
@@ -377,10 +409,10 @@ void SimulationLoop::followFrames() {
 
 void SimulationLoop::timedStep() {
   const Clock::time_point t0 = clock_->now();
-  solver_->step();
+  world_->step();
   const Clock::time_point t1 = clock_->now();
   ++diag_.steps;
-  const double dt = solver_->params().timeStep;
+  const double dt = world_->timeStep();
   ensureFinite();
   windowSteps_ += 1.0;
   windowStepSeconds_ += seconds(t1 - t0);
@@ -406,16 +438,23 @@ void SimulationLoop::restartWindow(Clock::time_point now) {
 }
 
 void SimulationLoop::updateStillness(double simulated) {
-  const std::vector<Eigen::Vector3d>& x = solver_->positions();
-  double maxSpeed2 = 0.0;
-  for (const Eigen::Vector3d& v : solver_->velocities()) maxSpeed2 = std::max(maxSpeed2, v.squaredNorm());
+  double maxSpeed2 = 0.0, energy = 0.0;
+  bool moving = collidersMoving_;
+  for (std::size_t k = 0; k < solvers_.size(); ++k) {
+    const Solver& solver = *solvers_[k];
+    for (const Eigen::Vector3d& v : solver.velocities()) maxSpeed2 = std::max(maxSpeed2, v.squaredNorm());
+    energy += solver.kineticEnergy();
+    // each object against its own size: a small object among large ones rests as precisely
+    const std::vector<Eigen::Vector3d>& x = solver.positions();
+    const std::vector<Eigen::Vector3d>& from = stillFrom_[k];
+    double moved2 = 0.0;
+    for (std::size_t i = 0; i < x.size(); ++i) moved2 = std::max(moved2, (x[i] - from[i]).squaredNorm());
+    const double limit = settings_.restFraction * lattices_[k]->objectSize();
+    moving = moving || moved2 > limit * limit || solver.hasPendingCommands();
+  }
   diag_.maxSpeed = std::sqrt(maxSpeed2);
-  diag_.kineticEnergy = solver_->kineticEnergy();
-  double moved2 = 0.0;
-  for (std::size_t i = 0; i < x.size(); ++i)
-    moved2 = std::max(moved2, (x[i] - stillFrom_[i]).squaredNorm());
-  const double limit = settings_.restFraction * lattice_->objectSize();
-  if (moved2 > limit * limit || solver_->hasPendingCommands() || collidersMoving_) {
+  diag_.kineticEnergy = energy;
+  if (moving) {
     restartStillness();
   } else {
     stillFor_ += simulated;
@@ -430,58 +469,118 @@ void SimulationLoop::updateStillness(double simulated) {
 
 void SimulationLoop::restartStillness() {
   stillFor_ = 0.0;
-  std::copy(solver_->positions().begin(), solver_->positions().end(), stillFrom_.begin());
+  for (std::size_t k = 0; k < solvers_.size(); ++k)
+    std::copy(solvers_[k]->positions().begin(), solvers_[k]->positions().end(), stillFrom_[k].begin());
+}
+
+void SimulationLoop::writeObject(const Solver& solver, std::size_t k, ObjectSnapshot& o) {
+  const std::size_t n = solver.positions().size();
+  o.name = names_[k];
+  o.positions = solver.positions();  // same size every time: copies, no allocation
+  o.rotations = solver.regionRotations();
+  o.pinned.resize(n);
+  for (std::size_t i = 0; i < n; ++i) o.pinned[i] = solver.isPinned(static_cast<std::uint32_t>(i));
+  o.drags.clear();
+  for (const auto& entry : solver.drags()) {
+    DragView d;
+    d.id = entry.first;
+    for (std::uint32_t p : entry.second.particles) d.centroid += o.positions[p];
+    d.centroid /= static_cast<double>(entry.second.particles.size());
+    d.target = entry.second.centroidTarget();
+    o.drags.push_back(std::move(d));
+  }
+  const Eigen::Isometry3d rigid = solver.rigidFrame();
+  o.objectFrame = rigid * Eigen::Translation3d(restCenterOfMass_[k]);
+
+  // A new version when the object moved visibly (the rest threshold) or its pins or drags
+  // changed since the last one; the first snapshot is the first version.
+  Version& v = versions_[k];
+  bool changed = v.sequence == 0 || v.pinned != solver.pinnedCount() || v.drags != o.drags.size();
+  const double limit = settings_.restFraction * lattices_[k]->objectSize();
+  for (std::size_t i = 0; i < n && !changed; ++i)
+    changed = (o.positions[i] - v.positions[i]).squaredNorm() > limit * limit;
+  if (changed) {
+    v.sequence = sequence_;
+    v.positions = o.positions;  // same size every time: copies, no allocation after the first
+    v.pinned = solver.pinnedCount();
+    v.drags = o.drags.size();
+  }
+  o.version = v.sequence;
+
+  // Figures that need the whole state, computed once here for every reader.
+  LoopDiagnostics& d = o.diag;
+  d = diag_;  // the loop's pace and counts
+  const auto& x0 = lattices_[k]->restPositions();
+  double shape2 = 0.0;
+  for (std::size_t i = 0; i < n; ++i) shape2 += (o.positions[i] - rigid * x0[i]).squaredNorm();
+  d.shapeError = n > 0 ? std::sqrt(shape2 / static_cast<double>(n)) : 0.0;
+  d.maxDisplacement = solver.maxDisplacement();
+  d.kineticEnergy = solver.kineticEnergy();
+  double maxSpeed2 = 0.0;
+  for (const Eigen::Vector3d& v : solver.velocities()) maxSpeed2 = std::max(maxSpeed2, v.squaredNorm());
+  d.maxSpeed = std::sqrt(maxSpeed2);
+  d.pinned = solver.pinnedCount();
+  d.drags = solver.drags().size();
+  d.forces = solver.activeForces().size();
+  d.stiffnessSaturated = solver.stiffnessSaturated();
+  d.alpha = solver.alpha();
 }
 
 void SimulationLoop::writeSnapshot() {
   Snapshot& s = buffers_[back_];
-  const Solver& solver = *solver_;
-  const std::size_t n = solver.positions().size();
   s.sequence = ++sequence_;
-  s.positions = solver.positions();  // same size every time: copies, no allocation
-  s.rotations = solver.regionRotations();
-  s.pinned.resize(n);
-  for (std::size_t i = 0; i < n; ++i) s.pinned[i] = solver.isPinned(static_cast<std::uint32_t>(i));
-  s.drags.clear();
-  for (const auto& entry : solver.drags()) {
-    DragView d;
-    d.id = entry.first;
-    for (std::uint32_t p : entry.second.particles) d.centroid += s.positions[p];
-    d.centroid /= static_cast<double>(entry.second.particles.size());
-    d.target = entry.second.centroidTarget();
-    s.drags.push_back(std::move(d));
-  }
-  s.colliders = solver.colliders();
-  s.wrenches.clear();
-  for (const auto& entry : s.colliders) s.wrenches[entry.first] = solver.contactWrench(entry.first);
-  const Eigen::Isometry3d rigid = solver.rigidFrame();
-  s.objectFrame = rigid * Eigen::Translation3d(restCenterOfMass_);
-
-  // Diagnostics that need the whole state, computed once here for every reader.
-  const auto& x0 = lattice_->restPositions();
-  double shape2 = 0.0;
-  for (std::size_t i = 0; i < n; ++i) shape2 += (s.positions[i] - rigid * x0[i]).squaredNorm();
-  diag_.shapeError = n > 0 ? std::sqrt(shape2 / static_cast<double>(n)) : 0.0;
-  diag_.maxDisplacement = solver.maxDisplacement();
-  diag_.kineticEnergy = solver.kineticEnergy();
-  diag_.simTime = solver.time();
-  diag_.pinned = solver.pinnedCount();
-  diag_.drags = solver.drags().size();
-  diag_.forces = solver.activeForces().size();
-  diag_.stiffnessSaturated = solver.stiffnessSaturated();
-  diag_.alpha = solver.alpha();
+  diag_.simTime = world_->time() - timeOrigin_;
   diag_.idle = idle_;
+  s.objects.resize(solvers_.size());
+  LoopDiagnostics whole = diag_;
+  whole.shapeError = whole.maxDisplacement = whole.kineticEnergy = whole.maxSpeed = 0.0;
+  whole.pinned = whole.drags = whole.forces = 0;
+  whole.stiffnessSaturated = false;
+  for (std::size_t k = 0; k < solvers_.size(); ++k) {
+    ObjectSnapshot& o = s.objects[k];
+    writeObject(*solvers_[k], k, o);
+    whole.shapeError = std::max(whole.shapeError, o.diag.shapeError);
+    whole.maxDisplacement = std::max(whole.maxDisplacement, o.diag.maxDisplacement);
+    whole.maxSpeed = std::max(whole.maxSpeed, o.diag.maxSpeed);
+    whole.kineticEnergy += o.diag.kineticEnergy;
+    whole.pinned += o.diag.pinned;
+    whole.drags += o.diag.drags;
+    whole.forces += o.diag.forces;
+    whole.stiffnessSaturated = whole.stiffnessSaturated || o.diag.stiffnessSaturated;
+  }
+  whole.alpha = s.objects.front().diag.alpha;
+  diag_ = whole;
   s.diag = diag_;
+  // The colliders are the world's, the same in every object.
+  s.colliders = solvers_.front()->colliders();
+  s.wrenches.clear();
+  for (const auto& entry : s.colliders) s.wrenches[entry.first] = world_->contactWrench(entry.first);
+  s.objectWrenches = world_->objectWrenches();
 
   std::lock_guard<std::mutex> lock(snapshotMutex_);
-  centerOfMass_ = s.objectFrame.translation();
+  for (std::size_t k = 0; k < s.objects.size(); ++k) centerOfMass_[k] = s.objects[k].objectFrame.translation();
   std::swap(back_, ready_);
   fresh_ = true;
   appliedKinds_.fill(0);
 }
 
 bool SimulationLoop::apply(Command& command) {
-  CommandOutcome outcome = std::visit(
+  CommandOutcome outcome;
+  target_ = command.object.empty() ? solvers_.front() : world_->object(command.object);
+  if (target_ == nullptr) {
+    outcome = reject("unknown_object", "object '" + command.object +
+                                           "' is not in the scene (removed): command refused");
+  } else {
+    outcome = applyBody(command);
+  }
+  if (outcome.accepted) stats_->accept();
+  outcome.pinnedTotal = target_ != nullptr ? target_->pinnedCount() : 0;
+  if (command.outcome) command.outcome->set_value(outcome);
+  return outcome.accepted;
+}
+
+CommandOutcome SimulationLoop::applyBody(Command& command) {
+  return std::visit(
       [&](const auto& c) -> CommandOutcome {
         using T = std::decay_t<decltype(c)>;
         if constexpr (std::is_same_v<T, GrabCommand>) {
@@ -495,13 +594,14 @@ bool SimulationLoop::apply(Command& command) {
         } else if constexpr (std::is_same_v<T, ApplyForceCommand>) {
           return force(c);
         } else if constexpr (std::is_same_v<T, ResetCommand>) {
-          solver_->reset();
-          attachedFrames_.clear();
-          restartStillness();
+          resetAll();
           return accepted("reset to rest; pins kept, drags and forces released");
         } else if constexpr (std::is_same_v<T, ReleaseAllCommand>) {
-          const std::size_t n = solver_->drags().size();
-          solver_->releaseAll();
+          std::size_t n = 0;
+          for (Solver* solver : solvers_) {
+            n += solver->drags().size();
+            solver->releaseAll();
+          }
           attachedFrames_.clear();
           return accepted("released " + std::to_string(n) + " drag(s)");
         } else if constexpr (std::is_same_v<T, PinBoxCommand>) {
@@ -518,10 +618,6 @@ bool SimulationLoop::apply(Command& command) {
         }
       },
       command.body);
-  if (outcome.accepted) stats_->accept();
-  outcome.pinnedTotal = solver_->pinnedCount();
-  if (command.outcome) command.outcome->set_value(outcome);
-  return outcome.accepted;
 }
 
 CommandOutcome SimulationLoop::reject(const std::string& reason, const std::string& detail) {
@@ -533,25 +629,25 @@ CommandOutcome SimulationLoop::reject(const std::string& reason, const std::stri
 
 double SimulationLoop::massOf(const std::vector<std::uint32_t>& particles) const {
   double m = 0.0;
-  for (std::uint32_t p : particles) m += lattice_->masses()[p];
+  for (std::uint32_t p : particles) m += target_->lattice().masses()[p];
   return m;
 }
 
 CommandOutcome SimulationLoop::grab(const GrabCommand& c, const AttachCommand* attach) {
-  const std::size_t n = lattice_->size();
+  const std::size_t n = target_->lattice().size();
   if (c.particle >= static_cast<std::int64_t>(n))
     return reject("bad_index", "drag '" + c.id + "': particle " + std::to_string(c.particle) +
                                    " out of range [0, " + std::to_string(n) + ")");
-  if (solver_->drags().count(c.id) == 0 && solver_->drags().size() >= CommandLimits::kMaxDrags)
+  if (target_->drags().count(c.id) == 0 && target_->drags().size() >= CommandLimits::kMaxDrags)
     return reject("too_many_drags", "drag '" + c.id + "': already " +
                                         std::to_string(CommandLimits::kMaxDrags) +
                                         " drags; release one first");
   const std::vector<std::uint32_t> particles =
       c.particle >= 0 ? std::vector<std::uint32_t>{static_cast<std::uint32_t>(c.particle)}
-                      : solver_->nearestParticles(c.point, c.count);
+                      : target_->nearestParticles(c.point, c.count);
   if (c.stiffness > 0.0) {
     // the core's rule (Solver::springLimit()), refused here with its reason and counted
-    const SpringLimit limit = solver_->springLimit(c.id, particles);
+    const SpringLimit limit = target_->springLimit(c.id, particles);
     if (c.stiffness > limit.stiffness)
       return reject("spring_too_stiff",
                     "drag '" + c.id + "': spring stiffness " + num(c.stiffness) +
@@ -564,21 +660,21 @@ CommandOutcome SimulationLoop::grab(const GrabCommand& c, const AttachCommand* a
                         ": at most " + num(limit.stiffness) + " N/m (or 0 for a hard drag)");
   }
   if (attach == nullptr) {
-    solver_->grab(c.id, particles, c.target, c.stiffness);
-    attachedFrames_.erase(c.id);
+    target_->grab(c.id, particles, c.target, c.stiffness);
+    attachedFrames_.erase({target_, c.id});
     return accepted("drag '" + c.id + "' holds " + std::to_string(particles.size()) +
                         " particle(s)",
                     particles.size());
   }
   try {
-    solver_->attach(c.id, particles, attach->pose, c.stiffness);
+    target_->attach(c.id, particles, attach->pose, c.stiffness);
   } catch (const std::invalid_argument& e) {
     return reject("bad_frame", "attach '" + c.id + "' to frame '" + attach->frame + "': " + e.what());
   }
   if (attach->frame.empty())
-    attachedFrames_.erase(c.id);
+    attachedFrames_.erase({target_, c.id});
   else
-    attachedFrames_[c.id] = attach->frame;
+    attachedFrames_[{target_, c.id}] = attach->frame;
   return accepted("drag '" + c.id + "' holds " + std::to_string(particles.size()) +
                       " particle(s)" +
                       (attach->frame.empty() ? std::string(" where they are")
@@ -587,29 +683,29 @@ CommandOutcome SimulationLoop::grab(const GrabCommand& c, const AttachCommand* a
 }
 
 CommandOutcome SimulationLoop::move(const MoveCommand& c) {
-  const auto attached = attachedFrames_.find(c.id);
+  const auto attached = attachedFrames_.find({target_, c.id});
   if (attached != attachedFrames_.end())
     return reject("attached_drag", "move of drag '" + c.id + "': it follows frame '" +
                                        attached->second +
                                        "'; RELEASE it, or ATTACH it to another frame");
-  if (!solver_->moveDrag(c.id, c.target))
+  if (!target_->moveDrag(c.id, c.target))
     return reject("unknown_drag", "move of drag '" + c.id + "': no such drag (grab first)");
   return accepted("drag '" + c.id + "' moved");
 }
 
 CommandOutcome SimulationLoop::release(const ReleaseCommand& c) {
-  attachedFrames_.erase(c.id);
-  if (!solver_->release(c.id))
+  attachedFrames_.erase({target_, c.id});
+  if (!target_->release(c.id))
     return reject("unknown_drag", "release of drag '" + c.id + "': no such drag");
   return accepted("drag '" + c.id + "' released");
 }
 
 CommandOutcome SimulationLoop::force(const ApplyForceCommand& c) {
-  const std::size_t n = lattice_->size();
+  const std::size_t n = target_->lattice().size();
   if (c.particle >= static_cast<std::int64_t>(n))
     return reject("bad_index", "force: particle " + std::to_string(c.particle) +
                                    " out of range [0, " + std::to_string(n) + ")");
-  if (!c.impulse && solver_->activeForces().size() >= CommandLimits::kMaxForces)
+  if (!c.impulse && target_->activeForces().size() >= CommandLimits::kMaxForces)
     return reject("too_many_forces", "force: already " +
                                          std::to_string(CommandLimits::kMaxForces) +
                                          " forces acting; wait for some to end");
@@ -617,14 +713,14 @@ CommandOutcome SimulationLoop::force(const ApplyForceCommand& c) {
   if (c.particle >= 0)
     particles.push_back(static_cast<std::uint32_t>(c.particle));
   else if (c.radius > 0.0)
-    particles = solver_->particlesWithin(c.point, c.radius);
+    particles = target_->particlesWithin(c.point, c.radius);
   else
-    particles = solver_->nearestParticles(c.point, 1);
+    particles = target_->nearestParticles(c.point, 1);
   if (particles.empty())
     return reject("empty_selection", "force: no particle within " + num(c.radius) +
                                          " m of the point; aim at the object or widen the radius");
   const double mass = massOf(particles);
-  const double size = lattice_->objectSize();
+  const double size = target_->lattice().objectSize();
   const double magnitude = c.force.norm();
   if (c.impulse) {
     const double limit = CommandLimits::kMaxSpeedChange * size * mass;
@@ -633,7 +729,7 @@ CommandOutcome SimulationLoop::force(const ApplyForceCommand& c) {
                                      " kg would change their speed by more than " +
                                      num(CommandLimits::kMaxSpeedChange * size) +
                                      " m/s: at most " + num(limit) + " N s");
-    solver_->applyImpulse(particles, c.force);
+    target_->applyImpulse(particles, c.force);
   } else {
     const double limit = CommandLimits::kMaxAcceleration * size * mass;
     if (magnitude > limit)
@@ -641,7 +737,7 @@ CommandOutcome SimulationLoop::force(const ApplyForceCommand& c) {
                                      " kg would accelerate them by more than " +
                                      num(CommandLimits::kMaxAcceleration * size) +
                                      " m/s^2: at most " + num(limit) + " N");
-    solver_->applyForce(particles, c.force, c.duration);
+    target_->applyForce(particles, c.force, c.duration);
   }
   return accepted(std::string(c.impulse ? "impulse" : "force") + " on " +
                       std::to_string(particles.size()) + " particle(s)",
@@ -649,7 +745,7 @@ CommandOutcome SimulationLoop::force(const ApplyForceCommand& c) {
 }
 
 CommandOutcome SimulationLoop::pinBox(const PinBoxCommand& c) {
-  const std::size_t count = solver_->pinBox(c.lo, c.hi, c.pin);
+  const std::size_t count = target_->pinBox(c.lo, c.hi, c.pin);
   return accepted(std::string(c.pin ? "pinned " : "freed ") + std::to_string(count) +
                       " particle(s) in the box",
                   count);
@@ -657,7 +753,7 @@ CommandOutcome SimulationLoop::pinBox(const PinBoxCommand& c) {
 
 CommandOutcome SimulationLoop::setParams(const ParamsCommand& c) {
   try {
-    solver_->setParams(c.params);
+    target_->setParams(c.params);
   } catch (const std::invalid_argument& e) {
     return reject("invalid_params", e.what());
   }
@@ -665,8 +761,8 @@ CommandOutcome SimulationLoop::setParams(const ParamsCommand& c) {
 }
 
 CommandOutcome SimulationLoop::setCollider(const SetColliderCommand& c) {
-  const bool known = solver_->colliders().count(c.id) > 0 || followed_.count(c.id) > 0;
-  std::size_t count = solver_->colliders().size();
+  const bool known = target_->colliders().count(c.id) > 0 || followed_.count(c.id) > 0;
+  std::size_t count = target_->colliders().size();
   for (const auto& entry : followed_) count += entry.second.inSolver ? 0 : 1;
   if (!known && count >= ColliderLimits::kMaxColliders)
     return reject("too_many_colliders", "collider '" + c.id + "': already " +
@@ -675,10 +771,10 @@ CommandOutcome SimulationLoop::setCollider(const SetColliderCommand& c) {
   try {
     c.collider.validate();
     if (c.followFrame.empty()) {
-      solver_->setCollider(c.id, c.collider);
+      world_->setCollider(c.id, c.collider);
     } else {
       // In the solver from its first sampled pose on (followColliders()).
-      solver_->removeCollider(c.id);
+      world_->removeCollider(c.id);
     }
   } catch (const std::exception& e) {  // invalid_argument, or MeshError for an open mesh
     return reject("bad_collider", "collider '" + c.id + "': " + e.what());
@@ -702,7 +798,7 @@ CommandOutcome SimulationLoop::moveCollider(const MoveColliderCommand& c) {
                   "move of collider '" + c.id + "': it follows a tf frame; move the frame, or "
                   "ADD it again without follow_frame");
   try {
-    if (!solver_->moveCollider(c.id, c.pose, c.linearVelocity, c.angularVelocity))
+    if (!world_->moveCollider(c.id, c.pose, c.linearVelocity, c.angularVelocity))
       return reject("unknown_collider",
                     "move of collider '" + c.id + "': no such collider (ADD it first)");
   } catch (const std::invalid_argument& e) {
@@ -713,7 +809,7 @@ CommandOutcome SimulationLoop::moveCollider(const MoveColliderCommand& c) {
 
 CommandOutcome SimulationLoop::removeCollider(const RemoveColliderCommand& c) {
   const bool followed = followed_.erase(c.id) > 0;
-  if (!solver_->removeCollider(c.id) && !followed)
+  if (!world_->removeCollider(c.id) && !followed)
     return reject("unknown_collider", "removal of collider '" + c.id + "': no such collider");
   return accepted("collider '" + c.id + "' removed");
 }
@@ -746,10 +842,10 @@ void SimulationLoop::followColliders(double dt) {
         c.pose = m.pose;
         c.linearVelocity = m.linearVelocity;
         c.angularVelocity = m.angularVelocity;
-        solver_->setCollider(entry.first, c);
+        world_->setCollider(entry.first, c);
         f.inSolver = true;
       } else {
-        solver_->moveCollider(entry.first, m.pose, m.linearVelocity, m.angularVelocity);
+        world_->moveCollider(entry.first, m.pose, m.linearVelocity, m.angularVelocity);
       }
     } catch (const std::invalid_argument&) {
       continue;  // a non-finite sample (the node sends none): the collider stays where it was

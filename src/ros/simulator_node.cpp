@@ -38,11 +38,10 @@ constexpr double kAttachWarnPeriod = 5.0;  // s between two warnings about attac
 }  // namespace
 
 SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh,
-                             const NodeParams& params, Scene scene)
-    : nh_(nh), pnh_(pnh), stateNh_(pnh), commandNh_(pnh), serviceNh_(pnh), reconfigureNh_(pnh), params_(params),
-      info_(scene.info),
-      lattice_(scene.lattice), renderMesh_(std::move(scene.renderMesh)),
-      embedding_(std::move(scene.embedding)), stats_(std::make_shared<CommandStats>()) {
+                             const NodeParams& params, WorldScene scene, bool namespaced)
+    : nh_(nh), pnh_(pnh), stateNh_(pnh), commandNh_(pnh), serviceNh_(pnh), reconfigureNh_(pnh),
+      params_(params), objects_(std::move(scene.objects)), namespaced_(namespaced),
+      stats_(std::make_shared<CommandStats>()) {
   stats_->setRejectHook([](const std::string& reason, const std::string& detail) {
     ROS_WARN_THROTTLE(kRejectPeriod, "flsm_node: command rejected (%s): %s", reason.c_str(),
                       detail.c_str());
@@ -51,16 +50,30 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   LoopSettings settings;
   settings.realTimeFactor = params_.realTimeFactor;
   // Rest (LoopSettings::restFraction, idleHold): the defaults, relative to the object size.
-  loop_ = std::make_unique<SimulationLoop>(std::move(scene.solver), settings, stats_);
+  loop_ = std::make_unique<SimulationLoop>(std::move(scene.world), settings, stats_);
 
-  validator_ = std::make_unique<CommandValidator>(
-      lattice_->size(), lattice_->objectSize(), params_.frameId,
-      [this](const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
-             std::string& why) { return lookupTransform(frame, stamp, T, why); },
-      [this] { return loop_->centerOfMass(); });
+  commands_.resize(objects_.size());
+  for (std::size_t k = 0; k < objects_.size(); ++k) {
+    const Lattice& L = *objects_[k].lattice;
+    commands_[k].validator = std::make_unique<CommandValidator>(
+        L.size(), L.objectSize(), params_.frameId,
+        [this](const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
+               std::string& why) { return lookupTransform(frame, stamp, T, why); },
+        [this, k] { return loop_->centerOfMass(k); });
+  }
 
-  publisher_ = std::make_unique<StatePublisher>(pnh_, params_, *lattice_, renderMesh_, *embedding_, *stats_);
-  reporter_ = std::make_unique<ProblemReporter>(params_, info_, *lattice_);
+  const SceneObject& first = objects_.front();
+  publisher_ = std::make_unique<StatePublisher>(pnh_, params_, objects_, namespaced_, *stats_);
+  // The pins of the whole scene: a ~pinned box holds nothing only if it holds no object's
+  // particle. The material warnings are the first object's (flsm_node warns of the others').
+  sceneInfo_ = first.info;
+  for (std::size_t k = 1; k < objects_.size(); ++k) {
+    const SceneInfo& other = objects_[k].info;
+    sceneInfo_.pinned += other.pinned;
+    for (std::size_t b = 0; b < sceneInfo_.pinnedPerBox.size() && b < other.pinnedPerBox.size(); ++b)
+      sceneInfo_.pinnedPerBox[b] += other.pinnedPerBox[b];
+  }
+  reporter_ = std::make_unique<ProblemReporter>(params_, sceneInfo_, *first.lattice);
   reporter_->setResetCause([this] { return loop_->lastResetCause(); });
   advertise();
   stateNh_.setCallbackQueue(&stateQueue_);
@@ -68,12 +81,19 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
       pnh_, stateNh_, commandNh_, params_, *loop_, stats_, tfBuffer_, [this] { startTfListener(); },
       [this](const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
              std::string& why) { return lookupTransform(frame, stamp, T, why); },
-      [this](CommandBody body) { send(std::move(body), false); }, *lattice_, info_.contactRadius);
+      [this](CommandBody body) { send(std::move(body), false); }, *first.lattice,
+      first.info.contactRadius);
   reconfigureNh_.setCallbackQueue(&reconfigureQueue_);
   reconfigure_ = std::make_unique<Reconfigure>(reconfigureNh_, params_,
                                                [this](const FlsmConfig& c) { return onReconfigure(c); });
-  mouse_ = std::make_unique<InteractiveDrag>(pnh_, params_.frameId, *lattice_, renderMesh_,
-                                             [this](const DragCommand& d) { return onMouseDrag(d); });
+  // The single object's handle keeps the name "object"; with ~objects each is named after its
+  // object.
+  std::vector<InteractiveDrag::Handle> handles;
+  for (const SceneObject& o : objects_)
+    handles.push_back({namespaced_ ? o.name : std::string("object"), o.lattice.get(), &o.renderMesh});
+  mouse_ = std::make_unique<InteractiveDrag>(
+      pnh_, params_.frameId, handles,
+      [this](std::size_t k, const DragCommand& d) { return onMouseDrag(k, d); });
 
   reporter_->warnAboutScene();
   loop_->setFrameSource([this](const std::string& frame, Eigen::Isometry3d& T) {
@@ -108,12 +128,42 @@ SimulatorNode::~SimulatorNode() {
 void SimulatorNode::advertise() {
   // Commands and services on queues and threads of their own (see the class comment).
   commandNh_.setCallbackQueue(&commandQueue_);
-  dragSub_ = commandNh_.subscribe("drag", kCommandQueue, &SimulatorNode::onDrag, this);
-  forceSub_ = commandNh_.subscribe("force", kCommandQueue, &SimulatorNode::onForce, this);
   serviceNh_.setCallbackQueue(&serviceQueue_);
   resetSrv_ = serviceNh_.advertiseService("reset", &SimulatorNode::onReset, this);
   releaseAllSrv_ = serviceNh_.advertiseService("release_all", &SimulatorNode::onReleaseAll, this);
-  pinBoxSrv_ = serviceNh_.advertiseService("pin_box", &SimulatorNode::onPinBox, this);
+  // The top-level topics and service address the first object; with ~objects every object has
+  // its own under ~objects/<name>/.
+  subscribeCommands(0, "", dragSub_, forceSub_, pinBoxSrv_);
+  if (!namespaced_) return;
+  for (std::size_t k = 0; k < objects_.size(); ++k) {
+    ObjectCommands& c = commands_[k];
+    subscribeCommands(k, "objects/" + objects_[k].name + "/", c.dragSub, c.forceSub, c.pinBoxSrv);
+  }
+}
+
+void SimulatorNode::subscribeCommands(std::size_t object, const std::string& prefix,
+                                      ros::Subscriber& dragSub, ros::Subscriber& forceSub,
+                                      ros::ServiceServer& pinBoxSrv) {
+  const std::string dragTopic = "~" + prefix + "drag", forceTopic = "~" + prefix + "force";
+  ros::SubscribeOptions drag;
+  drag.initByFullCallbackType<const ros::MessageEvent<const DragCommand>&>(
+      prefix + "drag", kCommandQueue,
+      [this, object, dragTopic](const ros::MessageEvent<const DragCommand>& e) {
+        onDrag(object, dragTopic, e);
+      });
+  drag.callback_queue = &commandQueue_;
+  ros::SubscribeOptions force;
+  force.initByFullCallbackType<const ros::MessageEvent<const ForceCommand>&>(
+      prefix + "force", kCommandQueue,
+      [this, object, forceTopic](const ros::MessageEvent<const ForceCommand>& e) {
+        onForce(object, forceTopic, e);
+      });
+  force.callback_queue = &commandQueue_;
+  dragSub = commandNh_.subscribe(drag);
+  forceSub = commandNh_.subscribe(force);
+  pinBoxSrv = serviceNh_.advertiseService<PinBox::Request, PinBox::Response>(
+      prefix + "pin_box",
+      [this, object](PinBox::Request& req, PinBox::Response& res) { return onPinBox(object, req, res); });
 }
 
 // --------------------------------------------------------------------------------------------
@@ -127,7 +177,7 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
   const ros::Time stamp = ros::Time::now();
   const Snapshot& s = loop_->acquire();
   colliders_->publishMarkers(s, stamp);
-  mouse_->follow(s.objectFrame);
+  for (std::size_t k = 0; k < s.objects.size(); ++k) mouse_->follow(k, s.objects[k].objectFrame);
   publisher_->publishHeavy(s, stamp);
 }
 
@@ -146,8 +196,8 @@ void SimulatorNode::onStateTimer(const ros::TimerEvent&) {
 
 void SimulatorNode::rejected(const Rejection& why) { stats_->reject(why.reason, why.detail); }
 
-CommandOutcome SimulatorNode::send(CommandBody body, bool wait) {
-  Command command{std::move(body), nullptr};
+CommandOutcome SimulatorNode::send(CommandBody body, bool wait, const std::string& object) {
+  Command command{std::move(body), nullptr, object};
   std::future<CommandOutcome> result;
   if (wait) {
     command.outcome = std::make_shared<std::promise<CommandOutcome>>();
@@ -224,32 +274,36 @@ bool SimulatorNode::lookupTransform(const std::string& frame, const ros::Time& s
   }
 }
 
-void SimulatorNode::onDrag(const ros::MessageEvent<const DragCommand>& event) {
+void SimulatorNode::onDrag(std::size_t object, const std::string& topic,
+                           const ros::MessageEvent<const DragCommand>& event) {
   const DragCommand::ConstPtr& msg = event.getMessage();
-  countMissed(gaps_, *stats_, "~drag", event.getPublisherName(), msg->header.seq);
+  const ObjectCommands& c = commands_[object];
+  countMissed(gaps_, *stats_, topic, event.getPublisherName(), msg->header.seq);
   CommandBody body;
   Rejection why;
-  if (!validator_->drag(*msg, body, why)) return rejected(why);
-  send(std::move(body), false);
+  if (!c.validator->drag(*msg, body, why)) return rejected(why);
+  send(std::move(body), false, objects_[object].name);
 }
 
-void SimulatorNode::onForce(const ros::MessageEvent<const ForceCommand>& event) {
+void SimulatorNode::onForce(std::size_t object, const std::string& topic,
+                            const ros::MessageEvent<const ForceCommand>& event) {
   const ForceCommand::ConstPtr& msg = event.getMessage();
-  countMissed(gaps_, *stats_, "~force", event.getPublisherName(), msg->header.seq);
+  const ObjectCommands& c = commands_[object];
+  countMissed(gaps_, *stats_, topic, event.getPublisherName(), msg->header.seq);
   CommandBody body;
   Rejection why;
-  if (!validator_->force(*msg, body, why)) return rejected(why);
-  send(std::move(body), false);
+  if (!c.validator->force(*msg, body, why)) return rejected(why);
+  send(std::move(body), false, objects_[object].name);
 }
 
-bool SimulatorNode::onMouseDrag(const DragCommand& drag) {
+bool SimulatorNode::onMouseDrag(std::size_t object, const DragCommand& drag) {
   CommandBody body;
   Rejection why;
-  if (!validator_->drag(drag, body, why)) {
+  if (!commands_[object].validator->drag(drag, body, why)) {
     rejected(why);
     return false;
   }
-  send(std::move(body), false);
+  send(std::move(body), false, objects_[object].name);
   return true;
 }
 
@@ -267,16 +321,17 @@ bool SimulatorNode::onReleaseAll(std_srvs::Trigger::Request&, std_srvs::Trigger:
   return true;
 }
 
-bool SimulatorNode::onPinBox(PinBox::Request& req, PinBox::Response& res) {
+bool SimulatorNode::onPinBox(std::size_t object, PinBox::Request& req, PinBox::Response& res) {
   const Eigen::Vector3d lo = toEigen(req.min), hi = toEigen(req.max);
   Rejection why;
-  if (!validator_->box(lo, hi, why)) {
+  if (!commands_[object].validator->box(lo, hi, why)) {
     rejected(why);
     res.success = false;
     res.message = why.detail;
     return true;
   }
-  const CommandOutcome o = send(PinBoxCommand{lo, hi, static_cast<bool>(req.pin)}, true);
+  const CommandOutcome o =
+      send(PinBoxCommand{lo, hi, static_cast<bool>(req.pin)}, true, objects_[object].name);
   res.success = o.accepted;
   res.message = o.message;
   res.particles = static_cast<std::uint32_t>(o.particles);
@@ -302,19 +357,25 @@ bool SimulatorNode::onReconfigure(const FlsmConfig& config) {
                        "is unchanged. For alpha = stiffness per sub-step, set material classic");
     return false;
   }
-  SolverParams p = changed.solver;
-  p.regionHalfWidth = info_.regionHalfWidth;
-  try {
-    p.validate();
-  } catch (const std::invalid_argument& e) {
-    stats_->reject("invalid_params", std::string(e.what()) + "; nothing changed");
-    return false;
+  // Every object takes the change with its own regions and density: one gravity, one material.
+  std::vector<SolverParams> perObject;
+  for (const SceneObject& o : objects_) {
+    SolverParams p = changed.solver;
+    p.regionHalfWidth = o.info.regionHalfWidth;
+    p.density = o.params.solver.density;
+    try {
+      p.validate();
+    } catch (const std::invalid_argument& e) {
+      stats_->reject("invalid_params", std::string(e.what()) + "; nothing changed");
+      return false;
+    }
+    perObject.push_back(p);
   }
   params_.material = changed.material;
   params_.youngsModulus = changed.youngsModulus;
   params_.poissonsRatio = changed.poissonsRatio;
-  params_.solver = p;
-  send(ParamsCommand{p}, false);
+  params_.solver = perObject.front();
+  for (std::size_t k = 0; k < objects_.size(); ++k) send(ParamsCommand{perObject[k]}, false, objects_[k].name);
   const bool newRate = config.publish_rate != params_.publishRate;
   const bool newPace = config.real_time_factor != params_.realTimeFactor;
   params_.publishRate = config.publish_rate;

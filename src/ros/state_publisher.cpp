@@ -15,6 +15,7 @@ namespace {
 
 /// Opaque, light clay colour: shading stays readable on RViz's dark background.
 constexpr std::array<float, 4> kMeshColor = {0.85f, 0.72f, 0.55f, 1.0f};
+/// The single object's marker namespace on ~mesh (with ~objects, the object's name).
 constexpr const char kMarkerNamespace[] = "flsm_mesh";
 /// Only the newest state matters to a subscriber.
 constexpr std::uint32_t kStateQueue = 1;
@@ -30,32 +31,153 @@ bool allFinite(const std::vector<Eigen::Vector3d>& xs) {
   return true;
 }
 
+/// A colour per object, so that touching objects stay apart on screen: the clay colour for
+/// the first, then hues around the wheel at the golden angle (no two neighbours alike).
+std::array<float, 4> objectColor(std::size_t k) {
+  if (k == 0) return kMeshColor;
+  const double hue = std::fmod(0.08 + 0.618034 * static_cast<double>(k), 1.0) * 6.0;
+  const double x = 1.0 - std::abs(std::fmod(hue, 2.0) - 1.0);
+  std::array<double, 3> rgb{};
+  switch (static_cast<int>(hue)) {
+    case 0: rgb = {1, x, 0}; break;
+    case 1: rgb = {x, 1, 0}; break;
+    case 2: rgb = {0, 1, x}; break;
+    case 3: rgb = {0, x, 1}; break;
+    case 4: rgb = {x, 0, 1}; break;
+    default: rgb = {1, 0, x}; break;
+  }
+  // pastel: halfway to white, as light as the clay colour
+  return {static_cast<float>(0.45 + 0.5 * rgb[0]), static_cast<float>(0.45 + 0.5 * rgb[1]),
+          static_cast<float>(0.45 + 0.5 * rgb[2]), 1.0f};
+}
+
 }  // namespace
 
-StatePublisher::StatePublisher(ros::NodeHandle& pnh, const NodeParams& params, const Lattice& lattice,
-                               const TriMesh& renderMesh, const Embedding& embedding,
+/// One object's heavy topics and its state topic (with ~objects).
+class StatePublisher::ObjectTopics {
+ public:
+  ObjectTopics(ros::NodeHandle& pnh, const NodeParams& params, const SceneObject& object,
+               std::size_t index, std::size_t count, bool namespaced)
+      : params_(params), object_(object), index_(index), namespaced_(namespaced) {
+    ros::NodeHandle nh = namespaced ? ros::NodeHandle(pnh, "objects/" + object.name) : pnh;
+    initTriangleListMarker(params_.frameId, namespaced ? object.name : kMarkerNamespace,
+                           objectColor(index), marker_);
+    marker_.id = static_cast<std::int32_t>(index);
+    // every object's marker on the one ~mesh: a queue that holds one tick's markers
+    mesh_.advertise<visualization_msgs::Marker>(pnh, "mesh", static_cast<std::uint32_t>(count));
+    surface_.advertise<sensor_msgs::PointCloud2>(nh, "surface");
+    particles_.advertise<sensor_msgs::PointCloud2>(nh, "particles");
+    latticeMarkers_.advertise<visualization_msgs::MarkerArray>(nh, "lattice");
+    if (namespaced) statePub_ = nh.advertise<SimulationState>("state", kStateQueue);
+  }
+
+  const SceneObject& object() const { return object_; }
+  ros::Publisher& statePublisher() { return statePub_; }
+  SimulationState& state() { return state_; }
+
+  void publishHeavy(const Snapshot& s, const ros::Time& stamp) {
+    const ObjectSnapshot& o = s.objects[index_];
+    const Lattice& lattice = *object_.lattice;
+    // One object of several is at rest while its version stays, although others move: its
+    // messages are neither rebuilt nor, for the markers, re-sent. The single object rests with
+    // the node, as it always did.
+    const std::uint64_t seq = namespaced_ ? o.version : s.sequence;
+    const bool resting = s.diag.idle || (namespaced_ && o.version != s.sequence);
+    // The clouds keep the rate at rest (resent with a new stamp: no simulation, no rebuild);
+    // the markers only with ~republish_at_rest (the bunny's ~mesh is 5 MB a message).
+    const bool markersAtRest = params_.republishAtRest;
+    const bool meshDue = mesh_.due(seq, resting, markersAtRest);
+    const bool surfaceDue = surface_.due(seq, resting, kCloudsAtRest);
+    if ((meshDue && mesh_.stale(seq)) || (surfaceDue && surface_.stale(seq))) {
+      if (verticesSequence_ != seq) {
+        object_.embedding->deform(o.positions, o.rotations, vertices_);
+        // The embedded surface may dip below a collider the particles rest on: not on screen.
+        projectOutOfColliders(vertices_, s.colliders, 0.0);
+        verticesSequence_ = seq;
+        verticesFinite_ = allFinite(vertices_);
+      }
+    }
+    const bool verticesOk = !(meshDue || surfaceDue) || verticesFinite_;
+    if (!verticesOk) {
+      ++nonFiniteSkips_;
+      ROS_ERROR_THROTTLE(kWarnPeriod, "flsm_node: the embedded mesh of object '%s' is not finite; "
+                         "its ~mesh marker and ~surface skipped (%llu times). This is a bug: "
+                         "please report it.", object_.name.c_str(),
+                         static_cast<unsigned long long>(nonFiniteSkips_));
+    }
+    if (meshDue && verticesOk) {
+      mesh_.publish(seq, stamp, marker_, [&](visualization_msgs::Marker& m) {
+        setTriangleListPoints(vertices_, object_.renderMesh.triangles, m);
+      });
+    }
+    if (surfaceDue && verticesOk) {
+      surface_.publish(seq, stamp, surfaceCloud_, [&](sensor_msgs::PointCloud2& cloud) {
+        fillVertexCloud(vertices_, params_.frameId, cloud);
+      });
+    }
+    // Particle positions are finite: the simulation thread resets a non-finite state.
+    if (particles_.due(seq, resting, kCloudsAtRest)) {
+      particles_.publish(seq, stamp, particleCloud_, [&](sensor_msgs::PointCloud2& cloud) {
+        fillParticleCloud(o.positions, lattice.restPositions(), params_.frameId, cloud);
+      });
+    }
+    if (latticeMarkers_.due(seq, resting, markersAtRest)) {
+      latticeMarkers_.publish(seq, stamp, latticeMarkerArray_, [&](visualization_msgs::MarkerArray& markers) {
+        dragLines_.clear();
+        for (const DragView& d : o.drags) dragLines_.emplace_back(d.centroid, d.target);
+        fillLatticeMarkers(o.positions, o.pinned, dragLines_, lattice.spacing(), params_.frameId, markers);
+      });
+    }
+  }
+
+ private:
+  const NodeParams& params_;
+  const SceneObject& object_;
+  std::size_t index_;
+  bool namespaced_;
+  LazyTopic mesh_, surface_, particles_, latticeMarkers_;
+  ros::Publisher statePub_;
+  SimulationState state_;
+  std::vector<Eigen::Vector3d> vertices_;  ///< embedded render vertices
+  std::uint64_t verticesSequence_ = 0;
+  bool verticesFinite_ = true;  ///< checked once per deform, not per resend at rest
+  visualization_msgs::Marker marker_;
+  sensor_msgs::PointCloud2 surfaceCloud_, particleCloud_;
+  visualization_msgs::MarkerArray latticeMarkerArray_;
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> dragLines_;
+  std::uint64_t nonFiniteSkips_ = 0;
+};
+
+StatePublisher::StatePublisher(ros::NodeHandle& pnh, const NodeParams& params,
+                               const std::vector<SceneObject>& objects, bool namespaced,
                                const CommandStats& stats)
-    : params_(params), lattice_(lattice), renderMesh_(renderMesh), embedding_(embedding), stats_(stats) {
-  initTriangleListMarker(params_.frameId, kMarkerNamespace, kMeshColor, marker_);
-  mesh_.advertise<visualization_msgs::Marker>(pnh, "mesh");
-  surface_.advertise<sensor_msgs::PointCloud2>(pnh, "surface");
-  particles_.advertise<sensor_msgs::PointCloud2>(pnh, "particles");
-  latticeMarkers_.advertise<visualization_msgs::MarkerArray>(pnh, "lattice");
+    : params_(params), stats_(stats) {
+  for (std::size_t k = 0; k < objects.size(); ++k) {
+    objects_.push_back(std::make_unique<ObjectTopics>(pnh, params_, objects[k], k, objects.size(),
+                                                      namespaced));
+    totalMass_ += objects[k].lattice->totalMass();
+    totalParticles_ += objects[k].lattice->size();
+  }
+  transforms_.resize(objects.size());
   statePub_ = pnh.advertise<SimulationState>("state", kStateQueue);
 }
 
+StatePublisher::~StatePublisher() = default;
+
 void StatePublisher::publishTf(const Snapshot& s, const ros::Time& stamp) {
-  geometry_msgs::TransformStamped t = tf2::eigenToTransform(s.objectFrame);
-  t.header.stamp = stamp;
-  t.header.frame_id = params_.frameId;
-  t.child_frame_id = params_.objectFrameId;
-  tfBroadcaster_.sendTransform(t);
+  for (std::size_t k = 0; k < objects_.size(); ++k) {
+    geometry_msgs::TransformStamped& t = transforms_[k];
+    t = tf2::eigenToTransform(s.objects[k].objectFrame);
+    t.header.stamp = stamp;
+    t.header.frame_id = params_.frameId;
+    t.child_frame_id = objects_[k]->object().name;
+  }
+  tfBroadcaster_.sendTransform(transforms_);
 }
 
-void StatePublisher::publishState(const Snapshot& s, const ros::Time& stamp,
-                                  std::uint64_t colliderFrameMisses) {
-  const LoopDiagnostics& d = s.diag;
-  SimulationState& m = state_;
+void StatePublisher::fillState(const LoopDiagnostics& d, const ros::Time& stamp, double mass,
+                               std::size_t particles, std::size_t colliders,
+                               std::uint64_t colliderFrameMisses, SimulationState& m) const {
   m.header.stamp = stamp;
   m.header.frame_id = params_.frameId;
   m.sim_time = d.simTime;
@@ -66,8 +188,8 @@ void StatePublisher::publishState(const Snapshot& s, const ros::Time& stamp,
   m.max_displacement = d.maxDisplacement;
   m.max_speed = d.maxSpeed;
   m.shape_error = d.shapeError;
-  m.mass = lattice_.totalMass();
-  m.particles = static_cast<std::uint32_t>(lattice_.size());
+  m.mass = mass;
+  m.particles = static_cast<std::uint32_t>(particles);
   m.pinned_particles = static_cast<std::uint32_t>(d.pinned);
   m.active_drags = static_cast<std::uint32_t>(d.drags);
   m.active_forces = static_cast<std::uint32_t>(d.forces);
@@ -87,56 +209,27 @@ void StatePublisher::publishState(const Snapshot& s, const ros::Time& stamp,
     m.reject_counts.push_back(entry.second);
   }
   m.last_rejection = counts.lastRejection;
-  m.colliders = static_cast<std::uint32_t>(s.colliders.size());
+  m.colliders = static_cast<std::uint32_t>(colliders);
   m.collider_frame_misses = colliderFrameMisses;
-  statePub_.publish(m);
+}
+
+void StatePublisher::publishState(const Snapshot& s, const ros::Time& stamp,
+                                  std::uint64_t colliderFrameMisses) {
+  fillState(s.diag, stamp, totalMass_, totalParticles_, s.colliders.size(), colliderFrameMisses,
+            state_);
+  statePub_.publish(state_);
+  for (std::size_t k = 0; k < objects_.size(); ++k) {
+    ObjectTopics& o = *objects_[k];
+    if (!o.statePublisher() || o.statePublisher().getNumSubscribers() == 0) continue;
+    const Lattice& L = *o.object().lattice;
+    fillState(s.objects[k].diag, stamp, L.totalMass(), L.size(), s.colliders.size(),
+              colliderFrameMisses, o.state());
+    o.statePublisher().publish(o.state());
+  }
 }
 
 void StatePublisher::publishHeavy(const Snapshot& s, const ros::Time& stamp) {
-  // The clouds keep the rate at rest (resent with a new stamp: no simulation, no rebuild);
-  // the markers only with ~republish_at_rest (the bunny's ~mesh is 5 MB a message).
-  const bool markersAtRest = params_.republishAtRest;
-  const bool meshDue = mesh_.due(s, markersAtRest);
-  const bool surfaceDue = surface_.due(s, kCloudsAtRest);
-  if ((meshDue && mesh_.stale(s)) || (surfaceDue && surface_.stale(s))) {
-    if (verticesSequence_ != s.sequence) {
-      embedding_.deform(s.positions, s.rotations, vertices_);
-      // The embedded surface may dip below a collider the particles rest on: not on screen.
-      projectOutOfColliders(vertices_, s.colliders, 0.0);
-      verticesSequence_ = s.sequence;
-      verticesFinite_ = allFinite(vertices_);
-    }
-  }
-  const bool verticesOk = !(meshDue || surfaceDue) || verticesFinite_;
-  if (!verticesOk) {
-    ++nonFiniteSkips_;
-    ROS_ERROR_THROTTLE(kWarnPeriod, "flsm_node: the embedded mesh is not finite; ~mesh and "
-                       "~surface skipped (%llu times). This is a bug: please report it.",
-                       static_cast<unsigned long long>(nonFiniteSkips_));
-  }
-  if (meshDue && verticesOk) {
-    mesh_.publish(s, stamp, marker_, [&](visualization_msgs::Marker& m) {
-      setTriangleListPoints(vertices_, renderMesh_.triangles, m);
-    });
-  }
-  if (surfaceDue && verticesOk) {
-    surface_.publish(s, stamp, surfaceCloud_, [&](sensor_msgs::PointCloud2& cloud) {
-      fillVertexCloud(vertices_, params_.frameId, cloud);
-    });
-  }
-  // Particle positions are finite: the simulation thread resets a non-finite state.
-  if (particles_.due(s, kCloudsAtRest)) {
-    particles_.publish(s, stamp, particleCloud_, [&](sensor_msgs::PointCloud2& cloud) {
-      fillParticleCloud(s.positions, lattice_.restPositions(), params_.frameId, cloud);
-    });
-  }
-  if (latticeMarkers_.due(s, markersAtRest)) {
-    latticeMarkers_.publish(s, stamp, latticeMarkerArray_, [&](visualization_msgs::MarkerArray& markers) {
-      dragLines_.clear();
-      for (const DragView& d : s.drags) dragLines_.emplace_back(d.centroid, d.target);
-      fillLatticeMarkers(s.positions, s.pinned, dragLines_, lattice_.spacing(), params_.frameId, markers);
-    });
-  }
+  for (auto& o : objects_) o->publishHeavy(s, stamp);
 }
 
 }  // namespace deformable_flsm

@@ -172,3 +172,108 @@ def top_particle(x):
 
 def finite(values):
     return all(math.isfinite(v) for v in values)
+
+
+class ObjectsClient(object):
+    """Talks to a flsm_node with ~objects: each object's ~objects/<name>/state, clouds and
+    commands, the whole node's ~state and ~contact_wrenches."""
+
+    def __init__(self, names, node='/flsm_node', timeout=60.0):
+        from deformable_flsm.msg import ContactWrenches
+        self.node = node
+        self.names = list(names)
+        self._lock = threading.Lock()
+        self._states = {}
+        self._state = None
+        self._wrenches = None
+        self._subs = [rospy.Subscriber(node + '/state', SimulationState, self._on_state,
+                                       queue_size=10),
+                      rospy.Subscriber(node + '/contact_wrenches', ContactWrenches,
+                                       self._on_wrenches, queue_size=10)]
+        for n in self.names:
+            self._subs.append(rospy.Subscriber(self.topic(n, 'state'), SimulationState,
+                                               self._on_object_state, callback_args=n,
+                                               queue_size=10))
+        self.drag_pubs = {n: rospy.Publisher(self.topic(n, 'drag'), DragCommand, queue_size=10)
+                          for n in self.names}
+        self.force_pubs = {n: rospy.Publisher(self.topic(n, 'force'), ForceCommand, queue_size=10)
+                           for n in self.names}
+        end = time.time() + timeout
+        while time.time() < end and (self.state() is None or
+                                     any(self.object_state(n) is None for n in self.names)):
+            time.sleep(0.05)
+        for pub in list(self.drag_pubs.values()) + list(self.force_pubs.values()):
+            FlsmClient._wait_connected(pub, timeout)
+
+    def topic(self, name, leaf):
+        return '%s/objects/%s/%s' % (self.node, name, leaf)
+
+    def _on_state(self, msg):
+        with self._lock:
+            self._state = msg
+
+    def _on_object_state(self, msg, name):
+        with self._lock:
+            self._states[name] = msg
+
+    def _on_wrenches(self, msg):
+        with self._lock:
+            self._wrenches = msg
+
+    def state(self):
+        with self._lock:
+            return self._state
+
+    def object_state(self, name):
+        with self._lock:
+            return self._states.get(name)
+
+    def wrenches(self):
+        with self._lock:
+            return self._wrenches
+
+    def wait_sim_time(self, t, timeout):
+        """Waits until the simulation has run `t` s; True when it did within `timeout` s."""
+        end = time.time() + timeout
+        while time.time() < end and not rospy.is_shutdown():
+            s = self.state()
+            if s is not None and s.sim_time >= t:
+                return True
+            time.sleep(0.05)
+        return False
+
+    def particles(self, name, timeout=10.0):
+        cloud = rospy.wait_for_message(self.topic(name, 'particles'), PointCloud2, timeout=timeout)
+        return np.array(list(point_cloud2.read_points(cloud, field_names=('x', 'y', 'z'))))
+
+    def rejected(self, reason):
+        s = self.state()
+        return dict(zip(s.reject_reasons, s.reject_counts)).get(reason, 0)
+
+    def drag(self, name, action, drag_id='test', particle=-1, point=(0, 0, 0), count=0,
+             target=(0, 0, 0)):
+        m = DragCommand()
+        m.action = action
+        m.id = drag_id
+        m.particle = particle
+        m.point = Point(*point)
+        m.count = count
+        m.target = Point(*target)
+        self.drag_pubs[name].publish(m)
+
+    def pin_box(self, name, lo, hi, pin=True):
+        srv = self.topic(name, 'pin_box')
+        rospy.wait_for_service(srv, timeout=10.0)
+        return rospy.ServiceProxy(srv, PinBox)(Point(*lo), Point(*hi), pin)
+
+    def close(self):
+        for s in self._subs:
+            s.unregister()
+
+
+def half_spacing(x):
+    """Half the lattice spacing of one object's particles (#P x 3): the median nearest-neighbour
+    distance (a cubic grid, barely strained at rest) over two, the default contact radius."""
+    d = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=2)
+    d[d == 0.0] = np.inf
+    return 0.5 * float(np.median(d.min(axis=1)))

@@ -234,7 +234,9 @@ struct Rig {
     stats = std::make_shared<CommandStats>();
     LoopSettings settings;
     settings.idleHold = 0.2;
-    loop = std::make_unique<SimulationLoop>(std::make_unique<Solver>(lattice, p), settings, stats);
+    auto world = std::make_unique<World>(p.timeStep, p.substeps);
+    world->addObject("box", lattice, p);
+    loop = std::make_unique<SimulationLoop>(std::move(world), settings, stats);
   }
   CommandOutcome run(CommandBody body) {
     Command c{std::move(body), std::make_shared<std::promise<CommandOutcome>>()};

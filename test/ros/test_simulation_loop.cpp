@@ -39,10 +39,10 @@ struct Rig {
   explicit Rig(LoopSettings settings = LoopSettings(), SolverParams params = weightless(),
                int n = 6, std::shared_ptr<LoopClock> clock = nullptr) {
     auto lattice = std::make_shared<const Lattice>(makeBox(n, n, n, 0.01), 1000.0, params.regionHalfWidth);
-    auto s = std::make_unique<Solver>(lattice, params);
-    solver = s.get();
+    auto world = std::make_unique<World>(params.timeStep, params.substeps);
+    solver = &world->addObject("box", lattice, params);
     stats = std::make_shared<CommandStats>();
-    loop = std::make_unique<SimulationLoop>(std::move(s), settings, stats, std::move(clock));
+    loop = std::make_unique<SimulationLoop>(std::move(world), settings, stats, std::move(clock));
   }
   /// Pins the particle farthest from particle 0 (before start()): ambient damping acts on the
   /// motion relative to a free object's rigid motion, so a free box would keep the momentum a drag
@@ -87,9 +87,9 @@ TEST(SimulationLoop, FirstSnapshotIsTheRestState) {
   rig.loop->start();
   const Snapshot& s = rig.loop->acquire();
   EXPECT_GE(s.sequence, 1u);
-  ASSERT_EQ(s.positions.size(), rig.loop->lattice().size());
-  for (std::size_t i = 0; i < s.positions.size(); ++i)
-    EXPECT_EQ(s.positions[i], rig.loop->lattice().restPositions()[i]);
+  ASSERT_EQ(s.objects[0].positions.size(), rig.loop->lattice().size());
+  for (std::size_t i = 0; i < s.objects[0].positions.size(); ++i)
+    EXPECT_EQ(s.objects[0].positions[i], rig.loop->lattice().restPositions()[i]);
 }
 
 // The state thread's summary (copySummary()) is the newest complete state, read beside the
@@ -134,7 +134,7 @@ TEST(SimulationLoop, HardGrabHoldsTheParticleAtTheTargetAndReleaseReturnsToRest)
   EXPECT_EQ(o.particles, 1u);
   // A hard drag sets the particle's velocity so that it lands on the target every sub-step.
   ASSERT_TRUE(rig.waitFor([&](const Snapshot& s) {
-    return s.diag.steps > 2 && s.drags.size() == 1 && (s.positions[0] - target).norm() < 1e-9;
+    return s.diag.steps > 2 && s.objects[0].drags.size() == 1 && (s.objects[0].positions[0] - target).norm() < 1e-9;
   }));
   EXPECT_TRUE(rig.run(ReleaseCommand{"a"}).accepted);
   // Back to the rest shape.
@@ -179,7 +179,7 @@ TEST(SimulationLoop, AttachedDragFollowsItsFrameAndHoldsWhenTheFrameIsLost) {
   const auto at = [&](const Snapshot& s, const Eigen::Isometry3d& T) {
     double e = 0.0;
     for (std::uint32_t p : grabbed)
-      e = std::max(e, (s.positions[p] - T * rig.loop->lattice().restPositions()[p]).norm());
+      e = std::max(e, (s.objects[0].positions[p] - T * rig.loop->lattice().restPositions()[p]).norm());
     return e;
   };
   Eigen::Isometry3d moved = Eigen::Translation3d(0.0, 0.0, 0.02) *
@@ -228,7 +228,7 @@ TEST(SimulationLoop, AttachToANonRigidFrameIsRefused) {
   a.pose.linear() *= 1.5;
   EXPECT_FALSE(rig.run(a).accepted);
   EXPECT_EQ(rig.rejected("bad_frame"), 1u);
-  EXPECT_TRUE(rig.loop->acquire().drags.empty());
+  EXPECT_TRUE(rig.loop->acquire().objects[0].drags.empty());
 }
 
 TEST(SimulationLoop, SpringDragsOnTheSameParticlesShareTheLimit) {
@@ -261,6 +261,67 @@ TEST(SimulationLoop, SpringDragsOnTheSameParticlesShareTheLimit) {
   g.stiffness = 0.9 * L.masses()[1] / (h * h);
   EXPECT_TRUE(rig.run(g).accepted);
   EXPECT_EQ(rig.rejected("spring_too_stiff"), 1u);
+}
+
+TEST(SimulationLoop, ACommandMovesTheObjectItAddressesAndNoOther) {
+  // Two weightless boxes 1 m apart: a drag of "b" moves b; a, untouched, stays at rest (to
+  // round-off: shape matching at rest reproduces the rest positions to ~1e-16 m per step).
+  const SolverParams params = weightless();
+  auto lattice = std::make_shared<const Lattice>(makeBox(4, 4, 4, 0.01), 1000.0, params.regionHalfWidth);
+  Voxelization far = makeBox(4, 4, 4, 0.01);
+  far.origin.x() += 1.0;
+  auto farLattice = std::make_shared<const Lattice>(far, 1000.0, params.regionHalfWidth);
+  auto world = std::make_unique<World>(params.timeStep, params.substeps);
+  world->addObject("a", lattice, params);
+  world->addObject("b", farLattice, params);
+  LoopSettings settings;
+  settings.idleHold = 0.0;
+  auto stats = std::make_shared<CommandStats>();
+  SimulationLoop loop(std::move(world), settings, stats);
+  ASSERT_EQ(loop.objectNames(), (std::vector<std::string>{"a", "b"}));
+  loop.start();
+
+  GrabCommand grab;
+  grab.id = "hand";
+  grab.particle = 0;
+  const Eigen::Vector3d target = farLattice->restPositions()[0] + Eigen::Vector3d(0.0, 0.0, 0.005);
+  grab.target = target;
+  Command toB{grab, std::make_shared<std::promise<CommandOutcome>>(), "b"};
+  auto answer = toB.outcome->get_future();
+  loop.submit(std::move(toB));
+  ASSERT_EQ(answer.wait_for(std::chrono::seconds(5)), std::future_status::ready);
+  EXPECT_TRUE(answer.get().accepted);
+  const Clock::time_point end = Clock::now() + std::chrono::seconds(5);
+  while (Clock::now() < end) {
+    const Snapshot& s = loop.acquire();
+    if (s.diag.steps > 2 && (s.objects[1].positions[0] - target).norm() < 1e-9) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  const Snapshot& s = loop.acquire();
+  ASSERT_EQ(s.objects.size(), 2u);
+  EXPECT_EQ(s.objects[1].name, "b");
+  EXPECT_LT((s.objects[1].positions[0] - target).norm(), 1e-9) << "b was not dragged";
+  EXPECT_EQ(s.objects[1].drags.size(), 1u);
+  EXPECT_TRUE(s.objects[0].drags.empty());
+  for (std::size_t i = 0; i < lattice->size(); ++i)
+    ASSERT_LT((s.objects[0].positions[i] - lattice->restPositions()[i]).norm(), 1e-12)
+        << "a moved at particle " << i;
+  EXPECT_EQ(s.diag.drags, 1u);  // the scene's figures sum the objects'
+  // a, which did not move, still shows its first state; b has newer ones (its messages are
+  // rebuilt, a's are not)
+  EXPECT_EQ(s.objects[0].version, 1u);
+  EXPECT_GT(s.objects[1].version, 1u);
+
+  // An object the scene does not have: refused, counted, nothing else changes.
+  Command toNobody{ReleaseCommand{"hand"}, std::make_shared<std::promise<CommandOutcome>>(), "gone"};
+  auto refused = toNobody.outcome->get_future();
+  loop.submit(std::move(toNobody));
+  ASSERT_EQ(refused.wait_for(std::chrono::seconds(5)), std::future_status::ready);
+  const CommandOutcome o = refused.get();
+  EXPECT_FALSE(o.accepted);
+  EXPECT_NE(o.message.find("'gone'"), std::string::npos) << o.message;
+  EXPECT_EQ(stats->counts().rejectedByReason.at("unknown_object"), 1u);
+  EXPECT_EQ(loop.acquire().diag.drags, 1u);
 }
 
 TEST(SimulationLoop, RejectionsCarryTheirReason) {
@@ -393,11 +454,12 @@ SolverParams softBar() {
   return p;
 }
 
-std::unique_ptr<Solver> clampedBar(const SolverParams& p) {
+std::unique_ptr<World> clampedBar(const SolverParams& p) {
   auto lattice = std::make_shared<const Lattice>(makeBox(20, 2, 2, 0.05), 1000.0, p.regionHalfWidth);
-  auto solver = std::make_unique<Solver>(lattice, p);
-  solver->pinBox(Eigen::Vector3d(-1.0, -1.0, -1.0), Eigen::Vector3d(0.05, 1.0, 1.0), true);
-  return solver;
+  auto world = std::make_unique<World>(p.timeStep, p.substeps);
+  Solver& solver = world->addObject("bar", lattice, p);
+  solver.pinBox(Eigen::Vector3d(-1.0, -1.0, -1.0), Eigen::Vector3d(0.05, 1.0, 1.0), true);
+  return world;
 }
 
 /// Mean z displacement of the particles at the free end (m; negative = down).
@@ -415,9 +477,10 @@ double tipDeflection(const std::vector<Eigen::Vector3d>& x, const Lattice& L) {
 TEST(SimulationLoop, RestsOnlyAtEquilibrium) {
   // Reference: the bar kept awake for 60 s of simulated time (its slowest mode decays at
   // ~0.75/s: e^-45 of the start-up swing is left).
-  std::unique_ptr<Solver> awake = clampedBar(softBar());
+  std::unique_ptr<World> awake = clampedBar(softBar());
   for (int s = 0; s < 3600; ++s) awake->step();
-  const double settled = tipDeflection(awake->positions(), awake->lattice());
+  const Solver& bar = *awake->object("bar");
+  const double settled = tipDeflection(bar.positions(), bar.lattice());
   ASSERT_LT(settled, -5e-3);  // a visible sag, of the order of rho g L^4 / (E t^2)
 
   // The node's settings (the defaults), simulated 20x faster than real time.
@@ -431,7 +494,7 @@ TEST(SimulationLoop, RestsOnlyAtEquilibrium) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   const Snapshot& s = loop.acquire();
   ASSERT_TRUE(s.diag.idle) << "not at rest after 30 s (" << s.diag.simTime << " s simulated)";
-  const double atRest = tipDeflection(s.positions, loop.lattice());
+  const double atRest = tipDeflection(s.objects[0].positions, loop.lattice());
   RecordProperty("tip_deflection_kept_awake_um", static_cast<int>(std::lround(-1e6 * settled)));
   RecordProperty("tip_deflection_at_rest_um", static_cast<int>(std::lround(-1e6 * atRest)));
   RecordProperty("rest_after_simulated_ms", static_cast<int>(std::lround(1e3 * s.diag.simTime)));
@@ -496,7 +559,7 @@ TEST(SimulationLoop, ACommandIsSteppedAtOnceAndThePaceKept) {
   // Stepped with the clock where it was: no time passed.
   const Snapshot& s = rig.loop->acquire();
   EXPECT_EQ(s.diag.steps, 2u);
-  EXPECT_LT((s.positions[0] - target).norm(), 1e-9);
+  EXPECT_LT((s.objects[0].positions[0] - target).norm(), 1e-9);
   double wall = 0.75;
   EXPECT_LE(s.diag.simTime, 0.2 * wall + 0.1 + 1e-9);
   // The borrowed step is paid back: the step due at 1.0 s of the clock was taken early, so the
@@ -549,11 +612,11 @@ TEST(SimulationLoop, NonFiniteStateIsResetNeverPublished) {
   rig.loop->start();
   const Snapshot& first = rig.loop->acquire();
   EXPECT_EQ(first.diag.solverResets, 1u);
-  for (const Eigen::Vector3d& p : first.positions) ASSERT_TRUE(p.allFinite());
+  for (const Eigen::Vector3d& p : first.objects[0].positions) ASSERT_TRUE(p.allFinite());
   ASSERT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.steps >= 2; }));
   const Snapshot& s = rig.loop->acquire();
   EXPECT_EQ(s.diag.solverResets, 1u);
-  for (const Eigen::Vector3d& p : s.positions) ASSERT_TRUE(p.allFinite());
+  for (const Eigen::Vector3d& p : s.objects[0].positions) ASSERT_TRUE(p.allFinite());
 }
 
 TEST(SimulationLoop, BlownUpStateIsResetBeforeItOverflowsAFloat) {
@@ -568,7 +631,7 @@ TEST(SimulationLoop, BlownUpStateIsResetBeforeItOverflowsAFloat) {
   rig.loop->start();
   const Snapshot& first = rig.loop->acquire();
   EXPECT_EQ(first.diag.solverResets, 1u);
-  for (const Eigen::Vector3d& p : first.positions)
+  for (const Eigen::Vector3d& p : first.objects[0].positions)
     for (int a = 0; a < 3; ++a) ASSERT_TRUE(std::isfinite(static_cast<float>(p[a])));
   // The log says where it went wrong: the particle, and what acted on the object.
   const std::string cause = rig.loop->lastResetCause();

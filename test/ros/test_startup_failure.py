@@ -115,6 +115,28 @@ class StartupFailureTest(unittest.TestCase):
         rospy.set_param('/flsm_inverted_pin/pinned', [[0.1, 0.0, 0.0, 0.0, 1.0, 1.0]])
         self.assert_fails_naming('flsm_inverted_pin', ['~pinned box 0', 'min <= max'])
 
+    def test_duplicate_object_name_is_refused(self):
+        rospy.set_param('/flsm_twin_objects/objects',
+                        [{'name': 'cube', 'resolution': 4}, {'name': 'cube', 'resolution': 4}])
+        self.assert_fails_naming('flsm_twin_objects', ['~objects entry 1', "'cube'",
+                                                       'used by an earlier entry'])
+
+    def test_unknown_object_key_is_refused(self):
+        rospy.set_param('/flsm_object_typo/objects', [{'name': 'cube', 'youngs_modulos': 1e4}])
+        self.assert_fails_naming('flsm_object_typo', ['~objects entry 0', "'cube'",
+                                                      "unknown key 'youngs_modulos'"])
+
+    def test_bad_object_value_is_refused(self):
+        rospy.set_param('/flsm_object_negative/objects', [{'name': 'cube', 'youngs_modulus': -5.0}])
+        self.assert_fails_naming('flsm_object_negative', ['~objects entry 0', "'cube'",
+                                                          'youngs_modulus is -5'])
+
+    def test_objects_inside_each_other_are_refused_naming_both(self):
+        rospy.set_param('/flsm_overlap/objects',
+                        [{'name': 'first', 'resolution': 4, 'pose': [0.0, 0.0, 0.0]},
+                         {'name': 'second', 'resolution': 4, 'pose': [0.02, 0.0, 0.0]}])
+        self.assert_fails_naming('flsm_overlap', ["'first'", "'second'", 'pose'])
+
     def test_lattice_over_max_particles_is_refused(self):
         self.assert_fails_naming('flsm_too_fine', ['~max_particles', 'resolution'],
                                  '_resolution:=60', '_max_particles:=1000')

@@ -5,6 +5,7 @@
 #pragma once
 
 #include "deformable_flsm/core/collider.h"
+#include "deformable_flsm/core/world.h"
 
 #include <Eigen/Geometry>
 
@@ -43,6 +44,16 @@ void fillColliderMarkers(const std::map<std::string, Collider>& colliders,
 void fillContactWrenches(const std::map<std::string, Collider>& colliders,
                          const std::map<std::string, ContactWrench>& wrenches,
                          const ros::Time& stamp, ContactWrenches& out);
+
+/// The id of the entry of ~contact_wrenches for what object `from` exerts on object `on`.
+std::string objectWrenchId(const std::string& from, const std::string& on);
+
+/// Appends what each object exerted on each other it touched (World::objectWrenches()): id
+/// objectWrenchId(from, on), the force on `on` and the torque about the simulation frame's
+/// origin, both in the simulation frame (header.frame_id `simFrame`), and the particle pairs in
+/// contact. Each touching pair appears twice, (a, b) and (b, a), with opposite wrenches.
+void appendObjectWrenches(const std::vector<ObjectPairWrench>& pairs, const std::string& simFrame,
+                          const ros::Time& stamp, ContactWrenches& out);
 
 /// A collider reported together with others as one body (the collision elements of a robot
 /// link): the body's id in ~contact_wrenches, its tf frame, and the collider's pose in it.

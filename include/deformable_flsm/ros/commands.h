@@ -153,6 +153,9 @@ using CommandBody = std::variant<GrabCommand, AttachCommand, MoveCommand, Releas
 struct Command {
   CommandBody body;
   OutcomePromise outcome;
+  /// the object it addresses (World's name); "" = the first object. Colliders, reset and
+  /// release-all concern every object.
+  std::string object;
 };
 
 /// Thread-safe tally of commands: accepted, and rejected by reason. Reasons are short keys

@@ -18,36 +18,52 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace deformable_flsm {
 
 /// Main thread only (RViz feedback and the publish timer).
 class InteractiveDrag {
  public:
-  /// Validates and sends a drag command; true when it was accepted (false: refused and counted).
-  using SendDrag = std::function<bool(const DragCommand&)>;
+  /// Validates and sends a drag command to object `object` (index in the handles given to the
+  /// constructor); true when it was accepted (false: refused and counted).
+  using SendDrag = std::function<bool(std::size_t object, const DragCommand&)>;
 
-  /// Starts the interactive marker server on pnh's ~drag_marker.
-  /// @param[in] frameId     the frame of the handle (~frame_id)
-  /// @param[in] lattice     the object, for its rest centre of mass and size
-  /// @param[in] renderMesh  the rest render mesh, simplified into the handle
-  InteractiveDrag(const ros::NodeHandle& pnh, const std::string& frameId, const Lattice& lattice,
-                  const TriMesh& renderMesh, SendDrag sendDrag);
+  /// What RViz picks for one object.
+  struct Handle {
+    /// the interactive marker's name
+    std::string name;
+    /// the object, for its rest centre of mass and size
+    const Lattice* lattice = nullptr;
+    /// the rest render mesh, simplified into the handle
+    const TriMesh* renderMesh = nullptr;
+  };
 
-  /// Moves the handle to the object's rigid frame when it moved or turned noticeably, unless the
-  /// mouse holds it.
-  void follow(const Eigen::Isometry3d& objectFrame);
+  /// Starts the interactive marker server on pnh's ~drag_marker, with one handle per object:
+  /// RViz picks the handle under the cursor, so the press grabs the object under it.
+  /// @param[in] frameId  the frame of the handles (~frame_id)
+  InteractiveDrag(const ros::NodeHandle& pnh, const std::string& frameId,
+                  const std::vector<Handle>& handles, SendDrag sendDrag);
+
+  /// Moves handle `object` to the object's rigid frame when it moved or turned noticeably,
+  /// unless the mouse holds it.
+  void follow(std::size_t object, const Eigen::Isometry3d& objectFrame);
 
  private:
-  void onFeedback(const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback);
+  struct State {
+    std::string name;
+    double objectSize = 0.0;
+    bool dragging = false;
+    Eigen::Vector3d grabPoint = Eigen::Vector3d::Zero();
+    Eigen::Vector3d grabPose = Eigen::Vector3d::Zero();
+    Eigen::Isometry3d handlePose = Eigen::Isometry3d::Identity();
+  };
+  void onFeedback(std::size_t object,
+                  const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback);
 
-  double objectSize_;
   SendDrag sendDrag_;
   std::unique_ptr<interactive_markers::InteractiveMarkerServer> server_;
-  bool dragging_ = false;
-  Eigen::Vector3d grabPoint_ = Eigen::Vector3d::Zero();
-  Eigen::Vector3d grabPose_ = Eigen::Vector3d::Zero();
-  Eigen::Isometry3d handlePose_ = Eigen::Isometry3d::Identity();
+  std::vector<State> states_;
 };
 
 }  // namespace deformable_flsm

@@ -16,6 +16,7 @@
 #include <atomic>
 #include <cstdint>
 #include <string>
+#include <utility>
 
 namespace deformable_flsm {
 
@@ -25,12 +26,12 @@ class LazyTopic {
   LazyTopic(const LazyTopic&) = delete;  // the connect callback holds `this`
   LazyTopic& operator=(const LazyTopic&) = delete;
 
-  /// Advertises `name` (queue 1, not latched: a new subscriber is served by the connect
-  /// callback with a fresh stamp) on `nh`.
+  /// Advertises `name` (queue `queue`, 1 unless several publishers share the topic; not
+  /// latched: a new subscriber is served by the connect callback with a fresh stamp) on `nh`.
   template <typename Msg>
-  void advertise(ros::NodeHandle& nh, const std::string& name) {
+  void advertise(ros::NodeHandle& nh, const std::string& name, std::uint32_t queue = 1) {
     ros::AdvertiseOptions options;
-    options.template init<Msg>(name, 1, [this](const ros::SingleSubscriberPublisher&) { newSubscriber_ = true; });
+    options.template init<Msg>(name, queue, [this](const ros::SingleSubscriberPublisher&) { newSubscriber_ = true; });
     options.latch = false;
     pub_ = nh.advertise(options);
   }
@@ -40,25 +41,35 @@ class LazyTopic {
   /// new subscribers (what they missed); the others already show it. `republishAtRest` keeps the
   /// stream steady instead (the cached message goes out again with a new stamp).
   bool due(const Snapshot& s, bool republishAtRest) {
+    return due(s.sequence, s.diag.idle, republishAtRest);
+  }
+  /// The same for a state numbered `sequence` (equal sequence = identical content) that is at
+  /// rest when `resting` (one object of several: ObjectSnapshot::version).
+  bool due(std::uint64_t sequence, bool resting, bool republishAtRest) {
     if (pub_.getNumSubscribers() == 0) return false;
     const bool newSubscriber = newSubscriber_.exchange(false);
-    return !s.diag.idle || republishAtRest || publishedSequence_ != s.sequence || newSubscriber;
+    return !resting || republishAtRest || publishedSequence_ != sequence || newSubscriber;
   }
 
   /// Whether the cached message shows another snapshot than `s` (build() would run).
-  bool stale(const Snapshot& s) const { return builtSequence_ != s.sequence; }
+  bool stale(const Snapshot& s) const { return stale(s.sequence); }
+  bool stale(std::uint64_t sequence) const { return builtSequence_ != sequence; }
 
   /// Publishes `msg` for snapshot `s`, stamped `stamp`: build(msg) first when the cached message
   /// shows another snapshot.
   template <typename Msg, typename Build>
   void publish(const Snapshot& s, const ros::Time& stamp, Msg& msg, Build&& build) {
-    if (builtSequence_ != s.sequence) {
+    publish(s.sequence, stamp, msg, std::forward<Build>(build));
+  }
+  template <typename Msg, typename Build>
+  void publish(std::uint64_t sequence, const ros::Time& stamp, Msg& msg, Build&& build) {
+    if (builtSequence_ != sequence) {
       build(msg);
-      builtSequence_ = s.sequence;
+      builtSequence_ = sequence;
     }
     setStamp(msg, stamp);
     pub_.publish(msg);
-    publishedSequence_ = s.sequence;
+    publishedSequence_ = sequence;
   }
 
  private:

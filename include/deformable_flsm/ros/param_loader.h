@@ -6,6 +6,7 @@
 #include "deformable_flsm/ros/collider_params.h"
 #include "deformable_flsm/ros/robot_colliders.h"
 #include "deformable_flsm/core/solver_params.h"
+#include "deformable_flsm/core/world.h"
 
 #include <ros/node_handle.h>
 #include <xmlrpcpp/XmlRpcValue.h>
@@ -122,6 +123,9 @@ struct NodeParams {
   /// ~render_triangle_budget: simplify the render mesh to at most this many triangles at
   /// load (0 = render the mesh as loaded); the lattice is chosen from the full mesh
   int renderTriangleBudget = 0;
+  /// ~object_contact, ~self_contact, ~object_static_friction, ~object_kinetic_friction: how the
+  /// objects of ~objects touch each other and themselves
+  ObjectContactParams objectContact;
 
   static constexpr double kMaxPublishRate = 1000.0;
   static constexpr double kMaxRealTimeFactor = 100.0;
@@ -150,6 +154,8 @@ const char* toString(NodeParams::Material material);
 /// Parses "youngs" / "classic"; false for anything else.
 bool parseMaterial(const std::string& name, NodeParams::Material& material);
 
+struct ObjectSpec;
+
 class ParamLoader {
  public:
   /// @param[in] pnh  the node's private handle ("~")
@@ -157,6 +163,10 @@ class ParamLoader {
 
   /// @throws ParamError on a wrongly typed or invalid parameter.
   NodeParams loadNodeParams() const;
+  /// The objects of ~objects (object_params.h), each with `params` as its defaults; empty when
+  /// ~objects is unset (the node's single object).
+  /// @throws ParamError naming the entry and the key.
+  std::vector<ObjectSpec> loadObjects(const NodeParams& params) const;
 
   /// Names (without "~") of the private parameters set on the server that loadNodeParams(),
   /// called before on this loader, did not read: most likely misspelt. Each name is written once,

@@ -9,6 +9,8 @@
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/mesh.h"
 #include "deformable_flsm/core/solver.h"
+#include "deformable_flsm/core/world.h"
+#include "deformable_flsm/ros/object_params.h"
 #include "deformable_flsm/ros/param_loader.h"
 
 #include <memory>
@@ -54,6 +56,8 @@ struct SceneInfo {
   /// would bring the asked alpha under the cap when it is saturated (0 otherwise)
   double requestedAlpha = 0.0, alpha = 0.0;
   int substepsForModulus = 0;
+  /// false for an object of ~objects: the objects step together (~state's step_time)
+  bool stepMeasured = true;
   /// measured: wall time of one step (s) and ns per particle per sub-step
   double stepSeconds = 0.0, nsPerParticleSubstep = 0.0;
   /// fraction of one core the solver needs at the configured real-time factor
@@ -77,6 +81,39 @@ struct Scene {
 ///         ~max_particles, ...). A region radius beyond the solver's limit is clamped, not
 ///         refused (SceneInfo::regionAskedCells, regionClampWarning()).
 Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps = 10);
+
+/// One object of a scene of several (~objects), as the node renders it. Its lattice is the
+/// one its Solver in the World holds (placed at the object's pose in ~frame_id).
+struct SceneObject {
+  std::string name;
+  /// the object's parameters (the node's with the entry's keys applied)
+  NodeParams params;
+  std::shared_ptr<const Lattice> lattice;
+  TriMesh renderMesh;
+  std::unique_ptr<Embedding> embedding;
+  SceneInfo info;
+};
+
+/// Every object the node simulates, in a World, with what renders each.
+struct WorldScene {
+  std::unique_ptr<World> world;
+  /// in the world's order (World::objectNames())
+  std::vector<SceneObject> objects;
+};
+
+/// Builds the objects of ~objects into one World sharing the colliders (~colliders, and the
+/// ground below the lowest object) and the pins (~pinned boxes pin whatever object's rest
+/// particles lie in them). Each object's step cost is not measured (SceneInfo::stepSeconds 0).
+/// @param[in] params   validated node parameters (time step, sub-steps, colliders, contact)
+/// @param[in] objects  parsed ~objects (parseObjectList())
+/// @throws ParamError naming the object and what to change (a lattice that cannot be built,
+///         objects that start inside each other)
+WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& objects);
+
+/// The single object of a node without ~objects: a World of one object named
+/// ~object_frame_id holding the built scene's solver at rest (lattice, parameters, pins,
+/// colliders).
+WorldScene worldOfOne(Scene scene, const NodeParams& params);
 
 /// A few lines for the start-up log: the lattice, the regions, the material, the cost.
 std::string describeScene(const SceneInfo& info, const NodeParams& params);

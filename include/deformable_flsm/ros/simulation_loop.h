@@ -1,10 +1,11 @@
 /// @file simulation_loop.h
-/// The simulation thread: owns the solver, applies queued commands, steps at a fixed simulated
+/// The simulation thread: owns the World (one object, or the objects of ~objects), applies queued commands, steps at a fixed simulated
 /// time step paced to its clock (LoopClock: the steady clock unless given another), goes idle when nothing moves, and hands out snapshots of
 /// the state. No ROS: the node feeds it validated commands and reads its snapshots.
 #pragma once
 
 #include "deformable_flsm/core/solver.h"
+#include "deformable_flsm/core/world.h"
 #include "deformable_flsm/ros/commands.h"
 #include "deformable_flsm/ros/loop_clock.h"
 
@@ -52,7 +53,10 @@ struct LoopSettings {
   double statsWindow = 1.0;
 };
 
-/// Figures of the loop and the solver, as reported on ~state.
+/// Figures of the loop and the solver, as reported on ~state: of one object
+/// (ObjectSnapshot::diag), or of the whole scene (Snapshot::diag: energies, pins, drags, forces
+/// and particles summed over the objects, displacement, speed and shape error the largest of
+/// any object, saturated when any object is, alpha the first object's).
 struct LoopDiagnostics {
   /// simulated time since start or reset (s)
   double simTime = 0.0;
@@ -83,10 +87,15 @@ struct DragView {
   Eigen::Vector3d target = Eigen::Vector3d::Zero();
 };
 
-/// The state after a step, copied out of the simulation thread.
-struct Snapshot {
-  /// increases with every new state; equal sequence = identical content
-  std::uint64_t sequence = 0;
+/// One object's state after a step.
+struct ObjectSnapshot {
+  /// the object's name in the World
+  std::string name;
+  /// Snapshot::sequence of the last snapshot in which this object had moved (any particle
+  /// farther than LoopSettings::restFraction object sizes from where it was at the version
+  /// before) or its pins or drags changed: while it stays, the object looks the same, and
+  /// its messages need not be rebuilt or re-sent although others move
+  std::uint64_t version = 0;
   /// #P particle positions (m) and region rotations
   std::vector<Eigen::Vector3d> positions;
   std::vector<Eigen::Quaterniond> rotations;
@@ -96,10 +105,23 @@ struct Snapshot {
   /// the object's best-fit rigid frame, origin at its centre of mass: the identity maps the
   /// rest centre of mass to itself (Solver::rigidFrame() followed by a shift to the rest COM)
   Eigen::Isometry3d objectFrame = Eigen::Isometry3d::Identity();
+  /// this object's figures (the loop's pace and counts are the scene's)
+  LoopDiagnostics diag;
+};
+
+/// The state after a step, copied out of the simulation thread.
+struct Snapshot {
+  /// increases with every new state; equal sequence = identical content
+  std::uint64_t sequence = 0;
+  /// every object, in the World's order; objects[0] is the first (the single object)
+  std::vector<ObjectSnapshot> objects;
+  /// what each object exerted on each other it touched during the step (simulation frame)
+  std::vector<ObjectPairWrench> objectWrenches;
   /// the colliders in the solver (poses at the end of the step) and what the object exerted on
-  /// each during the step (simulation frame)
+  /// each during the step (simulation frame), all objects together
   std::map<std::string, Collider> colliders;
   std::map<std::string, ContactWrench> wrenches;
+  /// the whole scene's figures
   LoopDiagnostics diag;
 };
 
@@ -118,11 +140,12 @@ class SimulationLoop {
   /// its last pose.
   using FrameSource = std::function<bool(const std::string& frame, Eigen::Isometry3d& simFromFrame)>;
 
-  /// @param[in] solver    the solver, ready (pins set); owned by the loop from now on
+  /// @param[in] world     the objects, ready (pins and colliders set), at least one; owned by
+  ///                      the loop from now on
   /// @param[in] settings  pacing and idling
   /// @param[in] stats     where accepted and rejected commands are counted
   /// @param[in] clock     what the loop paces itself by; nullptr for the steady clock
-  SimulationLoop(std::unique_ptr<Solver> solver, const LoopSettings& settings,
+  SimulationLoop(std::unique_ptr<World> world, const LoopSettings& settings,
                  std::shared_ptr<CommandStats> stats, std::shared_ptr<LoopClock> clock = nullptr);
   /// Stops and joins the thread.
   ~SimulationLoop();
@@ -136,7 +159,8 @@ class SimulationLoop {
 
   /// Queues a command and wakes the loop, which applies it and, if no step is due yet, steps at
   /// once (borrowing the next step's time; see run()). When the queue is full the
-  /// command is rejected ("queue_full"), its outcome delivered, and false returned.
+  /// command is rejected ("queue_full"), its outcome delivered, and false returned. A command
+  /// to an object the World no longer has is rejected when applied ("unknown_object").
   bool submit(Command command);
   /// Sets how attached drags (AttachCommand) find their frames; call before start(). Without a
   /// source, attached drags hold their pose.
@@ -158,21 +182,27 @@ class SimulationLoop {
   /// The newest snapshot. Single reader: the reference stays valid and unchanged until the next
   /// call of acquire().
   const Snapshot& acquire();
-  /// Copies the newest snapshot's small part (sequence, drags, object frame, colliders and their
-  /// wrenches, diagnostics; not the particles) into `out`, from any one thread beside the reader
-  /// of acquire(): the state and tf go out on a thread of their own, never held up by the meshes.
+  /// Copies the newest snapshot's small part (sequence, each object's name, version, drags,
+  /// frame and figures, the colliders and all wrenches, the scene's figures; not the particles)
+  /// into `out`, from any one thread beside the reader of acquire(): the state and tf go out on a
+  /// thread of their own, never held up by the meshes.
   void copySummary(Snapshot& out) const;
   /// Why the last reset of a blown-up state happened (empty before the first), from any thread.
   std::string lastResetCause() const;
-  /// The object's current centre of mass (m), for range checks from any thread.
-  Eigen::Vector3d centerOfMass() const;
+  /// Object `object`'s (index in objectNames()) current centre of mass (m), for range checks
+  /// from any thread.
+  Eigen::Vector3d centerOfMass(std::size_t object = 0) const;
 
-  const Lattice& lattice() const { return *lattice_; }
+  /// the objects' names at start (World::objectNames()), their lattices (immutable)
+  const std::vector<std::string>& objectNames() const { return names_; }
+  const Lattice& lattice(std::size_t object = 0) const { return *lattices_[object]; }
 
  private:
   void run();
-  /// Applies one command; returns true when it was accepted.
+  /// Applies one command to the object it addresses (target_); returns true when accepted.
   bool apply(Command& command);
+  /// The command's body applied to target_.
+  CommandOutcome applyBody(Command& command);
   CommandOutcome grab(const GrabCommand& c, const AttachCommand* attach = nullptr);
   CommandOutcome move(const MoveCommand& c);
   CommandOutcome release(const ReleaseCommand& c);
@@ -188,10 +218,12 @@ class SimulationLoop {
   /// Rejection: counted, and the outcome carries the detail.
   CommandOutcome reject(const std::string& reason, const std::string& detail);
   double massOf(const std::vector<std::uint32_t>& particles) const;
-  /// Resets a non-finite state to rest and counts it.
+  /// Resets an object whose state is not finite to rest and counts it.
   void ensureFinite();
-  /// Where the state that ensureFinite() is about to reset went wrong, in words.
-  std::string describeBlowUp() const;
+  /// Where object `k`'s state, which ensureFinite() is about to reset, went wrong, in words.
+  std::string describeBlowUp(std::size_t k) const;
+  /// Every object back to rest (pins kept, drags and forces released).
+  void resetAll();
   /// Moves every attached drag to where its frame is now (see FrameSource).
   void followFrames();
   void timedStep();
@@ -201,13 +233,21 @@ class SimulationLoop {
   /// Starts a new stillness window at the current positions.
   void restartStillness();
   void writeSnapshot();
+  /// One object's part of the snapshot and figures.
+  void writeObject(const Solver& solver, std::size_t k, ObjectSnapshot& o);
 
-  std::unique_ptr<Solver> solver_;
-  const Lattice* lattice_ = nullptr;  // the solver's; immutable, so any thread may read it
+  std::unique_ptr<World> world_;
+  /// the objects at start: names, solvers, lattices (immutable, any thread may read them) and
+  /// rest centres of mass, in the World's order
+  std::vector<std::string> names_;
+  std::vector<Solver*> solvers_;
+  std::vector<const Lattice*> lattices_;
+  std::vector<Eigen::Vector3d> restCenterOfMass_;
+  /// the object the command being applied addresses
+  Solver* target_ = nullptr;
   LoopSettings settings_;
   std::shared_ptr<CommandStats> stats_;
   std::shared_ptr<LoopClock> clock_;
-  Eigen::Vector3d restCenterOfMass_ = Eigen::Vector3d::Zero();
 
   // Command queue, shared with submitters.
   mutable std::mutex queueMutex_;
@@ -227,7 +267,7 @@ class SimulationLoop {
   std::string lastReset_;  ///< lastResetCause(), under snapshotMutex_
   /// commands applied since the last snapshot, by CommandBody alternative (for describeBlowUp())
   std::array<std::uint32_t, std::variant_size_v<CommandBody>> appliedKinds_{};
-  Eigen::Vector3d centerOfMass_ = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Vector3d> centerOfMass_;
 
   // Followed colliders' motions, shared with setColliderMotion().
   std::mutex motionMutex_;
@@ -236,7 +276,8 @@ class SimulationLoop {
 
   // Owned by the simulation thread.
   FrameSource frameSource_;
-  std::map<std::string, std::string> attachedFrames_;  // drag id -> the frame it follows
+  /// (object, drag id) -> the frame it follows
+  std::map<std::pair<Solver*, std::string>, std::string> attachedFrames_;
   /// A collider that follows a tf frame: its shape, whether it is in the solver yet, the pose
   /// and velocity for the next step, and the simulated time since its last sample.
   struct Followed {
@@ -249,10 +290,20 @@ class SimulationLoop {
   std::map<std::string, ColliderMotion> incomingMotions_;
   bool collidersMoving_ = false;  // a followed collider moved in the last step
   LoopDiagnostics diag_;
+  /// the World's time at the last reset of the whole scene: simulated time counts from there
+  double timeOrigin_ = 0.0;
   std::uint64_t sequence_ = 0;
   bool idle_ = false;
   double stillFor_ = 0.0;  // simulated seconds of stillness
-  std::vector<Eigen::Vector3d> stillFrom_;  // positions at the start of the stillness window
+  /// per object, positions at the start of the stillness window
+  std::vector<std::vector<Eigen::Vector3d>> stillFrom_;
+  /// per object, the positions, pins and drags of its current version (ObjectSnapshot::version)
+  struct Version {
+    std::uint64_t sequence = 0;
+    std::vector<Eigen::Vector3d> positions;
+    std::size_t pinned = 0, drags = 0;
+  };
+  std::vector<Version> versions_;
   double windowSteps_ = 0.0, windowStepSeconds_ = 0.0, windowSimulated_ = 0.0;
   std::chrono::steady_clock::time_point windowStart_;
   bool windowComplete_ = false;  // a full window has passed since the last restart

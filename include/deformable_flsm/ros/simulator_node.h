@@ -34,15 +34,18 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <vector>
 
 namespace deformable_flsm {
 
 /// flsm_node's topics, services and timers (see README for the full table):
 ///   in   ~drag (DragCommand), ~force (ForceCommand), ~collider (ColliderCommand), RViz mouse
-///        via ~drag_marker
+///        via ~drag_marker; with ~objects also ~objects/<name>/drag and ~objects/<name>/force
+///        (the top-level topics address the first object)
 ///   out  ~mesh, ~surface, ~particles, ~lattice, ~colliders (only while subscribed), ~state,
 ///        ~contact_wrenches, tf
-///   srv  ~reset, ~release_all, ~pin_box; dynamic_reconfigure on ~
+///   srv  ~reset, ~release_all, ~pin_box (with ~objects also ~objects/<name>/pin_box);
+///        dynamic_reconfigure on ~
 ///
 /// Threads: the simulation thread (SimulationLoop) steps the solver; the main thread (ros::spin)
 /// runs the publish timer of the meshes, clouds and markers and the RViz feedback; the state
@@ -64,10 +67,12 @@ class SimulatorNode {
  public:
   /// @param[in] nh      public handle
   /// @param[in] pnh     private handle ("~"): topics, services and parameters live here
-  /// @param[in] params  validated node parameters
-  /// @param[in] scene   the built scene; its solver moves into the simulation thread
+  /// @param[in] params      validated node parameters
+  /// @param[in] scene       the built objects; their World moves into the simulation thread
+  /// @param[in] namespaced  the objects came from ~objects: each has its topics under
+  ///                        ~objects/<name>/ (false: the single object's topics under ~)
   SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, const NodeParams& params,
-                Scene scene);
+                WorldScene scene, bool namespaced);
   ~SimulatorNode();
 
  private:
@@ -78,17 +83,26 @@ class SimulatorNode {
   // Commands in.
   /// (the event names the publisher: messages missing from its numbering are counted, see
   /// SequenceGaps)
-  void onDrag(const ros::MessageEvent<const DragCommand>& event);
-  void onForce(const ros::MessageEvent<const ForceCommand>& event);
+  /// Subscribes ~<prefix>drag, ~<prefix>force and advertises ~<prefix>pin_box for object
+  /// `object` (index in objects_).
+  void subscribeCommands(std::size_t object, const std::string& prefix, ros::Subscriber& dragSub,
+                         ros::Subscriber& forceSub, ros::ServiceServer& pinBoxSrv);
+  /// (`object`: the index of the object the topic addresses; `topic`: its name, for
+  /// SequenceGaps)
+  void onDrag(std::size_t object, const std::string& topic,
+              const ros::MessageEvent<const DragCommand>& event);
+  void onForce(std::size_t object, const std::string& topic,
+               const ros::MessageEvent<const ForceCommand>& event);
   /// The RViz mouse's drags: validated and sent like ~drag; true when accepted.
-  bool onMouseDrag(const DragCommand& drag);
+  bool onMouseDrag(std::size_t object, const DragCommand& drag);
   bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool onReleaseAll(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
-  bool onPinBox(PinBox::Request& req, PinBox::Response& res);
+  bool onPinBox(std::size_t object, PinBox::Request& req, PinBox::Response& res);
   /// false (counted as invalid_params) when the change is refused: nothing changes.
   bool onReconfigure(const FlsmConfig& config);
-  /// Sends a command to the simulation thread; waits for its outcome when `wait`.
-  CommandOutcome send(CommandBody body, bool wait);
+  /// Sends a command to the simulation thread, to object `object` ("" = the first, or the
+  /// whole scene for colliders, reset and release-all); waits for its outcome when `wait`.
+  CommandOutcome send(CommandBody body, bool wait, const std::string& object = std::string());
   void rejected(const Rejection& why);
   /// The transform at `stamp` if tf has it, else the latest one, else false: it never waits,
   /// except once, when the first command in a foreign frame starts the tf listener (see
@@ -117,14 +131,22 @@ class SimulatorNode {
   ros::CallbackQueue reconfigureQueue_;
   std::mutex paramsMutex_;  ///< params_ between onReconfigure and the publish timer's reporter_
   NodeParams params_;
-  SceneInfo info_;
-  std::shared_ptr<const Lattice> lattice_;
-  TriMesh renderMesh_;
-  std::unique_ptr<Embedding> embedding_;
+  /// the objects (lattice, render mesh, embedding, start-up figures), in the World's order
+  std::vector<SceneObject> objects_;
+  /// what ProblemReporter warns about: the first object's, with the pins of every object
+  SceneInfo sceneInfo_;
+  bool namespaced_ = false;
   std::shared_ptr<CommandStats> stats_;
   SequenceGaps gaps_;  ///< of ~drag and ~force, on the command spinner's thread
   std::unique_ptr<SimulationLoop> loop_;
-  std::unique_ptr<CommandValidator> validator_;
+  /// One object's command topics: its validator (its size and place), and with ~objects its
+  /// subscribers and service under ~objects/<name>/.
+  struct ObjectCommands {
+    std::unique_ptr<CommandValidator> validator;
+    ros::Subscriber dragSub, forceSub;
+    ros::ServiceServer pinBoxSrv;
+  };
+  std::vector<ObjectCommands> commands_;
   std::unique_ptr<ColliderTopics> colliders_;  ///< ~collider, ~contact_wrenches, ~colliders
 
   tf2_ros::Buffer tfBuffer_;

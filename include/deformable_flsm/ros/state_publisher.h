@@ -1,6 +1,8 @@
 /// @file state_publisher.h
-/// What flsm_node sends out each publish tick: tf (the object's rigid frame), ~state, and the
+/// What flsm_node sends out each publish tick: tf (each object's rigid frame), ~state, and the
 /// heavy topics ~mesh, ~surface, ~particles and ~lattice, each built only while subscribed.
+/// With ~objects, each object's clouds, lattice markers and state go to ~objects/<name>/..., its
+/// mesh to the shared ~mesh as a Marker of namespace <name>.
 #pragma once
 
 #include "deformable_flsm/core/embedding.h"
@@ -9,6 +11,7 @@
 #include "deformable_flsm/ros/commands.h"
 #include "deformable_flsm/ros/lazy_topic.h"
 #include "deformable_flsm/ros/param_loader.h"
+#include "deformable_flsm/ros/scene.h"
 #include "deformable_flsm/ros/simulation_loop.h"
 
 #include <deformable_flsm/SimulationState.h>
@@ -24,6 +27,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -32,46 +36,49 @@ namespace deformable_flsm {
 /// Converts snapshots to messages and publishes them. Main thread only (the publish timer).
 class StatePublisher {
  public:
-  /// Advertises the topics on `pnh`. Keeps references to `params`, `lattice`, `renderMesh`,
-  /// `embedding` and `stats`, which must outlive it.
-  /// @param[in] renderMesh  the render mesh whose vertices `embedding` deforms (~mesh)
-  StatePublisher(ros::NodeHandle& pnh, const NodeParams& params, const Lattice& lattice,
-                 const TriMesh& renderMesh, const Embedding& embedding, const CommandStats& stats);
+  /// Advertises the topics on `pnh`. Keeps references to `params`, `objects` (their lattices,
+  /// render meshes and embeddings) and `stats`, which must outlive it.
+  /// @param[in] objects     the scene's objects, in the World's order
+  /// @param[in] namespaced  each object's topics under ~objects/<name>/ (a node with ~objects);
+  ///                        false: the single object's topics directly under ~
+  StatePublisher(ros::NodeHandle& pnh, const NodeParams& params,
+                 const std::vector<SceneObject>& objects, bool namespaced,
+                 const CommandStats& stats);
+  ~StatePublisher();
 
-  /// The object's frame on tf: ~frame_id -> ~object_frame_id.
+  /// Each object's frame on tf: ~frame_id -> the object's name (~object_frame_id for the
+  /// single object).
   void publishTf(const Snapshot& s, const ros::Time& stamp);
-  /// ~state: the loop's diagnostics, the command counts and the colliders.
+  /// ~state: the loop's diagnostics, the command counts and the colliders, of the whole scene;
+  /// with ~objects, each object's own on ~objects/<name>/state.
   /// @param[in] colliderFrameMisses  samples that found a followed tf frame unknown or stale
   ///                                 (ColliderFollower::misses())
   void publishState(const Snapshot& s, const ros::Time& stamp, std::uint64_t colliderFrameMisses);
-  /// ~mesh, ~surface, ~particles, ~lattice, to those that are due (LazyTopic::due()): at rest
-  /// the clouds (~surface, ~particles) keep the rate with the cached message and a new stamp;
-  /// the markers (~mesh, ~lattice) go out once, then to new subscribers only, unless
-  /// ~republish_at_rest. Nothing non-finite goes out: a non-finite embedded mesh skips ~mesh and
+  /// ~mesh, ~surface, ~particles, ~lattice (per object), to those that are due
+  /// (LazyTopic::due()): at rest the clouds keep the rate with the cached message and a new
+  /// stamp; the markers go out once, then to new subscribers only, unless ~republish_at_rest.
+  /// Nothing non-finite goes out: a non-finite embedded mesh skips its ~mesh marker and
   /// ~surface (logged). The embedded render vertices are projected out of the snapshot's
   /// colliders first.
   void publishHeavy(const Snapshot& s, const ros::Time& stamp);
 
  private:
+  class ObjectTopics;
+  /// The whole-scene or one object's state message (mass and particles of `lattices`).
+  void fillState(const LoopDiagnostics& d, const ros::Time& stamp, double mass,
+                 std::size_t particles, std::size_t colliders, std::uint64_t colliderFrameMisses,
+                 SimulationState& m) const;
+
   const NodeParams& params_;
-  const Lattice& lattice_;
-  const TriMesh& renderMesh_;
-  const Embedding& embedding_;
   const CommandStats& stats_;
+  std::vector<std::unique_ptr<ObjectTopics>> objects_;
+  double totalMass_ = 0.0;
+  std::size_t totalParticles_ = 0;
 
   tf2_ros::TransformBroadcaster tfBroadcaster_;
+  std::vector<geometry_msgs::TransformStamped> transforms_;
   ros::Publisher statePub_;
-  LazyTopic mesh_, surface_, particles_, latticeMarkers_;
-
-  std::vector<Eigen::Vector3d> vertices_;  ///< embedded render vertices
-  std::uint64_t verticesSequence_ = 0;
-  bool verticesFinite_ = true;  ///< checked once per deform, not per resend at rest
-  visualization_msgs::Marker marker_;
-  sensor_msgs::PointCloud2 surfaceCloud_, particleCloud_;
-  visualization_msgs::MarkerArray latticeMarkerArray_;
-  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> dragLines_;
   SimulationState state_;
-  std::uint64_t nonFiniteSkips_ = 0;
 };
 
 }  // namespace deformable_flsm
