@@ -112,12 +112,14 @@ TEST(SimulationLoop, SummaryIsTheNewestStateBesideTheReader) {
     EXPECT_GE(summary.sequence, acquired);
     EXPECT_GE(summary.sequence, seen) << "the summary went back in time";
     seen = summary.sequence;
-    EXPECT_TRUE(summary.positions.empty()) << "the summary carries no particles";
-    EXPECT_EQ(summary.diag.drags, summary.drags.size());
+    ASSERT_EQ(summary.objects.size(), 1u);
+    EXPECT_TRUE(summary.objects[0].positions.empty()) << "the summary carries no particles";
+    EXPECT_EQ(summary.objects[0].diag.drags, summary.objects[0].drags.size());
+    EXPECT_EQ(summary.diag.drags, summary.objects[0].drags.size());
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
   EXPECT_GT(seen, 1u) << "the loop never stepped";
-  EXPECT_EQ(summary.drags.size(), 1u) << "the grab never reached the summary";
+  EXPECT_EQ(summary.objects[0].drags.size(), 1u) << "the grab never reached the summary";
 }
 
 TEST(SimulationLoop, HardGrabHoldsTheParticleAtTheTargetAndReleaseReturnsToRest) {
