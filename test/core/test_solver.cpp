@@ -2,6 +2,7 @@
 
 #include "deformable_flsm/core/fast_summation.h"
 #include "deformable_flsm/core/mesh.h"
+#include "allocation_counter.h"
 #include "fixtures.h"
 #include "support/fem_oracle.h"
 
@@ -15,20 +16,6 @@
 #include <sstream>
 #include <utility>
 
-// Counts every allocation of this test binary, so that a test can assert that a solver step
-// makes none (no allocation inside a step).
-namespace {
-std::atomic<long> gAllocations{0};
-}  // namespace
-
-// Kept out of line: inlined, GCC mistakes this malloc/free pair for a new/free mismatch.
-__attribute__((noinline)) void* operator new(std::size_t size) {
-  ++gAllocations;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-__attribute__((noinline)) void operator delete(void* p) noexcept { std::free(p); }
-__attribute__((noinline)) void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 using deformable_flsm::Lattice;
 using deformable_flsm::Solver;

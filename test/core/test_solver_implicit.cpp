@@ -3,6 +3,7 @@
 // saturates, stability at long steps, constraints, and thread-count independence.
 #include "support/fem_oracle.h"
 #include "deformable_flsm/core/solver.h"
+#include "allocation_counter.h"
 #include "fixtures.h"
 #include "deformable_flsm/core/mesh.h"
 #include "deformable_flsm/core/resolution.h"
@@ -14,21 +15,6 @@
 #include <cstdlib>
 #include <memory>
 #include <new>
-
-// Counts every allocation of this test binary, so that a test can assert that an implicit step
-// makes none (as test_solver.cpp does for the explicit step).
-namespace {
-std::atomic<long> gAllocations{0};
-}  // namespace
-
-// Kept out of line: inlined, GCC mistakes this malloc/free pair for a new/free mismatch.
-__attribute__((noinline)) void* operator new(std::size_t size) {
-  ++gAllocations;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-__attribute__((noinline)) void operator delete(void* p) noexcept { std::free(p); }
-__attribute__((noinline)) void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 using deformable_flsm::Collider;
 using deformable_flsm::ColliderType;

@@ -5,6 +5,7 @@
 #include "deformable_flsm/core/world.h"
 
 #include "deformable_flsm/core/contact.h"
+#include "allocation_counter.h"
 #include "fixtures.h"
 
 #include <gtest/gtest.h>
@@ -18,21 +19,6 @@
 #include <random>
 #include <string>
 #include <vector>
-
-// Counts every allocation of this test binary, so that a test can assert that a world's step
-// makes none once its buffers have grown.
-namespace {
-std::atomic<long> gAllocations{0};
-}  // namespace
-
-// Kept out of line: inlined, GCC mistakes this malloc/free pair for a new/free mismatch.
-__attribute__((noinline)) void* operator new(std::size_t size) {
-  ++gAllocations;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-__attribute__((noinline)) void operator delete(void* p) noexcept { std::free(p); }
-__attribute__((noinline)) void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 using namespace deformable_flsm;
 
