@@ -176,6 +176,10 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
   }
   const ros::Time stamp = ros::Time::now();
   const Snapshot& s = loop_->acquire();
+  // tf, the wrenches and the clouds of one snapshot carry one stamp: a subscriber pairs a cloud
+  // with the colliders' and objects' frames of the same step by it.
+  publisher_->publishTf(s, stamp);
+  colliders_->publishFrames(s, stamp);
   colliders_->publishMarkers(s, stamp);
   for (std::size_t k = 0; k < s.objects.size(); ++k) mouse_->follow(k, s.objects[k].objectFrame);
   publisher_->publishHeavy(s, stamp);
@@ -184,8 +188,6 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
 void SimulatorNode::onStateTimer(const ros::TimerEvent&) {
   const ros::Time stamp = ros::Time::now();
   loop_->copySummary(summary_);
-  publisher_->publishTf(summary_, stamp);
-  colliders_->publishFrames(summary_, stamp);
   publisher_->publishState(summary_, stamp, colliders_->frameMisses());
   std::lock_guard<std::mutex> lock(paramsMutex_);
   reporter_->report(summary_.diag);

@@ -61,8 +61,8 @@ class ColliderTopics {
                  CommandValidator::TransformLookup lookup, Send send, const Lattice& lattice,
                  double contactRadius);
 
-  /// Every state tick (the state thread): ~contact_wrenches (also at rest) and the colliders'
-  /// tf frames; `s` needs only its summary (SimulationLoop::copySummary()).
+  /// Every publish tick (the main thread): ~contact_wrenches (also at rest) and the colliders'
+  /// tf frames.
   void publishFrames(const Snapshot& s, const ros::Time& stamp);
   /// Every publish tick (the main thread): ~colliders when it is due (LazyTopic::due(): while
   /// subscribed, like ~lattice).
@@ -93,11 +93,11 @@ class ColliderTopics {
   ros::Timer followTimer_;
   tf2_ros::TransformBroadcaster tfBroadcaster_;
 
-  // The state thread's (publishFrames(), the follow timer).
+  // The state thread's (the follow timer).
+  ColliderFollower::Report report_;
+  // The main thread's (publishFrames(), publishMarkers()).
   ContactWrenches wrenches_;
   std::vector<geometry_msgs::TransformStamped> transforms_;
-  ColliderFollower::Report report_;
-  // The main thread's (publishMarkers()).
   visualization_msgs::MarkerArray markerArray_;
   /// robot colliders: summed per link on ~contact_wrenches
   std::map<std::string, WrenchGroup> robotLinks_;

@@ -184,8 +184,8 @@ class SimulationLoop {
   const Snapshot& acquire();
   /// Copies the newest snapshot's small part (sequence, each object's name, version, drags,
   /// frame and figures, the colliders and all wrenches, the scene's figures; not the particles)
-  /// into `out`, from any one thread beside the reader of acquire(): the state and tf go out on a
-  /// thread of their own, never held up by the meshes.
+  /// into `out`, from any one thread beside the reader of acquire(): ~state goes out on a
+  /// thread of its own, never held up by the meshes.
   void copySummary(Snapshot& out) const;
   /// Why the last reset of a blown-up state happened (empty before the first), from any thread.
   std::string lastResetCause() const;

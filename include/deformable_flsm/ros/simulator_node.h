@@ -48,10 +48,10 @@ namespace deformable_flsm {
 ///        dynamic_reconfigure on ~
 ///
 /// Threads: the simulation thread (SimulationLoop) steps the solver; the main thread (ros::spin)
-/// runs the publish timer of the meshes, clouds and markers and the RViz feedback; the state
-/// thread, with its own queue and timer, sends ~state, ~contact_wrenches and tf at the same rate
-/// and samples the frames colliders follow, so that on a starved machine a slow mesh (5 MB for
-/// the bunny) never holds up the small messages controllers and the colliders depend on; a
+/// runs the publish timer of tf, ~contact_wrenches, the meshes, clouds and markers (one snapshot,
+/// one stamp) and the RViz feedback; the state thread, with its own queue and timer, sends
+/// ~state at the same rate and samples the frames colliders follow, so that on a starved machine
+/// a slow mesh (5 MB for the bunny) never holds up the state nor the followed colliders; a
 /// further spinner thread with its own queue
 /// serves ~drag, ~force and ~collider, a third the services, so that a service waiting for the
 /// simulation never delays publishing nor another client's commands, and a fourth
