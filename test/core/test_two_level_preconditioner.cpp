@@ -21,27 +21,7 @@ using deformable_flsm::TwoLevelPreconditioner;
 
 namespace {
 
-/// Rest data of a lattice as the solver keeps it (rest positions about the rest centre of mass).
-struct Rest {
-  std::vector<Eigen::Vector3d> q, c0;
-  std::vector<double> regionMass;
-  Rest(const Lattice& L, RegionSummer& summer) {
-    const std::size_t n = L.size();
-    Eigen::Vector3d com = Eigen::Vector3d::Zero();
-    for (std::size_t i = 0; i < n; ++i) com += L.masses()[i] * L.restPositions()[i];
-    com /= L.totalMass();
-    q.resize(n);
-    for (std::size_t i = 0; i < n; ++i) q[i] = L.restPositions()[i] - com;
-    std::vector<double> m = L.regionMassFractions(), mq(3 * n), Ms, mqs;
-    for (std::size_t i = 0; i < n; ++i)
-      for (int a = 0; a < 3; ++a) mq[3 * i + a] = m[i] * q[i][a];
-    summer.gather(m, 1, Ms);
-    summer.gather(mq, 3, mqs);
-    regionMass = Ms;
-    c0.resize(n);
-    for (std::size_t r = 0; r < n; ++r) c0[r] = Eigen::Vector3d(mqs[3 * r], mqs[3 * r + 1], mqs[3 * r + 2]) / Ms[r];
-  }
-};
+using deformable_flsm::test::Rest;
 
 /// An L-shaped lattice (regions clipped by the surface and by the notch, aggregates cut by both).
 std::shared_ptr<const Lattice> lShape(int w) {
