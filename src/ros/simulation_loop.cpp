@@ -215,9 +215,7 @@ void SimulationLoop::copySummary(Snapshot& out) const {
     to.objectFrame = from.objectFrame;
     to.diag = from.diag;
   }
-  out.objectWrenches = s.objectWrenches;
   out.colliders = s.colliders;
-  out.wrenches = s.wrenches;
   out.diag = s.diag;
 }
 

@@ -183,7 +183,7 @@ class SimulationLoop {
   /// call of acquire().
   const Snapshot& acquire();
   /// Copies the newest snapshot's small part (sequence, each object's name, version, drags,
-  /// frame and figures, the colliders and all wrenches, the scene's figures; not the particles)
+  /// frame and figures, the colliders, the scene's figures; not the particles nor the wrenches)
   /// into `out`, from any one thread beside the reader of acquire(): ~state goes out on a
   /// thread of its own, never held up by the meshes.
   void copySummary(Snapshot& out) const;
