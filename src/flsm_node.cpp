@@ -1,7 +1,7 @@
 // flsm_node: reads ~parameters and the mesh, builds the scene, hands it to SimulatorNode.
 #include "deformable_flsm/ros/object_params.h"
 #include "deformable_flsm/ros/param_loader.h"
-#include "deformable_flsm/ros/scene.h"
+#include "deformable_flsm/runtime/scene.h"
 #include "deformable_flsm/ros/simulator_node.h"
 
 #include <ros/ros.h>
@@ -36,7 +36,7 @@ int main(int argc, char** argv) {
       ROS_WARN("flsm_node: ~%s is not a parameter of flsm_node (misspelt?); ignored", name.c_str());
     }
     WorldScene scene = objects.empty() ? worldOfOne(buildScene(params, loadMeshParam(params)), params)
-                                       : buildWorld(params, objects);
+                                       : buildWorld(params, objects, loadMeshParam);
     for (const SceneObject& o : scene.objects) {
       const std::string who = objects.empty() ? "" : "object '" + o.name + "': ";
       ROS_INFO_STREAM("flsm_node: " << who << "mesh '" << o.params.mesh << "'\n"

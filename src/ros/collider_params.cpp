@@ -4,7 +4,7 @@
 
 #include "deformable_flsm/core/mesh_distance_field.h"
 
-#include "deformable_flsm/ros/commands.h"
+#include "deformable_flsm/runtime/commands.h"
 #include "deformable_flsm/ros/param_loader.h"
 
 #include <Eigen/Geometry>
@@ -31,7 +31,6 @@ struct LoadedMesh {
   std::shared_ptr<const MeshDistanceField> distanceField;
 };
 
-constexpr const char kColliderFramePrefix[] = "flsm_collider/";
 
 /// Fields an entry of ~colliders may have.
 const char* const kFields[] = {"id",       "type",       "frame_id",        "position",
@@ -100,15 +99,6 @@ class EntryReader {
 };
 
 }  // namespace
-
-std::string colliderFrameId(const std::string& id) { return kColliderFramePrefix + id; }
-
-bool validColliderId(const std::string& id) {
-  if (id.empty() || id.size() > CommandLimits::kMaxIdLength) return false;
-  for (const char c : id)
-    if (!std::isprint(static_cast<unsigned char>(c))) return false;
-  return true;
-}
 
 void loadColliderMesh(const std::string& url, double scale, ColliderShape& shape) {
   if (!std::isfinite(scale) || scale <= 0.0)
@@ -277,27 +267,6 @@ std::vector<ColliderSpec> parseColliderList(XmlRpc::XmlRpcValue& value,
     specs.push_back(std::move(spec));
   }
   return specs;
-}
-
-Collider groundCollider(const Lattice& lattice, const TriMesh& mesh, const Eigen::Vector3d& gravity,
-                        double contactRadius, double clearance) {
-  const Eigen::Vector3d up =
-      gravity.norm() > 0.0 ? Eigen::Vector3d(-gravity.normalized()) : Eigen::Vector3d::UnitZ();
-  double lowest = std::numeric_limits<double>::infinity();
-  for (const Eigen::Vector3d& v : mesh.vertices) lowest = std::min(lowest, up.dot(v));
-  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-  for (const Eigen::Vector3d& x : lattice.restPositions()) {
-    lowest = std::min(lowest, up.dot(x) - contactRadius);
-    centre += x;
-  }
-  centre /= static_cast<double>(std::max<std::size_t>(1, lattice.size()));
-  Collider ground;
-  ground.shape.type = ColliderType::HalfSpace;
-  // The plane's origin below the object's centre; its +z is `up`.
-  const Eigen::Vector3d origin = centre + (lowest - clearance - up.dot(centre)) * up;
-  ground.pose = Eigen::Translation3d(origin) *
-                Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), up);
-  return ground;
 }
 
 }  // namespace deformable_flsm

@@ -1,7 +1,7 @@
 #include "deformable_flsm/ros/interactive_drag.h"
 
 #include "deformable_flsm/ros/mesh_messages.h"
-#include "deformable_flsm/ros/render_mesh.h"
+#include "deformable_flsm/runtime/render_mesh.h"
 #include "to_eigen.h"
 
 #include <tf2_eigen/tf2_eigen.h>

@@ -104,14 +104,6 @@ Eigen::Isometry3d poseFrom(const Eigen::VectorXd& v) {
 
 }  // namespace
 
-bool validObjectName(const std::string& name) {
-  if (name.empty() || name.size() > ObjectLimits::kMaxNameLength) return false;
-  if (!std::isalpha(static_cast<unsigned char>(name[0]))) return false;
-  for (const char c : name)
-    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') return false;
-  return true;
-}
-
 std::vector<ObjectSpec> parseObjectList(XmlRpc::XmlRpcValue& value, const NodeParams& defaults) {
   if (value.getType() != XmlRpc::XmlRpcValue::TypeArray || value.size() == 0)
     throw ParamError("~objects is " + describe(value) +
@@ -190,13 +182,6 @@ std::vector<ObjectSpec> parseObjectList(XmlRpc::XmlRpcValue& value, const NodePa
     specs.push_back(std::move(spec));
   }
   return specs;
-}
-
-ObjectSpec singleObject(const NodeParams& params) {
-  ObjectSpec spec;
-  spec.name = params.objectFrameId;
-  spec.params = params;
-  return spec;
 }
 
 }  // namespace deformable_flsm

@@ -1,7 +1,7 @@
 #include "deformable_flsm/ros/robot_colliders.h"
 
 #include "deformable_flsm/core/contact.h"
-#include "deformable_flsm/ros/commands.h"
+#include "deformable_flsm/runtime/commands.h"
 #include "deformable_flsm/ros/param_loader.h"
 
 #include <urdf/model.h>
@@ -14,7 +14,6 @@ namespace deformable_flsm {
 
 namespace {
 
-constexpr const char kIdPrefix[] = "robot/";
 
 struct Pattern {
   std::string text;
@@ -103,8 +102,6 @@ std::string join(const std::vector<std::string>& names) {
 
 }  // namespace
 
-std::string robotLinkWrenchId(const std::string& link) { return kIdPrefix + link; }
-
 RobotColliders parseRobotColliders(const std::string& urdfXml, const RobotColliderOptions& options) {
   RobotColliders out;
   out.options = options;
@@ -139,7 +136,7 @@ RobotColliders parseRobotColliders(const std::string& urdfXml, const RobotCollid
           "robot link '" + link->name + "' <collision> " + std::to_string(k);
       RobotCollider rc;
       rc.link = link->name;
-      rc.spec.id = kIdPrefix + link->name + "/" + std::to_string(k);
+      rc.spec.id = robotLinkWrenchId(link->name) + "/" + std::to_string(k);
       if (!validColliderId(rc.spec.id))
         throw ParamError(where + ": its collider id '" + rc.spec.id + "' is longer than " +
                          std::to_string(CommandLimits::kMaxIdLength) +
@@ -169,22 +166,6 @@ RobotColliders parseRobotColliders(const std::string& urdfXml, const RobotCollid
   if (!excluded.empty())
     out.warnings.push_back("robot links left out by ~robot_exclude_links: " + join(excluded));
   return out;
-}
-
-bool overlapsParticles(const ColliderShape& shape, const Eigen::Isometry3d& pose,
-                       const std::vector<Eigen::Vector3d>& positions, double radius) {
-  Eigen::Vector3d lo, hi;
-  const bool bounded = colliderBounds(shape, pose, lo, hi);
-  if (bounded) {
-    lo.array() -= radius;
-    hi.array() += radius;
-  }
-  for (const Eigen::Vector3d& x : positions) {
-    if (bounded && ((x.array() < lo.array()).any() || (x.array() > hi.array()).any())) continue;
-    Eigen::Vector3d n;
-    if (colliderDistance(shape, pose, x, n) < radius) return true;
-  }
-  return false;
 }
 
 }  // namespace deformable_flsm

@@ -73,7 +73,13 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
     for (std::size_t b = 0; b < sceneInfo_.pinnedPerBox.size() && b < other.pinnedPerBox.size(); ++b)
       sceneInfo_.pinnedPerBox[b] += other.pinnedPerBox[b];
   }
-  reporter_ = std::make_unique<ProblemReporter>(params_, sceneInfo_, *first.lattice);
+  reporter_ = std::make_unique<ProblemReporter>(
+      params_, sceneInfo_, *first.lattice, [](ProblemSeverity severity, const std::string& line) {
+        if (severity == ProblemSeverity::Error)
+          ROS_ERROR_STREAM(line);
+        else
+          ROS_WARN_STREAM(line);
+      });
   reporter_->setResetCause([this] { return loop_->lastResetCause(); });
   advertise();
   stateNh_.setCallbackQueue(&stateQueue_);

@@ -2,11 +2,11 @@
 /// Tests of ros/collider_follower.h (tf frames sampled without waiting, velocity from the last
 /// two transforms, a frame not seen yet waited for, frames lost or stale after they were seen
 /// held still and counted, short pauses harmless, the admission test at the first transform) and of the collider side of
-/// ros/simulation_loop.h (followed colliders join at their first pose, move along the sampled
+/// runtime/simulation_loop.h (followed colliders join at their first pose, move along the sampled
 /// velocity for a bounded time; collider commands applied or refused with a reason).
 #include "deformable_flsm/ros/collider_follower.h"
 #include "deformable_flsm/ros/collider_params.h"
-#include "deformable_flsm/ros/simulation_loop.h"
+#include "deformable_flsm/runtime/simulation_loop.h"
 
 #include "../core/fixtures.h"
 

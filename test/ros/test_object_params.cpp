@@ -1,11 +1,11 @@
 /// @file test_object_params.cpp
-/// Tests of ros/object_params.h and the scene of several objects (ros/scene.h buildWorld()):
+/// Tests of ros/object_params.h and the scene of several objects (runtime/scene.h buildWorld()):
 /// ~objects entries take the node's parameters as defaults and override them key by key; every
 /// bad entry is refused naming the entry and the key; the objects are built where their poses
 /// put them, share the colliders, and objects that start inside each other stop the start-up
 /// naming both.
 #include "deformable_flsm/ros/object_params.h"
-#include "deformable_flsm/ros/scene.h"
+#include "deformable_flsm/runtime/scene.h"
 
 #include <gtest/gtest.h>
 
@@ -160,7 +160,7 @@ std::vector<ObjectSpec> twoBunnies(double apart) {
 TEST(BuildWorld, ObjectsArePlacedByTheirPosesAndShareTheColliders) {
   ASSERT_TRUE(std::filesystem::exists(kBunnyMeshPath)) << "install glmark2-data (a test dependency)";
   NodeParams node;
-  const WorldScene scene = buildWorld(node, twoBunnies(1.0));
+  const WorldScene scene = buildWorld(node, twoBunnies(1.0), loadMeshParam);
   ASSERT_EQ(scene.world->objectCount(), 2u);
   ASSERT_EQ(scene.objects.size(), 2u);
   EXPECT_EQ(scene.objects[0].name, "left");
@@ -183,7 +183,7 @@ TEST(BuildWorld, ObjectsThatStartInsideEachOtherStopTheStartNamingBoth) {
   NodeParams node;
   std::string message;
   try {
-    buildWorld(node, twoBunnies(0.05));  // 5 cm apart: the 33 cm bunnies overlap
+    buildWorld(node, twoBunnies(0.05), loadMeshParam);  // 5 cm apart: the 33 cm bunnies overlap
   } catch (const ParamError& e) {
     message = e.what();
   }

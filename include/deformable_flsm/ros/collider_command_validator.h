@@ -5,7 +5,7 @@
 #pragma once
 
 #include "deformable_flsm/ros/command_validator.h"
-#include "deformable_flsm/ros/commands.h"
+#include "deformable_flsm/runtime/commands.h"
 
 #include <deformable_flsm/ColliderCommand.h>
 

@@ -7,7 +7,7 @@
 /// BufferCore by hand.
 #pragma once
 
-#include "deformable_flsm/ros/simulation_loop.h"
+#include "deformable_flsm/runtime/simulation_loop.h"
 
 #include <ros/time.h>
 #include <tf2/buffer_core.h>

@@ -8,11 +8,11 @@
 #include "deformable_flsm/ros/collider_command_validator.h"
 #include "deformable_flsm/ros/collider_follower.h"
 #include "deformable_flsm/ros/collider_messages.h"
-#include "deformable_flsm/ros/commands.h"
+#include "deformable_flsm/runtime/commands.h"
 #include "deformable_flsm/ros/lazy_topic.h"
 #include "deformable_flsm/ros/param_loader.h"
-#include "deformable_flsm/ros/sequence_gaps.h"
-#include "deformable_flsm/ros/simulation_loop.h"
+#include "deformable_flsm/runtime/sequence_gaps.h"
+#include "deformable_flsm/runtime/simulation_loop.h"
 
 #include <deformable_flsm/ColliderCommand.h>
 #include <deformable_flsm/ContactWrenches.h>

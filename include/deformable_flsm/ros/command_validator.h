@@ -4,7 +4,7 @@
 /// the tests).
 #pragma once
 
-#include "deformable_flsm/ros/commands.h"
+#include "deformable_flsm/runtime/commands.h"
 
 #include <deformable_flsm/DragCommand.h>
 #include <deformable_flsm/ForceCommand.h>

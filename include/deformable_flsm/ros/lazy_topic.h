@@ -4,7 +4,7 @@
 /// message with a new stamp) or sent once and then only to a new subscriber.
 #pragma once
 
-#include "deformable_flsm/ros/simulation_loop.h"
+#include "deformable_flsm/runtime/simulation_loop.h"
 
 #include <ros/advertise_options.h>
 #include <ros/node_handle.h>

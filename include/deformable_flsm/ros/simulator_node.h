@@ -5,14 +5,14 @@
 
 #include "deformable_flsm/ros/collider_topics.h"
 #include "deformable_flsm/ros/command_validator.h"
-#include "deformable_flsm/ros/commands.h"
+#include "deformable_flsm/runtime/commands.h"
 #include "deformable_flsm/ros/interactive_drag.h"
 #include "deformable_flsm/ros/param_loader.h"
-#include "deformable_flsm/ros/problem_reporter.h"
+#include "deformable_flsm/runtime/problem_reporter.h"
 #include "deformable_flsm/ros/reconfigure.h"
-#include "deformable_flsm/ros/scene.h"
-#include "deformable_flsm/ros/sequence_gaps.h"
-#include "deformable_flsm/ros/simulation_loop.h"
+#include "deformable_flsm/runtime/scene.h"
+#include "deformable_flsm/runtime/sequence_gaps.h"
+#include "deformable_flsm/runtime/simulation_loop.h"
 #include "deformable_flsm/ros/state_publisher.h"
 
 #include <deformable_flsm/DragCommand.h>

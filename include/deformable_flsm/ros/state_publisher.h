@@ -8,11 +8,11 @@
 #include "deformable_flsm/core/embedding.h"
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/mesh.h"
-#include "deformable_flsm/ros/commands.h"
+#include "deformable_flsm/runtime/commands.h"
 #include "deformable_flsm/ros/lazy_topic.h"
 #include "deformable_flsm/ros/param_loader.h"
-#include "deformable_flsm/ros/scene.h"
-#include "deformable_flsm/ros/simulation_loop.h"
+#include "deformable_flsm/runtime/scene.h"
+#include "deformable_flsm/runtime/simulation_loop.h"
 
 #include <deformable_flsm/SimulationState.h>
 #include <ros/node_handle.h>

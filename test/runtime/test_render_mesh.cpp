@@ -1,7 +1,7 @@
 /// @file test_render_mesh.cpp
-/// Tests of ros/render_mesh.h: roll/pitch/yaw as in ROS, and meshoptimizer simplification to a
+/// Tests of runtime/render_mesh.h: roll/pitch/yaw as in ROS, and meshoptimizer simplification to a
 /// triangle budget with compact, valid output.
-#include "deformable_flsm/ros/render_mesh.h"
+#include "deformable_flsm/runtime/render_mesh.h"
 
 #include <gtest/gtest.h>
 

@@ -1,7 +1,7 @@
 // Messages lost before they reached the node, counted from the gaps in each publisher's
 // header.seq: what the soak's accounting relies on (every message sent is counted as accepted,
 // refused, or lost with the reason queue_overflow).
-#include "deformable_flsm/ros/sequence_gaps.h"
+#include "deformable_flsm/runtime/sequence_gaps.h"
 
 #include <gtest/gtest.h>
 

@@ -2,7 +2,7 @@
 /// Command messages that never reached the node, counted from the gaps in their header.seq.
 #pragma once
 
-#include "deformable_flsm/ros/commands.h"
+#include "deformable_flsm/runtime/commands.h"
 
 #include <cstdint>
 #include <mutex>

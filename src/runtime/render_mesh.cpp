@@ -1,4 +1,4 @@
-#include "deformable_flsm/ros/render_mesh.h"
+#include "deformable_flsm/runtime/render_mesh.h"
 
 #include <Eigen/Geometry>
 #include <meshoptimizer.h>

@@ -1,8 +1,8 @@
 /// @file test_scene.cpp
-/// Tests of ros/scene.h and NodeParams: the lattice comes from exactly one of spacing,
+/// Tests of runtime/scene.h and NodeParams: the lattice comes from exactly one of spacing,
 /// resolution and particle budget; regions from radius or half-width; pins, simplified render
 /// mesh and start-up measurement; every invalid parameter is refused with a message naming it.
-#include "deformable_flsm/ros/scene.h"
+#include "deformable_flsm/runtime/scene.h"
 
 #include "../core/fixtures.h"
 

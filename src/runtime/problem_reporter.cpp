@@ -1,7 +1,7 @@
-#include "deformable_flsm/ros/problem_reporter.h"
+#include "deformable_flsm/runtime/problem_reporter.h"
 
-#include <ros/console.h>
-
+#include <cstdarg>
+#include <cstdio>
 #include <string>
 
 namespace deformable_flsm {
@@ -10,34 +10,54 @@ namespace {
 
 /// Warn when the achieved real-time factor falls below this fraction of the requested one.
 constexpr double kSlowFraction = 0.9;
-constexpr double kWarnPeriod = 5.0;  // s between two warnings of the same kind
+/// printf into a std::string, prefixed with the node's name as every line of its log is.
+[[gnu::format(printf, 1, 2)]] std::string line(const char* format, ...) {
+  char buffer[2048];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(buffer, sizeof buffer, format, args);
+  va_end(args);
+  return std::string("flsm_node: ") + buffer;
+}
 
 }  // namespace
 
-ProblemReporter::ProblemReporter(const NodeParams& params, const SceneInfo& info, const Lattice& lattice)
+ProblemReporter::ProblemReporter(const NodeParams& params, const SceneInfo& info, const Lattice& lattice,
+                                 ProblemLog log)
     : params_(params),
       info_(info),
       lattice_(lattice),
-      reportedSaturated_(info.substepsForModulus > 0) {}  // warned about by warnAboutScene()
+      reportedSaturated_(info.substepsForModulus > 0),  // warned about by warnAboutScene()
+      log_(std::move(log)) {}
+
+void ProblemReporter::throttled(Throttled kind, const std::string& text) const {
+  const auto now = std::chrono::steady_clock::now();
+  if (everLogged_[kind] &&
+      std::chrono::duration<double>(now - lastLogged_[kind]).count() < kThrottleSeconds)
+    return;
+  everLogged_[kind] = true;
+  lastLogged_[kind] = now;
+  log_(ProblemSeverity::Warning, text);
+}
 
 void ProblemReporter::warnAboutScene() const {
   const std::string saturated = saturationWarning(info_, params_);
-  if (!saturated.empty()) ROS_WARN("flsm_node: %s", saturated.c_str());
+  if (!saturated.empty()) log_(ProblemSeverity::Warning, "flsm_node: " + saturated);
   for (std::size_t b = 0; b < info_.pinnedPerBox.size(); ++b) {
     if (info_.pinnedPerBox[b] == 0) {
-      ROS_WARN("flsm_node: ~pinned box %zu holds no particle (rest positions are in frame '%s', "
+      log_(ProblemSeverity::Warning, line("~pinned box %zu holds no particle (rest positions are in frame '%s', "
                "after ~mesh_scale and ~mesh_rpy; the lattice spans [%.3g, %.3g, %.3g] to "
                "[%.3g, %.3g, %.3g] m)",
                b, params_.frameId.c_str(), lattice_.restMin().x(), lattice_.restMin().y(),
                lattice_.restMin().z(), lattice_.restMax().x(), lattice_.restMax().y(),
-               lattice_.restMax().z());
+               lattice_.restMax().z()));
     }
   }
   if (info_.pinned == 0 && !params_.ground && params_.colliders.empty() &&
       !params_.solver.gravity.isZero(0.0)) {
-    ROS_WARN("flsm_node: gravity is on, no particle is pinned and there is no collider: the "
-             "object falls forever. Set ~ground to true, pin a box (~pinned) or set ~gravity to "
-             "[0, 0, 0].");
+    log_(ProblemSeverity::Warning,
+         "flsm_node: gravity is on, no particle is pinned and there is no collider: the object "
+         "falls forever. Set ~ground to true, pin a box (~pinned) or set ~gravity to [0, 0, 0].");
   }
 }
 
@@ -45,28 +65,28 @@ void ProblemReporter::report(const LoopDiagnostics& d) {
   if (d.stiffnessSaturated != reportedSaturated_) {
     reportedSaturated_ = d.stiffnessSaturated;
     if (d.stiffnessSaturated) {
-      ROS_WARN("flsm_node: ~youngs_modulus %.4g Pa now asks for more stiffness than the time "
+      log_(ProblemSeverity::Warning, line("~youngs_modulus %.4g Pa now asks for more stiffness than the time "
                "step allows (alpha capped at %.3g): the material is softer than asked; more "
-               "~substeps (restart) would fix it", params_.solver.youngsModulus, d.alpha);
+               "~substeps (restart) would fix it", params_.solver.youngsModulus, d.alpha));
     }
   }
   if (d.solverResets > reportedResets_) {
     reportedResets_ = d.solverResets;
     const std::string cause = resetCause_ ? resetCause_() : std::string();
-    ROS_ERROR("flsm_node: the solver state became non-finite (or grew beyond 1e12 m or m/s) and was reset to rest (%llu "
+    log_(ProblemSeverity::Error, line("the solver state became non-finite (or grew beyond 1e12 m or m/s) and was reset to rest (%llu "
               "times so far). This should not happen: please report it with the commands sent "
               "and this: %s",
-              static_cast<unsigned long long>(d.solverResets), cause.c_str());
+              static_cast<unsigned long long>(d.solverResets), cause.c_str()));
   }
   if (d.droppedSteps > reportedDropped_) {
     reportedDropped_ = d.droppedSteps;
-    ROS_WARN_THROTTLE(kWarnPeriod,
-                      "flsm_node: the machine cannot keep up: %.2f simulated s per wall s (asked "
+    throttled(kDropping,
+              line("the machine cannot keep up: %.2f simulated s per wall s (asked "
                       "%.2f), a step takes %.1f ms for %.1f ms of simulated time; %llu steps "
                       "dropped so far. Lower ~real_time_factor, ~substeps or ~particle_budget.",
                       d.achievedRealTimeFactor, d.requestedRealTimeFactor, 1e3 * d.stepSeconds,
                       1e3 * params_.solver.timeStep,
-                      static_cast<unsigned long long>(d.droppedSteps));
+                      static_cast<unsigned long long>(d.droppedSteps)));
   } else if (!d.idle && d.achievedRealTimeFactor < kSlowFraction * d.requestedRealTimeFactor &&
              d.steps > 10) {
     // A step may take the wall time it stands for; if it takes (nearly) all of it, the scene is too
@@ -74,23 +94,23 @@ void ProblemReporter::report(const LoopDiagnostics& d) {
     // holds the loop up.
     const double budget = params_.solver.timeStep / d.requestedRealTimeFactor;
     const bool stepsTooLong = d.stepSeconds > kSlowFraction * budget;
-    ROS_WARN_THROTTLE(kWarnPeriod,
-                      "flsm_node: running at %.2f of the asked real-time factor %.2f (a step takes "
+    throttled(kSlow,
+              line("running at %.2f of the asked real-time factor %.2f (a step takes "
                       "%.1f ms of the %.1f ms it may); %s",
                       d.achievedRealTimeFactor / d.requestedRealTimeFactor, d.requestedRealTimeFactor,
                       1e3 * d.stepSeconds, 1e3 * budget,
                       stepsTooLong ? "the steps take too long: lower ~real_time_factor, ~substeps or "
                                      "~particle_budget, or free a core"
-                                   : "the steps fit, so other work on this machine holds the loop up");
+                                   : "the steps fit, so other work on this machine holds the loop up"));
   }
 }
 
 void ProblemReporter::publishingTook(double seconds) const {
   if (seconds > 1.0 / params_.publishRate) {
-    ROS_WARN_THROTTLE(kWarnPeriod,
-                      "flsm_node: publishing took %.1f ms, longer than the %.1f ms period of "
+    throttled(kPublishing,
+              line("publishing took %.1f ms, longer than the %.1f ms period of "
                       "~publish_rate: lower ~publish_rate or ~render_triangle_budget",
-                      1e3 * seconds, 1e3 / params_.publishRate);
+                      1e3 * seconds, 1e3 / params_.publishRate));
   }
 }
 

@@ -10,9 +10,10 @@
 #include "deformable_flsm/core/mesh.h"
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/world.h"
-#include "deformable_flsm/ros/object_params.h"
-#include "deformable_flsm/ros/param_loader.h"
+#include "deformable_flsm/runtime/object_spec.h"
+#include "deformable_flsm/runtime/node_params.h"
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -106,9 +107,13 @@ struct WorldScene {
 /// particles lie in them). Each object's step cost is not measured (SceneInfo::stepSeconds 0).
 /// @param[in] params   validated node parameters (time step, sub-steps, colliders, contact)
 /// @param[in] objects  parsed ~objects (parseObjectList())
+/// @param[in] loadMesh  loads an object's mesh from its parameters (mesh, mesh_scale, mesh_rpy),
+///                      throwing ParamError saying why it cannot; called once per distinct mesh
 /// @throws ParamError naming the object and what to change (a lattice that cannot be built,
 ///         objects that start inside each other)
-WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& objects);
+using MeshLoader = std::function<TriMesh(const NodeParams&)>;
+WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& objects,
+                      const MeshLoader& loadMesh);
 
 /// The single object of a node without ~objects: a World of one object named
 /// ~object_frame_id holding the built scene's solver at rest (lattice, parameters, pins,

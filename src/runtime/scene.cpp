@@ -1,9 +1,9 @@
-#include "deformable_flsm/ros/scene.h"
+#include "deformable_flsm/runtime/scene.h"
 
 #include "deformable_flsm/core/resolution.h"
 #include "deformable_flsm/core/section.h"
 #include "deformable_flsm/core/voxelizer.h"
-#include "deformable_flsm/ros/render_mesh.h"
+#include "deformable_flsm/runtime/render_mesh.h"
 
 #include <chrono>
 #include <limits>
@@ -175,7 +175,8 @@ Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps
   return scene;
 }
 
-WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& objects) {
+WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& objects,
+                      const MeshLoader& loadMesh) {
   WorldScene scene;
   try {
     scene.world = std::make_unique<World>(params.solver.timeStep, params.solver.substeps,
@@ -193,7 +194,7 @@ WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& o
     auto it = loaded.find(key);
     if (it == loaded.end()) {
       try {
-        it = loaded.emplace(key, loadMeshParam(p)).first;
+        it = loaded.emplace(key, loadMesh(p)).first;
       } catch (const ParamError& e) {
         throw ParamError("object '" + spec.name + "': " + e.what());
       }

@@ -1,7 +1,7 @@
-#include "deformable_flsm/ros/simulation_loop.h"
+#include "deformable_flsm/runtime/simulation_loop.h"
 
 #include "deformable_flsm/core/contact.h"
-#include "deformable_flsm/ros/collider_params.h"
+#include "deformable_flsm/runtime/collider_spec.h"
 
 #include <algorithm>
 #include <iterator>

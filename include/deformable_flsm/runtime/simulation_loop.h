@@ -6,8 +6,8 @@
 
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/world.h"
-#include "deformable_flsm/ros/commands.h"
-#include "deformable_flsm/ros/loop_clock.h"
+#include "deformable_flsm/runtime/commands.h"
+#include "deformable_flsm/runtime/loop_clock.h"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>

@@ -1,4 +1,4 @@
-#include "deformable_flsm/ros/commands.h"
+#include "deformable_flsm/runtime/commands.h"
 
 #include <utility>
 

@@ -1,9 +1,9 @@
 /// @file test_simulation_loop.cpp
-/// Tests of ros/simulation_loop.h on small box lattices: commands reach the solver (or are
+/// Tests of runtime/simulation_loop.h on small box lattices: commands reach the solver (or are
 /// rejected with a reason), the loop paces itself to the wall clock, drops debt it cannot pay
 /// instead of spiralling, rests when nothing moves and wakes on a command, and never hands out a
 /// non-finite state.
-#include "deformable_flsm/ros/simulation_loop.h"
+#include "deformable_flsm/runtime/simulation_loop.h"
 
 #include "../core/fixtures.h"
 
