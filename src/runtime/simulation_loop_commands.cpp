@@ -1,0 +1,287 @@
+/// @file simulation_loop_commands.cpp
+/// SimulationLoop: the command rules that depend on the state: each command applied to the world
+/// between two steps, accepted or refused with a reason (a spring too stiff for its particles, a
+/// selection that is empty, an impulse or force too large for the mass it acts on, an unknown
+/// collider).
+#include "deformable_flsm/runtime/simulation_loop.h"
+
+#include "deformable_flsm/runtime/collider_spec.h"
+
+#include <cmath>
+#include <sstream>
+#include <string>
+#include <utility>
+#include <variant>
+
+namespace deformable_flsm {
+
+namespace {
+
+std::string num(double v) {
+  std::ostringstream os;
+  os.precision(3);
+  os << v;
+  return os.str();
+}
+
+CommandOutcome accepted(std::string message, std::size_t particles = 0) {
+  CommandOutcome o;
+  o.accepted = true;
+  o.message = std::move(message);
+  o.particles = particles;
+  return o;
+}
+
+}  // namespace
+
+bool SimulationLoop::apply(Command& command) {
+  CommandOutcome outcome;
+  target_ = command.object.empty() ? solvers_.front() : world_->object(command.object);
+  if (target_ == nullptr) {
+    outcome = reject("unknown_object", "object '" + command.object +
+                                           "' is not in the scene (removed): command refused");
+  } else {
+    outcome = applyBody(command);
+  }
+  if (outcome.accepted) stats_->accept();
+  outcome.pinnedTotal = target_ != nullptr ? target_->pinnedCount() : 0;
+  if (command.outcome) command.outcome->set_value(outcome);
+  return outcome.accepted;
+}
+
+CommandOutcome SimulationLoop::applyBody(Command& command) {
+  return std::visit(
+      [&](const auto& c) -> CommandOutcome {
+        using T = std::decay_t<decltype(c)>;
+        if constexpr (std::is_same_v<T, GrabCommand>) {
+          return grab(c);
+        } else if constexpr (std::is_same_v<T, AttachCommand>) {
+          return grab(c.grab, &c);
+        } else if constexpr (std::is_same_v<T, MoveCommand>) {
+          return move(c);
+        } else if constexpr (std::is_same_v<T, ReleaseCommand>) {
+          return release(c);
+        } else if constexpr (std::is_same_v<T, ApplyForceCommand>) {
+          return force(c);
+        } else if constexpr (std::is_same_v<T, ResetCommand>) {
+          resetAll();
+          return accepted("reset to rest; pins kept, drags and forces released");
+        } else if constexpr (std::is_same_v<T, ReleaseAllCommand>) {
+          std::size_t n = 0;
+          for (Solver* solver : solvers_) {
+            n += solver->drags().size();
+            solver->releaseAll();
+          }
+          attachedFrames_.clear();
+          return accepted("released " + std::to_string(n) + " drag(s)");
+        } else if constexpr (std::is_same_v<T, PinBoxCommand>) {
+          return pinBox(c);
+        } else if constexpr (std::is_same_v<T, ParamsCommand>) {
+          return setParams(c);
+        } else if constexpr (std::is_same_v<T, SetColliderCommand>) {
+          return setCollider(c);
+        } else if constexpr (std::is_same_v<T, MoveColliderCommand>) {
+          return moveCollider(c);
+        } else {
+          static_assert(std::is_same_v<T, RemoveColliderCommand>, "a command is not handled");
+          return removeCollider(c);
+        }
+      },
+      command.body);
+}
+
+CommandOutcome SimulationLoop::reject(const std::string& reason, const std::string& detail) {
+  stats_->reject(reason, detail);
+  CommandOutcome o;
+  o.message = detail;
+  return o;
+}
+
+double SimulationLoop::massOf(const std::vector<std::uint32_t>& particles) const {
+  double m = 0.0;
+  for (std::uint32_t p : particles) m += target_->lattice().masses()[p];
+  return m;
+}
+
+CommandOutcome SimulationLoop::grab(const GrabCommand& c, const AttachCommand* attach) {
+  const std::size_t n = target_->lattice().size();
+  if (c.particle >= static_cast<std::int64_t>(n))
+    return reject("bad_index", "drag '" + c.id + "': particle " + std::to_string(c.particle) +
+                                   " out of range [0, " + std::to_string(n) + ")");
+  if (target_->drags().count(c.id) == 0 && target_->drags().size() >= CommandLimits::kMaxDrags)
+    return reject("too_many_drags", "drag '" + c.id + "': already " +
+                                        std::to_string(CommandLimits::kMaxDrags) +
+                                        " drags; release one first");
+  const std::vector<std::uint32_t> particles =
+      c.particle >= 0 ? std::vector<std::uint32_t>{static_cast<std::uint32_t>(c.particle)}
+                      : target_->nearestParticles(c.point, c.count);
+  if (c.stiffness > 0.0) {
+    // the core's rule (Solver::springLimit()), refused here with its reason and counted
+    const SpringLimit limit = target_->springLimit(c.id, particles);
+    if (c.stiffness > limit.stiffness)
+      return reject("spring_too_stiff",
+                    "drag '" + c.id + "': spring stiffness " + num(c.stiffness) +
+                        " N/m is unstable on " + num(limit.mass) +
+                        " kg of particles at sub-step " + num(limit.substep) + " s" +
+                        (limit.taken > 0.0 ? " with the other spring drags on them (" +
+                                                 num(100.0 * limit.taken / kMaxSpringRate) +
+                                                 " % of the limit taken)"
+                                           : std::string()) +
+                        ": at most " + num(limit.stiffness) + " N/m (or 0 for a hard drag)");
+  }
+  if (attach == nullptr) {
+    target_->grab(c.id, particles, c.target, c.stiffness);
+    attachedFrames_.erase({target_, c.id});
+    return accepted("drag '" + c.id + "' holds " + std::to_string(particles.size()) +
+                        " particle(s)",
+                    particles.size());
+  }
+  try {
+    target_->attach(c.id, particles, attach->pose, c.stiffness);
+  } catch (const std::invalid_argument& e) {
+    return reject("bad_frame", "attach '" + c.id + "' to frame '" + attach->frame + "': " + e.what());
+  }
+  if (attach->frame.empty())
+    attachedFrames_.erase({target_, c.id});
+  else
+    attachedFrames_[{target_, c.id}] = attach->frame;
+  return accepted("drag '" + c.id + "' holds " + std::to_string(particles.size()) +
+                      " particle(s)" +
+                      (attach->frame.empty() ? std::string(" where they are")
+                                             : " attached to frame '" + attach->frame + "'"),
+                  particles.size());
+}
+
+CommandOutcome SimulationLoop::move(const MoveCommand& c) {
+  const auto attached = attachedFrames_.find({target_, c.id});
+  if (attached != attachedFrames_.end())
+    return reject("attached_drag", "move of drag '" + c.id + "': it follows frame '" +
+                                       attached->second +
+                                       "'; RELEASE it, or ATTACH it to another frame");
+  if (!target_->moveDrag(c.id, c.target))
+    return reject("unknown_drag", "move of drag '" + c.id + "': no such drag (grab first)");
+  return accepted("drag '" + c.id + "' moved");
+}
+
+CommandOutcome SimulationLoop::release(const ReleaseCommand& c) {
+  attachedFrames_.erase({target_, c.id});
+  if (!target_->release(c.id))
+    return reject("unknown_drag", "release of drag '" + c.id + "': no such drag");
+  return accepted("drag '" + c.id + "' released");
+}
+
+CommandOutcome SimulationLoop::force(const ApplyForceCommand& c) {
+  const std::size_t n = target_->lattice().size();
+  if (c.particle >= static_cast<std::int64_t>(n))
+    return reject("bad_index", "force: particle " + std::to_string(c.particle) +
+                                   " out of range [0, " + std::to_string(n) + ")");
+  if (!c.impulse && target_->activeForces().size() >= CommandLimits::kMaxForces)
+    return reject("too_many_forces", "force: already " +
+                                         std::to_string(CommandLimits::kMaxForces) +
+                                         " forces acting; wait for some to end");
+  std::vector<std::uint32_t> particles;
+  if (c.particle >= 0)
+    particles.push_back(static_cast<std::uint32_t>(c.particle));
+  else if (c.radius > 0.0)
+    particles = target_->particlesWithin(c.point, c.radius);
+  else
+    particles = target_->nearestParticles(c.point, 1);
+  if (particles.empty())
+    return reject("empty_selection", "force: no particle within " + num(c.radius) +
+                                         " m of the point; aim at the object or widen the radius");
+  const double mass = massOf(particles);
+  const double size = target_->lattice().objectSize();
+  const double magnitude = c.force.norm();
+  if (c.impulse) {
+    const double limit = CommandLimits::kMaxSpeedChange * size * mass;
+    if (magnitude > limit)
+      return reject("too_large", "impulse " + num(magnitude) + " N s on " + num(mass) +
+                                     " kg would change their speed by more than " +
+                                     num(CommandLimits::kMaxSpeedChange * size) +
+                                     " m/s: at most " + num(limit) + " N s");
+    target_->applyImpulse(particles, c.force);
+  } else {
+    const double limit = CommandLimits::kMaxAcceleration * size * mass;
+    if (magnitude > limit)
+      return reject("too_large", "force " + num(magnitude) + " N on " + num(mass) +
+                                     " kg would accelerate them by more than " +
+                                     num(CommandLimits::kMaxAcceleration * size) +
+                                     " m/s^2: at most " + num(limit) + " N");
+    target_->applyForce(particles, c.force, c.duration);
+  }
+  return accepted(std::string(c.impulse ? "impulse" : "force") + " on " +
+                      std::to_string(particles.size()) + " particle(s)",
+                  particles.size());
+}
+
+CommandOutcome SimulationLoop::pinBox(const PinBoxCommand& c) {
+  const std::size_t count = target_->pinBox(c.lo, c.hi, c.pin);
+  return accepted(std::string(c.pin ? "pinned " : "freed ") + std::to_string(count) +
+                      " particle(s) in the box",
+                  count);
+}
+
+CommandOutcome SimulationLoop::setParams(const ParamsCommand& c) {
+  try {
+    target_->setParams(c.params);
+  } catch (const std::invalid_argument& e) {
+    return reject("invalid_params", e.what());
+  }
+  return accepted("solver parameters set");
+}
+
+CommandOutcome SimulationLoop::setCollider(const SetColliderCommand& c) {
+  const bool known = target_->colliders().count(c.id) > 0 || followed_.count(c.id) > 0;
+  std::size_t count = target_->colliders().size();
+  for (const auto& entry : followed_) count += entry.second.inSolver ? 0 : 1;
+  if (!known && count >= ColliderLimits::kMaxColliders)
+    return reject("too_many_colliders", "collider '" + c.id + "': already " +
+                                            std::to_string(ColliderLimits::kMaxColliders) +
+                                            " colliders; remove one first");
+  try {
+    c.collider.validate();
+    if (c.followFrame.empty()) {
+      world_->setCollider(c.id, c.collider);
+    } else {
+      // In the solver from its first sampled pose on (followColliders()).
+      world_->removeCollider(c.id);
+    }
+  } catch (const std::exception& e) {  // invalid_argument, or MeshError for an open mesh
+    return reject("bad_collider", "collider '" + c.id + "': " + e.what());
+  }
+  if (c.followFrame.empty()) {
+    followed_.erase(c.id);
+    return accepted("collider '" + c.id + "' " + (known ? "replaced" : "added"));
+  }
+  // Its motions come from the node's follower, which learnt of the new frame and offset before
+  // this command was sent: a motion already waiting is this collider's.
+  Followed f;
+  f.collider = c.collider;
+  followed_[c.id] = f;
+  return accepted("collider '" + c.id + "' follows frame '" + c.followFrame +
+                  "' from its first transform on");
+}
+
+CommandOutcome SimulationLoop::moveCollider(const MoveColliderCommand& c) {
+  if (followed_.count(c.id) > 0)
+    return reject("collider_follows_frame",
+                  "move of collider '" + c.id + "': it follows a tf frame; move the frame, or "
+                  "ADD it again without follow_frame");
+  try {
+    if (!world_->moveCollider(c.id, c.pose, c.linearVelocity, c.angularVelocity))
+      return reject("unknown_collider",
+                    "move of collider '" + c.id + "': no such collider (ADD it first)");
+  } catch (const std::invalid_argument& e) {
+    return reject("non_finite", "move of collider '" + c.id + "': " + e.what());
+  }
+  return accepted("collider '" + c.id + "' moved");
+}
+
+CommandOutcome SimulationLoop::removeCollider(const RemoveColliderCommand& c) {
+  const bool followed = followed_.erase(c.id) > 0;
+  if (!world_->removeCollider(c.id) && !followed)
+    return reject("unknown_collider", "removal of collider '" + c.id + "': no such collider");
+  return accepted("collider '" + c.id + "' removed");
+}
+
+}  // namespace deformable_flsm
