@@ -4,6 +4,7 @@
 
 #include <ros/console.h>
 
+#include <algorithm>
 #include <sstream>
 #include <utility>
 
@@ -27,6 +28,12 @@ std::string list(const std::vector<std::string>& items) {
   return out.str();
 }
 
+double largestObjectSize(const std::vector<RestObject>& objects) {
+  double size = 0.0;
+  for (const RestObject& o : objects) size = std::max(size, o.lattice->objectSize());
+  return size;
+}
+
 }  // namespace
 
 ColliderTopics::ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& stateNh,
@@ -35,11 +42,11 @@ ColliderTopics::ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& stateNh,
                                const tf2_ros::Buffer& tfBuffer,
                                std::function<void()> startTfListener,
                                CommandValidator::TransformLookup lookup, Send send,
-                               const Lattice& lattice, double contactRadius)
+                               const std::vector<RestObject>& objects)
     : simFrame_(params.frameId), loop_(loop), stats_(std::move(stats)),
       startTfListener_(std::move(startTfListener)),
       validator_(params.frameId, std::move(lookup)), send_(std::move(send)),
-      planeSize_(kPlaneSizePerObject * lattice.objectSize()),
+      planeSize_(kPlaneSizePerObject * largestObjectSize(objects)),
       republishAtRest_(params.republishAtRest),
       follower_(tfBuffer, params.frameId) {
   for (const ColliderSpec& spec : params.colliders) {
@@ -47,7 +54,7 @@ ColliderTopics::ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& stateNh,
     loop_.addFollowedCollider(spec.id, spec.collider);
     follower_.follow(spec.id, spec.followFrame, spec.collider.pose);
   }
-  addRobot(params.robot, lattice, contactRadius);
+  addRobot(params.robot, objects);
   // From start-up, so that the frames are known by the first samples.
   if (!follower_.empty()) startTfListener_();
 
@@ -61,8 +68,7 @@ ColliderTopics::ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& stateNh,
       this, false, !follower_.empty());
 }
 
-void ColliderTopics::addRobot(const RobotColliders& robot, const Lattice& lattice,
-                              double contactRadius) {
+void ColliderTopics::addRobot(const RobotColliders& robot, const std::vector<RestObject>& objects) {
   if (robot.options.descriptionParam.empty()) return;
   std::vector<std::string> links;
   for (const RobotCollider& rc : robot.colliders) {
@@ -70,11 +76,14 @@ void ColliderTopics::addRobot(const RobotColliders& robot, const Lattice& lattic
     loop_.addFollowedCollider(spec.id, spec.collider);
     ColliderFollower::Admit admit;
     if (robot.options.excludeOverlapping) {
-      // The rest positions are the lattice's own (immutable, outlives the node's parts).
-      const std::vector<Eigen::Vector3d>* rest = &lattice.restPositions();
+      // The lattices are immutable and outlive the node's parts. A link inside any object
+      // stays out: the object was placed on or around it.
       const ColliderShape shape = spec.collider.shape;
-      admit = [rest, shape, contactRadius](const Eigen::Isometry3d& pose) {
-        return !overlapsParticles(shape, pose, *rest, contactRadius);
+      admit = [objects, shape](const Eigen::Isometry3d& pose) {
+        for (const RestObject& o : objects)
+          if (overlapsParticles(shape, pose, o.lattice->restPositions(), o.contactRadius))
+            return false;
+        return true;
       };
     }
     follower_.follow(spec.id, spec.followFrame, spec.collider.pose, admit);

@@ -83,12 +83,13 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   reporter_->setResetCause([this] { return loop_->lastResetCause(); });
   advertise();
   stateNh_.setCallbackQueue(&stateQueue_);
+  std::vector<RestObject> rest;
+  for (const SceneObject& o : objects_) rest.push_back({o.lattice.get(), o.info.contactRadius});
   colliders_ = std::make_unique<ColliderTopics>(
       pnh_, stateNh_, commandNh_, params_, *loop_, stats_, tfBuffer_, [this] { startTfListener(); },
       [this](const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T,
              std::string& why) { return lookupTransform(frame, stamp, T, why); },
-      [this](CommandBody body) { send(std::move(body), false); }, *first.lattice,
-      first.info.contactRadius);
+      [this](CommandBody body) { send(std::move(body), false); }, rest);
   reconfigureNh_.setCallbackQueue(&reconfigureQueue_);
   reconfigure_ = std::make_unique<Reconfigure>(reconfigureNh_, params_,
                                                [this](const FlsmConfig& c) { return onReconfigure(c); });

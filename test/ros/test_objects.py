@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Commands address an object by its namespace: a drag on ~objects/right/drag moves the right
 cube and leaves the left one where it rests; ~objects/right/pin_box pins the right cube's
-particles only; the top-level ~drag addresses the first object (left)."""
+particles only; the top-level ~drag addresses the first object (left). Of a robot's probe
+links (test/ros/objects_probes.urdf), those that start inside either cube stay out, the one
+beside them joins."""
 
 import time
 import unittest
@@ -11,7 +13,7 @@ import rospy
 import rostest
 from geometry_msgs.msg import Point
 
-from deformable_flsm.msg import DragCommand
+from deformable_flsm.msg import ContactWrenches, DragCommand
 from flsm_testing import ObjectsClient
 
 PKG = 'deformable_flsm'
@@ -103,6 +105,21 @@ class ObjectsTest(unittest.TestCase):
         self.assertEqual(self.client.object_state('left').pinned_particles, 0)
         res = self.client.pin_box('right', *everywhere, pin=False)
         self.assertTrue(res.success, res.message)
+
+    def test_robot_links_inside_any_object_stay_out(self):
+        # ~contact_wrenches lists every collider in the scene, touching or not; the probes' frames
+        # come from robot_state_publisher's /tf_static, so 'beside' joins within a few steps.
+        ids = set()
+        end = time.time() + 30.0
+        while time.time() < end and 'robot/beside' not in ids:
+            ids.update(rospy.wait_for_message('/flsm_node/contact_wrenches', ContactWrenches,
+                                              timeout=10.0).ids)
+        for _ in range(30):  # a second more of messages
+            ids.update(rospy.wait_for_message('/flsm_node/contact_wrenches', ContactWrenches,
+                                              timeout=10.0).ids)
+        self.assertIn('robot/beside', ids)
+        self.assertNotIn('robot/in_left', ids, 'a link inside the first object joined')
+        self.assertNotIn('robot/in_right', ids, 'a link inside the second object joined')
 
 
 if __name__ == '__main__':

@@ -32,6 +32,12 @@
 
 namespace deformable_flsm {
 
+/// An object at rest as the colliders see it at start-up.
+struct RestObject {
+  const Lattice* lattice;  ///< rest positions in the simulation frame
+  double contactRadius;    ///< its particles' contact radius (m)
+};
+
 class ColliderTopics {
  public:
   /// Sends a validated command to the simulation thread (without waiting).
@@ -51,15 +57,15 @@ class ColliderTopics {
   /// @param[in] startTfListener  starts the node's tf listener (called when a frame is followed)
   /// @param[in] lookup     transform of a command's header frame (the node's command lookup)
   /// @param[in] send       hands a command to the simulation thread
-  /// @param[in] lattice    the object's rest lattice: its size sets the size the ground is drawn
-  ///                       at; robot links that overlap its rest positions are left out
-  /// @param[in] contactRadius  the particles' contact radius (m)
+  /// @param[in] objects    every object's rest lattice (outliving this) and contact radius (m):
+  ///                       the largest object sets the size the ground is drawn at; robot links
+  ///                       that overlap any object's rest particles are left out
   ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& stateNh, ros::NodeHandle& commandNh,
                  const NodeParams& params,
                  SimulationLoop& loop, std::shared_ptr<CommandStats> stats,
                  const tf2_ros::Buffer& tfBuffer, std::function<void()> startTfListener,
-                 CommandValidator::TransformLookup lookup, Send send, const Lattice& lattice,
-                 double contactRadius);
+                 CommandValidator::TransformLookup lookup, Send send,
+                 const std::vector<RestObject>& objects);
 
   /// Every publish tick (the main thread): ~contact_wrenches (also at rest) and the colliders'
   /// tf frames.
@@ -74,7 +80,7 @@ class ColliderTopics {
   void onCommand(const ros::MessageEvent<const ColliderCommand>& event);
   void onFollowTimer(const ros::TimerEvent& event);
   /// Registers the robot's colliders (params.robot) with the loop and the follower.
-  void addRobot(const RobotColliders& robot, const Lattice& lattice, double contactRadius);
+  void addRobot(const RobotColliders& robot, const std::vector<RestObject>& objects);
 
   std::string simFrame_;
   SimulationLoop& loop_;

@@ -24,7 +24,7 @@ struct RobotColliderOptions {
   std::vector<std::string> includeLinks{".*"};
   /// ~robot_exclude_links: regular expressions; a link that one matches stays out
   std::vector<std::string> excludeLinks;
-  /// ~robot_exclude_overlapping: leave out a link whose collision geometry overlaps the object's
+  /// ~robot_exclude_overlapping: leave out a link whose collision geometry overlaps any object's
   /// rest shape when its frame first appears (a link the object is placed on or around)
   bool excludeOverlapping = true;
   /// ~robot_static_friction, ~robot_kinetic_friction: Coulomb friction of every robot collider
