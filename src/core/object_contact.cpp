@@ -52,6 +52,9 @@ constexpr double kSkin = 0.25;
 /// ... and wide enough for the particle to move this many more sub-steps at its speed before
 /// the list must be built again.
 constexpr int kSkinSubsteps = 2;
+/// The Gauss-Seidel passes stop when a pass changed no relative velocity by more than this
+/// fraction of the smallest radius per sub-step (see solve()).
+constexpr double kSolveTolerance = 1e-3;
 
 bool boxesMeet(const Eigen::Vector3d& lo1, const Eigen::Vector3d& hi1, const Eigen::Vector3d& lo2,
                const Eigen::Vector3d& hi2) {
@@ -78,7 +81,9 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
   findPairs(params);
   if (contacts_.empty()) return;
   findColliderContacts(colliders, h);
+  warmStart(h);
   solve(h, params.iterations);
+  keep();
   pushOut();
   scatter(objects);
   accumulate(colliders, last);
@@ -285,6 +290,10 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
     c.first = static_cast<std::uint32_t>(renumber_[c.first]);
     c.second = static_cast<std::uint32_t>(renumber_[c.second]);
   }
+  // the particles are numbered anew: nothing to warm-start from
+  keptLambda_.assign(candidates_.size(), 0.0);
+  keptFriction_.assign(candidates_.size(), Eigen::Vector3d::Zero());
+  keptCollider_.clear();
 }
 
 // The listed particles' state after their objects' sub-step.
@@ -308,8 +317,13 @@ void ObjectContactSolver::gather(const std::vector<Solver*>& objects, double h) 
 // for r = 3.5 mm and h = 4 ms) can pass unseen.
 void ObjectContactSolver::findPairs(const ObjectContactParams& params) {
   contacts_.clear();
-  for (const auto& pair : candidates_) {
-    const std::uint32_t k1 = pair.first, k2 = pair.second;
+  for (std::size_t i = 0; i < candidates_.size(); ++i) {
+    const std::uint32_t k1 = candidates_[i].first, k2 = candidates_[i].second;
+    // the last sub-step's impulses, read once (keep() writes this sub-step's contacts' back)
+    const double lambda = keptLambda_[i];
+    const Eigen::Vector3d friction = keptFriction_[i];
+    keptLambda_[i] = 0.0;
+    keptFriction_[i].setZero();
     const double R = r_[k1] + r_[k2];
     const double near2 = R * R * (1.0 + kContactMargin) * (1.0 + kContactMargin);
     const Eigen::Vector3d end = x_[k1] - x_[k2];
@@ -332,6 +346,9 @@ void ObjectContactSolver::findPairs(const ObjectContactParams& params) {
     c.wsum = wsum;
     c.muS = params.staticFriction;
     c.muK = params.kineticFriction;
+    c.slot = static_cast<std::uint32_t>(i);
+    c.lambda = lambda;
+    c.friction = friction - friction.dot(c.n) * c.n;
     contacts_.push_back(c);
     touched_[k1] = touched_[k2] = 1;
   }
@@ -343,6 +360,7 @@ void ObjectContactSolver::findPairs(const ObjectContactParams& params) {
 void ObjectContactSolver::findColliderContacts(const std::vector<SubstepCollider>& colliders, double h) {
   colliderContacts_.clear();
   if (colliders.empty()) return;
+  std::size_t kept = 0;  // walks keptCollider_, in the same (k, collider) order
   for (std::size_t k = 0; k < count_; ++k) {
     if (!touched_[k] || w_[k] == 0.0) continue;
     const double r = r_[k];
@@ -366,12 +384,63 @@ void ObjectContactSolver::findColliderContacts(const std::vector<SubstepCollider
       c.muS = col.staticFriction;
       c.muK = col.kineticFriction;
       c.vc = col.linearVelocity + col.angularVelocity.cross(x_[k] - sc.now.translation());
+      while (kept < keptCollider_.size() &&
+             (keptCollider_[kept].k < k || (keptCollider_[kept].k == k && keptCollider_[kept].collider < ci)))
+        ++kept;
+      if (kept < keptCollider_.size() && keptCollider_[kept].k == k && keptCollider_[kept].collider == ci) {
+        c.lambda = keptCollider_[kept].lambda;
+        c.friction = keptCollider_[kept].friction - keptCollider_[kept].friction.dot(n) * n;
+      }
       colliderContacts_.push_back(c);
     }
   }
 }
 
+// Warm start (Catto 2005): each contact begins with the impulses its pair (or particle and
+// collider) carried in the last sub-step, applied equal and opposite as the passes apply theirs;
+// a resting pile, whose impulses change little from one sub-step to the next, then starts the
+// passes almost converged, and they stop early. A contact that separated has its impulse taken
+// back by the first pass (lambda >= 0 is projected from the accumulated value).
+void ObjectContactSolver::warmStart(double h) {
+  for (const std::vector<Contact>* list : {&colliderContacts_, &contacts_})
+    for (const Contact& c : *list) {
+      if (c.lambda == 0.0 && c.friction.isZero(0.0)) continue;
+      const Eigen::Vector3d J = c.lambda * c.n + c.friction;
+      const Eigen::Vector3d dv1 = w_[c.k1] * J;
+      v_[c.k1] += dv1;
+      x_[c.k1] += h * dv1;
+      if (c.collider) continue;
+      const Eigen::Vector3d dv2 = w_[c.k2] * J;
+      v_[c.k2] -= dv2;
+      x_[c.k2] -= h * dv2;
+    }
+}
+
+void ObjectContactSolver::keep() {
+  for (const Contact& c : contacts_) {
+    keptLambda_[c.slot] = c.lambda;
+    keptFriction_[c.slot] = c.friction;
+  }
+  keptCollider_.clear();
+  for (const Contact& c : colliderContacts_) {
+    if (c.lambda == 0.0 && c.friction.isZero(0.0)) continue;
+    KeptImpulse k;
+    k.k = c.k1;
+    k.collider = c.k2;
+    k.lambda = c.lambda;
+    k.friction = c.friction;
+    keptCollider_.push_back(k);
+  }
+}
+
+// The passes stop early once a whole pass changed no contact's relative velocity by more than
+// kSolveTolerance of the smallest radius per sub-step: what is left would move a particle by less
+// than that fraction of its radius, far below the penetration slop.
 void ObjectContactSolver::solve(double h, int iterations) {
+  double smallest = r_[contacts_.front().k1];
+  for (const Contact& c : contacts_) smallest = std::min({smallest, r_[c.k1], r_[c.k2]});
+  const double tolerance = kSolveTolerance * smallest / h;
+  const double tolerance2 = tolerance * tolerance;
   // the colliders' contacts first: the support below is settled before the pairs above it
   for (std::vector<Contact>* list : {&colliderContacts_, &contacts_})
     for (Contact& c : *list) {
@@ -379,6 +448,7 @@ void ObjectContactSolver::solve(double h, int iterations) {
       c.invW = 1.0 / c.wsum;
     }
   for (int it = 0; it < iterations; ++it) {
+    double largest2 = 0.0;  // the largest change of a relative velocity in this pass, squared
     for (std::vector<Contact>* list : {&colliderContacts_, &contacts_})
       for (Contact& c : *list) {
         Eigen::Vector3d& x1 = x_[c.k1];
@@ -403,6 +473,7 @@ void ObjectContactSolver::solve(double h, int iterations) {
         if (fn2 > cone * cone) f *= c.muK * c.lambda / std::sqrt(fn2);
         c.friction = f;
         J += f - oldF;
+        largest2 = std::max(largest2, c.wsum * c.wsum * J.squaredNorm());
         const Eigen::Vector3d dv1 = w1 * J;
         v1 += dv1;
         x1 += h * dv1;
@@ -412,6 +483,7 @@ void ObjectContactSolver::solve(double h, int iterations) {
           x_[c.k2] -= h * dv2;
         }
       }
+    if (largest2 < tolerance2) break;
   }
 }
 

@@ -111,13 +111,22 @@ class ObjectContactSolver {
     Eigen::Vector3d vc = Eigen::Vector3d::Zero();  // collider surface velocity
     double lambda = 0.0;                           // normal impulse (N s)
     Eigen::Vector3d friction = Eigen::Vector3d::Zero();  // tangential impulse on k1 (N s)
+    std::uint32_t slot = 0;  // its candidate pair (a pair contact)
+  };
+  /// A collider contact's impulses kept for the next sub-step's warm start.
+  struct KeptImpulse {
+    std::uint32_t k = 0, collider = 0;
+    double lambda = 0.0;
+    Eigen::Vector3d friction = Eigen::Vector3d::Zero();
   };
   bool listStale(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h) const;
   void buildList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h);
   void gather(const std::vector<Solver*>& objects, double h);
   void findPairs(const ObjectContactParams& params);
   void findColliderContacts(const std::vector<SubstepCollider>& colliders, double h);
+  void warmStart(double h);
   void solve(double h, int iterations);
+  void keep();
   void pushOut();
   void scatter(const std::vector<Solver*>& objects);
   void accumulate(const std::vector<SubstepCollider>& colliders, bool last);
@@ -135,6 +144,11 @@ class ObjectContactSolver {
   std::vector<double> allowance_;        // how far each particle may move from its anchor
   std::vector<std::pair<std::uint32_t, std::uint32_t>> candidates_;  // (k1 < k2): anchors closer than reach + allowance, summed
   std::vector<std::uint32_t> scratch_;   // the buckets of a wide search
+  // the last sub-step's impulses: per candidate pair, and per collider contact in (k, collider)
+  // order; kept while the list is
+  std::vector<double> keptLambda_;
+  std::vector<Eigen::Vector3d> keptFriction_;
+  std::vector<KeptImpulse> keptCollider_;
   // per object, at the build
   std::vector<Eigen::Vector3d> lo_, hi_;  // bounds of the anchors inflated by reach_ + the largest allowance
   std::vector<double> radius_, reach_;    // contact radius, and radius with the margin
