@@ -46,12 +46,14 @@ constexpr double kPenetrationSlop = 0.01;
 /// Old penetration is pushed out by at most this fraction of the smaller radius per sub-step,
 /// by position only (as the collider pass bounds its own at the radius).
 constexpr double kPushPace = 0.5;
-/// A particle's allowance around its anchor in the candidate list is at least this fraction of
-/// its contact radius: a pile at rest keeps its list while its particles stay within it.
+/// A particle's allowance around its anchor in the candidate list is this fraction of its
+/// contact radius (a pile at rest keeps its list while its particles stay within it) ...
 constexpr double kSkin = 0.25;
-/// ... and wide enough for the particle to move this many more sub-steps at its speed before
-/// the list must be built again.
+/// ... plus its motion over this many sub-steps at its speed after the build ...
 constexpr int kSkinSubsteps = 2;
+/// ... up to this fraction of its radius (or its motion in the sub-step of the build if that is
+/// more): wider allowances make the hash's cells larger or a fast particle's search wide.
+constexpr double kSkinMotion = 0.5;
 /// The Gauss-Seidel passes stop when a pass changed no relative velocity by more than this
 /// fraction of the smallest radius per sub-step (see solve()).
 constexpr double kSolveTolerance = 1e-3;
@@ -118,8 +120,8 @@ bool ObjectContactSolver::listStale(const std::vector<Solver*>& objects, const O
 }
 
 // The build: anchors at the middle of each particle's motion over this sub-step (h |v| / 2
-// from either end), allowances wide enough for it to go on kSkinSubsteps more sub-steps at its
-// speed, and at least kSkin of its radius, for a pile at rest; the broad phase on the anchors'
+// from either end), allowances wide enough for it to go on for a few more sub-steps at its
+// speed (see kSkin); the broad phase on the anchors'
 // bounds, then the hash of the particles it lets in. All of them, not the lattice's surface
 // only: an impact deforms the object so that particles from inside pass between the surface's
 // (which have no contact with each other) into the other. Only the particles in a candidate
@@ -144,13 +146,13 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
   radius_.resize(N);
   reach_.resize(N);
   near_.assign(N, 0);
-  // a particle's base allowance and the largest reach with it: a particle whose allowance is
-  // larger (a fast one) searches the hash wider
+  // the largest reach with an allowance of a particle at most kSkinMotion r fast per sub-step: a
+  // particle whose allowance is larger (a fast one) searches the hash wider
   double baseReach = 0.0;
   for (std::size_t o = 0; o < N; ++o) {
     builtRadius_[o] = radius_[o] = objects[o]->contactRadius();
     reach_[o] = radius_[o] * (1.0 + kContactMargin);
-    baseReach = std::max(baseReach, reach_[o] + kSkin * radius_[o]);
+    baseReach = std::max(baseReach, reach_[o] + (kSkin + kSkinMotion) * radius_[o]);
   }
   double widest = baseReach;  // the largest reach + allowance
   for (std::size_t o = 0; o < N; ++o) {
@@ -159,9 +161,13 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
     Eigen::Vector3d* a = anchor_.data() + offset_[o];
     double* e = allowance_.data() + offset_[o];
     double most = 0.0;
+    const double rest = kSkin * radius_[o], motion = kSkinMotion * radius_[o];
     for (std::size_t i = 0; i < x.size(); ++i) {
       a[i] = x[i] - 0.5 * h * v[i];
-      e[i] = std::max(kSkin * radius_[o], (kSkinSubsteps + 0.5) * h * v[i].norm());
+      // beyond its h |v| / 2 at the build, room for kSkinSubsteps more sub-steps at its speed
+      // up to kSkinMotion r: a faster particle has the list built again soon
+      const double step = h * v[i].norm();
+      e[i] = rest + std::max(0.5 * step, std::min((kSkinSubsteps + 0.5) * step, motion));
       most = std::max(most, e[i]);
     }
     widest = std::max(widest, reach_[o] + most);
