@@ -1,7 +1,8 @@
 // Several objects in one World: the same steps as a bare Solver for one object, momentum kept by
 // the contact between objects, and scenes compared with statics: a stack whose contacts carry
 // the weight above them, two objects squeezed by a collider, a bin of objects, a gripper lifting
-// two stacked objects by friction, a bar folded onto itself; run-time changes and refusals.
+// two stacked objects by friction, a bar folded onto itself, a pile of soft objects that stays at
+// rest; run-time changes and refusals.
 #include "deformable_flsm/core/world.h"
 
 #include "deformable_flsm/core/contact.h"
@@ -479,6 +480,38 @@ TEST(WorldScene, ABarFoldedOntoItselfDoesNotPassThroughWithSelfContact) {
   std::printf("folded bar: deepest self-overlap %.3g r with self-contact, %.3g r without\n", with, without);
   EXPECT_LT(with, 0.1) << "self-contact keeps the end out of the bar";
   EXPECT_GT(without, 1.0) << "without it the end passes through the bar";
+}
+
+// The contact pass keeps its list of candidate pairs while the particles stay near where it was
+// built: a block resting apart for a second, then thrown fast at a resting stack, must still be
+// met by the stack's particles (the list built again as it moves), not pass into them.
+TEST(World, ABlockThrownFastAtARestingStackDoesNotPassIntoIt) {
+  World world(kStep, kSubsteps);
+  world.setCollider("ground", ground(0.0));
+  auto a = boxAt(3, 3, 3, 0.01, Eigen::Vector3d(0, 0, 0));
+  auto b = boxAt(3, 3, 3, 0.01, Eigen::Vector3d(0, 0, 0.03));
+  auto c = boxAt(3, 3, 3, 0.01, Eigen::Vector3d(0.1, 0.0, 0.015));
+  world.addObject("a", a, paramsFor(*a, 1.0, 2.0));
+  const Solver& B = world.addObject("b", b, paramsFor(*b, 1.0, 2.0));
+  SolverParams pc = paramsFor(*c, 1.0, 2.0);
+  pc.gravity.setZero();  // c hangs beside the stack until thrown
+  Solver& C = world.addObject("c", c, pc);
+  for (int i = 0; i < stepsFor(1.0); ++i) world.step();
+  ASSERT_LT(deepestOverlap(world), 0.1);
+  const double b0 = centreOfMass(B).x();
+  // 3 m/s towards the stack: 6 mm (1.2 r) per sub-step
+  C.setVelocities(std::vector<Eigen::Vector3d>(c->size(), Eigen::Vector3d(-3.0, 0.0, 0.0)));
+  double overlap = 0.0;
+  for (int i = 0; i < stepsFor(0.3); ++i) {
+    world.step();
+    overlap = std::max(overlap, deepestOverlap(world));
+  }
+  const double pushed = b0 - centreOfMass(B).x();
+  std::printf("block thrown at 3 m/s at a stack: deepest overlap %.3g r, the top block pushed %.3g m\n", overlap,
+              pushed);
+  EXPECT_TRUE(allFinite(world));
+  EXPECT_LT(overlap, 0.1) << "the thrown block is met by the stack";
+  EXPECT_GT(pushed, 0.01) << "it hit the stack";
 }
 
 // --- run-time changes and refusals -----------------------------------------------------------
