@@ -15,7 +15,11 @@
 // "Iterative Dynamics with Temporal Coherence"; Erleben 2007): per contact in a fixed order,
 //   dlambda = (target - g) / (h (w1 + w2)),  lambda <- max(0, lambda + dlambda)
 //   f <- f - u_t / (w1 + w2), u_t the tangential relative velocity; kept if |f| <= mu_s lambda
-//   (static friction: the contact sticks), else scaled to mu_k lambda (kinetic)
+//   (static friction: the contact sticks), else scaled to mu_s lambda; a contact whose friction
+//   reached its bound in the last sub-step slides in this one, bounded by mu_k lambda, until its
+//   friction falls below that bound. The regime changes between sub-steps only: switching
+//   between mu_s and mu_k within the passes, whose normal impulses are not yet converged, made
+//   resting contacts stick and slip by turns, and a pile of soft objects never came to rest.
 // and each change dJ is applied equal and opposite, dv1 = w1 dJ, dv2 = -w2 dJ (w = 1/m, 0 for
 // a pinned or hard-dragged particle): linear momentum is conserved exactly. A pair's normal
 // impulse lies along the line of the particles at the start of the sub-step, where the
@@ -299,6 +303,7 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
   // the particles are numbered anew: nothing to warm-start from
   keptLambda_.assign(candidates_.size(), 0.0);
   keptFriction_.assign(candidates_.size(), Eigen::Vector3d::Zero());
+  keptSliding_.assign(candidates_.size(), 0);
   keptCollider_.clear();
 }
 
@@ -328,8 +333,10 @@ void ObjectContactSolver::findPairs(const ObjectContactParams& params) {
     // the last sub-step's impulses, read once (keep() writes this sub-step's contacts' back)
     const double lambda = keptLambda_[i];
     const Eigen::Vector3d friction = keptFriction_[i];
+    const bool sliding = keptSliding_[i] != 0;
     keptLambda_[i] = 0.0;
     keptFriction_[i].setZero();
+    keptSliding_[i] = 0;
     const double R = r_[k1] + r_[k2];
     const double near2 = R * R * (1.0 + kContactMargin) * (1.0 + kContactMargin);
     const Eigen::Vector3d end = x_[k1] - x_[k2];
@@ -355,6 +362,7 @@ void ObjectContactSolver::findPairs(const ObjectContactParams& params) {
     c.slot = static_cast<std::uint32_t>(i);
     c.lambda = lambda;
     c.friction = friction - friction.dot(c.n) * c.n;
+    c.sliding = sliding;
     contacts_.push_back(c);
     touched_[k1] = touched_[k2] = 1;
   }
@@ -396,6 +404,7 @@ void ObjectContactSolver::findColliderContacts(const std::vector<SubstepCollider
       if (kept < keptCollider_.size() && keptCollider_[kept].k == k && keptCollider_[kept].collider == ci) {
         c.lambda = keptCollider_[kept].lambda;
         c.friction = keptCollider_[kept].friction - keptCollider_[kept].friction.dot(n) * n;
+        c.sliding = keptCollider_[kept].sliding;
       }
       colliderContacts_.push_back(c);
     }
@@ -422,10 +431,18 @@ void ObjectContactSolver::warmStart(double h) {
     }
 }
 
+// A contact slides in the next sub-step when its friction reached the bound of its regime in
+// this one (mu_s lambda sticking, mu_k lambda sliding).
+bool ObjectContactSolver::slides(const Contact& c) {
+  const double bound = (c.sliding ? c.muK : c.muS) * c.lambda;
+  return c.lambda > 0.0 && c.friction.squaredNorm() >= bound * bound * (1.0 - 1e-9);
+}
+
 void ObjectContactSolver::keep() {
   for (const Contact& c : contacts_) {
     keptLambda_[c.slot] = c.lambda;
     keptFriction_[c.slot] = c.friction;
+    keptSliding_[c.slot] = slides(c);
   }
   keptCollider_.clear();
   for (const Contact& c : colliderContacts_) {
@@ -435,6 +452,7 @@ void ObjectContactSolver::keep() {
     k.collider = c.k2;
     k.lambda = c.lambda;
     k.friction = c.friction;
+    k.sliding = slides(c);
     keptCollider_.push_back(k);
   }
 }
@@ -475,8 +493,8 @@ void ObjectContactSolver::solve(double h, int iterations) {
         const Eigen::Vector3d ut = u - u.dot(c.n) * c.n;
         const Eigen::Vector3d oldF = c.friction;
         Eigen::Vector3d f = oldF - ut * c.invW;
-        const double fn2 = f.squaredNorm(), cone = c.muS * c.lambda;
-        if (fn2 > cone * cone) f *= c.muK * c.lambda / std::sqrt(fn2);
+        const double fn2 = f.squaredNorm(), cone = (c.sliding ? c.muK : c.muS) * c.lambda;
+        if (fn2 > cone * cone) f *= cone / std::sqrt(fn2);
         c.friction = f;
         J += f - oldF;
         largest2 = std::max(largest2, c.wsum * c.wsum * J.squaredNorm());

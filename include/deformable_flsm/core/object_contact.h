@@ -112,12 +112,14 @@ class ObjectContactSolver {
     double lambda = 0.0;                           // normal impulse (N s)
     Eigen::Vector3d friction = Eigen::Vector3d::Zero();  // tangential impulse on k1 (N s)
     std::uint32_t slot = 0;  // its candidate pair (a pair contact)
+    bool sliding = false;    // its friction reached its bound in the last sub-step
   };
   /// A collider contact's impulses kept for the next sub-step's warm start.
   struct KeptImpulse {
     std::uint32_t k = 0, collider = 0;
     double lambda = 0.0;
     Eigen::Vector3d friction = Eigen::Vector3d::Zero();
+    bool sliding = false;
   };
   bool listStale(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h) const;
   void buildList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h);
@@ -127,6 +129,7 @@ class ObjectContactSolver {
   void warmStart(double h);
   void solve(double h, int iterations);
   void keep();
+  static bool slides(const Contact& c);
   void pushOut();
   void scatter(const std::vector<Solver*>& objects);
   void accumulate(const std::vector<SubstepCollider>& colliders, bool last);
@@ -148,6 +151,7 @@ class ObjectContactSolver {
   // order; kept while the list is
   std::vector<double> keptLambda_;
   std::vector<Eigen::Vector3d> keptFriction_;
+  std::vector<char> keptSliding_;
   std::vector<KeptImpulse> keptCollider_;
   // per object, at the build
   std::vector<Eigen::Vector3d> lo_, hi_;  // bounds of the anchors inflated by reach_ + the largest allowance
