@@ -85,7 +85,10 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
   if (candidates_.empty()) return;
   gather(objects, h);
   findPairs(params);
-  if (contacts_.empty()) return;
+  if (contacts_.empty()) {
+    keptCollider_.clear();  // nothing to warm-start the next sub-step's collider contacts from
+    return;
+  }
   findColliderContacts(colliders, h);
   warmStart(h);
   solve(h, params.iterations);
