@@ -136,6 +136,7 @@ Solver& World::addObject(const std::string& name, std::shared_ptr<const Lattice>
   impl_->objects.push_back(std::move(solver));
   impl_->pointers.push_back(&added);
   names_.push_back(name);
+  impl_->contact.invalidate();
   return added;
 }
 
@@ -145,6 +146,7 @@ bool World::removeObject(const std::string& name) {
   impl_->objects.erase(impl_->objects.begin() + static_cast<std::ptrdiff_t>(o));
   impl_->pointers.erase(impl_->pointers.begin() + static_cast<std::ptrdiff_t>(o));
   names_.erase(names_.begin() + static_cast<std::ptrdiff_t>(o));
+  impl_->contact.invalidate();
   auto& w = impl_->wrenches;
   w.erase(std::remove_if(w.begin(), w.end(),
                          [&](const ObjectPairWrench& p) { return p.from == name || p.on == name; }),

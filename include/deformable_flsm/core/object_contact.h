@@ -54,17 +54,29 @@ class ObjectContactSolver {
   /// Clears the step's sums for `objects` objects and `colliders` colliders.
   void beginStep(std::size_t objects, std::size_t colliders);
 
+  /// Makes the next substep() rebuild its candidate list: call when an object is added or
+  /// removed (a new object could take a removed one's place in memory).
+  void invalidate() { built_ = false; }
+
+  /// How many times the candidate list was built since this solver was made.
+  std::size_t listBuilds() const { return listBuilds_; }
+
   /// The contact pass after every object's sub-step of length h:
-  ///  1. broad phase: each object's bounds over the sub-step (inflated by its contact radius
-  ///     and the margin); a particle enters the hash only where its object's bounds
-  ///     meet another's (or with self-contact), so that far objects cost nothing;
-  ///  2. spatial hashes (cell = the largest contact diameter with its margin) of the end and
-  ///     start positions give the particle pairs closer than the sum of their radii with the
-  ///     margin at either (a sphere that passed through another is caught): pairs of different
-  ///     objects, and with params.selfContact pairs of one object farther apart than
-  ///     params.selfExclusion cells in its rest lattice; each particle in such a pair also
-  ///     gets a contact with every collider it touches, so that an object pressed onto the
-  ///     ground by another is held by the ground in the same solve;
+  ///  1. a candidate list of particle pairs (a Verlet list: Verlet 1967), kept over sub-steps
+  ///     and steps while no particle has moved farther than its allowance (a fraction of its
+  ///     radius, more for a fast one) from where it was at the build (its anchor), rebuilt
+  ///     otherwise: a broad phase of each object's bounds (inflated by its contact radius, the
+  ///     margin and the allowance) lets only the particles where an object's bounds meet
+  ///     another's (or with self-contact) into a spatial hash of the anchors, which gives the
+  ///     pairs closer than the sum of their reaches and allowances:
+  ///     pairs of different objects, and with params.selfContact pairs of one object farther
+  ///     apart than params.selfExclusion cells in its rest lattice. A resting pile rebuilds
+  ///     seldom, and far objects cost a pass over their particles only;
+  ///  2. of the candidates, the pairs closer than the sum of their radii with the margin at the
+  ///     end or at the start of the sub-step (a sphere that passed through another is caught);
+  ///     each particle in such a pair also gets a contact with every collider it touches, so
+  ///     that an object pressed onto the ground by another is held by the ground in the same
+  ///     solve;
   ///  3. projected Gauss-Seidel over the contacts in a fixed order (see object_contact.cpp);
   ///  4. penetration left (from a start, a large step, a collider pushing) pushed out by
   ///     position only, at most kPushPace of the smaller radius per sub-step.
@@ -99,33 +111,65 @@ class ObjectContactSolver {
     Eigen::Vector3d vc = Eigen::Vector3d::Zero();  // collider surface velocity
     double lambda = 0.0;                           // normal impulse (N s)
     Eigen::Vector3d friction = Eigen::Vector3d::Zero();  // tangential impulse on k1 (N s)
+    std::uint32_t slot = 0;  // its candidate pair (a pair contact)
+    bool sliding = false;    // its friction reached its bound in the last sub-step
   };
-  void gather(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h);
-  void findPairs(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h);
+  /// A collider contact's impulses kept for the next sub-step's warm start.
+  struct KeptImpulse {
+    std::uint32_t k = 0, collider = 0;
+    double lambda = 0.0;
+    Eigen::Vector3d friction = Eigen::Vector3d::Zero();
+    bool sliding = false;
+  };
+  bool listStale(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h) const;
+  void buildList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h);
+  void gather(const std::vector<Solver*>& objects, double h);
+  void findPairs(const ObjectContactParams& params);
   void findColliderContacts(const std::vector<SubstepCollider>& colliders, double h);
+  void warmStart(double h);
   void solve(double h, int iterations);
+  void keep();
+  static bool slides(const Contact& c);
   void pushOut();
   void scatter(const std::vector<Solver*>& objects);
   void accumulate(const std::vector<SubstepCollider>& colliders, bool last);
   PairImpulse& pairSlot(std::uint32_t a, std::uint32_t b);
 
-  // per object
-  std::vector<Eigen::Vector3d> lo_, hi_;  // bounds inflated by reach_
+  // the candidate list (a Verlet list): what it was built for, and every particle's anchor
+  bool built_ = false;
+  std::size_t listBuilds_ = 0;
+  bool builtEnabled_ = false, builtSelf_ = false;
+  int builtExclusion_ = 0;
+  std::vector<const Solver*> builtObjects_;
+  std::vector<double> builtRadius_;
+  std::vector<std::size_t> offset_;      // per object, its first particle in anchor_ (#objects + 1)
+  std::vector<Eigen::Vector3d> anchor_;  // every particle's mid-sub-step position at the build
+  std::vector<double> allowance_;        // how far each particle may move from its anchor
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> candidates_;  // (k1 < k2): anchors closer than reach + allowance, summed
+  std::vector<std::uint32_t> scratch_;   // the buckets of a wide search
+  // the last sub-step's impulses: per candidate pair, and per collider contact in (k, collider)
+  // order; kept while the list is
+  std::vector<double> keptLambda_;
+  std::vector<Eigen::Vector3d> keptFriction_;
+  std::vector<char> keptSliding_;
+  std::vector<KeptImpulse> keptCollider_;
+  // per object, at the build
+  std::vector<Eigen::Vector3d> lo_, hi_;  // bounds of the anchors inflated by reach_ + the largest allowance
   std::vector<double> radius_, reach_;    // contact radius, and radius with the margin
   std::vector<char> near_;                // its bounds meet another object's (or self-contact)
   std::vector<std::uint32_t> order_;  // objects by their lower x bound
   std::vector<std::pair<std::uint32_t, std::uint32_t>> objectPairs_;  // whose bounds meet
   std::vector<std::uint32_t> neighborStart_, neighbors_;  // per object, the others its bounds meet
-  // the gathered particles
+  std::vector<std::int32_t> renumber_;  // per gathered particle at the build, its place in the list or -1
+  // the particles of the candidate list, object by object, each object's in index order
   std::size_t count_ = 0;
   std::vector<std::uint32_t> object_, index_;
   std::vector<Eigen::Vector3d> x_, v_;
   std::vector<double> w_, r_;
   std::vector<Eigen::Vector3d> start_;  // x - h v: where the particles began the sub-step
   std::vector<char> touched_;
-  SpatialHash hash_, startHash_;  // of the end and of the start positions
-  std::vector<Contact> contacts_;
-  std::size_t pairContacts_ = 0;  // contacts_[colliderContacts .. ] are pairs
+  SpatialHash hash_;  // of the anchors, at the build
+  std::vector<Contact> colliderContacts_, contacts_;  // the colliders' first in the solve, then the pairs
   // the step's sums
   std::size_t colliderCount_ = 0;
   std::vector<ColliderImpulse> colliderImpulses_;  // #objects x #colliders

@@ -34,8 +34,8 @@ struct ObjectContactParams {
   /// modelled: one pair of coefficients for every object pair)
   double staticFriction = 0.6;
   double kineticFriction = 0.5;
-  /// Gauss-Seidel passes over the contacts per sub-step (>= 1): more make the impulses through a
-  /// stack of objects converge within a sub-step
+  /// Gauss-Seidel passes over the contacts per sub-step at most (>= 1; fewer once a pass changes
+  /// nothing): more make the impulses through a stack of objects converge within a sub-step
   int iterations = 16;
 
   /// @throws std::invalid_argument saying which field is wrong
