@@ -25,7 +25,9 @@
 // --only implicit prints that table alone.
 //
 //   bench_solver [--mesh PATH] [--particles N] [--steps N] [--repeats N] [--max-naive-w W]
-//                [--only implicit]
+//                [--only implicit] [--implicit-alone 1] [--moduli E1,E2,...]
+// --implicit-alone 1 leaves the explicit runs out of the implicit table (its iterations and cost
+// alone, quicker); --moduli replaces its 30 kPa, 1 MPa, 10 MPa.
 
 #include "deformable_flsm/core/fast_summation.h"
 #include "deformable_flsm/core/lattice.h"
@@ -61,6 +63,8 @@ struct Args {
   int repeats = 11;
   int maxNaiveW = 4;
   bool onlyImplicit = false;
+  bool implicitAlone = false;
+  std::vector<double> moduli = {30e3, 1e6, 10e6};
 };
 
 Args parse(int argc, char** argv) {
@@ -74,6 +78,19 @@ Args parse(int argc, char** argv) {
     else if (k == "--repeats") a.repeats = std::atoi(v);
     else if (k == "--max-naive-w") a.maxNaiveW = std::atoi(v);
     else if (k == "--only" && std::string(v) == "implicit") a.onlyImplicit = true;
+    else if (k == "--implicit-alone") a.implicitAlone = std::atoi(v) != 0;
+    else if (k == "--moduli") {
+      a.moduli.clear();
+      for (const char* c = v; *c != '\0';) {
+        char* end = nullptr;
+        a.moduli.push_back(std::strtod(c, &end));
+        if (end == c || !(a.moduli.back() > 0.0)) {
+          std::fprintf(stderr, "--moduli: a comma-separated list of positive moduli (Pa), got %s\n", v);
+          std::exit(2);
+        }
+        c = *end == ',' ? end + 1 : end;
+      }
+    }
     else {
       std::fprintf(stderr, "unknown option %s\n", k.c_str());
       std::exit(2);
@@ -232,7 +249,7 @@ DropRun drop(const std::shared_ptr<const Lattice>& lattice, const SolverParams& 
   return out;
 }
 
-void implicitTable(const TriMesh& mesh, std::size_t particles) {
+void implicitTable(const TriMesh& mesh, std::size_t particles, const Args& args) {
   std::printf("\nimplicit (1 sub-step) against explicit (the sub-steps it needs for the material), nu 0.3, w 2,\n"
               "single thread, a drop of 2 cm onto a plane and 2 s of settling; ns per particle per 1/60 s step\n"
               "%10s %10s %8s %16s %16s %8s %10s %8s\n",
@@ -240,7 +257,7 @@ void implicitTable(const TriMesh& mesh, std::size_t particles) {
   for (std::size_t target : {particles / 4, particles}) {
     const Voxelization vox = voxelizeNear(mesh, target);
     auto lattice = std::make_shared<const Lattice>(vox, 1000.0, 2);
-    for (double E : {30e3, 1e6, 10e6}) {
+    for (double E : args.moduli) {
       SolverParams p;
       p.regionHalfWidth = 2;
       p.youngsModulus = E;
@@ -251,7 +268,7 @@ void implicitTable(const TriMesh& mesh, std::size_t particles) {
       SolverParams e = p;
       e.integrator = Integrator::Explicit;
       e.substeps = substepsNeeded(lattice, p);
-      const DropRun exp = drop(lattice, e, 2.0);
+      const DropRun exp = args.implicitAlone ? DropRun() : drop(lattice, e, 2.0);
       std::printf("%10zu %10.3g %8d %16.1f %16.1f %8.2f %10.1f %8d\n", lattice->size(), E, e.substeps, exp.ns, imp.ns,
                   exp.ns / imp.ns, imp.meanIterations, imp.maxIterations);
     }
@@ -268,7 +285,7 @@ int main(int argc, char** argv) {
               args.mesh.c_str(), mesh.triangles.size(), vox.dims.x(), vox.dims.y(), vox.dims.z(), vox.spacing,
               vox.cells.size());
   if (args.onlyImplicit) {
-    implicitTable(mesh, args.particles);
+    implicitTable(mesh, args.particles, args);
     return 0;
   }
   {
@@ -465,6 +482,6 @@ int main(int argc, char** argv) {
   for (const BusyRow& b : busyRows)
     std::printf("%10zu %14.1f %14.1f %8.2fx %8.0f%% %11.2f / %.2f ms %22.3g\n", b.particles, b.one, b.all, b.cost,
                 100.0 * b.threaded, b.msThreads, b.msOne, b.diff);
-  implicitTable(mesh, args.particles);
+  implicitTable(mesh, args.particles, args);
   return 0;
 }

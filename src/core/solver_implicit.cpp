@@ -60,9 +60,9 @@ constexpr int kContactPasses = 4;
 constexpr double kContactSlop = 1e-3;
 /// The contact states kept from one sub-step to the next (implicitContactState_).
 constexpr char kNoContact = 0, kSticking = 1, kSliding = 2, kReleased = 3;
-/// At most this many aggregates in the preconditioner's coarse space (3 unknowns each, a dense
+/// At most this many aggregates in the preconditioner's coarse space (6 unknowns each, a dense
 /// Cholesky factorisation per sub-step): docs/performance.md gives the iterations and the cost.
-constexpr int kCoarseAggregates = 128;
+constexpr int kCoarseAggregates = 64;
 /// Inertia eigenvalues below this fraction of the largest are treated as zero (a collinear object
 /// cannot spin about its own line).
 constexpr double kInertiaRankTolerance = 1e-10;
@@ -433,7 +433,7 @@ void Solver::sumContactImpulses(double h) {
 // change within the sub-step; PCG's filter keeps them prescribed).
 void Solver::assembleCoarse(double h) {
   coarse_->setFixed(*activeSummer_, pinned_, hardDragged_);
-  coarse_->beginAssembly(implicitDiagonal_);
+  coarse_->beginAssembly(implicitDiagonal_, *hessian_);
   coarse_->addRegions(*hessian_);
   if (volumetric_) {
     const double h2 = h * h;

@@ -71,17 +71,18 @@ TEST(TwoLevelPreconditioner, CoarseMatrixIsTheGalerkinProduct) {
     std::vector<char> pinned(n, 0), dragged(n, 0);
     for (std::size_t i = 0; i < n; ++i) pinned[i] = L->cells()[i].x() == 0 ? 1 : 0;
     pre.setFixed(summer, pinned, dragged);
-    pre.beginAssembly(point.diagonal);
+    pre.beginAssembly(point.diagonal, K);
     pre.addRegions(K);
     const Eigen::MatrixXd& Ac = pre.coarseMatrix();
-    const Eigen::Index N = 3 * static_cast<Eigen::Index>(pre.aggregates());
+    constexpr int kModes = TwoLevelPreconditioner::kModes;
+    const Eigen::Index N = kModes * static_cast<Eigen::Index>(pre.aggregates());
     ASSERT_EQ(Ac.rows(), N);
     // the oracle: A applied to each column of P
     std::vector<std::vector<Eigen::Vector3d>> AP(static_cast<std::size_t>(N), std::vector<Eigen::Vector3d>(n));
     for (Eigen::Index c = 0; c < N; ++c) {
       std::vector<Eigen::Vector3d> column(n, Eigen::Vector3d::Zero());
       for (std::size_t i = 0; i < n; ++i)
-        if (pre.aggregateOf(i) == c / 3) column[i][c % 3] = 1.0;
+        if (pre.aggregateOf(i) == c / kModes) column[i] = pre.prolongation(i).col(c % kModes);
       K.apply(summer, point.diagonal, column, AP[static_cast<std::size_t>(c)]);
     }
     double scale = 0.0;
@@ -90,7 +91,8 @@ TEST(TwoLevelPreconditioner, CoarseMatrixIsTheGalerkinProduct) {
       for (Eigen::Index b = 0; b < N; ++b) {
         double expected = 0.0;
         for (std::size_t i = 0; i < n; ++i)
-          if (pre.aggregateOf(i) == a / 3) expected += AP[static_cast<std::size_t>(b)][i][a % 3];
+          if (pre.aggregateOf(i) == a / kModes)
+            expected += pre.prolongation(i).col(a % kModes).dot(AP[static_cast<std::size_t>(b)][i]);
         // round-off of the window sums and of the sums over up to a few hundred particles
         ASSERT_NEAR(Ac(a, b), expected, 1e-10 * scale) << "w " << w << " entry " << a << ", " << b;
       }
@@ -101,7 +103,7 @@ TEST(TwoLevelPreconditioner, CoarseMatrixIsTheGalerkinProduct) {
     for (Eigen::Index c = 0; c < N; ++c) u[c] = uni(rng);
     const auto field = [&](std::size_t i) -> Eigen::Vector3d {
       const int a = pre.aggregateOf(i);
-      return a < 0 ? Eigen::Vector3d::Zero() : Eigen::Vector3d(u.segment<3>(3 * a));
+      return a < 0 ? Eigen::Vector3d::Zero() : Eigen::Vector3d(pre.prolongation(i) * u.segment<kModes>(kModes * a));
     };
     const double before = u.dot(Ac * u);
     const std::uint32_t ends[3] = {0, static_cast<std::uint32_t>(n / 2), static_cast<std::uint32_t>(n - 1)};
@@ -129,7 +131,7 @@ TEST(TwoLevelPreconditioner, IsSymmetricPositiveDefinite) {
   EXPECT_LE(pre.aggregates(), 16u);
   std::vector<char> pinned(n, 0), dragged(n, 0);
   pre.setFixed(summer, pinned, dragged);
-  pre.beginAssembly(point.diagonal);
+  pre.beginAssembly(point.diagonal, K);
   pre.addRegions(K);
   ASSERT_TRUE(pre.factorize());
   std::vector<Eigen::Vector3d> invD(n), a(n), b(n), za(n), zb(n);
