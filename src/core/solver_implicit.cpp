@@ -63,6 +63,13 @@ constexpr char kNoContact = 0, kSticking = 1, kSliding = 2, kReleased = 3;
 /// At most this many aggregates in the preconditioner's coarse space (6 unknowns each, a dense
 /// Cholesky factorisation per sub-step): docs/performance.md gives the iterations and the cost.
 constexpr int kCoarseAggregates = 64;
+/// The coarse matrix is assembled and factorised again once an aggregate has turned by this angle
+/// (rad) since the last assembly, or after kCoarseAge sub-steps (the Poisson term's stretch),
+/// or when the diagonal or the coefficients change (TwoLevelPreconditioner::needsAssembly()):
+/// an older factorisation is still a valid preconditioner, and these bounds cost few iterations
+/// (docs/performance.md).
+constexpr double kCoarseTurn = 0.05;
+constexpr int kCoarseAge = 30;
 /// Inertia eigenvalues below this fraction of the largest are treated as zero (a collinear object
 /// cannot spin about its own line).
 constexpr double kInertiaRankTolerance = 1e-10;
@@ -433,6 +440,7 @@ void Solver::sumContactImpulses(double h) {
 // change within the sub-step; PCG's filter keeps them prescribed).
 void Solver::assembleCoarse(double h) {
   coarse_->setFixed(*activeSummer_, pinned_, hardDragged_);
+  if (!coarse_->needsAssembly(implicitDiagonal_, *hessian_, kCoarseTurn, kCoarseAge)) return;
   coarse_->beginAssembly(implicitDiagonal_, *hessian_);
   coarse_->addRegions(*hessian_);
   if (volumetric_) {

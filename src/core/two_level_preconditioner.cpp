@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -133,7 +134,27 @@ void TwoLevelPreconditioner::setFixed(RegionSummer& summer, const std::vector<ch
       changed = true;
     }
   }
-  if (changed) gatherMoments(summer);
+  if (changed) {
+    gatherMoments(summer);
+    fixedChanged_ = true;
+  }
+}
+
+bool TwoLevelPreconditioner::needsAssembly(const std::vector<Eigen::Vector3d>& diagonal,
+                                           const CorotatedHessian& hessian, double maxTurn, int maxAge) {
+  ++age_;
+  if (fixedChanged_ || !factorized_ || age_ > maxAge || assembledDiagonal_.size() != diagonal.size()) return true;
+  for (std::size_t i = 0; i < diagonal.size(); ++i)
+    if (diagonal[i] != assembledDiagonal_[i]) return true;
+  for (std::size_t r = 0; r < assembledCoefficient_.size(); ++r)
+    if (hessian.regionCoefficient(r) != assembledCoefficient_[r]) return true;
+  // the angle of R_then^T R_now from its trace: 1 + 2 cos(angle)
+  const double minTrace = 1.0 + 2.0 * std::cos(maxTurn);
+  for (std::size_t a = 0; a < aggregateRotation_.size(); ++a) {
+    const Eigen::Matrix3d& now = hessian.regionRotation(static_cast<std::size_t>(representative_[a]));
+    if (aggregateRotation_[a].cwiseProduct(now).sum() < minTrace) return true;
+  }
+  return false;
 }
 
 void TwoLevelPreconditioner::gatherMoments(RegionSummer& summer) {
@@ -203,6 +224,11 @@ void TwoLevelPreconditioner::beginAssembly(const std::vector<Eigen::Vector3d>& d
                                            const CorotatedHessian& hessian) {
   for (std::size_t a = 0; a < aggregateRotation_.size(); ++a)
     aggregateRotation_[a] = hessian.regionRotation(static_cast<std::size_t>(representative_[a]));
+  assembledDiagonal_ = diagonal;  // sized once (the copy allocates on the first assembly only)
+  assembledCoefficient_.resize(regionMass_.size());
+  for (std::size_t r = 0; r < assembledCoefficient_.size(); ++r) assembledCoefficient_[r] = hessian.regionCoefficient(r);
+  fixedChanged_ = false;
+  age_ = 0;
   coarse_.setZero();
   for (std::size_t i = 0; i < diagonal.size(); ++i) {
     const std::size_t a = static_cast<std::size_t>(aggregate_[i]);

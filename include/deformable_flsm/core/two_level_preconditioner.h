@@ -76,6 +76,13 @@ class TwoLevelPreconditioner {
   /// @param[in] hardDragged  #P nonzero where hard-dragged
   void setFixed(RegionSummer& summer, const std::vector<char>& pinned, const std::vector<char>& hardDragged);
 
+  /// Whether A_c should be assembled again: never assembled, the fixed set changed, the diagonal
+  /// or a region coefficient differs from the last assembly's, an aggregate's rotation turned by
+  /// more than `maxTurn` (rad) since, or `maxAge` calls passed. The last factorisation is a valid
+  /// preconditioner (symmetric positive definite) whatever A has become, only a less exact one, so
+  /// A_c is kept while A changes little: at rest, or while the object moves without turning.
+  bool needsAssembly(const std::vector<Eigen::Vector3d>& diagonal, const CorotatedHessian& hessian, double maxTurn,
+                     int maxAge);
   /// Turns the aggregates with `hessian`'s region rotations and starts A_c with P^T D P.
   /// @param[in] diagonal  #P per-component diagonal of A outside the regions' stiffness (kg)
   void beginAssembly(const std::vector<Eigen::Vector3d>& diagonal, const CorotatedHessian& hessian);
@@ -131,6 +138,10 @@ class TwoLevelPreconditioner {
   std::vector<Eigen::Vector3d> offset_;           // per particle: y_i
   std::vector<char> fixed_;
   bool gathered_ = false;
+  bool fixedChanged_ = true;
+  int age_ = 0;
+  std::vector<Eigen::Vector3d> assembledDiagonal_;
+  std::vector<double> assembledCoefficient_;
   bool factorized_ = false;
   std::vector<double> gatherIn_, gatherOut_;
   Eigen::MatrixXd coarse_;
