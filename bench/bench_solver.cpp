@@ -25,7 +25,9 @@
 // --only implicit prints that table alone.
 //
 //   bench_solver [--mesh PATH] [--particles N] [--steps N] [--repeats N] [--max-naive-w W]
-//                [--only implicit]
+//                [--only implicit] [--implicit-alone 1] [--moduli E1,E2,...] [--w W]
+// --implicit-alone 1 leaves the explicit runs out of the implicit table (its iterations and cost
+// alone, quicker); --moduli replaces its 30 kPa, 1 MPa, 10 MPa; --w its region half-width 2.
 
 #include "deformable_flsm/core/fast_summation.h"
 #include "deformable_flsm/core/lattice.h"
@@ -40,6 +42,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <csignal>
 #include <malloc.h>
 #include <sys/types.h>
@@ -61,6 +64,9 @@ struct Args {
   int repeats = 11;
   int maxNaiveW = 4;
   bool onlyImplicit = false;
+  bool implicitAlone = false;
+  int regionHalfWidth = 2;  // of the implicit table
+  std::vector<double> moduli = {30e3, 1e6, 10e6};
 };
 
 Args parse(int argc, char** argv) {
@@ -74,6 +80,20 @@ Args parse(int argc, char** argv) {
     else if (k == "--repeats") a.repeats = std::atoi(v);
     else if (k == "--max-naive-w") a.maxNaiveW = std::atoi(v);
     else if (k == "--only" && std::string(v) == "implicit") a.onlyImplicit = true;
+    else if (k == "--implicit-alone") a.implicitAlone = std::atoi(v) != 0;
+    else if (k == "--w") a.regionHalfWidth = std::max(1, std::atoi(v));
+    else if (k == "--moduli") {
+      a.moduli.clear();
+      for (const char* c = v; *c != '\0';) {
+        char* end = nullptr;
+        a.moduli.push_back(std::strtod(c, &end));
+        if (end == c || !(a.moduli.back() > 0.0)) {
+          std::fprintf(stderr, "--moduli: a comma-separated list of positive moduli (Pa), got %s\n", v);
+          std::exit(2);
+        }
+        c = *end == ',' ? end + 1 : end;
+      }
+    }
     else {
       std::fprintf(stderr, "unknown option %s\n", k.c_str());
       std::exit(2);
@@ -205,7 +225,7 @@ int substepsNeeded(const std::shared_ptr<const Lattice>& lattice, SolverParams p
 /// A drop: the object 2 cm above a ground plane, stepped for `seconds`; wall time per particle per
 /// step (ns) and the implicit step's CG iterations per step (mean, largest).
 struct DropRun {
-  double ns = 0.0, meanIterations = 0.0;
+  double ns = 0.0, cpuNs = 0.0, meanIterations = 0.0;
   int maxIterations = 0;
 };
 
@@ -221,6 +241,7 @@ DropRun drop(const std::shared_ptr<const Lattice>& lattice, const SolverParams& 
   DropRun out;
   long total = 0;
   const auto t0 = std::chrono::steady_clock::now();
+  const std::clock_t c0 = std::clock();
   for (int i = 0; i < steps; ++i) {
     s.step();
     total += s.lastImplicitSolve().iterations;
@@ -228,21 +249,24 @@ DropRun drop(const std::shared_ptr<const Lattice>& lattice, const SolverParams& 
   }
   const double ns = std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count();
   out.ns = ns / (double(steps) * double(lattice->size()));
+  out.cpuNs = 1e9 * double(std::clock() - c0) / CLOCKS_PER_SEC / (double(steps) * double(lattice->size()));
   out.meanIterations = double(total) / steps;
   return out;
 }
 
-void implicitTable(const TriMesh& mesh, std::size_t particles) {
-  std::printf("\nimplicit (1 sub-step) against explicit (the sub-steps it needs for the material), nu 0.3, w 2,\n"
-              "single thread, a drop of 2 cm onto a plane and 2 s of settling; ns per particle per 1/60 s step\n"
-              "%10s %10s %8s %16s %16s %8s %10s %8s\n",
-              "particles", "E (Pa)", "exp sub", "explicit ns/p", "implicit ns/p", "exp/imp", "CG mean", "CG max");
+void implicitTable(const TriMesh& mesh, std::size_t particles, const Args& args) {
+  std::printf("\nimplicit (1 sub-step) against explicit (the sub-steps it needs for the material), nu 0.3, w %d,\n"
+              "single thread, a drop of 2 cm onto a plane and 2 s of settling; ns per particle per 1/60 s step,\n"
+              "wall clock and CPU time (the process's: on a loaded machine the wall clock counts the waits too)\n"
+              "%10s %10s %8s %14s %14s %8s %12s %12s %8s %8s %7s\n",
+              args.regionHalfWidth, "particles", "E (Pa)", "exp sub", "explicit ns/p", "implicit ns/p", "exp/imp",
+              "exp cpu ns/p", "imp cpu ns/p", "cpu e/i", "CG mean", "CG max");
   for (std::size_t target : {particles / 4, particles}) {
     const Voxelization vox = voxelizeNear(mesh, target);
-    auto lattice = std::make_shared<const Lattice>(vox, 1000.0, 2);
-    for (double E : {30e3, 1e6, 10e6}) {
+    auto lattice = std::make_shared<const Lattice>(vox, 1000.0, args.regionHalfWidth);
+    for (double E : args.moduli) {
       SolverParams p;
-      p.regionHalfWidth = 2;
+      p.regionHalfWidth = args.regionHalfWidth;
       p.youngsModulus = E;
       p.poissonsRatio = 0.3;
       p.substeps = 1;
@@ -251,9 +275,10 @@ void implicitTable(const TriMesh& mesh, std::size_t particles) {
       SolverParams e = p;
       e.integrator = Integrator::Explicit;
       e.substeps = substepsNeeded(lattice, p);
-      const DropRun exp = drop(lattice, e, 2.0);
-      std::printf("%10zu %10.3g %8d %16.1f %16.1f %8.2f %10.1f %8d\n", lattice->size(), E, e.substeps, exp.ns, imp.ns,
-                  exp.ns / imp.ns, imp.meanIterations, imp.maxIterations);
+      const DropRun exp = args.implicitAlone ? DropRun() : drop(lattice, e, 2.0);
+      std::printf("%10zu %10.3g %8d %14.1f %14.1f %8.2f %12.1f %12.1f %8.2f %8.1f %7d\n", lattice->size(), E, e.substeps,
+                  exp.ns, imp.ns, exp.ns / imp.ns, exp.cpuNs, imp.cpuNs, exp.cpuNs / imp.cpuNs, imp.meanIterations,
+                  imp.maxIterations);
     }
   }
 }
@@ -268,7 +293,7 @@ int main(int argc, char** argv) {
               args.mesh.c_str(), mesh.triangles.size(), vox.dims.x(), vox.dims.y(), vox.dims.z(), vox.spacing,
               vox.cells.size());
   if (args.onlyImplicit) {
-    implicitTable(mesh, args.particles);
+    implicitTable(mesh, args.particles, args);
     return 0;
   }
   {
@@ -465,6 +490,6 @@ int main(int argc, char** argv) {
   for (const BusyRow& b : busyRows)
     std::printf("%10zu %14.1f %14.1f %8.2fx %8.0f%% %11.2f / %.2f ms %22.3g\n", b.particles, b.one, b.all, b.cost,
                 100.0 * b.threaded, b.msThreads, b.msOne, b.diff);
-  implicitTable(mesh, args.particles);
+  implicitTable(mesh, args.particles, args);
   return 0;
 }

@@ -1,6 +1,9 @@
 #include "deformable_flsm/core/two_level_preconditioner.h"
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -8,12 +11,25 @@ namespace deformable_flsm {
 
 namespace {
 
-/// Gather width: six parity classes of four channels (m~, m~ q) per pass, two passes for eight.
+/// Rest moments per parity class: m~, m~ q (3), m~ q q^T (6, upper triangle).
+constexpr int kMoments = 10;
+/// Gather width (a channel count the region summer takes): two parity classes per pass, four
+/// passes for eight.
 constexpr int kChannels = 24;
-constexpr int kClassesPerPass = kChannels / 4;
+constexpr int kClassesPerPass = kChannels / kMoments;
 /// A parity class of a region with less than this fraction of the region's mass is empty (the
 /// lightest particle is ~1/(2w+1)^3 of a region's mass; the running sums' round-off ~1e-16).
 constexpr double kEmptyClass = 1e-9;
+/// An aggregate rotates unless its free particles' rest inertia about c_a has an eigenvalue below
+/// this fraction of its largest (collinear particles, or one): a rotation that moves none of them
+/// would leave A_c singular.
+constexpr double kRotationRankTolerance = 1e-6;
+
+Eigen::Matrix3d crossMatrix(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d X;
+  X << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return X;
+}
 
 int floorDiv(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
@@ -62,6 +78,27 @@ TwoLevelPreconditioner::TwoLevelPreconditioner(const Lattice& lattice, const std
     aggregate_[i] = grid[static_cast<std::size_t>(g.x() + dims.x() * (g.y() + dims.y() * g.z()))];
     parity_[i] = static_cast<char>((g.x() & 1) | ((g.y() & 1) << 1) | ((g.z() & 1) << 2));
   }
+  // the aggregates' rest centres and the particle nearest each: its region's rotation turns the
+  // aggregate
+  center_.assign(static_cast<std::size_t>(count_), Eigen::Vector3d::Zero());
+  std::vector<double> mass(static_cast<std::size_t>(count_), 0.0), nearest(static_cast<std::size_t>(count_), 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    center_[static_cast<std::size_t>(aggregate_[i])] += massFractions[i] * restCentered[i];
+    mass[static_cast<std::size_t>(aggregate_[i])] += massFractions[i];
+  }
+  for (int a = 0; a < count_; ++a) center_[static_cast<std::size_t>(a)] /= mass[static_cast<std::size_t>(a)];
+  representative_.assign(static_cast<std::size_t>(count_), -1);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t a = static_cast<std::size_t>(aggregate_[i]);
+    const double d = (restCentered[i] - center_[a]).squaredNorm();
+    if (representative_[a] < 0 || d < nearest[a]) {
+      representative_[a] = static_cast<int>(i);
+      nearest[a] = d;
+    }
+  }
+  rotates_.assign(static_cast<std::size_t>(count_), 0);
+  aggregateRotation_.assign(static_cast<std::size_t>(count_), Eigen::Matrix3d::Identity());
+  offset_.assign(n, Eigen::Vector3d::Zero());
   // region r spans cells c_r - w .. c_r + w: on each axis the aggregate of parity bit b is the
   // lower one, floor((c_r - w - lo) / s), or the next
   regionAggregate_.assign(n * kPerRegion, -1);
@@ -77,11 +114,11 @@ TwoLevelPreconditioner::TwoLevelPreconditioner(const Lattice& lattice, const std
   }
   regionAggMass_.assign(n * kPerRegion, 0.0);
   regionAggMoment_.assign(n * kPerRegion, Eigen::Vector3d::Zero());
-  regionActive_.assign(n, 0);
+  regionAggSecond_.assign(n * kPerRegion, Eigen::Matrix3d::Zero());
   fixed_.assign(n, 0);
   gatherIn_.assign(n * kChannels, 0.0);
   gatherOut_.assign(n * kChannels, 0.0);
-  const Eigen::Index N = 3 * count_;
+  const Eigen::Index N = kModes * count_;
   coarse_ = Eigen::MatrixXd::Zero(N, N);
   llt_ = Eigen::LLT<Eigen::MatrixXd>(N);
   coarseRhs_ = Eigen::VectorXd::Zero(N);
@@ -97,7 +134,27 @@ void TwoLevelPreconditioner::setFixed(RegionSummer& summer, const std::vector<ch
       changed = true;
     }
   }
-  if (changed) gatherMoments(summer);
+  if (changed) {
+    gatherMoments(summer);
+    fixedChanged_ = true;
+  }
+}
+
+bool TwoLevelPreconditioner::needsAssembly(const std::vector<Eigen::Vector3d>& diagonal,
+                                           const CorotatedHessian& hessian, double maxTurn, int maxAge) {
+  ++age_;
+  if (fixedChanged_ || !factorized_ || age_ > maxAge || assembledDiagonal_.size() != diagonal.size()) return true;
+  for (std::size_t i = 0; i < diagonal.size(); ++i)
+    if (diagonal[i] != assembledDiagonal_[i]) return true;
+  for (std::size_t r = 0; r < assembledCoefficient_.size(); ++r)
+    if (hessian.regionCoefficient(r) != assembledCoefficient_[r]) return true;
+  // the angle of R_then^T R_now from its trace: 1 + 2 cos(angle)
+  const double minTrace = 1.0 + 2.0 * std::cos(maxTurn);
+  for (std::size_t a = 0; a < aggregateRotation_.size(); ++a) {
+    const Eigen::Matrix3d& now = hessian.regionRotation(static_cast<std::size_t>(representative_[a]));
+    if (aggregateRotation_[a].cwiseProduct(now).sum() < minTrace) return true;
+  }
+  return false;
 }
 
 void TwoLevelPreconditioner::gatherMoments(RegionSummer& summer) {
@@ -108,85 +165,136 @@ void TwoLevelPreconditioner::gatherMoments(RegionSummer& summer) {
     for (std::size_t i = 0; i < n; ++i) {
       const int slot = parity_[i] - firstClass;
       if (fixed_[i] != 0 || slot < 0 || slot >= kClassesPerPass) continue;
-      double* d = &gatherIn_[i * kChannels + 4 * static_cast<std::size_t>(slot)];
-      d[0] = massFractions_[i];
-      d[1] = massFractions_[i] * restCentered_[i].x();
-      d[2] = massFractions_[i] * restCentered_[i].y();
-      d[3] = massFractions_[i] * restCentered_[i].z();
+      double* d = &gatherIn_[i * kChannels + kMoments * static_cast<std::size_t>(slot)];
+      const double m = massFractions_[i];
+      const Eigen::Vector3d& q = restCentered_[i];
+      d[0] = m;
+      d[1] = m * q.x();
+      d[2] = m * q.y();
+      d[3] = m * q.z();
+      d[4] = m * q.x() * q.x();
+      d[5] = m * q.y() * q.y();
+      d[6] = m * q.z() * q.z();
+      d[7] = m * q.x() * q.y();
+      d[8] = m * q.x() * q.z();
+      d[9] = m * q.y() * q.z();
     }
     summer.gather(gatherIn_.data(), kChannels, gatherOut_.data());
     for (std::size_t r = 0; r < n; ++r)
       for (int k = firstClass; k < std::min(kPerRegion, firstClass + kClassesPerPass); ++k) {
-        const double* S = &gatherOut_[r * kChannels + 4 * static_cast<std::size_t>(k - firstClass)];
+        const double* S = &gatherOut_[r * kChannels + kMoments * static_cast<std::size_t>(k - firstClass)];
         const std::size_t e = r * kPerRegion + static_cast<std::size_t>(k);
         // the summer's running sums leave round-off where a class is empty
         const bool empty = regionAggregate_[e] < 0 || S[0] <= kEmptyClass * regionMass_[r];
         regionAggMass_[e] = empty ? 0.0 : S[0];
-        regionAggMoment_[e] = empty ? Eigen::Vector3d::Zero()
-                                    : Eigen::Vector3d(Eigen::Vector3d(S[1], S[2], S[3]) - S[0] * regionRestCenter_[r]);
+        regionAggMoment_[e] = empty ? Eigen::Vector3d::Zero() : Eigen::Vector3d(S[1], S[2], S[3]);
+        Eigen::Matrix3d second;
+        second << S[4], S[7], S[8], S[7], S[5], S[9], S[8], S[9], S[6];
+        regionAggSecond_[e] = empty ? Eigen::Matrix3d::Zero() : second;
       }
   }
-  // A region adds to A_c unless its particles are all free and in one aggregate.
-  for (std::size_t r = 0; r < n; ++r) {
-    int nonEmpty = 0;
-    double mass = 0.0;
-    for (int k = 0; k < kPerRegion; ++k) {
-      const double m = regionAggMass_[r * kPerRegion + static_cast<std::size_t>(k)];
-      if (m > 0.0) ++nonEmpty;
-      mass += m;
-    }
-    regionActive_[r] = nonEmpty > 1 || (nonEmpty == 1 && mass < regionMass_[r] * (1.0 - kEmptyClass)) ? 1 : 0;
+  // which aggregates rotate: their free particles' rest inertia about c_a has full rank
+  const std::size_t count = static_cast<std::size_t>(count_);
+  std::vector<Eigen::Matrix3d> second(count, Eigen::Matrix3d::Zero());
+  for (std::size_t i = 0; i < n; ++i) {
+    if (fixed_[i] != 0) continue;
+    const std::size_t a = static_cast<std::size_t>(aggregate_[i]);
+    const Eigen::Vector3d d = restCentered_[i] - center_[a];
+    second[a].noalias() += massFractions_[i] * d * d.transpose();
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+  for (std::size_t a = 0; a < count; ++a) {
+    const Eigen::Matrix3d I = second[a].trace() * Eigen::Matrix3d::Identity() - second[a];
+    eig.computeDirect(I);
+    const Eigen::Vector3d& lambda = eig.eigenvalues();
+    rotates_[a] = lambda.maxCoeff() > 0.0 && lambda.minCoeff() > kRotationRankTolerance * lambda.maxCoeff() ? 1 : 0;
   }
   gathered_ = true;
 }
 
-void TwoLevelPreconditioner::addBlock(int a, int b, const Eigen::Matrix3d& block) {
-  coarse_.block<3, 3>(3 * a, 3 * b) += block;
+Eigen::Matrix<double, 3, TwoLevelPreconditioner::kModes> TwoLevelPreconditioner::prolongation(std::size_t i) const {
+  Columns P = Columns::Zero();
+  if (fixed_[i] != 0) return P;
+  P.leftCols<3>().setIdentity();
+  if (rotates_[static_cast<std::size_t>(aggregate_[i])] != 0) P.rightCols<3>() = -crossMatrix(offset_[i]);
+  return P;
 }
 
-void TwoLevelPreconditioner::beginAssembly(const std::vector<Eigen::Vector3d>& diagonal) {
+void TwoLevelPreconditioner::beginAssembly(const std::vector<Eigen::Vector3d>& diagonal,
+                                           const CorotatedHessian& hessian) {
+  for (std::size_t a = 0; a < aggregateRotation_.size(); ++a)
+    aggregateRotation_[a] = hessian.regionRotation(static_cast<std::size_t>(representative_[a]));
+  assembledDiagonal_ = diagonal;  // sized once (the copy allocates on the first assembly only)
+  assembledCoefficient_.resize(regionMass_.size());
+  for (std::size_t r = 0; r < assembledCoefficient_.size(); ++r) assembledCoefficient_[r] = hessian.regionCoefficient(r);
+  fixedChanged_ = false;
+  age_ = 0;
   coarse_.setZero();
   for (std::size_t i = 0; i < diagonal.size(); ++i) {
+    const std::size_t a = static_cast<std::size_t>(aggregate_[i]);
+    offset_[i] = aggregateRotation_[a] * (restCentered_[i] - center_[a]);
     if (fixed_[i] != 0) continue;
-    const int a = aggregate_[i];
-    for (int c = 0; c < 3; ++c) coarse_(3 * a + c, 3 * a + c) += diagonal[i][c];
+    const Columns P = prolongation(i);
+    addBlock(static_cast<int>(a), static_cast<int>(a), P.transpose() * diagonal[i].asDiagonal() * P);
   }
 }
 
+// Per region, the blocks c_r [delta_ab G_ra - T_ra^T T_rb / M_r - L_ra^T J_r L_rb] of the class
+// comment, from the rest moments (m, f, S) of the region's part in each aggregate.
 void TwoLevelPreconditioner::addRegions(const CorotatedHessian& hessian) {
-  const std::size_t n = regionActive_.size();
-  const auto cross = [](const Eigen::Vector3d& v) {
-    Eigen::Matrix3d X;
-    X << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
-    return X;
-  };
+  const std::size_t n = regionAggMass_.size() / kPerRegion;
   int agg[kPerRegion];
-  double mass[kPerRegion];
-  Eigen::Matrix3d X[kPerRegion], H[kPerRegion];
+  Columns T[kPerRegion], L[kPerRegion], JL[kPerRegion];
+  Eigen::Matrix3d G[kPerRegion];  // the rotation block tr(Q) 1 - Q of G_ra
   for (std::size_t r = 0; r < n; ++r) {
-    if (regionActive_[r] == 0) continue;
     const double c = hessian.regionCoefficient(r);
     if (c == 0.0) continue;
-    const Eigen::Matrix3d& R = hessian.regionRotation(r);
+    const Eigen::Matrix3d& Rr = hessian.regionRotation(r);
     const Eigen::Matrix3d J = hessian.rotatedInertiaInverse(r);
+    const Eigen::Vector3d& c0 = regionRestCenter_[r];
     int m = 0;
     for (int k = 0; k < kPerRegion; ++k) {
       const std::size_t e = r * kPerRegion + static_cast<std::size_t>(k);
-      if (!(regionAggMass_[e] > 0.0)) continue;
-      agg[m] = regionAggregate_[e];
-      mass[m] = regionAggMass_[e];
-      X[m] = cross(R * regionAggMoment_[e]);
-      H[m] = J * X[m];
+      const double mass = regionAggMass_[e];
+      if (!(mass > 0.0)) continue;
+      const std::size_t a = static_cast<std::size_t>(regionAggregate_[e]);
+      const Eigen::Vector3d& f = regionAggMoment_[e];
+      const Eigen::Matrix3d& S = regionAggSecond_[e];
+      const Eigen::Vector3d& ca = center_[a];
+      agg[m] = static_cast<int>(a);
+      T[m].leftCols<3>() = mass * Eigen::Matrix3d::Identity();
+      L[m].leftCols<3>() = crossMatrix(Rr * (f - mass * c0));
+      if (rotates_[a] != 0) {
+        const Eigen::Matrix3d& Ra = aggregateRotation_[a];
+        T[m].rightCols<3>() = -crossMatrix(Ra * (f - mass * ca));
+        const Eigen::Matrix3d Q = Ra * (S - f * ca.transpose() - ca * f.transpose() + mass * ca * ca.transpose()) *
+                                  Ra.transpose();
+        G[m] = Q.trace() * Eigen::Matrix3d::Identity() - Q;
+        const Eigen::Matrix3d X = Ra * (S - f * c0.transpose() - ca * f.transpose() + mass * ca * c0.transpose()) *
+                                  Rr.transpose();
+        L[m].rightCols<3>() = X.trace() * Eigen::Matrix3d::Identity() - X;
+      } else {
+        T[m].rightCols<3>().setZero();
+        G[m].setZero();
+        L[m].rightCols<3>().setZero();
+      }
+      JL[m].noalias() = J * L[m];
       ++m;
     }
     const double invM = 1.0 / regionMass_[r];
     for (int a = 0; a < m; ++a) {
-      Eigen::Matrix3d diag = X[a] * H[a];
-      diag.diagonal().array() += mass[a] - mass[a] * mass[a] * invM;
+      Block diag;
+      diag.noalias() = -invM * T[a].transpose() * T[a];
+      diag.noalias() -= L[a].transpose() * JL[a];
+      // delta_ab G_ra: G's translation and coupling blocks are T's
+      diag.topRows<3>() += T[a];
+      diag.bottomLeftCorner<3, 3>() -= T[a].topRightCorner<3, 3>();  // [Y]x = -(-[Y]x)
+      diag.bottomRightCorner<3, 3>() += G[a];
       addBlock(agg[a], agg[a], c * diag);
       for (int b = a + 1; b < m; ++b) {
-        Eigen::Matrix3d off = X[a] * H[b];
-        off.diagonal().array() -= mass[a] * mass[b] * invM;
+        Block off;
+        off.noalias() = -invM * T[a].transpose() * T[b];
+        off.noalias() -= L[a].transpose() * JL[b];
         off *= c;
         addBlock(agg[a], agg[b], off);
         addBlock(agg[b], agg[a], off.transpose());
@@ -198,39 +306,39 @@ void TwoLevelPreconditioner::addRegions(const CorotatedHessian& hessian) {
 void TwoLevelPreconditioner::addOuter(const std::uint32_t* particles, const Eigen::Vector3d* g, int count,
                                       double weight) {
   constexpr int kMax = 8;
+  using Vector = Eigen::Matrix<double, kModes, 1>;
   int agg[kMax];
-  Eigen::Vector3d v[kMax];
+  Vector v[kMax];
   int m = 0;
   for (int k = 0; k < count && k < kMax; ++k) {
     const int a = aggregateOf(particles[k]);
     if (a < 0) continue;
+    const Vector pg = prolongation(particles[k]).transpose() * g[k];
     int j = 0;
     while (j < m && agg[j] != a) ++j;
     if (j == m) {
       agg[m] = a;
-      v[m++] = g[k];
+      v[m++] = pg;
     } else {
-      v[j] += g[k];
+      v[j] += pg;
     }
   }
   for (int a = 0; a < m; ++a)
     for (int b = 0; b < m; ++b) addBlock(agg[a], agg[b], weight * v[a] * v[b].transpose());
 }
 
+// k/2 |p_i - p_j|^2 at p = P u: the blocks k P_s^T P_t over the ends s, t, signed (+ i, - j).
 void TwoLevelPreconditioner::addEdge(std::uint32_t i, std::uint32_t j, double k) {
-  const int a = aggregateOf(i), b = aggregateOf(j);
-  if (a == b) return;
-  const Eigen::Matrix3d K = k * Eigen::Matrix3d::Identity();
-  if (a >= 0) addBlock(a, a, K);
-  if (b >= 0) addBlock(b, b, K);
-  if (a >= 0 && b >= 0) {
-    addBlock(a, b, -K);
-    addBlock(b, a, -K);
-  }
+  const int agg[2] = {aggregateOf(i), aggregateOf(j)};
+  const Columns P[2] = {prolongation(i), -prolongation(j)};
+  for (int s = 0; s < 2; ++s)
+    for (int t = 0; t < 2; ++t)
+      if (agg[s] >= 0 && agg[t] >= 0) addBlock(agg[s], agg[t], k * P[s].transpose() * P[t]);
 }
 
 bool TwoLevelPreconditioner::factorize() {
-  // an aggregate of fixed particles only has a zero row and column: decouple it
+  // an unknown that moves no particle (an aggregate of fixed particles only, the rotation of one
+  // that does not rotate) has a zero row and column: decouple it
   for (Eigen::Index d = 0; d < coarse_.rows(); ++d)
     if (coarse_(d, d) == 0.0) coarse_(d, d) = 1.0;
   llt_.compute(coarse_);
@@ -244,14 +352,20 @@ void TwoLevelPreconditioner::apply(const std::vector<Eigen::Vector3d>& invDiagon
   for (std::size_t i = 0; i < n; ++i) z[i] = invDiagonal[i].cwiseProduct(r[i]);
   if (!factorized_) return;
   coarseRhs_.setZero();
+  // P^T r: per aggregate sum r_i and sum y_i x r_i; then z_i += u_a + w_a x y_i
   for (std::size_t i = 0; i < n; ++i) {
     if (fixed_[i] != 0) continue;
-    coarseRhs_.segment<3>(3 * aggregate_[i]) += r[i];
+    const Eigen::Index a = kModes * aggregate_[i];
+    coarseRhs_.segment<3>(a) += r[i];
+    coarseRhs_.segment<3>(a + 3) += offset_[i].cross(r[i]);
   }
+  for (std::size_t a = 0; a < rotates_.size(); ++a)
+    if (rotates_[a] == 0) coarseRhs_.segment<3>(kModes * static_cast<Eigen::Index>(a) + 3).setZero();
   llt_.solveInPlace(coarseRhs_);
   for (std::size_t i = 0; i < n; ++i) {
     if (fixed_[i] != 0) continue;
-    z[i] += coarseRhs_.segment<3>(3 * aggregate_[i]);
+    const Eigen::Index a = kModes * aggregate_[i];
+    z[i] += coarseRhs_.segment<3>(a) + coarseRhs_.segment<3>(a + 3).cross(offset_[i]);
   }
 }
 

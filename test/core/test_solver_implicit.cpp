@@ -386,3 +386,48 @@ TEST(ImplicitStep, BunnyDraggedOnTheGroundComesToRestAfterRelease) {
     EXPECT_LT(moved, kRestFraction * lattice->objectSize()) << "second " << second;
   }
 }
+
+// The default scene's soft bunny (2.5k particles, w = 1, 30 kPa, nu 0, region damping 10, ambient
+// 0.5) dropped 2 cm onto the ground, its ear dragged 6 cm sideways over 2 s, then released: 5 s
+// later it is at rest by the node's criterion (no particle moves farther than 2e-5 object sizes
+// in a second, so the node stops stepping it) for two seconds running. With a coarse space of
+// one translation per aggregate (at most 128 aggregates) it kept a limit cycle on its contacts instead (particles at ~3e-4 m/s,
+// ~1.2e-5 m net per second, twice the criterion) and the node never idled.
+TEST(ImplicitStep, SoftBunnyComesToRestWithinSecondsAfterADrag) {
+  constexpr double kRestFraction = 2e-5;  // object sizes per second (SimulationLoopSettings)
+  deformable_flsm::TriMesh mesh = deformable_flsm::loadMesh(deformable_flsm::kBunnyMeshPath, 0.1);
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.5 * M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  for (auto& v : mesh.vertices) v = R * v;
+  const Voxelization vox = deformable_flsm::finestResolutionWithin(mesh, 2500).voxels;
+  SolverParams p = implicitParams(30e3, 0.0, 1, 1.0 / 60.0);
+  p.ambientDamping = 0.5;
+  p.damping = 10.0;
+  auto lattice = std::make_shared<const Lattice>(vox, kDensity, 1);
+  Solver s(lattice, p);
+  double lowest = kBig;
+  std::uint32_t top = 0;
+  for (std::uint32_t k = 0; k < s.positions().size(); ++k) {
+    lowest = std::min(lowest, s.positions()[k].z());
+    if (s.positions()[k].z() > s.positions()[top].z()) top = k;
+  }
+  Collider ground;
+  ground.shape.type = ColliderType::HalfSpace;
+  ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - s.contactRadius() - 0.02);
+  s.setCollider("ground", ground);
+  for (int i = 0; i < 120; ++i) s.step();
+  s.grab("ear", {top}, s.positions()[top], 0.0);
+  const Eigen::Vector3d start = s.positions()[top];
+  for (int i = 1; i <= 120; ++i) {
+    s.moveDrag("ear", start + Eigen::Vector3d(0.0005 * i, 0, 0));
+    s.step();
+  }
+  s.release("ear");
+  for (int i = 0; i < 300; ++i) s.step();
+  for (int second = 0; second < 2; ++second) {
+    const std::vector<Eigen::Vector3d> from = s.positions();
+    for (int i = 0; i < 60; ++i) s.step();
+    double moved = 0.0;
+    for (std::size_t k = 0; k < from.size(); ++k) moved = std::max(moved, (s.positions()[k] - from[k]).norm());
+    EXPECT_LT(moved, kRestFraction * lattice->objectSize()) << "second " << second;
+  }
+}
