@@ -596,6 +596,11 @@ double errorAgainst(const Run& run, const Run& ref, double size) {
   return count ? std::sqrt(e / double(count)) / size : std::numeric_limits<double>::quiet_NaN();
 }
 
+/// Wall time (s) since `t0`.
+double secondsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 /// The columns of accuracy.csv and stability.csv (docs/study.md defines them).
 const std::string kAccuracyHeader =
     "scenario,method,resolution,substeps,reference,particles,half_width,substep_s,blew_up,error_ref,eb_rms,"
@@ -715,6 +720,7 @@ int main(int argc, char** argv) {
   // Bullet's deformable body damps its stiff modes with the mass-spring's calibrated dashpot time
   const Calibration calib =
       calibrate(bar, ph, selected("mass-spring") || selected("bullet-fem"), selected("bullet"));
+  std::printf("  (physics and calibration: %.0f s)\n", secondsSince(start));
 
   const std::vector<int> barRes = args.quick ? std::vector<int>{20} : kBarResolutions;
   const int barRef = args.quick ? 40 : kBarReferenceResolution;
@@ -733,6 +739,7 @@ int main(int argc, char** argv) {
         scenario == Scenario::Cantilever ? barRes : (scenario == Scenario::Column ? columnRes : bunnyRes);
     const int refRes = onBar ? barRef : bunnyRef;
     std::printf("%s:\n", toString(scenario));
+    const auto scenarioStart = std::chrono::steady_clock::now();
     std::map<std::string, const Run*> fastBySetting;
     const Run* fastRef = nullptr;
     // naive LSM and the implicit step are measured against FastLSM's reference run: without
@@ -808,6 +815,7 @@ int main(int argc, char** argv) {
         }
       }
     }
+    std::printf("  (%s: %.0f s)\n", toString(scenario), secondsSince(scenarioStart));
   }
   for (Row& row : rows) {
     const Scenario sc = row.run->scenario;
@@ -828,6 +836,7 @@ int main(int argc, char** argv) {
   // the fewest sub-steps that its linear stability bound allows (how its users would run it);
   // the implicit step at the bunny's modulus and at stiffer ones (kImplicitStressModuli)
   std::printf("stress (bunny at resolution %d, %.4g s frames):\n", kStressResolution, kStressFrameStep);
+  const auto stressStart = std::chrono::steady_clock::now();
   std::vector<std::unique_ptr<Run>> stress;
   const int massSpringStressSubsteps =
       massSpringMinSubsteps(buildLattice(bunny, kStressResolution), calib, bunny.youngsModulus, kStressFrameStep);
@@ -843,6 +852,8 @@ int main(int argc, char** argv) {
           stress.push_back(
               std::make_unique<Run>(runOnce(scenario, bunny, method, kStressResolution, sub, calib, 1, false, E)));
   }
+
+  std::printf("  (stress: %.0f s)\n", secondsSince(stressStart));
 
   // --- files
   const std::string dir = args.out;
@@ -925,7 +936,7 @@ kAccuracyHeader, std::move(lines), subset, selected, CsvOrder::ScenarioThenMetho
 kStabilityHeader, std::move(lines), subset, selected, CsvOrder::Method))
       return 1;
   }
-  const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double total = secondsSince(start);
   std::printf("wrote %saccuracy.csv, stability.csv in %.0f s\n", subset ? "" : "calibration.csv, ", total);
   return 0;
 }
