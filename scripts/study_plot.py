@@ -79,7 +79,7 @@ def chart(rows, calibration, path):
             for r in rows:
                 if r["scenario"] != scenario or r["method"] != key or r["reference"] == "1":
                     continue
-                cost, err = number(r["wall_s_per_sim_s"]), value(r, column)
+                cost, err = number(r["cpu_s_per_sim_s"]), value(r, column)
                 if r["blew_up"] == "1" or not math.isfinite(err) or (logy and not err > 0):
                     continue
                 pts.append((cost, err, "%s/%s" % (r["resolution"], r["substeps"])))
@@ -104,7 +104,7 @@ def chart(rows, calibration, path):
         ax.set_xscale("log")
         if logy:
             ax.set_yscale("log")
-        ax.set_xlabel("cost: wall time per simulated second (s), one thread")
+        ax.set_xlabel("cost: CPU time per simulated second (s), one thread")
         ax.set_ylabel(ylabel)
         ax.set_title(title, fontsize=9.5)
         ax.grid(True, which="both", lw=0.3, alpha=0.5)

@@ -14,7 +14,9 @@
 //   flsm_study [--out DIR] [--mesh PATH] [--repeats N] [--quick] [--no-bullet] [--methods LIST]
 //
 // --quick runs a small grid (coarse resolutions, few sub-steps) to check the pipeline; --repeats
-// (default 3) repeats every run that took under 2 s and reports the median time. --methods
+// (default 3) repeats every run that took under 2 s and reports the median time. Cost is the CPU
+// time of the thread that steps (every method runs on one thread), not wall time: on a machine
+// shared with other jobs it leaves out the time the thread waited for a core. --methods
 // (comma-separated names of kAllMethods) runs only those methods and replaces only their rows in
 // the existing accuracy.csv and stability.csv (the other methods' rows and calibration.csv are
 // kept): after a change to one method, its figures are regenerated without the others' runs.
@@ -125,7 +127,7 @@ constexpr int kFemCheckResolution = 20;
 /// alpha is below its cap and the bar has the modulus it is given.
 constexpr int kCalibrationResolution = 40;
 constexpr int kCalibrationSubsteps = kReferenceSubsteps;
-/// Runs whose first repetition took less wall time than this (s) are repeated (--repeats):
+/// Runs whose first repetition took less CPU time than this (s) are repeated (--repeats):
 /// cheap runs are the ones that other processes on the machine disturb most.
 constexpr double kRepeatBelowSeconds = 2.0;
 /// Trajectory samples of the ear drag: every this many frames (10 Hz).
@@ -321,7 +323,12 @@ struct Run {
   int halfWidth = 0;
   double substep = 0.0;
   RunRecord record;
-  double secondsPerFrame = 0.0;  // median over frames, then over repeats
+  /// CPU time of the stepping thread per frame (s): the mean over the frames (the cost of the
+  /// whole run, a stiff start included), then the median over repeats
+  double secondsPerFrame = 0.0;
+  /// wall time per frame (s): the median over the frames, then over repeats (on a busy machine
+  /// it includes the time the thread waited for a core)
+  double wallSecondsPerFrame = 0.0;
   int repeats = 0;
   /// FastLSM only: the alpha used, and whether the step was too long for the modulus (-1 n/a)
   double alpha = std::numeric_limits<double>::quiet_NaN();
@@ -351,7 +358,7 @@ Run runOnce(Scenario scenario, const StudyObject& object, const std::string& met
   if (youngsModulus > 0.0) s.youngsModulus = youngsModulus;
   r.youngsModulus = s.youngsModulus;
   r.substep = s.substep();
-  std::vector<double> perRepeat;
+  std::vector<double> perRepeat, perRepeatWall;
   for (int k = 0; k < repeats; ++k) {
     auto m = makeMethod(method, lattice, s, calib);
     if (const auto* flsm = dynamic_cast<const FlsmMethod*>(m.get())) {
@@ -363,16 +370,18 @@ Run runOnce(Scenario scenario, const StudyObject& object, const std::string& met
     if (const auto* flsm = dynamic_cast<const FlsmMethod*>(m.get()); flsm && k == 0 &&
         flsm->solver().params().integrator == Integrator::Implicit)
       r.iterations = flsm->meanIterations();
-    perRepeat.push_back(median(rec.frameSeconds));
-    double wall = 0.0;
-    for (double t : rec.frameSeconds) wall += t;
+    double cpu = 0.0;
+    for (double t : rec.frameCpuSeconds) cpu += t;
+    perRepeat.push_back(cpu / double(std::max<std::size_t>(1, rec.frameCpuSeconds.size())));
+    perRepeatWall.push_back(median(rec.frameSeconds));
     if (k == 0) r.record = std::move(rec);
-    if (r.record.blewUp || wall > kRepeatBelowSeconds) break;  // nothing to time, or timed enough
+    if (r.record.blewUp || cpu > kRepeatBelowSeconds) break;  // nothing to time, or timed enough
   }
   r.secondsPerFrame = median(perRepeat);
+  r.wallSecondsPerFrame = median(perRepeatWall);
   r.repeats = static_cast<int>(perRepeat.size());
   const double frameStep = s.frameStep;
-  std::printf("  %-11s %-16s E %7.3g  res %3d  sub %4d  %6zu particles  w %d  %s  %9.4f s/sim-s  %8.1f ns/p-step",
+  std::printf("  %-11s %-16s E %7.3g  res %3d  sub %4d  %6zu particles  w %d  %s  %9.4f CPU s/sim-s  %8.1f ns/p-step",
               toString(scenario), method.c_str(), r.youngsModulus, resolution, substeps, r.particles, r.halfWidth,
               r.record.blewUp ? "BLEW UP " : "        ", r.secondsPerFrame / frameStep,
               1e9 * r.secondsPerFrame / (double(substeps) * double(r.particles)));
@@ -604,8 +613,9 @@ double secondsSince(std::chrono::steady_clock::time_point t0) {
 /// The columns of accuracy.csv and stability.csv (docs/study.md defines them).
 const std::string kAccuracyHeader =
     "scenario,method,resolution,substeps,reference,particles,half_width,substep_s,blew_up,error_ref,eb_rms,"
-    "tip_deflection,shape_error,volume_change,peak_kinetic_energy_J,wall_s_per_sim_s,ns_per_particle_step,repeats,"
-    "diff_vs_fast,alpha,saturated,tip_vs_fem,profile_vs_fem,tip_vs_analytic,profile_vs_analytic,cg_iterations";
+    "tip_deflection,shape_error,volume_change,peak_kinetic_energy_J,cpu_s_per_sim_s,ns_per_particle_step,repeats,"
+    "diff_vs_fast,alpha,saturated,tip_vs_fem,profile_vs_fem,tip_vs_analytic,profile_vs_analytic,cg_iterations,"
+    "wall_s_per_sim_s";
 const std::string kStabilityHeader =
     "scenario,method,resolution,particles,frame_step_s,substeps,outcome,blow_up_time_s,shape_error,"
     "recovered_after_s,peak_kinetic_energy_J,volume_change_held,volume_change_final,youngs_modulus_Pa,cg_iterations";
@@ -689,8 +699,8 @@ int main(int argc, char** argv) {
               "%zu sampled)\n",
               kBarLength, kBarLength / kBarAspect, kBarLength / kBarAspect, bar.mesh.vertices.size(), meshName.c_str(),
               kStudyBunnyScale, bunny.size, bunny.mesh.vertices.size(), bunny.sampleVertices.size());
-  std::printf("single thread; times are medians over the frames of a run%s\n",
-              args.repeats > 1 ? ", then over up to --repeats runs (runs under 2 s)" : "");
+  std::printf("single thread; cost = CPU time of the stepping thread per frame, the mean over the frames of a run%s\n",
+              args.repeats > 1 ? ", then the median over up to --repeats runs (runs under 2 s)" : "");
   if (!withBullet) std::printf("Bullet's soft body: not built in (no Bullet found, or --no-bullet)\n");
 
   const Physics ph = physics(bar);
@@ -908,7 +918,7 @@ int main(int argc, char** argv) {
         << num(1e9 * r.secondsPerFrame / (double(r.substeps) * double(r.particles))) << ',' << r.repeats << ','
         << num(row.diffVsFast) << ',' << num(r.alpha) << ',' << (r.saturated < 0 ? std::string() : std::to_string(r.saturated))
         << ',' << num(row.vsFem.tip) << ',' << num(row.vsFem.profile) << ',' << num(row.vsAnalytic.tip) << ','
-        << num(row.vsAnalytic.profile) << ',' << num(r.iterations);
+        << num(row.vsAnalytic.profile) << ',' << num(r.iterations) << ',' << num(r.wallSecondsPerFrame / frameStep);
       lines.push_back(f.str());
     }
     if (!writeCsv(dir + "/accuracy.csv",
