@@ -1,5 +1,6 @@
-// Speed against accuracy: runs the study's scenarios headless with FastLSM, naive LSM, an explicit
-// mass-spring lattice and (when built with Bullet) Bullet's implicit deformable body
+// Speed against accuracy: runs the study's scenarios headless with FastLSM (explicit and implicit
+// step), naive LSM, an explicit mass-spring lattice and (when built with Bullet) Bullet's implicit
+// deformable body
 // (btDeformableBody: tetrahedra, corotated linear elasticity, E and nu) and Bullet's legacy soft
 // body (links, pose matching, volume conservation), and writes
 //   <out>/calibration.csv  the physical references (FEM oracle on the bar's voxels, Timoshenko,
@@ -10,10 +11,15 @@
 //   <out>/stability.csv    one row per method and stress scenario (1/30 s frames)
 // A benchmark, not a test: it prints figures and never fails because the machine is slow.
 //
-//   flsm_study [--out DIR] [--mesh PATH] [--repeats N] [--quick] [--no-bullet]
+//   flsm_study [--out DIR] [--mesh PATH] [--repeats N] [--quick] [--no-bullet] [--methods LIST]
 //
 // --quick runs a small grid (coarse resolutions, few sub-steps) to check the pipeline; --repeats
-// (default 3) repeats every run that took under 2 s and reports the median time.
+// (default 3) repeats every run that took under 2 s and reports the median time. Cost is the CPU
+// time of the thread that steps (every method runs on one thread), not wall time: on a machine
+// shared with other jobs it leaves out the time the thread waited for a core. --methods
+// (comma-separated names of kAllMethods) runs only those methods and replaces only their rows in
+// the existing accuracy.csv and stability.csv (the other methods' rows and calibration.csv are
+// kept): after a change to one method, its figures are regenerated without the others' runs.
 // Definitions of every figure: docs/study.md.
 
 #include "deformable_flsm/core/lattice.h"
@@ -71,6 +77,18 @@ constexpr int kReferenceSubsteps = 16;
 /// would run it for the asked material. The reference run takes the fewest powers of two from
 /// kReferenceSubsteps on that leave alpha uncapped, up to kMaxReferenceSubsteps.
 constexpr int kMaxFlsmSubsteps = 64;
+/// FastLSM's implicit step: sub-steps per frame at every resolution of the explicit runs. No
+/// bound on the modulus comes from its sub-step, so its users run it at the frame rate; two
+/// sub-steps show what halving its numerical damping buys.
+const std::vector<int> kImplicitSubsteps = {1, 2};
+/// Resolutions of the implicit step's cantilever: kBarResolutions and the explicit step's
+/// reference resolution, where the implicit step at the frame rate costs about what the explicit
+/// one pays at 60 cells, at the accurate end of the chart where Bullet's deformable body stands.
+const std::vector<int> kImplicitBarResolutions = {20, 40, 60, 80};
+/// Stress table: Young's moduli (Pa) of the implicit step's runs beside the study's bunny
+/// (kBunnyYoungsModulus), from a soft material to a stiff rubber, which the explicit step at one
+/// sub-step could only simulate with alpha capped.
+const std::vector<double> kImplicitStressModuli = {3e4, 1e6, 1e7};
 constexpr int kMaxReferenceSubsteps = 128;
 /// Naive LSM: the region sums cost O(w^3) per particle; the study runs it where w <= this.
 constexpr int kNaiveMaxHalfWidth = 2;
@@ -109,11 +127,16 @@ constexpr int kFemCheckResolution = 20;
 /// alpha is below its cap and the bar has the modulus it is given.
 constexpr int kCalibrationResolution = 40;
 constexpr int kCalibrationSubsteps = kReferenceSubsteps;
-/// Runs whose first repetition took less wall time than this (s) are repeated (--repeats):
+/// Runs whose first repetition took less CPU time than this (s) are repeated (--repeats):
 /// cheap runs are the ones that other processes on the machine disturb most.
 constexpr double kRepeatBelowSeconds = 2.0;
 /// Trajectory samples of the ear drag: every this many frames (10 Hz).
 constexpr int kSampleEvery = 6;
+
+/// Every method of the study, in the order of its files and tables. "fastlsm-nu0" runs in the
+/// stress table only.
+const std::vector<std::string> kAllMethods = {"fastlsm",     "fastlsm-implicit", "fastlsm-nu0", "naive-lsm",
+                                              "mass-spring", "bullet",           "bullet-fem"};
 
 struct Args {
   std::string out = "docs/study";
@@ -121,7 +144,30 @@ struct Args {
   int repeats = 3;
   bool quick = false;
   bool bullet = true;
+  /// methods to run (--methods); empty: all
+  std::vector<std::string> methods;
 };
+
+/// The names of a comma-separated list, each checked against kAllMethods.
+std::vector<std::string> parseMethods(const std::string& list) {
+  std::vector<std::string> out;
+  std::stringstream in(list);
+  std::string name;
+  while (std::getline(in, name, ',')) {
+    if (std::find(kAllMethods.begin(), kAllMethods.end(), name) == kAllMethods.end()) {
+      std::string known;
+      for (const auto& m : kAllMethods) known += " " + m;
+      std::fprintf(stderr, "flsm_study: unknown method '%s' in --methods (known:%s)\n", name.c_str(), known.c_str());
+      std::exit(2);
+    }
+    out.push_back(name);
+  }
+  if (out.empty()) {
+    std::fprintf(stderr, "flsm_study: --methods needs at least one method name\n");
+    std::exit(2);
+  }
+  return out;
+}
 
 Args parse(int argc, char** argv) {
   Args a;
@@ -139,9 +185,11 @@ Args parse(int argc, char** argv) {
     else if (k == "--repeats") a.repeats = std::max(1, std::atoi(value().c_str()));
     else if (k == "--quick") a.quick = true;
     else if (k == "--no-bullet") a.bullet = false;
+    else if (k == "--methods") a.methods = parseMethods(value());
     else {
       std::fprintf(stderr, "flsm_study: unknown option %s\n"
-                           "usage: flsm_study [--out DIR] [--mesh PATH] [--repeats N] [--quick] [--no-bullet]\n",
+                           "usage: flsm_study [--out DIR] [--mesh PATH] [--repeats N] [--quick] [--no-bullet] "
+                           "[--methods LIST]\n",
                    k.c_str());
       std::exit(2);
     }
@@ -226,6 +274,9 @@ BulletDeformableParams bulletFemParams(const Setting& s, const Calibration& c) {
 std::unique_ptr<Method> makeMethod(const std::string& name, const std::shared_ptr<const Lattice>& lattice,
                                    const Setting& s, const Calibration& c) {
   if (name == "fastlsm") return std::make_unique<FlsmMethod>(lattice, flsmParams(s, lattice->regionHalfWidth(), SolverKind::Fast));
+  if (name == "fastlsm-implicit")
+    return std::make_unique<FlsmMethod>(lattice,
+                                        flsmParams(s, lattice->regionHalfWidth(), SolverKind::Fast, Integrator::Implicit));
   if (name == "fastlsm-nu0") {  // the stress table's FastLSM without the Poisson term
     Setting s0 = s;
     s0.poissonRatio = 0.0;
@@ -272,15 +323,28 @@ struct Run {
   int halfWidth = 0;
   double substep = 0.0;
   RunRecord record;
-  double secondsPerFrame = 0.0;  // median over frames, then over repeats
+  /// CPU time of the stepping thread per frame (s): the mean over the frames (the cost of the
+  /// whole run, a stiff start included), then the median over repeats
+  double secondsPerFrame = 0.0;
+  /// wall time per frame (s): the median over the frames, then over repeats (on a busy machine
+  /// it includes the time the thread waited for a core)
+  double wallSecondsPerFrame = 0.0;
   int repeats = 0;
   /// FastLSM only: the alpha used, and whether the step was too long for the modulus (-1 n/a)
   double alpha = std::numeric_limits<double>::quiet_NaN();
   int saturated = -1;
+  /// Young's modulus of the run (Pa)
+  double youngsModulus = 0.0;
+  /// implicit step only: conjugate-gradient iterations of a frame's last sub-step, mean over the
+  /// frames of the first repetition (FlsmMethod::meanIterations())
+  double iterations = std::numeric_limits<double>::quiet_NaN();
 };
 
+/// One run of `method` on `scenario` at a resolution and sub-step count, repeated up to `repeats`
+/// times while cheap (kRepeatBelowSeconds); `youngsModulus` (Pa) replaces the object's when
+/// positive.
 Run runOnce(Scenario scenario, const StudyObject& object, const std::string& method, int resolution, int substeps,
-            const Calibration& calib, int repeats, bool reference) {
+            const Calibration& calib, int repeats, bool reference, double youngsModulus = 0.0) {
   Run r;
   r.scenario = scenario;
   r.method = method;
@@ -290,9 +354,11 @@ Run runOnce(Scenario scenario, const StudyObject& object, const std::string& met
   const auto lattice = buildLattice(object, resolution);
   r.particles = lattice->size();
   r.halfWidth = lattice->regionHalfWidth();
-  const Setting s = scenarioSetting(scenario, object, resolution, substeps);
+  Setting s = scenarioSetting(scenario, object, resolution, substeps);
+  if (youngsModulus > 0.0) s.youngsModulus = youngsModulus;
+  r.youngsModulus = s.youngsModulus;
   r.substep = s.substep();
-  std::vector<double> perRepeat;
+  std::vector<double> perRepeat, perRepeatWall;
   for (int k = 0; k < repeats; ++k) {
     auto m = makeMethod(method, lattice, s, calib);
     if (const auto* flsm = dynamic_cast<const FlsmMethod*>(m.get())) {
@@ -301,19 +367,26 @@ Run runOnce(Scenario scenario, const StudyObject& object, const std::string& met
     }
     RunRecord rec = runScenario(scenario, object, *lattice, *m, s.frameStep,
                                 scenario == Scenario::EarDrag ? kSampleEvery : 0);
-    perRepeat.push_back(median(rec.frameSeconds));
-    double wall = 0.0;
-    for (double t : rec.frameSeconds) wall += t;
+    if (const auto* flsm = dynamic_cast<const FlsmMethod*>(m.get()); flsm && k == 0 &&
+        flsm->solver().params().integrator == Integrator::Implicit)
+      r.iterations = flsm->meanIterations();
+    double cpu = 0.0;
+    for (double t : rec.frameCpuSeconds) cpu += t;
+    perRepeat.push_back(cpu / double(std::max<std::size_t>(1, rec.frameCpuSeconds.size())));
+    perRepeatWall.push_back(median(rec.frameSeconds));
     if (k == 0) r.record = std::move(rec);
-    if (r.record.blewUp || wall > kRepeatBelowSeconds) break;  // nothing to time, or timed enough
+    if (r.record.blewUp || cpu > kRepeatBelowSeconds) break;  // nothing to time, or timed enough
   }
   r.secondsPerFrame = median(perRepeat);
+  r.wallSecondsPerFrame = median(perRepeatWall);
   r.repeats = static_cast<int>(perRepeat.size());
   const double frameStep = s.frameStep;
-  std::printf("  %-11s %-11s res %3d  sub %4d  %6zu particles  w %d  %s  %9.4f s/sim-s  %8.1f ns/p-step\n",
-              toString(scenario), method.c_str(), resolution, substeps, r.particles, r.halfWidth,
+  std::printf("  %-11s %-16s E %7.3g  res %3d  sub %4d  %6zu particles  w %d  %s  %9.4f CPU s/sim-s  %8.1f ns/p-step",
+              toString(scenario), method.c_str(), r.youngsModulus, resolution, substeps, r.particles, r.halfWidth,
               r.record.blewUp ? "BLEW UP " : "        ", r.secondsPerFrame / frameStep,
               1e9 * r.secondsPerFrame / (double(substeps) * double(r.particles)));
+  if (std::isfinite(r.iterations)) std::printf("  %5.1f CG iterations", r.iterations);
+  std::printf("\n");
   std::fflush(stdout);
   return r;
 }
@@ -435,8 +508,9 @@ PhysicalError physicalError(const StudyObject& bar, Scenario scenario, const std
 }
 
 /// Matches the static stiffness of the peers that take no modulus to physics: the cantilever's
-/// tip deflection at the calibration resolution equals the FEM oracle's.
-Calibration calibrate(const StudyObject& bar, const Physics& ph, bool withBullet) {
+/// tip deflection at the calibration resolution equals the FEM oracle's. Only the peers asked
+/// for are calibrated (the others keep their defaults and are not run).
+Calibration calibrate(const StudyObject& bar, const Physics& ph, bool withMassSpring, bool withBullet) {
   Calibration c;
   c.targetTip = ph.femTip;
   c.fastlsmTip = calibrationTip(bar, "fastlsm", kCalibrationSubsteps, c);
@@ -447,7 +521,7 @@ Calibration calibrate(const StudyObject& bar, const Physics& ph, bool withBullet
   // Mass-spring: deflection ~ 1 / kappa for small deflections, so kappa <- kappa * tip / target
   // converges in a few rounds (the dashpots do not change the rest state).
   c.springRatio = 1.0;
-  for (int round = 0; round < 8; ++round) {
+  for (int round = 0; withMassSpring && round < 8; ++round) {
     MassSpringParams p;
     p.springModulus = c.springRatio * bar.youngsModulus;
     c.omegaMax = MassSpringLattice(lattice, p).maxFrequency();
@@ -531,6 +605,83 @@ double errorAgainst(const Run& run, const Run& ref, double size) {
   return count ? std::sqrt(e / double(count)) / size : std::numeric_limits<double>::quiet_NaN();
 }
 
+/// Wall time (s) since `t0`.
+double secondsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// The columns of accuracy.csv and stability.csv (docs/study.md defines them).
+const std::string kAccuracyHeader =
+    "scenario,method,resolution,substeps,reference,particles,half_width,substep_s,blew_up,error_ref,eb_rms,"
+    "tip_deflection,shape_error,volume_change,peak_kinetic_energy_J,cpu_s_per_sim_s,ns_per_particle_step,repeats,"
+    "diff_vs_fast,alpha,saturated,tip_vs_fem,profile_vs_fem,tip_vs_analytic,profile_vs_analytic,cg_iterations,"
+    "wall_s_per_sim_s";
+const std::string kStabilityHeader =
+    "scenario,method,resolution,particles,frame_step_s,substeps,outcome,blow_up_time_s,shape_error,"
+    "recovered_after_s,peak_kinetic_energy_J,volume_change_held,volume_change_final,youngs_modulus_Pa,cg_iterations";
+
+/// Can the rows of the file at `path` be merged with this program's (`header`)? True when the
+/// file is missing or empty or starts with `header`; otherwise prints why not.
+bool mergeable(const std::string& path, const std::string& header) {
+  std::ifstream in(path);
+  std::string line;
+  if (!in || !std::getline(in, line) || line == header) return true;
+  std::fprintf(stderr, "flsm_study: %s has other columns than this program writes: run the whole study "
+                       "(without --methods) once\n", path.c_str());
+  return false;
+}
+
+/// How writeCsv() orders rows: by scenario (kScenarioOrder), then method (kAllMethods); or by
+/// method only. Rows of equal rank keep the order in which they were run.
+enum class CsvOrder { ScenarioThenMethod, Method };
+const std::vector<std::string> kScenarioOrder = {"cantilever", "column", "ear-drag", "drag-5x", "plane", "scrambled"};
+
+/// Field `k` (from 0) of a CSV line without quoted fields.
+std::string csvField(const std::string& line, int k) {
+  std::size_t begin = 0;
+  for (int i = 0; i < k; ++i) {
+    begin = line.find(',', begin);
+    if (begin == std::string::npos) return {};
+    ++begin;
+  }
+  return line.substr(begin, line.find(',', begin) - begin);
+}
+
+/// Writes `header` and `lines` (rows without newline; field 0 the scenario, field 1 the method)
+/// to `path`. With `keepOthers`, the rows of the existing file whose method this run did not run
+/// (`ran` false) are kept; an existing file with another header cannot be merged (its columns
+/// differ): that is an error that asks for the whole study. Returns false after printing why.
+template <typename Ran>
+bool writeCsv(const std::string& path, const std::string& header, std::vector<std::string> lines, bool keepOthers,
+              const Ran& ran, CsvOrder order) {
+  if (keepOthers) {
+    if (!mergeable(path, header)) return false;
+    std::ifstream in(path);
+    std::string line;
+    if (in && std::getline(in, line)) {
+      while (std::getline(in, line))
+        if (!line.empty() && !ran(csvField(line, 1))) lines.push_back(line);
+    }
+  }
+  auto rank = [](const std::vector<std::string>& list, const std::string& name) {
+    return std::find(list.begin(), list.end(), name) - list.begin();
+  };
+  std::stable_sort(lines.begin(), lines.end(), [&](const std::string& a, const std::string& b) {
+    const auto ma = rank(kAllMethods, csvField(a, 1)), mb = rank(kAllMethods, csvField(b, 1));
+    if (order == CsvOrder::Method) return ma < mb;
+    const auto sa = rank(kScenarioOrder, csvField(a, 0)), sb = rank(kScenarioOrder, csvField(b, 0));
+    return sa != sb ? sa < sb : ma < mb;
+  });
+  std::ofstream f(path);
+  if (!f) {
+    std::fprintf(stderr, "flsm_study: cannot write %s (does the directory exist?)\n", path.c_str());
+    return false;
+  }
+  f << header << '\n';
+  for (const std::string& line : lines) f << line << '\n';
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -548,8 +699,8 @@ int main(int argc, char** argv) {
               "%zu sampled)\n",
               kBarLength, kBarLength / kBarAspect, kBarLength / kBarAspect, bar.mesh.vertices.size(), meshName.c_str(),
               kStudyBunnyScale, bunny.size, bunny.mesh.vertices.size(), bunny.sampleVertices.size());
-  std::printf("single thread; times are medians over the frames of a run%s\n",
-              args.repeats > 1 ? ", then over up to --repeats runs (runs under 2 s)" : "");
+  std::printf("single thread; cost = CPU time of the stepping thread per frame, the mean over the frames of a run%s\n",
+              args.repeats > 1 ? ", then the median over up to --repeats runs (runs under 2 s)" : "");
   if (!withBullet) std::printf("Bullet's soft body: not built in (no Bullet found, or --no-bullet)\n");
 
   const Physics ph = physics(bar);
@@ -559,13 +710,27 @@ int main(int argc, char** argv) {
               ph.timoshenkoTip, ph.eulerBernoulliTip);
   std::printf("physics: column shortening, FEM oracle %.5f L; uniaxial stress (nu = 0) %.5f L\n", ph.columnFemTop,
               ph.columnUniaxialTop);
-  const Calibration calib = calibrate(bar, ph, withBullet);
-
-  std::vector<std::string> methods = {"fastlsm", "naive-lsm", "mass-spring"};
-  if (withBullet) {
-    methods.push_back("bullet");
-    methods.push_back("bullet-fem");
+  // the methods of this run: all (the Bullet peers when built in), or those of --methods
+  const bool subset = !args.methods.empty();
+  auto selected = [&](const std::string& m) {
+    if ((m == "bullet" || m == "bullet-fem") && !withBullet) return false;
+    return !subset || std::find(args.methods.begin(), args.methods.end(), m) != args.methods.end();
+  };
+  std::vector<std::string> methods;  // of the accuracy runs
+  for (const std::string& m : kAllMethods)
+    if (m != "fastlsm-nu0" && selected(m)) methods.push_back(m);
+  if (subset && !(mergeable(args.out + "/accuracy.csv", kAccuracyHeader) &&
+                  mergeable(args.out + "/stability.csv", kStabilityHeader)))
+    return 1;
+  if (subset) {
+    std::string list;
+    for (const auto& m : args.methods) list += " " + m;
+    std::printf("methods:%s (the other methods' rows and calibration.csv are kept)\n", list.c_str());
   }
+  // Bullet's deformable body damps its stiff modes with the mass-spring's calibrated dashpot time
+  const Calibration calib =
+      calibrate(bar, ph, selected("mass-spring") || selected("bullet-fem"), selected("bullet"));
+  std::printf("  (physics and calibration: %.0f s)\n", secondsSince(start));
 
   const std::vector<int> barRes = args.quick ? std::vector<int>{20} : kBarResolutions;
   const int barRef = args.quick ? 40 : kBarReferenceResolution;
@@ -584,10 +749,17 @@ int main(int argc, char** argv) {
         scenario == Scenario::Cantilever ? barRes : (scenario == Scenario::Column ? columnRes : bunnyRes);
     const int refRes = onBar ? barRef : bunnyRef;
     std::printf("%s:\n", toString(scenario));
+    const auto scenarioStart = std::chrono::steady_clock::now();
     std::map<std::string, const Run*> fastBySetting;
     const Run* fastRef = nullptr;
-    for (const std::string& method : methods) {
+    // naive LSM and the implicit step are measured against FastLSM's reference run: without
+    // FastLSM among the methods, that run alone (its row is kept from the existing file)
+    std::vector<std::string> scenarioMethods = methods;
+    const bool fastRefOnly = !selected("fastlsm") && (selected("naive-lsm") || selected("fastlsm-implicit"));
+    if (fastRefOnly && scenario != Scenario::Column) scenarioMethods.insert(scenarioMethods.begin(), "fastlsm");
+    for (const std::string& method : scenarioMethods) {
       if (method == "bullet-fem" && !onBar) continue;
+      const bool refOnly = method == "fastlsm" && fastRefOnly;
       // the method's own sub-step lists at each resolution, and its reference
       auto substepsAt = [&](int res) {
         if (method == "bullet-fem") {
@@ -602,6 +774,7 @@ int main(int argc, char** argv) {
             out.push_back(2 * out.back());
           return out;
         }
+        if (method == "fastlsm-implicit") return args.quick ? std::vector<int>{1} : kImplicitSubsteps;
         if (method != "mass-spring") return subs;
         const int smin = massSpringMinSubsteps(buildLattice(object, res), calib, object.youngsModulus, kAccuracyFrameStep);
         std::vector<int> out;
@@ -611,6 +784,10 @@ int main(int argc, char** argv) {
       const Run* ref = nullptr;
       if (method == "naive-lsm") {
         ref = fastRef;  // same algorithm as FastLSM (sums in another order): same reference
+      } else if (method == "fastlsm-implicit") {
+        // the same model (regions, material, damping) in time steps that tend to zero: both
+        // integrators converge to FastLSM's converged run
+        ref = fastRef;
       } else if (method != "bullet-fem" && scenario != Scenario::Column) {  // the column: physics only
         int rs = method == "mass-spring"
                      ? massSpringMinSubsteps(buildLattice(object, refRes), calib, object.youngsModulus,
@@ -621,11 +798,17 @@ int main(int argc, char** argv) {
           while (rs < kMaxReferenceSubsteps && flsmCapped(scenario, object, refRes, rs, calib)) rs *= 2;
         runs.push_back(std::make_unique<Run>(runOnce(scenario, object, method, refRes, rs, calib, 1, true)));
         ref = runs.back().get();
-        rows.emplace_back();
-        rows.back().run = ref;
+        if (!refOnly) {
+          rows.emplace_back();
+          rows.back().run = ref;
+        }
         if (method == "fastlsm") fastRef = ref;
       }
-      for (int res : resolutions) {
+      if (refOnly) continue;
+      const std::vector<int>& runResolutions =
+          method == "fastlsm-implicit" && scenario == Scenario::Cantilever && !args.quick ? kImplicitBarResolutions
+                                                                                         : resolutions;
+      for (int res : runResolutions) {
         if (method == "naive-lsm" && buildLattice(object, res)->regionHalfWidth() > kNaiveMaxHalfWidth)
           continue;
         for (int sub : substepsAt(res)) {
@@ -642,6 +825,7 @@ int main(int argc, char** argv) {
         }
       }
     }
+    std::printf("  (%s: %.0f s)\n", toString(scenario), secondsSince(scenarioStart));
   }
   for (Row& row : rows) {
     const Scenario sc = row.run->scenario;
@@ -659,25 +843,31 @@ int main(int argc, char** argv) {
   }
 
   // stress: every method at 1/30 s frames in one sub-step, and the explicit mass-spring also at
-  // the fewest sub-steps that its linear stability bound allows (how its users would run it)
+  // the fewest sub-steps that its linear stability bound allows (how its users would run it);
+  // the implicit step at the bunny's modulus and at stiffer ones (kImplicitStressModuli)
   std::printf("stress (bunny at resolution %d, %.4g s frames):\n", kStressResolution, kStressFrameStep);
+  const auto stressStart = std::chrono::steady_clock::now();
   std::vector<std::unique_ptr<Run>> stress;
   const int massSpringStressSubsteps =
       massSpringMinSubsteps(buildLattice(bunny, kStressResolution), calib, bunny.youngsModulus, kStressFrameStep);
-  std::vector<std::string> stressMethods = methods;
-  stressMethods.insert(stressMethods.begin() + 1, "fastlsm-nu0");
-  for (const std::string& method : stressMethods) {
-    if (method == "bullet-fem") continue;  // see kBulletFemSubsteps
+  for (const std::string& method : kAllMethods) {
+    if (!selected(method) || method == "bullet-fem") continue;  // see kBulletFemSubsteps
     std::vector<int> subsList = {1};
     if (method == "mass-spring") subsList.push_back(massSpringStressSubsteps);
-    for (int sub : subsList)
-      for (Scenario scenario : {Scenario::DragFar, Scenario::Plane, Scenario::Scrambled})
-        stress.push_back(std::make_unique<Run>(runOnce(scenario, bunny, method, kStressResolution, sub, calib, 1, false)));
+    std::vector<double> moduli = {bunny.youngsModulus};
+    if (method == "fastlsm-implicit") moduli.insert(moduli.end(), kImplicitStressModuli.begin(), kImplicitStressModuli.end());
+    for (double E : moduli)
+      for (int sub : subsList)
+        for (Scenario scenario : {Scenario::DragFar, Scenario::Plane, Scenario::Scrambled})
+          stress.push_back(
+              std::make_unique<Run>(runOnce(scenario, bunny, method, kStressResolution, sub, calib, 1, false, E)));
   }
+
+  std::printf("  (stress: %.0f s)\n", secondsSince(stressStart));
 
   // --- files
   const std::string dir = args.out;
-  {
+  if (!subset) {
     std::ofstream f(dir + "/calibration.csv");
     if (!f) {
       std::fprintf(stderr, "flsm_study: cannot write %s/calibration.csv (does the directory exist?)\n", dir.c_str());
@@ -714,14 +904,11 @@ int main(int argc, char** argv) {
         << kBulletCalibrationSubsteps << " sub-steps)" << (calib.bulletReached ? "" : ": target not reached") << "\n";
   }
   {
-    std::ofstream f(dir + "/accuracy.csv");
-    f << "scenario,method,resolution,substeps,reference,particles,half_width,substep_s,blew_up,error_ref,"
-         "eb_rms,tip_deflection,shape_error,volume_change,peak_kinetic_energy_J,wall_s_per_sim_s,"
-         "ns_per_particle_step,repeats,diff_vs_fast,alpha,saturated,tip_vs_fem,profile_vs_fem,tip_vs_analytic,"
-         "profile_vs_analytic\n";
+    std::vector<std::string> lines;
     for (const Row& row : rows) {
       const Run& r = *row.run;
       const double frameStep = scenarioSetting(r.scenario, bar, r.resolution, r.substeps).frameStep;
+      std::ostringstream f;
       f << toString(r.scenario) << ',' << r.method << ',' << r.resolution << ',' << r.substeps << ','
         << (r.reference ? 1 : 0) << ',' << r.particles << ',' << r.halfWidth << ',' << num(r.substep) << ','
         << (r.record.blewUp ? 1 : 0) << ',' << num(row.errorRef) << ',' << num(row.ebRms) << ',' << num(row.tip) << ','
@@ -731,17 +918,20 @@ int main(int argc, char** argv) {
         << num(1e9 * r.secondsPerFrame / (double(r.substeps) * double(r.particles))) << ',' << r.repeats << ','
         << num(row.diffVsFast) << ',' << num(r.alpha) << ',' << (r.saturated < 0 ? std::string() : std::to_string(r.saturated))
         << ',' << num(row.vsFem.tip) << ',' << num(row.vsFem.profile) << ',' << num(row.vsAnalytic.tip) << ','
-        << num(row.vsAnalytic.profile) << '\n';
+        << num(row.vsAnalytic.profile) << ',' << num(r.iterations) << ',' << num(r.wallSecondsPerFrame / frameStep);
+      lines.push_back(f.str());
     }
+    if (!writeCsv(dir + "/accuracy.csv",
+kAccuracyHeader, std::move(lines), subset, selected, CsvOrder::ScenarioThenMethod))
+      return 1;
   }
   {
-    std::ofstream f(dir + "/stability.csv");
-    f << "scenario,method,resolution,particles,frame_step_s,substeps,outcome,blow_up_time_s,shape_error,"
-         "recovered_after_s,peak_kinetic_energy_J,volume_change_held,volume_change_final\n";
+    std::vector<std::string> lines;
     for (const auto& rp : stress) {
       const Run& r = *rp;
       const std::string outcome =
           r.record.blewUp ? "blew up" : (r.record.shapeError < kRecoveredTolerance ? "recovered" : "distorted");
+      std::ostringstream f;
       f << toString(r.scenario) << ',' << r.method << ',' << r.resolution << ',' << r.particles << ','
         << num(kStressFrameStep) << ',' << r.substeps << ',' << outcome << ','
         << num(r.record.blewUp ? (r.record.blowUpFrame + 1) * kStressFrameStep
@@ -749,10 +939,14 @@ int main(int argc, char** argv) {
         << ',' << num(r.record.shapeError) << ',' << num(r.record.recoveredAfter) << ','
         << num(r.record.peakKineticEnergy) << ','
         << num(r.scenario == Scenario::DragFar ? r.record.volumeChange : std::numeric_limits<double>::quiet_NaN())
-        << ',' << num(r.record.finalVolumeChange) << '\n';
+        << ',' << num(r.record.finalVolumeChange) << ',' << num(r.youngsModulus) << ',' << num(r.iterations);
+      lines.push_back(f.str());
     }
+    if (!writeCsv(dir + "/stability.csv",
+kStabilityHeader, std::move(lines), subset, selected, CsvOrder::Method))
+      return 1;
   }
-  const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::printf("wrote calibration.csv, accuracy.csv, stability.csv in %.0f s\n", total);
+  const double total = secondsSince(start);
+  std::printf("wrote %saccuracy.csv, stability.csv in %.0f s\n", subset ? "" : "calibration.csv, ", total);
   return 0;
 }

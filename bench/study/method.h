@@ -1,6 +1,6 @@
 /// @file method.h
 /// The interface every simulation method of the study is driven through, and its FastLSM
-/// implementation (fast or naive summation).
+/// implementation (fast or naive summation, explicit or implicit step).
 #pragma once
 
 #include "deformable_flsm/core/lattice.h"
@@ -23,7 +23,8 @@ namespace study {
 class Method {
  public:
   virtual ~Method() = default;
-  /// Short name used in the CSV files ("fastlsm", "naive-lsm", "mass-spring", "bullet").
+  /// Short name used in the CSV files ("fastlsm", "fastlsm-implicit", "naive-lsm", "mass-spring",
+  /// "bullet", "bullet-fem").
   virtual std::string name() const = 0;
   /// Sub-steps per frame (for the cost per particle-step).
   virtual int substeps() const = 0;
@@ -48,7 +49,8 @@ class Method {
   virtual void rotations(std::vector<Eigen::Quaterniond>& out) const = 0;
 };
 
-/// FastLSM (Rivers & James 2007) through the package's Solver, with SolverKind::Fast or Naive.
+/// FastLSM (Rivers & James 2007) through the package's Solver, with SolverKind::Fast or Naive and
+/// Integrator::Explicit or Implicit.
 class FlsmMethod : public Method {
  public:
   /// @param[in] lattice  particles and regions (its w must equal params.regionHalfWidth)
@@ -57,10 +59,21 @@ class FlsmMethod : public Method {
       : solver_(std::move(lattice), params) {}
 
   std::string name() const override {
-    return solver_.params().kind == SolverKind::Fast ? "fastlsm" : "naive-lsm";
+    if (solver_.params().kind == SolverKind::Naive) return "naive-lsm";
+    return solver_.params().integrator == Integrator::Implicit ? "fastlsm-implicit" : "fastlsm";
   }
   int substeps() const override { return solver_.params().substeps; }
-  void step() override { solver_.step(); }
+  void step() override {
+    solver_.step();
+    if (solver_.params().integrator == Integrator::Implicit) {
+      iterations_ += solver_.lastImplicitSolve().iterations;
+      ++frames_;
+    }
+  }
+  /// Implicit step only: the conjugate-gradient iterations of each frame's last sub-step
+  /// (Solver::lastImplicitSolve(), its contact passes summed), averaged over the frames so far;
+  /// 0 before the first frame and with the explicit step.
+  double meanIterations() const { return frames_ ? double(iterations_) / double(frames_) : 0.0; }
   const std::vector<Eigen::Vector3d>& positions() const override { return solver_.positions(); }
   void setPositions(const std::vector<Eigen::Vector3d>& x) override {
     solver_.setPositions(x);
@@ -84,6 +97,8 @@ class FlsmMethod : public Method {
  private:
   static constexpr const char* kGrabId = "study";
   Solver solver_;
+  long long iterations_ = 0;
+  long long frames_ = 0;
 };
 
 }  // namespace study

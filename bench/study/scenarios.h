@@ -20,6 +20,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <ctime>
 #include <limits>
 #include <memory>
 #include <random>
@@ -280,7 +281,21 @@ struct RunRecord {
   double recoveredAfter = std::numeric_limits<double>::quiet_NaN();
   /// wall time (s) of each frame's step(), nothing else
   std::vector<double> frameSeconds;
+  /// CPU time (s) the calling thread spent in each frame's step() (threadCpuSeconds()): the
+  /// cost of a single-threaded method without the time its thread waited for a core while other
+  /// jobs ran on the machine
+  std::vector<double> frameCpuSeconds;
 };
+
+/// CPU time (s) consumed so far by the calling thread (POSIX CLOCK_THREAD_CPUTIME_ID). A method
+/// that steps on this thread alone (the study's FastLSM runs with one thread; Bullet's task
+/// scheduler is sequential unless an application installs another) costs this much per frame
+/// whatever else the machine runs, up to the caches and memory bandwidth it shares.
+inline double threadCpuSeconds() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
 
 /// Particles of the bunny's base and ear (see kBaseFraction, kEarRadiusFraction).
 inline std::vector<std::uint32_t> baseParticles(const Lattice& lattice, const StudyObject& object) {
@@ -397,6 +412,7 @@ inline RunRecord runScenario(Scenario scenario, const StudyObject& object, const
   const bool stress = scenario == Scenario::DragFar || scenario == Scenario::Plane || scenario == Scenario::Scrambled;
   int lastDistortedFrame = -1;  // stress scenarios: the last frame that ended with the shape error at or above tolerance
   rec.frameSeconds.reserve(static_cast<std::size_t>(frames));
+  rec.frameCpuSeconds.reserve(static_cast<std::size_t>(frames));
   for (int f = 0; f < frames; ++f) {
     if (!ear.empty()) {
       const double t = (f + 1) * frameStep;  // where the target is at the end of this frame
@@ -408,9 +424,11 @@ inline RunRecord runScenario(Scenario scenario, const StudyObject& object, const
         method.release();
       }
     }
+    const double cpu0 = threadCpuSeconds();
     const auto t0 = std::chrono::steady_clock::now();
     method.step();
     const auto t1 = std::chrono::steady_clock::now();
+    rec.frameCpuSeconds.push_back(threadCpuSeconds() - cpu0);
     rec.frameSeconds.push_back(std::chrono::duration<double>(t1 - t0).count());
     rec.frames = f + 1;
 

@@ -49,16 +49,20 @@ struct Setting {
 /// The FastLSM parameters of a study run: Young's modulus (the same material at every resolution
 /// and step, SolverParams::youngsModulus), the regions of the lattice it runs on (buildLattice():
 /// the object's region radius narrowed to its thinnest section), alpha capped at 1 (a sub-step
-/// too long for the modulus simulates a softer object; the study measures that), the setting's
-/// ambient damping and loads, the package's default region damping, one thread.
+/// too long for the explicit step's modulus simulates a softer object; the study measures that),
+/// the setting's ambient damping and loads, the package's default region damping, one thread.
 ///
 /// @param[in] setting            resolution, sub-steps, frame step, material, damping, gravity
 /// @param[in] regionHalfWidth    w of the lattice built for this setting (Lattice::regionHalfWidth())
 /// @param[in] kind               Fast (FastLSM summation) or Naive (direct region sums)
+/// @param[in] integrator         Explicit (symplectic Euler, alpha capped) or Implicit (linearly
+///                               implicit backward Euler, alpha as asked at every sub-step)
 /// @return parameters that pass SolverParams::validate()
-inline SolverParams flsmParams(const Setting& setting, int regionHalfWidth, SolverKind kind) {
+inline SolverParams flsmParams(const Setting& setting, int regionHalfWidth, SolverKind kind,
+                               Integrator integrator = Integrator::Explicit) {
   SolverParams p;
   p.kind = kind;
+  p.integrator = integrator;
   p.density = kStudyDensity;
   p.youngsModulus = setting.youngsModulus;
   p.poissonsRatio = setting.poissonRatio;
