@@ -131,6 +131,12 @@ class Fingers(object):
         """Moves to (left, right) over `duration` s from the end of the last move (or now)."""
         with self.lock:
             t0 = max(rospy.get_time(), self.path.waypoints[-1][0])
+            if t0 > self.path.waypoints[-1][0]:
+                # Held where they are until now: without this waypoint the move would be
+                # interpolated from the last one's time (the parking's is 0), a jump at once,
+                # which the node follows as a collider sweeping through the object at tens of m/s.
+                self.path.append(t0, *self.path.at(t0))
+                self.conn.send(self.path.waypoints[-1])
             self.path.append(t0 + duration, left, right)
             self.conn.send(self.path.waypoints[-1])
             return t0 + duration
