@@ -50,7 +50,7 @@ TEST_P(StressScenario, FastLsmStaysFiniteAndRecoversTheRestShape) {
     EXPECT_TRUE(std::isfinite(rec.peakKineticEnergy));
     EXPECT_GT(rec.peakKineticEnergy, 0.0) << "the start should have set the bunny in motion";
     // Back to the rest shape (up to rigid motion) within 1% of the size after the 40 s, against
-    // 10 to 50% at the start; measured: recovered after 5 to 13 s, 0.0006% or less at the end.
+    // 10 to 50% at the start (docs/study.md gives when each start recovers).
     EXPECT_LT(rec.shapeError, study::kRecoveredTolerance) << toString(scenario) << " nu " << nu;
     EXPECT_TRUE(std::isfinite(rec.recoveredAfter)) << toString(scenario) << " nu " << nu;
     // A shape without its volume would not count as recovered: the render mesh keeps it to 1%.

@@ -171,8 +171,8 @@ TEST(ImplicitStep, CantileverAtOneSubstepMatchesTheFemOracle) {
 // in its rest shape. It falls 4 cm (four cells) in its last step before impact: with contact
 // after an unconstrained solve the bottom layers are flattened into the ground and shape matching
 // keeps the crushed shape (2.9 cm of shape error, explicit step alike); contact inside the solve
-// stops the block as a whole. What remains is the shear static friction holds after the impact:
-// measured 0.03 to 0.3 mm; bound at 0.5 % of the size.
+// stops the block as a whole. What remains is the shear static friction holds after the impact,
+// a small fraction of the size: bound at 0.5 % of it.
 TEST(ImplicitStep, StiffBlockDroppedOnTheGroundComesToRest) {
   for (double nu : {0.0, 0.3}) {
     SolverParams p = implicitParams(10e6, nu, 1, 1.0 / 30.0);
