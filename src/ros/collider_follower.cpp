@@ -113,6 +113,11 @@ void ColliderFollower::sample(const ros::Time& now, const Post& post, Report& re
       m.linearVelocity = (pose.translation() - e.pose.translation()) / dt;
       const Eigen::AngleAxisd turn(pose.linear() * e.pose.linear().transpose());
       m.angularVelocity = turn.axis() * (turn.angle() / dt);
+      if (m.linearVelocity.norm() > kJumpSpeed) {
+        m.linearVelocity.setZero();
+        m.angularVelocity.setZero();
+        report.jumped.push_back(id);
+      }
     }
     e.seen = true;
     e.holding = false;

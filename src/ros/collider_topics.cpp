@@ -153,6 +153,13 @@ void ColliderTopics::onFollowTimer(const ros::TimerEvent&) {
              "~robot_exclude_overlapping false to keep them, or move the object)",
              list(links).c_str());
   }
+  if (!report_.jumped.empty()) {
+    ROS_WARN_THROTTLE(kFrameWarnPeriod,
+                      "flsm_node: the tf frame of collider(s) %s jumped (faster than %.0f m/s "
+                      "between two transforms): placed at the new pose at rest rather than swept "
+                      "through the scene",
+                      list(report_.jumped).c_str(), ColliderFollower::kJumpSpeed);
+  }
   if (!report_.problems.empty()) {
     ROS_WARN_THROTTLE(kFrameWarnPeriod, "flsm_node: %s (%zu collider(s) affected; %llu misses so "
                       "far, see ~state collider_frame_misses)",

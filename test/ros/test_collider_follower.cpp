@@ -1,7 +1,8 @@
 /// @file test_collider_follower.cpp
 /// Tests of ros/collider_follower.h (tf frames sampled without waiting, velocity from the last
 /// two transforms, a frame not seen yet waited for, frames lost or stale after they were seen
-/// held still and counted, short pauses harmless, the admission test at the first transform) and of the collider side of
+/// held still and counted, short pauses harmless, a jump placed at rest, the admission test at the
+/// first transform) and of the collider side of
 /// runtime/simulation_loop.h (followed colliders join at their first pose, move along the sampled
 /// velocity for a bounded time; collider commands applied or refused with a reason).
 #include "deformable_flsm/ros/collider_follower.h"
@@ -103,6 +104,39 @@ TEST(ColliderFollower, VelocityFromTheLastTwoTransformsOfTheOffsetPose) {
 
   follower.forget("s");
   EXPECT_TRUE(follower.empty());
+}
+
+TEST(ColliderFollower, AFrameThatJumpsIsPlacedAtRestNotSweptThroughTheScene) {
+  tf2::BufferCore buffer;
+  ColliderFollower follower(buffer, "world");
+  follower.follow("s", "finger", Eigen::Isometry3d::Identity());
+  Posted posted;
+  ColliderFollower::Report report;
+  const auto at = [](double x) { return Eigen::Isometry3d(Eigen::Translation3d(x, 0.0, 0.0)); };
+  setFrame(buffer, at(0.0), 10.0);
+  follower.sample(ros::Time(10.0), posted.post(), report);
+  // 5 mm in 10 ms: a hand moving at 0.5 m/s
+  setFrame(buffer, at(0.005), 10.01);
+  follower.sample(ros::Time(10.01), posted.post(), report);
+  ASSERT_EQ(posted.motions.size(), 2u);
+  EXPECT_NEAR(posted.motions[1].second.linearVelocity.x(), 0.5, 1e-9);
+  EXPECT_TRUE(report.jumped.empty());
+  // 0.5 m in 10 ms (50 m/s): a relocalisation, not a motion; at the new pose, at rest
+  setFrame(buffer, at(0.505), 10.02);
+  follower.sample(ros::Time(10.02), posted.post(), report);
+  ASSERT_EQ(posted.motions.size(), 3u);
+  EXPECT_TRUE(posted.motions[2].second.pose.translation().isApprox(Eigen::Vector3d(0.505, 0, 0)));
+  EXPECT_TRUE(posted.motions[2].second.linearVelocity.isZero(0.0));
+  EXPECT_TRUE(posted.motions[2].second.angularVelocity.isZero(0.0));
+  ASSERT_EQ(report.jumped.size(), 1u);
+  EXPECT_EQ(report.jumped[0], "s");
+  // and it moves on from there at its own speed again
+  report.clear();
+  setFrame(buffer, at(0.515), 10.03);
+  follower.sample(ros::Time(10.03), posted.post(), report);
+  ASSERT_EQ(posted.motions.size(), 4u);
+  EXPECT_NEAR(posted.motions[3].second.linearVelocity.x(), 1.0, 1e-9);
+  EXPECT_TRUE(report.jumped.empty());
 }
 
 TEST(ColliderFollower, StaticTransformNeverGoesStale) {

@@ -44,10 +44,14 @@ class ColliderFollower {
     std::vector<std::pair<std::string, std::string>> waiting;
     /// colliders their Admit refused at their first transform: forgotten since
     std::vector<std::string> excluded;
+    /// colliders whose frame jumped (moved faster than kJumpSpeed between two transforms):
+    /// placed at the new pose at rest
+    std::vector<std::string> jumped;
     void clear() {
       problems.clear();
       waiting.clear();
       excluded.clear();
+      jumped.clear();
     }
   };
 
@@ -56,6 +60,14 @@ class ColliderFollower {
   /// its last velocity (SimulationLoop::kMaxExtrapolation), and the first transform after the
   /// pause gives the mean velocity over it.
   static constexpr double kStaleAfter = 0.5;
+
+  /// A frame that moves faster than this between two transforms (m/s) has jumped (a robot
+  /// relocalised, a frame teleported, a publisher restarted at another place): its collider is
+  /// placed at the new pose with zero velocity, as a collider set there would be, instead of
+  /// being swept through the scene at a speed no link moves at (the contact pass then moves
+  /// particles it finds inside out by position, without throwing them). Well above the speeds
+  /// of robot links, a few m/s at an industrial arm's tool.
+  static constexpr double kJumpSpeed = 10.0;
 
   /// @param[in] buffer    where transforms are looked up (latest available, never waiting)
   /// @param[in] simFrame  ~frame_id
@@ -72,8 +84,9 @@ class ColliderFollower {
 
   /// Samples every followed frame at wall time `now` and posts, for each collider:
   ///   - a new transform: its pose and the velocity from the previous transform (zero for the
-  ///     first one and for a static transform); at the first one, a collider its Admit refuses
-  ///     is forgotten instead and named in report.excluded;
+  ///     first one, for a static transform and after a jump, named in report.jumped); at the
+  ///     first one, a collider its Admit refuses is forgotten instead and named in
+  ///     report.excluded;
   ///   - a frame not seen yet (unknown, or only stale transforms): nothing; the collider waits
   ///     for it, named once in report.waiting, no miss counted;
   ///   - an unknown or stale frame seen before: the last pose with zero velocity, once, and the
