@@ -1,11 +1,9 @@
 /// @file lazy_topic.h
 /// A heavy topic that costs nothing while nobody listens: its message is built only while
 /// subscribed and once per simulation state; at rest it is either resent at the rate (the cached
-/// message with a new stamp) or sent once and then only to a new subscriber. It never has more
-/// than one message in roscpp's unbounded publish queue (DeliveryGate).
+/// message with a new stamp) or sent once and then only to a new subscriber.
 #pragma once
 
-#include "deformable_flsm/ros/delivery_gate.h"
 #include "deformable_flsm/runtime/simulation_loop.h"
 
 #include <ros/advertise_options.h>
@@ -36,15 +34,12 @@ class LazyTopic {
     options.template init<Msg>(name, queue, [this](const ros::SingleSubscriberPublisher&) { newSubscriber_ = true; });
     options.latch = false;
     pub_ = nh.advertise(options);
-    gate_ = &DeliveryGate::pollThread();
   }
 
   /// true when the topic has subscribers and snapshot `s` should be sent now; false leaves it
   /// alone. While the simulation runs: every tick. At rest: the final state once, then only to
   /// new subscribers (what they missed); the others already show it. `republishAtRest` keeps the
-  /// stream steady instead (the cached message goes out again with a new stamp). Never while the
-  /// last message published has not left roscpp's publish queue (DeliveryGate): the tick is
-  /// skipped, and the next one sends the newest state.
+  /// stream steady instead (the cached message goes out again with a new stamp).
   bool due(const Snapshot& s, bool republishAtRest) {
     return due(s.sequence, s.diag.idle, republishAtRest);
   }
@@ -52,8 +47,6 @@ class LazyTopic {
   /// rest when `resting` (one object of several: ObjectSnapshot::version).
   bool due(std::uint64_t sequence, bool resting, bool republishAtRest) {
     if (pub_.getNumSubscribers() == 0) return false;
-    if (waiting_ && !gate_->handedOn(publishedRound_)) return false;
-    waiting_ = false;
     const bool newSubscriber = newSubscriber_.exchange(false);
     return !resting || republishAtRest || publishedSequence_ != sequence || newSubscriber;
   }
@@ -76,11 +69,6 @@ class LazyTopic {
     }
     setStamp(msg, stamp);
     pub_.publish(msg);
-    // Read after publish(): a round counted before the message entered the queue would let the
-    // gate open a round early.
-    publishedRound_ = gate_->round();
-    gate_->published();
-    waiting_ = true;
     publishedSequence_ = sequence;
   }
 
@@ -96,9 +84,6 @@ class LazyTopic {
   std::uint64_t builtSequence_ = 0;      ///< snapshot the cached message shows
   std::uint64_t publishedSequence_ = 0;  ///< snapshot last published
   std::atomic<bool> newSubscriber_{false};
-  DeliveryGate* gate_ = nullptr;
-  std::uint64_t publishedRound_ = 0;  ///< DeliveryGate::round() after the last publish
-  bool waiting_ = false;              ///< the last message may still be in the publish queue
 };
 
 }  // namespace deformable_flsm
