@@ -10,6 +10,7 @@
 #include "deformable_flsm/runtime/simulation_loop.h"
 
 #include "../core/fixtures.h"
+#include "../runtime/loop_harness.h"
 
 #include <gtest/gtest.h>
 #include <tf2_eigen/tf2_eigen.h>
@@ -272,27 +273,11 @@ struct Rig {
     world->addObject("box", lattice, p);
     loop = std::make_unique<SimulationLoop>(std::move(world), settings, stats);
   }
-  CommandOutcome run(CommandBody body) {
-    Command c{std::move(body), std::make_shared<std::promise<CommandOutcome>>()};
-    auto f = c.outcome->get_future();
-    loop->submit(std::move(c));
-    EXPECT_EQ(f.wait_for(std::chrono::seconds(5)), std::future_status::ready);
-    return f.get();
-  }
+  CommandOutcome run(CommandBody body) { return test::runCommand(*loop, std::move(body)); }
   bool waitFor(const std::function<bool(const Snapshot&)>& done, double timeout = 5.0) {
-    const Clock::time_point end =
-        Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(timeout));
-    while (Clock::now() < end) {
-      if (done(loop->acquire())) return true;
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    }
-    return false;
+    return test::waitForSnapshot(*loop, done, timeout);
   }
-  std::uint64_t rejected(const std::string& reason) const {
-    const auto c = stats->counts();
-    const auto it = c.rejectedByReason.find(reason);
-    return it == c.rejectedByReason.end() ? 0 : it->second;
-  }
+  std::uint64_t rejected(const std::string& reason) const { return test::rejectedCount(*stats, reason); }
   std::shared_ptr<const Lattice> lattice;
   std::shared_ptr<CommandStats> stats;
   std::unique_ptr<SimulationLoop> loop;

@@ -6,6 +6,7 @@
 #include "deformable_flsm/runtime/simulation_loop.h"
 
 #include "../core/fixtures.h"
+#include "loop_harness.h"
 
 #include <gtest/gtest.h>
 
@@ -49,27 +50,12 @@ struct Rig {
   /// or a kick gives it and never rest; held by the world, it comes to rest.
   void holdByFarCorner() { solver->setPinned(static_cast<std::uint32_t>(solver->lattice().size() - 1), true); }
   /// Submits and waits for the outcome (the loop must be running).
-  CommandOutcome run(CommandBody body) {
-    Command c{std::move(body), std::make_shared<std::promise<CommandOutcome>>()};
-    auto f = c.outcome->get_future();
-    loop->submit(std::move(c));
-    EXPECT_EQ(f.wait_for(std::chrono::seconds(5)), std::future_status::ready);
-    return f.get();
-  }
+  CommandOutcome run(CommandBody body) { return test::runCommand(*loop, std::move(body)); }
   /// Polls snapshots until `done` or `timeout` seconds; returns whether `done` held.
   bool waitFor(const std::function<bool(const Snapshot&)>& done, double timeout = 5.0) {
-    const Clock::time_point end = Clock::now() + std::chrono::duration_cast<Clock::duration>(duration<double>(timeout));
-    while (Clock::now() < end) {
-      if (done(loop->acquire())) return true;
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    }
-    return false;
+    return test::waitForSnapshot(*loop, done, timeout);
   }
-  std::uint64_t rejected(const std::string& reason) const {
-    const auto c = stats->counts();
-    const auto it = c.rejectedByReason.find(reason);
-    return it == c.rejectedByReason.end() ? 0 : it->second;
-  }
+  std::uint64_t rejected(const std::string& reason) const { return test::rejectedCount(*stats, reason); }
 
   Solver* solver = nullptr;  // owned by the loop; touched only before start()
   std::shared_ptr<CommandStats> stats;
