@@ -351,7 +351,10 @@ int Solver::deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, do
 // particle that the solution carries into a collider (deeper than kContactSlop) becomes a
 // sticking contact. Returns whether the set changed.
 bool Solver::updateContactSet(double h) {
-  implicitProduct(implicitVelocity_, implicitResidual_);
+  // the impulses are read at the contacts only: without any, no product (a collider near the
+  // object but not touching it costs its distance queries alone)
+  if (std::any_of(implicitContactBody_.begin(), implicitContactBody_.end(), [](int b) { return b >= 0; }))
+    implicitProduct(implicitVelocity_, implicitResidual_);
   const double slop = kContactSlop * contactRadius();
   bool changed = false;
   for (std::size_t i = 0; i < x_.size(); ++i) {
@@ -418,6 +421,7 @@ bool Solver::updateContactSet(double h) {
 // After the last solve: the impulses of every contact go to its collider's wrench, as the contact
 // pass's do.
 void Solver::sumContactImpulses(double h) {
+  if (std::none_of(implicitContactBody_.begin(), implicitContactBody_.end(), [](int b) { return b >= 0; })) return;
   implicitProduct(implicitVelocity_, implicitResidual_);
   const double r = contactRadius();
   for (std::size_t i = 0; i < x_.size(); ++i) {
