@@ -299,10 +299,17 @@ bool Solver::constrainContacts(double h) {
     double depth = 0.0;
     const int b = deepestContact(x, normal, depth, vc);
     implicitFriction_[i].setZero();
+    const char last = implicitContactState_[i];
     implicitContactState_[i] = b < 0 ? kNoContact : kSticking;
     if (b < 0) continue;
-    // every contact starts sticking (the solve then says whether its impulse stays in the cone):
-    // at rest the set holds from step to step
+    // a contact let go of last sub-step (it pulled) starts free while it is still predicted in
+    // contact: the solve adds it back if the solution carries it into the collider
+    if (last == kReleased) {
+      implicitContactState_[i] = kReleased;
+      continue;
+    }
+    // every other contact starts sticking (the solve then says whether its impulse stays in the
+    // cone): at rest the set holds from step to step
     const double undo = (std::min(startDepth(i, b), 0.0) - depth) / h;
     implicitVelocity_[i] = vc + (predicted.dot(normal) + undo - vc.dot(normal)) * normal;
     implicitConstraint_[i] = PcgConstraint::Fixed;
