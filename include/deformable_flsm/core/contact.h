@@ -50,6 +50,37 @@ bool boxNearCollider(const ColliderShape& shape, const Eigen::Isometry3d& pose, 
 Eigen::Isometry3d advancePose(const Eigen::Isometry3d& pose, const Eigen::Vector3d& linearVelocity,
                               const Eigen::Vector3d& angularVelocity, double t);
 
+/// How much of a contact's slip friction stops in one sub-step: Coulomb friction with a
+/// continuous transition from static to kinetic.
+///
+/// Stopping the slip would take `needed` (a tangential velocity change, or impulse); the contact's
+/// normal change over the sub-step is `normal` (velocity or impulse alike, N below). Up to
+/// mu_s N friction stops all of it (static friction: the contact sticks); beyond that it gives
+///   max(mu_k N, mu_s N - (mu_s - mu_k) (needed - mu_s N)),
+/// falling linearly from mu_s N at the breakaway to the kinetic mu_k N once the slip beyond the
+/// breakaway reaches N, the normal change of the sub-step (a Stribeck-like curve whose velocity
+/// scale is that normal change).
+/// Why not Coulomb's step from mu_s N to mu_k N: in a velocity-level step the slip left after
+/// friction then jumps from 0 to (mu_s - mu_k) N as `needed` crosses mu_s N. A particle held at
+/// the edge of its friction cone (a pile pressing it aslant onto the floor) that touches a
+/// particle of another object alternates between the two branches, the object-contact solve
+/// handing the pair's common slip back and forth, and their velocity flips every sub-step
+/// forever. With the transition the slip left, needed - friction, is continuous and grows
+/// from 0 at the breakaway (with slope 1 + mu_s - mu_k), so the pair's map has no jump to
+/// alternate across (docs/method.md says what this does not guarantee). A contact that really slides, by more than
+/// N per sub-step beyond the breakaway (on an incline, N = g cos(theta) h: from its first
+/// sub-steps on), gets the kinetic mu_k N of Coulomb's law unchanged.
+/// @param[in] needed  >= 0, what stopping the slip takes
+/// @param[in] normal  >= 0, the normal change (same units)
+/// @param[in] staticFriction   mu_s >= 0
+/// @param[in] kineticFriction  mu_k in [0, mu_s]
+/// @return the friction's magnitude, in [0, needed]
+inline double frictionTaken(double needed, double normal, double staticFriction, double kineticFriction) {
+  const double held = staticFriction * normal;
+  if (needed <= held) return needed;
+  return std::max(kineticFriction * normal, held - (staticFriction - kineticFriction) * (needed - held));
+}
+
 /// Velocity change of one particle in contact over a sub-step (velocity-level response with
 /// Coulomb friction).
 ///
@@ -75,7 +106,8 @@ Eigen::Isometry3d advancePose(const Eigen::Isometry3d& pose, const Eigen::Vector
 /// there threw the particle on along its motion, every sub-step it passed, faster each time.
 /// Then the tangential part of the velocity relative to the collider's surface,
 /// v_t = (I - n n^T)(v + dv_n n - v_c), is removed when that needs no more than mu_s dv_n (static
-/// friction: the particle sticks), else reduced by mu_k dv_n along -v_t (kinetic friction). The
+/// friction: the particle sticks), else reduced along -v_t by frictionTaken(|v_t|, dv_n, mu_s,
+/// mu_k): kinetic friction mu_k dv_n once it slides, reached continuously from the breakaway. The
 /// impulse m dv is what the collider receives, with the opposite sign.
 /// @param[in] depth             phi(x*) - r (m), < 0
 /// @param[in] startDepth        phi(x) - r (m) at the start of the sub-step, the collider at its
@@ -99,10 +131,7 @@ inline Eigen::Vector3d contactVelocityChange(double depth, double startDepth, co
   const Eigen::Vector3d rel = velocity + dv - colliderVelocity;
   const Eigen::Vector3d tangential = rel - rel.dot(normal) * normal;
   const double slip = tangential.norm();
-  if (slip <= staticFriction * dvn)
-    dv -= tangential;
-  else
-    dv -= (kineticFriction * dvn / slip) * tangential;
+  if (slip > 0.0) dv -= (frictionTaken(slip, dvn, staticFriction, kineticFriction) / slip) * tangential;
   return dv;
 }
 
