@@ -191,7 +191,7 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
   }
   const ros::Time stamp = ros::Time::now();
   const Snapshot& s = loop_->acquire();
-  std::lock_guard<std::mutex> lock(objectsMutex_);
+  std::shared_lock<std::shared_mutex> lock(objectsMutex_);
   // tf, the wrenches and the clouds of one snapshot carry one stamp: a subscriber pairs a cloud
   // with the colliders' and objects' frames of the same step by it.
   publisher_->publishTf(s, stamp);
@@ -214,7 +214,7 @@ void SimulatorNode::onStateTimer(const ros::TimerEvent&) {
   const ros::Time stamp = ros::Time::now();
   loop_->copySummary(summary_);
   {
-    std::lock_guard<std::mutex> lock(objectsMutex_);
+    std::shared_lock<std::shared_mutex> lock(objectsMutex_);
     publisher_->publishState(summary_, stamp, colliders_->frameMisses());
   }
   std::lock_guard<std::mutex> lock(paramsMutex_);
@@ -308,7 +308,7 @@ void SimulatorNode::onDrag(std::size_t object, const std::string& topic,
                            const ros::MessageEvent<const DragCommand>& event) {
   const DragCommand::ConstPtr& msg = event.getMessage();
   countMissed(gaps_, *stats_, topic, event.getPublisherName(), msg->header.seq);
-  std::lock_guard<std::mutex> lock(objectsMutex_);
+  std::shared_lock<std::shared_mutex> lock(objectsMutex_);
   const ObjectCommands& c = commands_[object];
   CommandBody body;
   Rejection why;
@@ -320,7 +320,7 @@ void SimulatorNode::onForce(std::size_t object, const std::string& topic,
                             const ros::MessageEvent<const ForceCommand>& event) {
   const ForceCommand::ConstPtr& msg = event.getMessage();
   countMissed(gaps_, *stats_, topic, event.getPublisherName(), msg->header.seq);
-  std::lock_guard<std::mutex> lock(objectsMutex_);
+  std::shared_lock<std::shared_mutex> lock(objectsMutex_);
   const ObjectCommands& c = commands_[object];
   CommandBody body;
   Rejection why;
@@ -329,7 +329,7 @@ void SimulatorNode::onForce(std::size_t object, const std::string& topic,
 }
 
 bool SimulatorNode::onMouseDrag(std::size_t object, const DragCommand& drag) {
-  std::lock_guard<std::mutex> lock(objectsMutex_);
+  std::shared_lock<std::shared_mutex> lock(objectsMutex_);
   if (commands_[object].removed) {
     stats_->reject("unknown_object", "object '" + objects_[object].name +
                                          "' was removed: its RViz handle drags nothing");
@@ -364,7 +364,7 @@ bool SimulatorNode::onPinBox(std::size_t object, PinBox::Request& req, PinBox::R
   Rejection why;
   std::string name;
   {
-    std::lock_guard<std::mutex> lock(objectsMutex_);
+    std::shared_lock<std::shared_mutex> lock(objectsMutex_);
     name = objects_[object].name;
     if (!commands_[object].validator->box(lo, hi, why)) {
       rejected(why);
@@ -400,7 +400,7 @@ bool SimulatorNode::onReconfigure(const FlsmConfig& config) {
     return false;
   }
   // Every object takes the change with its own regions and density: one gravity, one material.
-  std::unique_lock<std::mutex> objectsLock(objectsMutex_);
+  std::shared_lock<std::shared_mutex> objectsLock(objectsMutex_);
   std::vector<SolverParams> perObject;
   std::vector<std::string> names;
   for (std::size_t k = 0; k < objects_.size(); ++k) {
@@ -469,7 +469,7 @@ bool SimulatorNode::onAddObject(AddObject::Request& req, AddObject::Response& re
     return refuseObject("invalid_object", e.what(), res);
   }
   {
-    std::lock_guard<std::mutex> lock(objectsMutex_);
+    std::shared_lock<std::shared_mutex> lock(objectsMutex_);
     for (std::size_t k = 0; k < objects_.size(); ++k)
       if (!commands_[k].removed && objects_[k].name == spec.name)
         return refuseObject("invalid_object", label + ": object '" + spec.name + "' is already in "
@@ -489,7 +489,7 @@ bool SimulatorNode::onAddObject(AddObject::Request& req, AddObject::Response& re
   if (!o.accepted) return true;
   res.particles = static_cast<std::uint32_t>(lattice->size());
 
-  std::lock_guard<std::mutex> lock(objectsMutex_);
+  std::unique_lock<std::shared_mutex> lock(objectsMutex_);
   objects_.push_back(std::move(prepared.object));
   const std::size_t k = objects_.size() - 1;
   commands_.emplace_back();
@@ -510,7 +510,7 @@ bool SimulatorNode::onAddObject(AddObject::Request& req, AddObject::Response& re
 bool SimulatorNode::onRemoveObject(RemoveObject::Request& req, RemoveObject::Response& res) {
   std::size_t k = 0;
   {
-    std::lock_guard<std::mutex> lock(objectsMutex_);
+    std::shared_lock<std::shared_mutex> lock(objectsMutex_);
     while (k < objects_.size() && (commands_[k].removed || objects_[k].name != req.name)) ++k;
     if (k == objects_.size())
       return refuseObject("unknown_object", "~remove_object: object '" + req.name + "' is not in "
@@ -520,7 +520,7 @@ bool SimulatorNode::onRemoveObject(RemoveObject::Request& req, RemoveObject::Res
   res.success = o.accepted;
   res.message = o.message;  // a refusal is counted by the simulation thread
   if (!o.accepted) return true;
-  std::lock_guard<std::mutex> lock(objectsMutex_);
+  std::unique_lock<std::shared_mutex> lock(objectsMutex_);
   ObjectCommands& c = commands_[k];
   c.removed = true;
   c.dragSub.shutdown();

@@ -36,6 +36,7 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <shared_mutex>
 #include <string>
 #include <vector>
 
@@ -146,9 +147,10 @@ class SimulatorNode {
   /// added (the World's order); one removed at run time stays (its ObjectCommands say removed),
   /// so that indices and the references StatePublisher keeps stay valid
   std::deque<SceneObject> objects_;
-  /// objects_ and commands_ grow, and objects go, on the service thread while the publish
-  /// timer, the state timer and the command callbacks read them
-  std::mutex objectsMutex_;
+  /// objects_ and commands_ grow, and objects go, on the service thread (exclusive) while the
+  /// publish timer, the state timer and the command callbacks read them (shared: none of them
+  /// waits for another, the state never for a mesh)
+  std::shared_mutex objectsMutex_;
   /// what ProblemReporter warns about: the first object's, with the pins of every object
   SceneInfo sceneInfo_;
   bool namespaced_ = false;
