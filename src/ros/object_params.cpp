@@ -6,6 +6,7 @@
 #include <cmath>
 #include <set>
 #include <sstream>
+#include <utility>
 
 namespace deformable_flsm {
 
@@ -21,11 +22,11 @@ const char* const kKeys[] = {"name",           "mesh",          "mesh_scale",   
 /// Reads the keys of one ~objects entry; every error names the entry.
 class ObjectReader {
  public:
-  ObjectReader(XmlRpc::XmlRpcValue& entry, int index) : entry_(entry), index_(index) {}
+  ObjectReader(XmlRpc::XmlRpcValue& entry, std::string label) : entry_(entry), label_(std::move(label)) {}
 
   [[noreturn]] void fail(const std::string& what) const {
     std::ostringstream out;
-    out << "~objects entry " << index_;
+    out << label_;
     if (!name_.empty()) out << " ('" << name_ << "')";
     out << ": " << what;
     throw ParamError(out.str());
@@ -85,7 +86,7 @@ class ObjectReader {
 
  private:
   XmlRpc::XmlRpcValue& entry_;
-  int index_;
+  std::string label_;
   std::string name_;
 };
 
@@ -115,73 +116,80 @@ std::vector<ObjectSpec> parseObjectList(XmlRpc::XmlRpcValue& value, const NodePa
   std::vector<ObjectSpec> specs;
   std::set<std::string> names;
   for (int i = 0; i < value.size(); ++i) {
-    XmlRpc::XmlRpcValue& entry = value[i];
-    ObjectReader r(entry, i);
-    if (entry.getType() != XmlRpc::XmlRpcValue::TypeStruct)
-      r.fail("it is " + describe(entry) + ": each entry must be a dictionary with at least a name");
-    ObjectSpec spec;
-    if (!r.has("name")) r.fail("it has no name: every object needs a unique name");
-    spec.name = r.string("name", "");
-    if (!validObjectName(spec.name))
-      r.fail("name '" + spec.name + "' must be a letter followed by letters, digits or '_', at "
-             "most " + std::to_string(ObjectLimits::kMaxNameLength) + " characters (it names a tf "
-             "frame and the topics ~objects/<name>/...)");
-    r.setName(spec.name);
-    if (!names.insert(spec.name).second) r.fail("name '" + spec.name + "' is used by an earlier entry");
-    if (spec.name == defaults.frameId)
-      r.fail("name '" + spec.name + "' is ~frame_id, the simulation frame: rename the object");
-    r.checkKeys();
-
-    NodeParams& p = spec.params;
-    p = defaults;
-    p.objectFrameId = spec.name;
-    p.mesh = r.string("mesh", p.mesh);
-    p.meshScale = r.number("mesh_scale", p.meshScale);
-    if (r.has("mesh_rpy"))
-      p.meshRpy = r.numbers("mesh_rpy", {3}, "a list of three finite angles [roll, pitch, yaw] (rad)")
-                      .head<3>();
-    if (r.has("pose"))
-      spec.pose = poseFrom(r.numbers("pose", {3, 6},
-                                     "[x, y, z] (m) or [x, y, z, roll, pitch, yaw] (m, rad)"));
-
-    // The material: a key given here replaces the node's; the material kind stays the node's
-    // unless the entry names it.
-    const std::string material = r.string("material", toString(p.material));
-    if (!parseMaterial(material, p.material))
-      r.fail("material is '" + material + "': it must be 'youngs' (the stiffness from "
-             "youngs_modulus) or 'classic' (alpha = stiffness per sub-step)");
-    p.youngsModulus = r.number("youngs_modulus", p.youngsModulus);
-    p.poissonsRatio = r.number("poissons_ratio", p.poissonsRatio);
-    p.solver.density = r.number("density", p.solver.density);
-    p.solver.damping = r.number("damping", p.solver.damping);
-    p.solver.ambientDamping = r.number("ambient_damping", p.solver.ambientDamping);
-    p.solver.stiffness = r.number("stiffness", p.solver.stiffness);
-
-    // The lattice: one of spacing, resolution, particle_budget given here replaces the node's
-    // choice as a whole (the node's ~spacing must not clash with the entry's resolution).
-    if (r.has("spacing") || r.has("resolution") || r.has("particle_budget")) {
-      p.spacing = r.number("spacing", 0.0);
-      p.resolution = r.integer("resolution", 0);
-      p.particleBudget = r.integer("particle_budget", NodeParams().particleBudget);
-    }
-    // The regions likewise: region_radius or region_half_width replaces the node's.
-    if (r.has("region_radius") || r.has("region_half_width")) {
-      p.regionRadius = r.number("region_radius", 0.0);
-      p.regionHalfWidth = r.integer("region_half_width", 0);
-    }
-    try {
-      p.validate();
-    } catch (const ParamError& e) {
-      // NodeParams speaks of the node's parameters (~spacing): here they are the entry's keys.
-      std::string what = e.what();
-      for (std::size_t at = what.find('~'); at != std::string::npos; at = what.find('~', at))
-        what.erase(at, 1);
-      r.fail(what);
-    }
-    p.applyMaterial();
-    specs.push_back(std::move(spec));
+    const std::string label = "~objects entry " + std::to_string(i);
+    specs.push_back(parseObjectEntry(value[i], defaults, label));
+    if (!names.insert(specs.back().name).second)
+      throw ParamError(label + " ('" + specs.back().name + "'): name '" + specs.back().name +
+                       "' is used by an earlier entry");
   }
   return specs;
+}
+
+ObjectSpec parseObjectEntry(XmlRpc::XmlRpcValue& entry, const NodeParams& defaults,
+                            const std::string& label) {
+  ObjectReader r(entry, label);
+  if (entry.getType() != XmlRpc::XmlRpcValue::TypeStruct)
+    r.fail("it is " + describe(entry) + ": each entry must be a dictionary with at least a name");
+  ObjectSpec spec;
+  if (!r.has("name")) r.fail("it has no name: every object needs a unique name");
+  spec.name = r.string("name", "");
+  if (!validObjectName(spec.name))
+    r.fail("name '" + spec.name + "' must be a letter followed by letters, digits or '_', at "
+           "most " + std::to_string(ObjectLimits::kMaxNameLength) + " characters (it names a tf "
+           "frame and the topics ~objects/<name>/...)");
+  r.setName(spec.name);
+  if (spec.name == defaults.frameId)
+    r.fail("name '" + spec.name + "' is ~frame_id, the simulation frame: rename the object");
+  r.checkKeys();
+
+  NodeParams& p = spec.params;
+  p = defaults;
+  p.objectFrameId = spec.name;
+  p.mesh = r.string("mesh", p.mesh);
+  p.meshScale = r.number("mesh_scale", p.meshScale);
+  if (r.has("mesh_rpy"))
+    p.meshRpy = r.numbers("mesh_rpy", {3}, "a list of three finite angles [roll, pitch, yaw] (rad)")
+                    .head<3>();
+  if (r.has("pose"))
+    spec.pose = poseFrom(r.numbers("pose", {3, 6},
+                                   "[x, y, z] (m) or [x, y, z, roll, pitch, yaw] (m, rad)"));
+
+  // The material: a key given here replaces the node's; the material kind stays the node's
+  // unless the entry names it.
+  const std::string material = r.string("material", toString(p.material));
+  if (!parseMaterial(material, p.material))
+    r.fail("material is '" + material + "': it must be 'youngs' (the stiffness from "
+           "youngs_modulus) or 'classic' (alpha = stiffness per sub-step)");
+  p.youngsModulus = r.number("youngs_modulus", p.youngsModulus);
+  p.poissonsRatio = r.number("poissons_ratio", p.poissonsRatio);
+  p.solver.density = r.number("density", p.solver.density);
+  p.solver.damping = r.number("damping", p.solver.damping);
+  p.solver.ambientDamping = r.number("ambient_damping", p.solver.ambientDamping);
+  p.solver.stiffness = r.number("stiffness", p.solver.stiffness);
+
+  // The lattice: one of spacing, resolution, particle_budget given here replaces the node's
+  // choice as a whole (the node's ~spacing must not clash with the entry's resolution).
+  if (r.has("spacing") || r.has("resolution") || r.has("particle_budget")) {
+    p.spacing = r.number("spacing", 0.0);
+    p.resolution = r.integer("resolution", 0);
+    p.particleBudget = r.integer("particle_budget", NodeParams().particleBudget);
+  }
+  // The regions likewise: region_radius or region_half_width replaces the node's.
+  if (r.has("region_radius") || r.has("region_half_width")) {
+    p.regionRadius = r.number("region_radius", 0.0);
+    p.regionHalfWidth = r.integer("region_half_width", 0);
+  }
+  try {
+    p.validate();
+  } catch (const ParamError& e) {
+    // NodeParams speaks of the node's parameters (~spacing): here they are the entry's keys.
+    std::string what = e.what();
+    for (std::size_t at = what.find('~'); at != std::string::npos; at = what.find('~', at))
+      what.erase(at, 1);
+    r.fail(what);
+  }
+  p.applyMaterial();
+  return spec;
 }
 
 }  // namespace deformable_flsm

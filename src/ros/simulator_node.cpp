@@ -1,5 +1,7 @@
 #include "deformable_flsm/ros/simulator_node.h"
 
+#include "deformable_flsm/ros/object_params.h"
+
 #include "to_eigen.h"
 
 #include <geometry_msgs/TransformStamped.h>
@@ -10,6 +12,7 @@
 #include <chrono>
 #include <cmath>
 #include <future>
+#include <iterator>
 #include <utility>
 
 namespace deformable_flsm {
@@ -40,7 +43,9 @@ constexpr double kAttachWarnPeriod = 5.0;  // s between two warnings about attac
 SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh,
                              const NodeParams& params, WorldScene scene, bool namespaced)
     : nh_(nh), pnh_(pnh), stateNh_(pnh), commandNh_(pnh), serviceNh_(pnh), reconfigureNh_(pnh),
-      params_(params), objects_(std::move(scene.objects)), namespaced_(namespaced),
+      params_(params), objects_(std::make_move_iterator(scene.objects.begin()),
+                                std::make_move_iterator(scene.objects.end())),
+      namespaced_(namespaced),
       stats_(std::make_shared<CommandStats>()) {
   stats_->setRejectHook([](const std::string& reason, const std::string& detail) {
     ROS_WARN_THROTTLE(kRejectPeriod, "flsm_node: command rejected (%s): %s", reason.c_str(),
@@ -53,6 +58,7 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   loop_ = std::make_unique<SimulationLoop>(std::move(scene.world), settings, stats_);
 
   commands_.resize(objects_.size());
+  for (const SceneObject& o : objects_) startNames_.push_back(o.name);
   for (std::size_t k = 0; k < objects_.size(); ++k) {
     const Lattice& L = *objects_[k].lattice;
     commands_[k].validator = std::make_unique<CommandValidator>(
@@ -142,6 +148,8 @@ void SimulatorNode::advertise() {
   // its own under ~objects/<name>/.
   subscribeCommands(0, "", dragSub_, forceSub_, pinBoxSrv_);
   if (!namespaced_) return;
+  addObjectSrv_ = serviceNh_.advertiseService("add_object", &SimulatorNode::onAddObject, this);
+  removeObjectSrv_ = serviceNh_.advertiseService("remove_object", &SimulatorNode::onRemoveObject, this);
   for (std::size_t k = 0; k < objects_.size(); ++k) {
     ObjectCommands& c = commands_[k];
     subscribeCommands(k, "objects/" + objects_[k].name + "/", c.dragSub, c.forceSub, c.pinBoxSrv);
@@ -183,19 +191,32 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
   }
   const ros::Time stamp = ros::Time::now();
   const Snapshot& s = loop_->acquire();
+  std::shared_lock<std::shared_mutex> lock(objectsMutex_);
   // tf, the wrenches and the clouds of one snapshot carry one stamp: a subscriber pairs a cloud
   // with the colliders' and objects' frames of the same step by it.
   publisher_->publishTf(s, stamp);
   colliders_->publishFrames(s, stamp);
   colliders_->publishMarkers(s, stamp);
-  for (std::size_t k = 0; k < s.objects.size(); ++k) mouse_->follow(k, s.objects[k].objectFrame);
+  // The mouse's handles are the start-up objects'; the snapshot lists the objects in the order
+  // they were added, without those removed: matched by name.
+  std::size_t next = 0;
+  for (const ObjectSnapshot& o : s.objects) {
+    std::size_t k = next;
+    while (k < startNames_.size() && startNames_[k] != o.name) ++k;
+    if (k == startNames_.size()) break;  // the rest were added at run time
+    mouse_->follow(k, o.objectFrame);
+    next = k + 1;
+  }
   publisher_->publishHeavy(s, stamp);
 }
 
 void SimulatorNode::onStateTimer(const ros::TimerEvent&) {
   const ros::Time stamp = ros::Time::now();
   loop_->copySummary(summary_);
-  publisher_->publishState(summary_, stamp, colliders_->frameMisses());
+  {
+    std::shared_lock<std::shared_mutex> lock(objectsMutex_);
+    publisher_->publishState(summary_, stamp, colliders_->frameMisses());
+  }
   std::lock_guard<std::mutex> lock(paramsMutex_);
   reporter_->report(summary_.diag);
 }
@@ -286,8 +307,9 @@ bool SimulatorNode::lookupTransform(const std::string& frame, const ros::Time& s
 void SimulatorNode::onDrag(std::size_t object, const std::string& topic,
                            const ros::MessageEvent<const DragCommand>& event) {
   const DragCommand::ConstPtr& msg = event.getMessage();
-  const ObjectCommands& c = commands_[object];
   countMissed(gaps_, *stats_, topic, event.getPublisherName(), msg->header.seq);
+  std::shared_lock<std::shared_mutex> lock(objectsMutex_);
+  const ObjectCommands& c = commands_[object];
   CommandBody body;
   Rejection why;
   if (!c.validator->drag(*msg, body, why)) return rejected(why);
@@ -297,8 +319,9 @@ void SimulatorNode::onDrag(std::size_t object, const std::string& topic,
 void SimulatorNode::onForce(std::size_t object, const std::string& topic,
                             const ros::MessageEvent<const ForceCommand>& event) {
   const ForceCommand::ConstPtr& msg = event.getMessage();
-  const ObjectCommands& c = commands_[object];
   countMissed(gaps_, *stats_, topic, event.getPublisherName(), msg->header.seq);
+  std::shared_lock<std::shared_mutex> lock(objectsMutex_);
+  const ObjectCommands& c = commands_[object];
   CommandBody body;
   Rejection why;
   if (!c.validator->force(*msg, body, why)) return rejected(why);
@@ -306,6 +329,12 @@ void SimulatorNode::onForce(std::size_t object, const std::string& topic,
 }
 
 bool SimulatorNode::onMouseDrag(std::size_t object, const DragCommand& drag) {
+  std::shared_lock<std::shared_mutex> lock(objectsMutex_);
+  if (commands_[object].removed) {
+    stats_->reject("unknown_object", "object '" + objects_[object].name +
+                                         "' was removed: its RViz handle drags nothing");
+    return false;
+  }
   CommandBody body;
   Rejection why;
   if (!commands_[object].validator->drag(drag, body, why)) {
@@ -333,14 +362,18 @@ bool SimulatorNode::onReleaseAll(std_srvs::Trigger::Request&, std_srvs::Trigger:
 bool SimulatorNode::onPinBox(std::size_t object, PinBox::Request& req, PinBox::Response& res) {
   const Eigen::Vector3d lo = toEigen(req.min), hi = toEigen(req.max);
   Rejection why;
-  if (!commands_[object].validator->box(lo, hi, why)) {
-    rejected(why);
-    res.success = false;
-    res.message = why.detail;
-    return true;
+  std::string name;
+  {
+    std::shared_lock<std::shared_mutex> lock(objectsMutex_);
+    name = objects_[object].name;
+    if (!commands_[object].validator->box(lo, hi, why)) {
+      rejected(why);
+      res.success = false;
+      res.message = why.detail;
+      return true;
+    }
   }
-  const CommandOutcome o =
-      send(PinBoxCommand{lo, hi, static_cast<bool>(req.pin)}, true, objects_[object].name);
+  const CommandOutcome o = send(PinBoxCommand{lo, hi, static_cast<bool>(req.pin)}, true, name);
   res.success = o.accepted;
   res.message = o.message;
   res.particles = static_cast<std::uint32_t>(o.particles);
@@ -367,8 +400,13 @@ bool SimulatorNode::onReconfigure(const FlsmConfig& config) {
     return false;
   }
   // Every object takes the change with its own regions and density: one gravity, one material.
+  std::shared_lock<std::shared_mutex> objectsLock(objectsMutex_);
   std::vector<SolverParams> perObject;
-  for (const SceneObject& o : objects_) {
+  std::vector<std::string> names;
+  for (std::size_t k = 0; k < objects_.size(); ++k) {
+    if (commands_[k].removed) continue;
+    const SceneObject& o = objects_[k];
+    names.push_back(o.name);
     SolverParams p = changed.solver;
     p.regionHalfWidth = o.info.regionHalfWidth;
     p.density = o.params.solver.density;
@@ -384,17 +422,112 @@ bool SimulatorNode::onReconfigure(const FlsmConfig& config) {
   params_.youngsModulus = changed.youngsModulus;
   params_.poissonsRatio = changed.poissonsRatio;
   params_.solver = perObject.front();
-  for (std::size_t k = 0; k < objects_.size(); ++k) send(ParamsCommand{perObject[k]}, false, objects_[k].name);
+  for (std::size_t k = 0; k < names.size(); ++k) send(ParamsCommand{perObject[k]}, false, names[k]);
   const bool newRate = config.publish_rate != params_.publishRate;
   const bool newPace = config.real_time_factor != params_.realTimeFactor;
   params_.publishRate = config.publish_rate;
   params_.realTimeFactor = config.real_time_factor;
+  objectsLock.unlock();
   lock.unlock();  // the timer's own lock is not taken under ours
   if (newRate) {
     publishTimer_.setPeriod(ros::Duration(1.0 / config.publish_rate));
     stateTimer_.setPeriod(ros::Duration(1.0 / config.publish_rate));
   }
   if (newPace) loop_->setRealTimeFactor(config.real_time_factor);
+  return true;
+}
+
+// --------------------------------------------------------------------------------------------
+// Objects added and removed at run time (a node with ~objects)
+
+template <class Response>
+bool SimulatorNode::refuseObject(const std::string& reason, const std::string& why, Response& res) {
+  stats_->reject(reason, why);
+  res.success = false;
+  res.message = why;
+  return true;
+}
+
+bool SimulatorNode::onAddObject(AddObject::Request& req, AddObject::Response& res) {
+  if (req.param.empty())
+    return refuseObject("invalid_object", "~add_object: param is empty: name the parameter that "
+                        "holds the object (one ~objects entry, a dictionary)", res);
+  const std::string label = "parameter '" + pnh_.resolveName(req.param) + "'";
+  XmlRpc::XmlRpcValue entry;
+  if (!pnh_.getParam(req.param, entry))
+    return refuseObject("invalid_object", label + " is not set: set it to one ~objects entry "
+                        "(a dictionary with at least a name) before calling ~add_object", res);
+  NodeParams defaults;
+  {
+    std::lock_guard<std::mutex> lock(paramsMutex_);
+    defaults = params_;
+  }
+  ObjectSpec spec;
+  try {
+    spec = parseObjectEntry(entry, defaults, label);
+  } catch (const ParamError& e) {
+    return refuseObject("invalid_object", e.what(), res);
+  }
+  {
+    std::shared_lock<std::shared_mutex> lock(objectsMutex_);
+    for (std::size_t k = 0; k < objects_.size(); ++k)
+      if (!commands_[k].removed && objects_[k].name == spec.name)
+        return refuseObject("invalid_object", label + ": object '" + spec.name + "' is already in "
+                            "the scene: choose another name", res);
+  }
+  // Here, on the service thread: the simulation steps on while the mesh loads and voxelizes.
+  PreparedObject prepared;
+  try {
+    prepared = prepareObject(spec, loadMeshParam);
+  } catch (const ParamError& e) {
+    return refuseObject("invalid_object", e.what(), res);
+  }
+  const std::shared_ptr<const Lattice> lattice = prepared.object.lattice;
+  const CommandOutcome o = send(AddObjectCommand{spec.name, lattice, prepared.solverParams}, true);
+  res.success = o.accepted;
+  res.message = o.message;  // a refusal is counted by the simulation thread
+  if (!o.accepted) return true;
+  res.particles = static_cast<std::uint32_t>(lattice->size());
+
+  std::unique_lock<std::shared_mutex> lock(objectsMutex_);
+  objects_.push_back(std::move(prepared.object));
+  const std::size_t k = objects_.size() - 1;
+  commands_.emplace_back();
+  ObjectCommands& c = commands_.back();
+  const std::string name = spec.name;
+  c.validator = std::make_unique<CommandValidator>(
+      lattice->size(), lattice->objectSize(), defaults.frameId,
+      [this](const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T, std::string& why) {
+        return lookupTransform(frame, stamp, T, why);
+      },
+      [this, name] { return loop_->centerOfMass(name); });
+  subscribeCommands(k, "objects/" + name + "/", c.dragSub, c.forceSub, c.pinBoxSrv);
+  publisher_->addObject(objects_.back());
+  ROS_INFO("flsm_node: %s", o.message.c_str());
+  return true;
+}
+
+bool SimulatorNode::onRemoveObject(RemoveObject::Request& req, RemoveObject::Response& res) {
+  std::size_t k = 0;
+  {
+    std::shared_lock<std::shared_mutex> lock(objectsMutex_);
+    while (k < objects_.size() && (commands_[k].removed || objects_[k].name != req.name)) ++k;
+    if (k == objects_.size())
+      return refuseObject("unknown_object", "~remove_object: object '" + req.name + "' is not in "
+                          "the scene: nothing removed", res);
+  }
+  const CommandOutcome o = send(RemoveObjectCommand{req.name}, true);
+  res.success = o.accepted;
+  res.message = o.message;  // a refusal is counted by the simulation thread
+  if (!o.accepted) return true;
+  std::unique_lock<std::shared_mutex> lock(objectsMutex_);
+  ObjectCommands& c = commands_[k];
+  c.removed = true;
+  c.dragSub.shutdown();
+  c.forceSub.shutdown();
+  c.pinBoxSrv.shutdown();
+  publisher_->removeObject(req.name, ros::Time::now());
+  ROS_INFO("flsm_node: %s", o.message.c_str());
   return true;
 }
 

@@ -7,6 +7,7 @@
 #include <ros/console.h>
 #include <tf2_eigen/tf2_eigen.h>
 
+#include <algorithm>
 #include <array>
 
 namespace deformable_flsm {
@@ -58,7 +59,7 @@ class StatePublisher::ObjectTopics {
  public:
   ObjectTopics(ros::NodeHandle& pnh, const NodeParams& params, const SceneObject& object,
                std::size_t index, std::size_t count, bool namespaced)
-      : params_(params), object_(object), index_(index), namespaced_(namespaced) {
+      : params_(params), object_(object), namespaced_(namespaced) {
     ros::NodeHandle nh = namespaced ? ros::NodeHandle(pnh, "objects/" + object.name) : pnh;
     initTriangleListMarker(params_.frameId, namespaced ? object.name : kMarkerNamespace,
                            objectColor(index), marker_);
@@ -72,11 +73,11 @@ class StatePublisher::ObjectTopics {
   }
 
   const SceneObject& object() const { return object_; }
+  const visualization_msgs::Marker& marker() const { return marker_; }
   ros::Publisher& statePublisher() { return statePub_; }
   SimulationState& state() { return state_; }
 
-  void publishHeavy(const Snapshot& s, const ros::Time& stamp) {
-    const ObjectSnapshot& o = s.objects[index_];
+  void publishHeavy(const Snapshot& s, const ObjectSnapshot& o, const ros::Time& stamp) {
     const Lattice& lattice = *object_.lattice;
     // One object of several is at rest while its version stays, although others move: its
     // messages are neither rebuilt nor, for the markers, re-sent. The single object rests with
@@ -133,7 +134,6 @@ class StatePublisher::ObjectTopics {
  private:
   const NodeParams& params_;
   const SceneObject& object_;
-  std::size_t index_;
   bool namespaced_;
   LazyTopic mesh_, surface_, particles_, latticeMarkers_;
   ros::Publisher statePub_;
@@ -149,29 +149,67 @@ class StatePublisher::ObjectTopics {
 };
 
 StatePublisher::StatePublisher(ros::NodeHandle& pnh, const NodeParams& params,
-                               const std::vector<SceneObject>& objects, bool namespaced,
+                               const std::deque<SceneObject>& objects, bool namespaced,
                                const CommandStats& stats)
-    : params_(params), stats_(stats) {
+    : params_(params), stats_(stats), pnh_(pnh), namespaced_(namespaced) {
   for (std::size_t k = 0; k < objects.size(); ++k) {
     objects_.push_back(std::make_unique<ObjectTopics>(pnh, params_, objects[k], k, objects.size(),
                                                       namespaced));
     totalMass_ += objects[k].lattice->totalMass();
     totalParticles_ += objects[k].lattice->size();
   }
+  advertised_ = objects.size();
   transforms_.resize(objects.size());
   statePub_ = pnh.advertise<SimulationState>("state", kStateQueue);
+  meshPub_ = pnh.advertise<visualization_msgs::Marker>("mesh", static_cast<std::uint32_t>(objects.size()));
 }
 
 StatePublisher::~StatePublisher() = default;
 
+void StatePublisher::addObject(const SceneObject& object) {
+  objects_.push_back(std::make_unique<ObjectTopics>(pnh_, params_, object, advertised_++,
+                                                    objects_.size() + 1, namespaced_));
+  totalMass_ += object.lattice->totalMass();
+  totalParticles_ += object.lattice->size();
+}
+
+bool StatePublisher::removeObject(const std::string& name, const ros::Time& stamp) {
+  const auto it = std::find_if(objects_.begin(), objects_.end(),
+                               [&](const std::unique_ptr<ObjectTopics>& o) { return o->object().name == name; });
+  if (it == objects_.end()) return false;
+  visualization_msgs::Marker gone = (*it)->marker();
+  gone.action = visualization_msgs::Marker::DELETE;
+  gone.points.clear();
+  gone.header.stamp = stamp;
+  meshPub_.publish(gone);
+  totalMass_ -= (*it)->object().lattice->totalMass();
+  totalParticles_ -= (*it)->object().lattice->size();
+  objects_.erase(it);
+  return true;
+}
+
+template <class Each>
+void StatePublisher::forEachObject(const Snapshot& s, Each&& each) {
+  // Both lists are in the order the objects were added; an object the loop has but we have not
+  // advertised yet (or have just removed) is skipped.
+  std::size_t k = 0;
+  for (const ObjectSnapshot& o : s.objects) {
+    if (k == objects_.size()) break;
+    if (o.name == objects_[k]->object().name) each(*objects_[k++], o);
+  }
+}
+
 void StatePublisher::publishTf(const Snapshot& s, const ros::Time& stamp) {
-  for (std::size_t k = 0; k < objects_.size(); ++k) {
-    geometry_msgs::TransformStamped& t = transforms_[k];
-    t = tf2::eigenToTransform(s.objects[k].objectFrame);
+  std::size_t n = 0;
+  forEachObject(s, [&](ObjectTopics& topics, const ObjectSnapshot& o) {
+    if (transforms_.size() <= n) transforms_.resize(n + 1);
+    geometry_msgs::TransformStamped& t = transforms_[n++];
+    t = tf2::eigenToTransform(o.objectFrame);
     t.header.stamp = stamp;
     t.header.frame_id = params_.frameId;
-    t.child_frame_id = objects_[k]->object().name;
-  }
+    t.child_frame_id = topics.object().name;
+  });
+  transforms_.resize(n);
   tfBroadcaster_.sendTransform(transforms_);
 }
 
@@ -218,18 +256,17 @@ void StatePublisher::publishState(const Snapshot& s, const ros::Time& stamp,
   fillState(s.diag, stamp, totalMass_, totalParticles_, s.colliders.size(), colliderFrameMisses,
             state_);
   statePub_.publish(state_);
-  for (std::size_t k = 0; k < objects_.size(); ++k) {
-    ObjectTopics& o = *objects_[k];
-    if (!o.statePublisher() || o.statePublisher().getNumSubscribers() == 0) continue;
+  forEachObject(s, [&](ObjectTopics& o, const ObjectSnapshot& snapshot) {
+    if (!o.statePublisher() || o.statePublisher().getNumSubscribers() == 0) return;
     const Lattice& L = *o.object().lattice;
-    fillState(s.objects[k].diag, stamp, L.totalMass(), L.size(), s.colliders.size(),
+    fillState(snapshot.diag, stamp, L.totalMass(), L.size(), s.colliders.size(),
               colliderFrameMisses, o.state());
     o.statePublisher().publish(o.state());
-  }
+  });
 }
 
 void StatePublisher::publishHeavy(const Snapshot& s, const ros::Time& stamp) {
-  for (auto& o : objects_) o->publishHeavy(s, stamp);
+  forEachObject(s, [&](ObjectTopics& o, const ObjectSnapshot& snapshot) { o.publishHeavy(s, snapshot, stamp); });
 }
 
 }  // namespace deformable_flsm

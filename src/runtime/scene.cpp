@@ -254,6 +254,30 @@ WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& o
   return scene;
 }
 
+PreparedObject prepareObject(const ObjectSpec& spec, const MeshLoader& loadMesh) {
+  PreparedObject prepared;
+  SceneObject& object = prepared.object;
+  object.name = spec.name;
+  object.params = spec.params;
+  object.info.stepMeasured = false;
+  try {
+    TriMesh mesh = loadMesh(spec.params);
+    for (Eigen::Vector3d& v : mesh.vertices) v = spec.pose * v;
+    object.lattice = buildLattice(spec.params, mesh, object.info, prepared.solverParams);
+    // A solver of its own, off the simulation thread, for what it chooses (the contact radius,
+    // alpha); the loop makes the one it steps.
+    try {
+      describeSolver(Solver(object.lattice, prepared.solverParams), object.info);
+    } catch (const std::invalid_argument& e) {
+      throw ParamError(std::string("the solver cannot be built: ") + e.what());
+    }
+    buildRender(spec.params, mesh, *object.lattice, object.info, object.renderMesh, object.embedding);
+  } catch (const ParamError& e) {
+    throw ParamError("object '" + spec.name + "': " + e.what());
+  }
+  return prepared;
+}
+
 namespace {
 
 std::unique_ptr<World> worldHolding(const Solver& solver, std::shared_ptr<const Lattice> lattice,

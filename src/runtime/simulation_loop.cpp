@@ -31,20 +31,10 @@ SimulationLoop::SimulationLoop(std::unique_ptr<World> world, const LoopSettings&
     throw std::invalid_argument("SimulationLoop: real-time factor must be > 0 and catch-up >= 1");
   if (!(settings_.restFraction >= 0.0))
     throw std::invalid_argument("SimulationLoop: rest fraction must be >= 0");
-  names_ = world_->objectNames();
-  for (const std::string& name : names_) {
-    Solver* solver = world_->object(name);
-    solvers_.push_back(solver);
-    const Lattice& L = solver->lattice();  // immutable, owned through the solver
-    lattices_.push_back(&L);
-    Eigen::Vector3d com = Eigen::Vector3d::Zero();
-    for (std::size_t i = 0; i < L.size(); ++i) com += L.masses()[i] * L.restPositions()[i];
-    restCenterOfMass_.push_back(com / L.totalMass());
-    stillFrom_.push_back(solver->positions());
-    versions_.emplace_back();
-  }
+  startNames_ = world_->objectNames();
+  for (const std::string& name : startNames_) trackObject(name);
+  startLattices_ = lattices_;
   target_ = solvers_.front();
-  centerOfMass_ = restCenterOfMass_;
   diag_.requestedRealTimeFactor = settings_.realTimeFactor;
   queue_.reserve(CommandLimits::kQueueCapacity);
 }

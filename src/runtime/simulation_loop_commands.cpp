@@ -6,8 +6,12 @@
 #include "deformable_flsm/runtime/simulation_loop.h"
 
 #include "deformable_flsm/runtime/collider_spec.h"
+#include "deformable_flsm/runtime/object_spec.h"
 
+#include <algorithm>
 #include <cmath>
+#include <iterator>
+#include <stdexcept>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -36,7 +40,10 @@ CommandOutcome accepted(std::string message, std::size_t particles = 0) {
 
 bool SimulationLoop::apply(Command& command) {
   CommandOutcome outcome;
-  target_ = command.object.empty() ? solvers_.front() : world_->object(command.object);
+  // Adding and removing an object concern the scene: their body names the object.
+  const bool sceneCommand = std::holds_alternative<AddObjectCommand>(command.body) ||
+                            std::holds_alternative<RemoveObjectCommand>(command.body);
+  target_ = command.object.empty() || sceneCommand ? solvers_.front() : world_->object(command.object);
   if (target_ == nullptr) {
     outcome = reject("unknown_object", "object '" + command.object +
                                            "' is not in the scene (removed): command refused");
@@ -44,6 +51,7 @@ bool SimulationLoop::apply(Command& command) {
     outcome = applyBody(command);
   }
   if (outcome.accepted) stats_->accept();
+  if (sceneCommand) target_ = solvers_.front();  // the first may have been removed
   outcome.pinnedTotal = target_ != nullptr ? target_->pinnedCount() : 0;
   if (command.outcome) command.outcome->set_value(outcome);
   return outcome.accepted;
@@ -82,6 +90,10 @@ CommandOutcome SimulationLoop::applyBody(Command& command) {
           return setCollider(c);
         } else if constexpr (std::is_same_v<T, MoveColliderCommand>) {
           return moveCollider(c);
+        } else if constexpr (std::is_same_v<T, AddObjectCommand>) {
+          return addObject(c);
+        } else if constexpr (std::is_same_v<T, RemoveObjectCommand>) {
+          return removeObject(c);
         } else {
           static_assert(std::is_same_v<T, RemoveColliderCommand>, "a command is not handled");
           return removeCollider(c);
@@ -282,6 +294,66 @@ CommandOutcome SimulationLoop::removeCollider(const RemoveColliderCommand& c) {
   if (!world_->removeCollider(c.id) && !followed)
     return reject("unknown_collider", "removal of collider '" + c.id + "': no such collider");
   return accepted("collider '" + c.id + "' removed");
+}
+
+CommandOutcome SimulationLoop::addObject(const AddObjectCommand& c) {
+  if (!c.lattice) return reject("invalid_object", "object '" + c.name + "': no lattice");
+  if (world_->objectCount() >= ObjectLimits::kMaxObjects)
+    return reject("too_many_objects", "object '" + c.name + "': the scene has " +
+                                          std::to_string(world_->objectCount()) + " objects, the most it may hold");
+  try {
+    world_->addObject(c.name, c.lattice, c.params);
+  } catch (const std::invalid_argument& e) {  // a duplicate name, objects inside each other
+    return reject("invalid_object", std::string("object '") + c.name + "' cannot be added: " + e.what());
+  }
+  trackObject(c.name);
+  restartStillness();
+  return accepted("added object '" + c.name + "' (" + std::to_string(c.lattice->size()) + " particles)",
+                  c.lattice->size());
+}
+
+CommandOutcome SimulationLoop::removeObject(const RemoveObjectCommand& c) {
+  const auto it = std::find(names_.begin(), names_.end(), c.name);
+  if (it == names_.end())
+    return reject("unknown_object", "object '" + c.name + "' is not in the scene: nothing removed");
+  if (names_.size() == 1)
+    return reject("invalid_object", "object '" + c.name + "' is the scene's last object: a scene "
+                                    "keeps at least one (add another first)");
+  const std::size_t k = static_cast<std::size_t>(it - names_.begin());
+  const std::size_t particles = lattices_[k]->size();
+  untrackObject(k);
+  world_->removeObject(c.name);
+  restartStillness();
+  return accepted("removed object '" + c.name + "'", particles);
+}
+
+void SimulationLoop::trackObject(const std::string& name) {
+  Solver* solver = world_->object(name);
+  const Lattice& L = solver->lattice();  // immutable, owned through the solver
+  Eigen::Vector3d com = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < L.size(); ++i) com += L.masses()[i] * L.restPositions()[i];
+  com /= L.totalMass();
+  names_.push_back(name);
+  solvers_.push_back(solver);
+  lattices_.push_back(&L);
+  restCenterOfMass_.push_back(com);
+  stillFrom_.push_back(solver->positions());
+  versions_.emplace_back();
+  std::lock_guard<std::mutex> lock(snapshotMutex_);
+  centerOfMass_[name] = com;
+}
+
+void SimulationLoop::untrackObject(std::size_t k) {
+  Solver* solver = solvers_[k];
+  for (auto it = attachedFrames_.begin(); it != attachedFrames_.end();)
+    it = it->first.first == solver ? attachedFrames_.erase(it) : std::next(it);
+  const auto at = [k](auto& list) { list.erase(list.begin() + static_cast<std::ptrdiff_t>(k)); };
+  at(names_);
+  at(solvers_);
+  at(lattices_);
+  at(restCenterOfMass_);
+  at(stillFrom_);
+  at(versions_);
 }
 
 }  // namespace deformable_flsm

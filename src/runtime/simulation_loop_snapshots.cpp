@@ -39,8 +39,13 @@ void SimulationLoop::copySummary(Snapshot& out) const {
 }
 
 Eigen::Vector3d SimulationLoop::centerOfMass(std::size_t object) const {
+  return centerOfMass(startNames_.at(object));
+}
+
+Eigen::Vector3d SimulationLoop::centerOfMass(const std::string& name) const {
   std::lock_guard<std::mutex> lock(snapshotMutex_);
-  return centerOfMass_.at(object);
+  const auto it = centerOfMass_.find(name);
+  return it == centerOfMass_.end() ? Eigen::Vector3d::Zero() : it->second;
 }
 
 void SimulationLoop::updateStillness(double simulated) {
@@ -164,7 +169,7 @@ void SimulationLoop::writeSnapshot() {
   s.objectWrenches = world_->objectWrenches();
 
   std::lock_guard<std::mutex> lock(snapshotMutex_);
-  for (std::size_t k = 0; k < s.objects.size(); ++k) centerOfMass_[k] = s.objects[k].objectFrame.translation();
+  for (const ObjectSnapshot& o : s.objects) centerOfMass_[o.name] = o.objectFrame.translation();
   std::swap(back_, ready_);
   fresh_ = true;
   appliedKinds_.fill(0);

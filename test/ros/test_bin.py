@@ -24,6 +24,9 @@ SETTLE_S = 8.0
 # a particle's radius (~7.5 mm).
 HOLD_S = 1.0
 REST_MOVE = 0.002
+# s of simulated time by which the node goes idle (the loop stops stepping): the pile settles
+# within SETTLE_S, then creeps for a few seconds more.
+IDLE_BY_S = 40.0
 
 
 def bin_geometry():
@@ -94,6 +97,24 @@ class BinTest(unittest.TestCase):
                                         'radii %.4f and %.4f m' % (a, b, d, radius[a], radius[b]))
         rospy.loginfo('closest pair %s: %.4f m (limit %.4f m)', worst[1][:2], worst[1][2],
                       worst[1][3])
+
+    def test_the_pile_goes_idle(self):
+        # At rest the loop stops stepping (~state idle: no particle moved more than 2e-5 object
+        # sizes over a second of simulated time). A pile that settled but jitters never does.
+        idle_at = None
+        end = time.time() + 300.0
+        while time.time() < end and not rospy.is_shutdown():
+            s = self.client.state()
+            if s is not None and s.idle:
+                idle_at = s.sim_time
+                break
+            if s is not None and s.sim_time > IDLE_BY_S:
+                break
+            time.sleep(0.05)
+        self.assertIsNotNone(idle_at, 'the pile does not go idle within %.0f s of simulated '
+                             'time (fastest particle %.3g m/s)' % (
+                                 IDLE_BY_S, self.client.state().max_speed))
+        rospy.loginfo('the pile went idle at %.1f s', idle_at)
 
 
 if __name__ == '__main__':

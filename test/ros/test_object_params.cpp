@@ -52,6 +52,27 @@ bool mentions(const std::string& text, const std::string& what) {
   return text.find(what) != std::string::npos;
 }
 
+TEST(ObjectParams, AnEntryOnItsOwnHasTheKeysAndChecksOfTheListAndNamesItsLabel) {
+  // ~add_object's parameter: one entry, read as an entry of ~objects is
+  XmlRpc::XmlRpcValue e = entry("late");
+  e["resolution"] = 5;
+  e["pose"] = numbers({0.1, 0.2, 0.3});
+  const ObjectSpec spec = parseObjectEntry(e, NodeParams(), "parameter '/flsm_node/new'");
+  EXPECT_EQ(spec.name, "late");
+  EXPECT_EQ(spec.params.objectFrameId, "late");
+  EXPECT_EQ(spec.params.resolution, 5);
+  EXPECT_TRUE(spec.pose.translation().isApprox(Eigen::Vector3d(0.1, 0.2, 0.3)));
+  e["colour"] = std::string("red");
+  try {
+    parseObjectEntry(e, NodeParams(), "parameter '/flsm_node/new'");
+    FAIL() << "an unknown key was accepted";
+  } catch (const ParamError& error) {
+    const std::string what = error.what();
+    EXPECT_TRUE(mentions(what, "parameter '/flsm_node/new' ('late')")) << what;
+    EXPECT_TRUE(mentions(what, "unknown key 'colour'")) << what;
+  }
+}
+
 TEST(ObjectParams, AnEntryOverridesTheNodesParametersKeyByKey) {
   NodeParams defaults;
   defaults.spacing = 0.02;

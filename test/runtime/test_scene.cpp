@@ -219,6 +219,48 @@ TEST(BuildScene, RenderBudgetSimplifiesOnlyTheRenderMesh) {
   EXPECT_NE(text.find("ns per particle-substep"), std::string::npos);
 }
 
+TEST(PrepareObject, BuildsTheObjectAtItsPoseWithoutAWorld) {
+  // the unit cube at resolution 10 (1000 particles), placed 2 m along x and turned about z
+  ObjectSpec spec;
+  spec.name = "crate";
+  spec.params = cubeParams();
+  spec.params.objectFrameId = spec.name;
+  spec.pose.translation() = Eigen::Vector3d(2.0, 0.0, 0.0);
+  spec.pose.linear() = Eigen::AngleAxisd(0.5 * M_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const PreparedObject prepared =
+      prepareObject(spec, [](const NodeParams&) { return test::boxMesh(Eigen::Vector3d::Ones()); });
+  const SceneObject& o = prepared.object;
+  EXPECT_EQ(o.name, "crate");
+  ASSERT_TRUE(o.lattice);
+  EXPECT_EQ(o.lattice->size(), 1000u);
+  // the cube [0, 1]^3 turned a quarter about z spans x in [-1, 0], then moved 2 m: [1, 2]
+  Eigen::Vector3d lo = o.lattice->restPositions()[0], hi = lo;
+  for (const Eigen::Vector3d& x : o.lattice->restPositions()) {
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  EXPECT_GT(lo.x(), 1.0 - 1e-9);
+  EXPECT_LT(hi.x(), 2.0 + 1e-9);
+  EXPECT_GT(o.info.contactRadius, 0.0);
+  ASSERT_TRUE(o.embedding);
+  EXPECT_EQ(o.embedding->vertexCount(), o.renderMesh.vertices.size());
+  EXPECT_EQ(prepared.solverParams.timeStep, spec.params.solver.timeStep);
+  EXPECT_EQ(prepared.solverParams.substeps, spec.params.solver.substeps);
+}
+
+TEST(PrepareObject, AMeshThatCannotBeLoadedNamesTheObject) {
+  ObjectSpec spec;
+  spec.name = "ghost";
+  spec.params = cubeParams();
+  try {
+    prepareObject(spec, [](const NodeParams&) -> TriMesh { throw ParamError("~mesh 'x.obj' cannot be read"); });
+    FAIL() << "no error";
+  } catch (const ParamError& e) {
+    EXPECT_NE(std::string(e.what()).find("object 'ghost'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("x.obj"), std::string::npos) << e.what();
+  }
+}
+
 /// The message of the ParamError that validate() throws, or "" when it passes.
 std::string problem(const NodeParams& p) {
   try {

@@ -10,6 +10,7 @@
 
 #include <xmlrpcpp/XmlRpcValue.h>
 
+#include <string>
 #include <vector>
 
 namespace deformable_flsm {
@@ -21,5 +22,12 @@ namespace deformable_flsm {
 ///         accepted: a missing or invalid name, a duplicate name, a name equal to ~frame_id,
 ///         an unknown key, a wrongly typed or out-of-range value.
 std::vector<ObjectSpec> parseObjectList(XmlRpc::XmlRpcValue& value, const NodeParams& defaults);
+
+/// Parses one entry of ~objects given on its own (~add_object's parameter), with the same keys
+/// and checks as an entry of the list (a name already in the scene is the caller's to refuse).
+/// @param[in] label  how messages name the entry ("parameter '~new_object'")
+/// @throws ParamError as parseObjectList() does, naming `label`
+ObjectSpec parseObjectEntry(XmlRpc::XmlRpcValue& entry, const NodeParams& defaults,
+                            const std::string& label);
 
 }  // namespace deformable_flsm

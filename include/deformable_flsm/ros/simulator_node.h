@@ -15,10 +15,12 @@
 #include "deformable_flsm/runtime/simulation_loop.h"
 #include "deformable_flsm/ros/state_publisher.h"
 
+#include <deformable_flsm/AddObject.h>
 #include <deformable_flsm/DragCommand.h>
 #include <deformable_flsm/FlsmConfig.h>
 #include <deformable_flsm/ForceCommand.h>
 #include <deformable_flsm/PinBox.h>
+#include <deformable_flsm/RemoveObject.h>
 #include <ros/callback_queue.h>
 #include <ros/node_handle.h>
 #include <ros/service_server.h>
@@ -31,8 +33,10 @@
 
 #include <Eigen/Geometry>
 
+#include <deque>
 #include <memory>
 #include <mutex>
+#include <shared_mutex>
 #include <string>
 #include <vector>
 
@@ -44,8 +48,8 @@ namespace deformable_flsm {
 ///        (the top-level topics address the first object)
 ///   out  ~mesh, ~surface, ~particles, ~lattice, ~colliders (only while subscribed), ~state,
 ///        ~contact_wrenches, tf
-///   srv  ~reset, ~release_all, ~pin_box (with ~objects also ~objects/<name>/pin_box);
-///        dynamic_reconfigure on ~
+///   srv  ~reset, ~release_all, ~pin_box (with ~objects also ~objects/<name>/pin_box,
+///        ~add_object and ~remove_object); dynamic_reconfigure on ~
 ///
 /// Threads: the simulation thread (SimulationLoop) steps the solver; the main thread (ros::spin)
 /// runs the publish timer of tf, ~contact_wrenches, the meshes, clouds and markers (one snapshot,
@@ -98,6 +102,14 @@ class SimulatorNode {
   bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool onReleaseAll(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool onPinBox(std::size_t object, PinBox::Request& req, PinBox::Response& res);
+  /// ~add_object: parses the entry, builds the object here on the service thread (the mesh
+  /// load and voxelization never hold up a step), hands it to the simulation thread and, once
+  /// it is in, advertises its topics and subscribes its commands.
+  bool onAddObject(AddObject::Request& req, AddObject::Response& res);
+  bool onRemoveObject(RemoveObject::Request& req, RemoveObject::Response& res);
+  /// A refusal of ~add_object or ~remove_object: counted under `reason`, the answer says why.
+  template <class Response>
+  bool refuseObject(const std::string& reason, const std::string& why, Response& res);
   /// false (counted as invalid_params) when the change is refused: nothing changes.
   bool onReconfigure(const FlsmConfig& config);
   /// Sends a command to the simulation thread, to object `object` ("" = the first, or the
@@ -131,8 +143,14 @@ class SimulatorNode {
   ros::CallbackQueue reconfigureQueue_;
   std::mutex paramsMutex_;  ///< params_ between onReconfigure and the publish timer's reporter_
   NodeParams params_;
-  /// the objects (lattice, render mesh, embedding, start-up figures), in the World's order
-  std::vector<SceneObject> objects_;
+  /// the objects (lattice, render mesh, embedding, start-up figures), in the order they were
+  /// added (the World's order); one removed at run time stays (its ObjectCommands say removed),
+  /// so that indices and the references StatePublisher keeps stay valid
+  std::deque<SceneObject> objects_;
+  /// objects_ and commands_ grow, and objects go, on the service thread (exclusive) while the
+  /// publish timer, the state timer and the command callbacks read them (shared: none of them
+  /// waits for another, the state never for a mesh)
+  std::shared_mutex objectsMutex_;
   /// what ProblemReporter warns about: the first object's, with the pins of every object
   SceneInfo sceneInfo_;
   bool namespaced_ = false;
@@ -145,8 +163,11 @@ class SimulatorNode {
     std::unique_ptr<CommandValidator> validator;
     ros::Subscriber dragSub, forceSub;
     ros::ServiceServer pinBoxSrv;
+    bool removed = false;  ///< taken out with ~remove_object: its handles are shut down
   };
-  std::vector<ObjectCommands> commands_;
+  std::deque<ObjectCommands> commands_;
+  /// the objects at start-up (the RViz mouse's handles, by index)
+  std::vector<std::string> startNames_;
   std::unique_ptr<ColliderTopics> colliders_;  ///< ~collider, ~contact_wrenches, ~colliders
 
   tf2_ros::Buffer tfBuffer_;
@@ -156,7 +177,7 @@ class SimulatorNode {
   std::unique_ptr<StatePublisher> publisher_;
   std::unique_ptr<ProblemReporter> reporter_;
   ros::Subscriber dragSub_, forceSub_;
-  ros::ServiceServer resetSrv_, releaseAllSrv_, pinBoxSrv_;
+  ros::ServiceServer resetSrv_, releaseAllSrv_, pinBoxSrv_, addObjectSrv_, removeObjectSrv_;
   ros::Timer publishTimer_, stateTimer_;
   std::unique_ptr<ros::AsyncSpinner> stateSpinner_, commandSpinner_, serviceSpinner_, reconfigureSpinner_;
   std::unique_ptr<Reconfigure> reconfigure_;

@@ -26,6 +26,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <string>
 #include <utility>
@@ -42,9 +43,17 @@ class StatePublisher {
   /// @param[in] namespaced  each object's topics under ~objects/<name>/ (a node with ~objects);
   ///                        false: the single object's topics directly under ~
   StatePublisher(ros::NodeHandle& pnh, const NodeParams& params,
-                 const std::vector<SceneObject>& objects, bool namespaced,
+                 const std::deque<SceneObject>& objects, bool namespaced,
                  const CommandStats& stats);
   ~StatePublisher();
+
+  /// Advertises the topics of an object added at run time (~add_object), kept by reference like
+  /// the others. The snapshots are matched to the objects by name: until the object is in one,
+  /// nothing of it goes out.
+  void addObject(const SceneObject& object);
+  /// Unadvertises object `name`'s topics and deletes its ~mesh marker (a DELETE action); false
+  /// when there is no such object.
+  bool removeObject(const std::string& name, const ros::Time& stamp);
 
   /// Each object's frame on tf: ~frame_id -> the object's name (~object_frame_id for the
   /// single object).
@@ -64,6 +73,10 @@ class StatePublisher {
 
  private:
   class ObjectTopics;
+  /// Calls `each(topics, snapshot object)` for every object of ours in `s`, in order (the
+  /// World's order, which is also the order the objects were added in, are ours).
+  template <class Each>
+  void forEachObject(const Snapshot& s, Each&& each);
   /// The whole-scene or one object's state message (mass and particles of `lattices`).
   void fillState(const LoopDiagnostics& d, const ros::Time& stamp, double mass,
                  std::size_t particles, std::size_t colliders, std::uint64_t colliderFrameMisses,
@@ -71,7 +84,12 @@ class StatePublisher {
 
   const NodeParams& params_;
   const CommandStats& stats_;
+  ros::NodeHandle pnh_;
+  bool namespaced_ = false;
   std::vector<std::unique_ptr<ObjectTopics>> objects_;
+  /// objects advertised so far (removed ones included): the next one's colour and marker id
+  std::size_t advertised_ = 0;
+  ros::Publisher meshPub_;  ///< ~mesh, for the DELETE of a removed object's marker
   double totalMass_ = 0.0;
   std::size_t totalParticles_ = 0;
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "deformable_flsm/core/collider.h"
+#include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/solver_params.h"
 
 #include <Eigen/Core>
@@ -144,17 +145,34 @@ struct RemoveColliderCommand {
   std::string id;
 };
 
+/// Add deformable object `name` to the running scene. Its lattice (already placed where the
+/// object starts) and parameters are built off the simulation thread (prepareObject() in
+/// scene.h), so that loading and voxelizing a mesh never holds up a step; the loop only makes
+/// its solver. Refused when the name is taken or the object starts inside another.
+struct AddObjectCommand {
+  std::string name;
+  std::shared_ptr<const Lattice> lattice;
+  /// the world's time step and sub-steps, the object's material and regions
+  SolverParams params;
+};
+/// Remove object `name` with its drags, forces and pins; refused for an unknown name and for
+/// the last object (a scene has at least one).
+struct RemoveObjectCommand {
+  std::string name;
+};
+
 using CommandBody = std::variant<GrabCommand, AttachCommand, MoveCommand, ReleaseCommand,
                                  ApplyForceCommand, ResetCommand, ReleaseAllCommand, PinBoxCommand,
                                  ParamsCommand, SetColliderCommand, MoveColliderCommand,
-                                 RemoveColliderCommand>;
+                                 RemoveColliderCommand, AddObjectCommand, RemoveObjectCommand>;
 
 /// A command and, optionally, the promise its outcome is delivered to.
 struct Command {
   CommandBody body;
   OutcomePromise outcome;
-  /// the object it addresses (World's name); "" = the first object. Colliders, reset and
-  /// release-all concern every object.
+  /// the object it addresses (World's name); "" = the first object. Colliders, reset,
+  /// release-all and adding or removing an object concern the scene (their body names the
+  /// object).
   std::string object;
 };
 

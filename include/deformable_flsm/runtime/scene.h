@@ -115,6 +115,24 @@ using MeshLoader = std::function<TriMesh(const NodeParams&)>;
 WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& objects,
                       const MeshLoader& loadMesh);
 
+/// An object built for a scene that is already running, off the simulation thread: what renders
+/// it (SceneObject) and the solver parameters the simulation loop adds it with
+/// (AddObjectCommand{object.name, object.lattice, solverParams}).
+struct PreparedObject {
+  SceneObject object;
+  SolverParams solverParams;
+};
+
+/// Builds object `spec` for a running scene: loads its mesh (scaled, turned by mesh_rpy), places
+/// it at its pose, chooses its lattice, regions and render mesh as buildWorld() does. ~pinned
+/// boxes pin at start-up only: the object comes free (its pin_box service pins it). Whether it
+/// starts inside another object is the World's to say when it is added.
+/// @param[in] spec      the object (parseObjectEntry() in ros/object_params.h), validated
+/// @param[in] loadMesh  as for buildWorld()
+/// @throws ParamError naming the object and what to change (a mesh that cannot be loaded, a
+///         lattice or solver that cannot be built)
+PreparedObject prepareObject(const ObjectSpec& spec, const MeshLoader& loadMesh);
+
 /// The single object of a node without ~objects: a World of one object named
 /// ~object_frame_id holding the built scene's solver at rest (lattice, parameters, pins,
 /// colliders).

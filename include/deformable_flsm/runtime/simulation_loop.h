@@ -190,12 +190,17 @@ class SimulationLoop {
   /// Why the last reset of a blown-up state happened (empty before the first), from any thread.
   std::string lastResetCause() const;
   /// Object `object`'s (index in objectNames()) current centre of mass (m), for range checks
-  /// from any thread.
+  /// from any thread; its last one once it was removed.
   Eigen::Vector3d centerOfMass(std::size_t object = 0) const;
+  /// Object `name`'s current centre of mass (m), from any thread; its last one once it was
+  /// removed, the origin for a name the scene never had.
+  Eigen::Vector3d centerOfMass(const std::string& name) const;
 
-  /// the objects' names at start (World::objectNames()), their lattices (immutable)
-  const std::vector<std::string>& objectNames() const { return names_; }
-  const Lattice& lattice(std::size_t object = 0) const { return *lattices_[object]; }
+  /// the objects' names at start (World::objectNames()), their lattices (immutable; valid while
+  /// the object is in the scene). Objects added and removed at run time (AddObjectCommand,
+  /// RemoveObjectCommand) show in the snapshots (Snapshot::objects), not here.
+  const std::vector<std::string>& objectNames() const { return startNames_; }
+  const Lattice& lattice(std::size_t object = 0) const { return *startLattices_[object]; }
 
  private:
   void run();
@@ -212,6 +217,12 @@ class SimulationLoop {
   CommandOutcome setCollider(const SetColliderCommand& c);
   CommandOutcome moveCollider(const MoveColliderCommand& c);
   CommandOutcome removeCollider(const RemoveColliderCommand& c);
+  CommandOutcome addObject(const AddObjectCommand& c);
+  CommandOutcome removeObject(const RemoveObjectCommand& c);
+  /// Object `k`'s entries in the per-object lists below, for a new object (at the end) or one
+  /// that goes.
+  void trackObject(const std::string& name);
+  void untrackObject(std::size_t k);
   /// Before a step of dt: puts followed colliders at their newest sampled pose (or moves them on
   /// along the sampled velocity), adding those seen for the first time.
   void followColliders(double dt);
@@ -237,8 +248,11 @@ class SimulationLoop {
   void writeObject(const Solver& solver, std::size_t k, ObjectSnapshot& o);
 
   std::unique_ptr<World> world_;
-  /// the objects at start: names, solvers, lattices (immutable, any thread may read them) and
-  /// rest centres of mass, in the World's order
+  /// the objects at start and their lattices, for objectNames() and lattice() (any thread)
+  std::vector<std::string> startNames_;
+  std::vector<const Lattice*> startLattices_;
+  /// the objects now (the simulation thread's): names, solvers, lattices and rest centres of
+  /// mass, in the World's order
   std::vector<std::string> names_;
   std::vector<Solver*> solvers_;
   std::vector<const Lattice*> lattices_;
@@ -267,7 +281,8 @@ class SimulationLoop {
   std::string lastReset_;  ///< lastResetCause(), under snapshotMutex_
   /// commands applied since the last snapshot, by CommandBody alternative (for describeBlowUp())
   std::array<std::uint32_t, std::variant_size_v<CommandBody>> appliedKinds_{};
-  std::vector<Eigen::Vector3d> centerOfMass_;
+  /// each object's centre of mass in the newest snapshot, by name (under snapshotMutex_)
+  std::map<std::string, Eigen::Vector3d> centerOfMass_;
 
   // Followed colliders' motions, shared with setColliderMotion().
   std::mutex motionMutex_;
