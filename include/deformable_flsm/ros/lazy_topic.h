@@ -1,9 +1,11 @@
 /// @file lazy_topic.h
 /// A heavy topic that costs nothing while nobody listens: its message is built only while
 /// subscribed and once per simulation state; at rest it is either resent at the rate (the cached
-/// message with a new stamp) or sent once and then only to a new subscriber.
+/// message with a new stamp) or sent once and then only to a new subscriber. It never has more
+/// than PublishQueueBound::kTicks ticks of messages in roscpp's unbounded publish queue.
 #pragma once
 
+#include "deformable_flsm/ros/publish_queue_bound.h"
 #include "deformable_flsm/runtime/simulation_loop.h"
 
 #include <ros/advertise_options.h>
@@ -15,6 +17,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <utility>
 
@@ -34,12 +37,15 @@ class LazyTopic {
     options.template init<Msg>(name, queue, [this](const ros::SingleSubscriberPublisher&) { newSubscriber_ = true; });
     options.latch = false;
     pub_ = nh.advertise(options);
+    queueBound_ = PublishQueueBound::of(pub_, queue);
   }
 
   /// true when the topic has subscribers and snapshot `s` should be sent now; false leaves it
   /// alone. While the simulation runs: every tick. At rest: the final state once, then only to
   /// new subscribers (what they missed); the others already show it. `republishAtRest` keeps the
-  /// stream steady instead (the cached message goes out again with a new stamp).
+  /// stream steady instead (the cached message goes out again with a new stamp). Never while
+  /// roscpp's publish queue is full (PublishQueueBound): the tick is skipped, and the next one
+  /// sends the newest state.
   bool due(const Snapshot& s, bool republishAtRest) {
     return due(s.sequence, s.diag.idle, republishAtRest);
   }
@@ -47,6 +53,7 @@ class LazyTopic {
   /// rest when `resting` (one object of several: ObjectSnapshot::version).
   bool due(std::uint64_t sequence, bool resting, bool republishAtRest) {
     if (pub_.getNumSubscribers() == 0) return false;
+    if (queueBound_->full()) return false;
     const bool newSubscriber = newSubscriber_.exchange(false);
     return !resting || republishAtRest || publishedSequence_ != sequence || newSubscriber;
   }
@@ -68,6 +75,7 @@ class LazyTopic {
       builtSequence_ = sequence;
     }
     setStamp(msg, stamp);
+    queueBound_->publishing();
     pub_.publish(msg);
     publishedSequence_ = sequence;
   }
@@ -84,6 +92,7 @@ class LazyTopic {
   std::uint64_t builtSequence_ = 0;      ///< snapshot the cached message shows
   std::uint64_t publishedSequence_ = 0;  ///< snapshot last published
   std::atomic<bool> newSubscriber_{false};
+  std::shared_ptr<PublishQueueBound> queueBound_;  ///< shared by the topic's publishers
 };
 
 }  // namespace deformable_flsm
