@@ -9,6 +9,7 @@
 #include "deformable_flsm/runtime/simulation_loop.h"
 
 #include <ros/advertise_options.h>
+#include <ros/console.h>
 #include <ros/node_handle.h>
 #include <ros/publisher.h>
 #include <ros/single_subscriber_publisher.h>
@@ -53,9 +54,21 @@ class LazyTopic {
   /// rest when `resting` (one object of several: ObjectSnapshot::version).
   bool due(std::uint64_t sequence, bool resting, bool republishAtRest) {
     if (pub_.getNumSubscribers() == 0) return false;
-    if (queueBound_->full()) return false;
-    const bool newSubscriber = newSubscriber_.exchange(false);
-    return !resting || republishAtRest || publishedSequence_ != sequence || newSubscriber;
+    const bool wanted =
+        !resting || republishAtRest || publishedSequence_ != sequence || newSubscriber_.load();
+    if (!wanted) return false;
+    if (queueBound_->full()) {
+      ++skippedTicks_;
+      ROS_WARN_THROTTLE(kSkipWarnPeriod,
+                        "flsm_node: %s skipped a publish tick (%llu so far): roscpp's publish "
+                        "queue still holds %u of its messages, because roscpp's poll thread "
+                        "waits for a CPU (a busy machine); the next tick sends the newest state",
+                        pub_.getTopic().c_str(), static_cast<unsigned long long>(skippedTicks_),
+                        queueBound_->capacity());
+      return false;
+    }
+    newSubscriber_ = false;  // the publish that follows reaches the new subscriber too
+    return true;
   }
 
   /// Whether the cached message shows another snapshot than `s` (build() would run).
@@ -88,11 +101,14 @@ class LazyTopic {
   static void setStamp(visualization_msgs::MarkerArray& msg, const ros::Time& stamp) {
     for (auto& m : msg.markers) m.header.stamp = stamp;
   }
+  static constexpr double kSkipWarnPeriod = 10.0;  ///< s between two warnings of a topic's skips
+
   ros::Publisher pub_;
   std::uint64_t builtSequence_ = 0;      ///< snapshot the cached message shows
   std::uint64_t publishedSequence_ = 0;  ///< snapshot last published
   std::atomic<bool> newSubscriber_{false};
   std::shared_ptr<PublishQueueBound> queueBound_;  ///< shared by the topic's publishers
+  std::uint64_t skippedTicks_ = 0;  ///< ticks skipped while the publish queue was full
 };
 
 }  // namespace deformable_flsm
