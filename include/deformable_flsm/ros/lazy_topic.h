@@ -5,7 +5,6 @@
 /// than PublishQueueBound::kTicks ticks of messages in roscpp's unbounded publish queue.
 #pragma once
 
-#include "deformable_flsm/ros/preserialized.h"
 #include "deformable_flsm/ros/publish_queue_bound.h"
 #include "deformable_flsm/runtime/simulation_loop.h"
 
@@ -22,7 +21,6 @@
 #include <memory>
 #include <string>
 #include <utility>
-#include <vector>
 
 namespace deformable_flsm {
 
@@ -78,7 +76,7 @@ class LazyTopic {
   bool stale(std::uint64_t sequence) const { return builtSequence_ != sequence; }
 
   /// Publishes `msg` for snapshot `s`, stamped `stamp`: build(msg) first when the cached message
-  /// shows another snapshot. Serialized here, outside roscpp's publish lock (PreSerialized).
+  /// shows another snapshot.
   template <typename Msg, typename Build>
   void publish(const Snapshot& s, const ros::Time& stamp, Msg& msg, Build&& build) {
     publish(s.sequence, stamp, msg, std::forward<Build>(build));
@@ -90,9 +88,8 @@ class LazyTopic {
       builtSequence_ = sequence;
     }
     setStamp(msg, stamp);
-    const auto serialized = PreSerialized<Msg>::serialize(msg, bytes_);
     queueBound_->publishing();
-    pub_.publish(serialized);
+    pub_.publish(msg);
     publishedSequence_ = sequence;
   }
 
@@ -112,7 +109,6 @@ class LazyTopic {
   std::atomic<bool> newSubscriber_{false};
   std::shared_ptr<PublishQueueBound> queueBound_;  ///< shared by the topic's publishers
   std::uint64_t skippedTicks_ = 0;  ///< ticks skipped while the publish queue was full
-  std::vector<std::uint8_t> bytes_;  ///< the last message published, serialized
 };
 
 }  // namespace deformable_flsm
