@@ -59,7 +59,10 @@ class UnsentCount {
 /// The capacity is counted in publish ticks, not one message: the poll thread is woken by each
 /// publish (TopicManager::publish() signals the poll set) but may run a few milliseconds later,
 /// and a tick skipped because the last message had not left yet would cost the topic its rate
-/// on an idle machine.
+/// on an idle machine. Two ticks lose no message a subscriber would have received: of the
+/// messages one poll round hands on to a subscriber whose outgoing queue holds one
+/// (TransportSubscriberLink::enqueueMessage() drops the oldest), at most two reach it, the
+/// first (written at once when the link is idle) and the last (left in the queue).
 class PublishQueueBound {
  public:
   /// Ticks of messages the publish queue may hold for one topic.
