@@ -34,6 +34,9 @@ PublishQueueBound::PublishQueueBound(ros::PublicationPtr publication, std::uint3
       count_(publication_->getSequence()) {}
 
 bool PublishQueueBound::full() {
+  // getSequence() reads, without roscpp's seq_mutex_, a 32-bit counter the poll thread writes
+  // under it; roscpp offers no locked read. An aligned 32-bit read is not torn, and a value read
+  // just before the poll thread's increment only holds the next publish back by one tick.
   std::lock_guard<std::mutex> lock(mutex_);
   return count_.unsent(publication_->getSequence()) >= capacity_;
 }

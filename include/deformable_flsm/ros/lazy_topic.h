@@ -101,7 +101,9 @@ class LazyTopic {
   static void setStamp(visualization_msgs::MarkerArray& msg, const ros::Time& stamp) {
     for (auto& m : msg.markers) m.header.stamp = stamp;
   }
-  static constexpr double kSkipWarnPeriod = 10.0;  ///< s between two warnings of a topic's skips
+  /// s between two warnings of skipped ticks (one throttle for every heavy topic: the warning
+  /// names the topic and its count)
+  static constexpr double kSkipWarnPeriod = 10.0;
 
   ros::Publisher pub_;
   std::uint64_t builtSequence_ = 0;      ///< snapshot the cached message shows
