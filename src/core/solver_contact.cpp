@@ -123,6 +123,27 @@ void Solver::beginContactStep() {
 //     set around the object, as large as it may be (a sphere of 1e9 m), pushes it out over
 //     sub-steps instead of throwing its particles to a surface however far, whence shape
 //     matching would pull them back at that distance over h.
+// A particle buried deeper than its radius r since before the sub-step (startDepth < -r) is in a
+// state no motion into the collider made: it gets no velocity response, and its push-out takes
+// it no farther than r beyond its goal g (this sub-step's shape-matching goal) along the normal.
+//   - No velocity response: deep inside a curved collider the normal turns within the
+//     particle's path (it flips across a sphere's centre), and stopping the "approach" along it
+//     is a one-sided filter on the velocity that removes a different component every sub-step.
+//     With shape matching's overshoot (alpha > 1 moves a particle past its goal) that filter
+//     does not only take energy out: a particle near a buried collider's centre, between pinned
+//     or hard-dragged neighbours, swung a little farther every few sub-steps until the state
+//     blew up. A buried particle has no surface to rest on; what it needs is to be moved out.
+//   - Push-out bounded by the goal: an object held inside a collider it cannot leave (pinned, or
+//     hard-dragged, inside a sphere of 1e9 m) would otherwise be pushed out by r every sub-step
+//     as long as the collider stays, its free part stretched away from what holds it without
+//     bound, and shape matching's pull-back (alpha |g - x| / h) grows with the stretch; released,
+//     the stretch snaps back at that speed. Bounded by the goal, the push-out deforms the
+//     material by at most about the particle's own size: the object leaves such a collider as
+//     far as it can go as a body (its goals move with it) and no farther by tearing. Where the
+//     pins and the collider disagree, the pins win and the particles stay buried, as a particle
+//     held by a pin inside a collider does.
+// A particle that touches a surface (shallower than r at the start) is pushed out by up to r
+// whatever its goal: a squeeze between two colliders deforms it, and it must not sink in.
 // The impulses m dv, and their moments about each collider's origin taken at the contact point
 // x* - r n, are summed per chunk, then over the chunks in order.
 // Pinned and hard-dragged particles are left alone: their motion is prescribed.
@@ -155,6 +176,8 @@ void Solver::contactPass(double h) {
   const std::size_t bodies = contactBodies_.size();
   const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + kContactChunk - 1) / kContactChunk);
   const auto& m = lattice_->masses();
+  // the goals of this sub-step's region pass (the implicit step's linearisation point)
+  const std::vector<Eigen::Vector3d>& goals = params_.integrator == Integrator::Implicit ? implicitGoal_ : goal_;
   // the thread count the governor gave this step (the sums do not depend on it)
   const int threads = singleSummer_ && activeSummer_ == singleSummer_.get() ? 1 : threads_;
 #pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
@@ -181,7 +204,7 @@ void Solver::contactPass(double h) {
       if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
       Eigen::Vector3d x = x_[i], v = v_[i];
       const Eigen::Vector3d start = x - h * v;  // where the sub-step began: x* = x + h v
-      bool touched = false;
+      bool touched = false, buried = false;
       for (int k = 0; k < nearCount; ++k) {
         const int a = near[k];
         const ContactBody& body = contactBodies_[a];
@@ -192,6 +215,11 @@ void Solver::contactPass(double h) {
         if (!(depth < 0.0)) continue;
         Eigen::Vector3d startNormal;
         const double startDepth = colliderDistance(c.shape, body.before, start, startNormal) - r;
+        // buried deeper than its radius since before the sub-step: no contact response (below)
+        if (startDepth < -r) {
+          touched = buried = true;
+          continue;
+        }
         const Eigen::Vector3d origin = body.now.translation();
         const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - origin);
         const Eigen::Vector3d dv = contactVelocityChange(depth, startDepth, normal, v, vc, h, c.staticFriction,
@@ -206,12 +234,16 @@ void Solver::contactPass(double h) {
         touched = true;
       }
       if (!touched) continue;
+      const Eigen::Vector3d& goal = goals[i];
       for (int k = 0; k < nearCount; ++k) {
         const ContactBody& body = contactBodies_[near[k]];
         if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
         Eigen::Vector3d normal;
         const double depth = colliderDistance(body.collider->shape, body.now, x, normal) - r;
-        if (depth < 0.0) x -= std::max(depth, -r) * normal;
+        if (!(depth < 0.0)) continue;
+        // at most r per sub-step; a buried particle no farther than r beyond its goal along the normal
+        const double most = buried ? std::min(r, std::max(0.0, r - normal.dot(x - goal))) : r;
+        x += std::min(-depth, most) * normal;
       }
       x_[i] = x;
       v_[i] = v;
