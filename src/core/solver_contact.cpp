@@ -17,6 +17,13 @@ namespace {
 /// added in order: the wrenches do not depend on how many threads share the chunks.
 constexpr std::size_t kContactChunk = 1024;
 
+/// A buried particle's normal "turned" within a sub-step when the cosine between its normals at
+/// the start and at the end is below this (more than 60 degrees: across a medial axis the normal
+/// flips, or jumps from one face to the next, 90 degrees on a box; a path along a surface turns
+/// it by its length over the curvature radius, a small angle for any particle that is near the
+/// surface rather than near the centre).
+constexpr double kTurnedNormal = 0.5;
+
 bool isRotation(const Eigen::Matrix3d& R) {
   return (R.transpose() * R).isIdentity(1e-6) && R.determinant() > 0.0;
 }
@@ -124,24 +131,33 @@ void Solver::beginContactStep() {
 //     sub-steps instead of throwing its particles to a surface however far, whence shape
 //     matching would pull them back at that distance over h.
 // A particle buried deeper than its radius r since before the sub-step (startDepth < -r) is in a
-// state no motion into the collider made: it gets no velocity response, and its push-out takes
-// it no farther than r beyond its goal g (this sub-step's shape-matching goal) along the normal.
-//   - No velocity response: deep inside a curved collider the normal turns within the
-//     particle's path (it flips across a sphere's centre), and stopping the "approach" along it
-//     is a one-sided filter on the velocity that removes a different component every sub-step.
-//     With shape matching's overshoot (alpha > 1 moves a particle past its goal) that filter
-//     does not only take energy out: a particle near a buried collider's centre, between pinned
-//     or hard-dragged neighbours, swung a little farther every few sub-steps until the state
-//     blew up. A buried particle has no surface to rest on; what it needs is to be moved out.
-//   - Push-out bounded by the goal: an object held inside a collider it cannot leave (pinned, or
-//     hard-dragged, inside a sphere of 1e9 m) would otherwise be pushed out by r every sub-step
-//     as long as the collider stays, its free part stretched away from what holds it without
-//     bound, and shape matching's pull-back (alpha |g - x| / h) grows with the stretch; released,
-//     the stretch snaps back at that speed. Bounded by the goal, the push-out deforms the
-//     material by at most about the particle's own size: the object leaves such a collider as
-//     far as it can go as a body (its goals move with it) and no farther by tearing. Where the
-//     pins and the collider disagree, the pins win and the particles stay buried, as a particle
-//     held by a pin inside a collider does.
+// state no motion into the collider made (a collider set, moved or reset onto it). Two cases of
+// it get a rule of their own; otherwise it is treated as above, which is what pushes an object
+// out of an indenter moved into it by more than r in one command and lets it rest there.
+//   - Its normal turned within the sub-step (startNormal . normal < kTurnedNormal: the particle
+//     crossed the collider's medial axis, a sphere's centre, a capsule's axis, a box's
+//     diagonal planes): no velocity response. "Stop the approach along the normal" means
+//     nothing where the normal is not one direction over the particle's path: it is a one-sided
+//     filter on the velocity that removes a different component every sub-step, and with shape
+//     matching's overshoot (alpha > 1 moves a particle past its goal) it does not only take
+//     energy out: a particle crossing a buried collider's centre, between pinned or
+//     hard-dragged neighbours, swung a little farther every few sub-steps until the state blew
+//     up. Such a particle has no surface near to rest on; what it needs is to be moved out.
+//     Where the normal stays put (an indenter pressed in, the particle under its surface), the
+//     approach is well defined and stopping it is what keeps shape matching from pulling the
+//     particle back in as fast as the push-out moves it out.
+//   - The object cannot leave (a pinned or hard-dragged particle holds it): the push-out takes
+//     the particle no farther than r beyond its goal g (this sub-step's shape-matching goal)
+//     along the normal. Unbounded, an object held inside a collider it cannot leave (a sphere of
+//     1e9 m) is pushed out by r every sub-step as long as the collider stays, its free part
+//     stretched away from what holds it without bound, and shape matching's pull-back
+//     (alpha |g - x| / h) grows with the stretch; released, the stretch snaps back at that
+//     speed. Bounded by the goal, the push-out deforms the material by at most about the
+//     particle's own size per sub-step beyond what its regions follow: the particles leave as
+//     far as the held body lets its goals go, and no farther by tearing. Where the pins and the
+//     collider disagree, the pins win and the particles stay buried, as a pinned particle
+//     inside a collider does. A free object is pushed out at r per sub-step as a body: its
+//     goals move with it, and nothing stretches.
 // A particle that touches a surface (shallower than r at the start) is pushed out by up to r
 // whatever its goal: a squeeze between two colliders deforms it, and it must not sink in.
 // The impulses m dv, and their moments about each collider's origin taken at the contact point
@@ -178,6 +194,9 @@ void Solver::contactPass(double h) {
   const auto& m = lattice_->masses();
   // the goals of this sub-step's region pass (the implicit step's linearisation point)
   const std::vector<Eigen::Vector3d>& goals = params_.integrator == Integrator::Implicit ? implicitGoal_ : goal_;
+  // held: a pinned or hard-dragged particle keeps the object from leaving a collider as a body
+  bool held = pinnedCount_ > 0;
+  for (const auto& entry : drags_) held = held || entry.second.stiffness <= 0.0;
   // the thread count the governor gave this step (the sums do not depend on it)
   const int threads = singleSummer_ && activeSummer_ == singleSummer_.get() ? 1 : threads_;
 #pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
@@ -215,10 +234,13 @@ void Solver::contactPass(double h) {
         if (!(depth < 0.0)) continue;
         Eigen::Vector3d startNormal;
         const double startDepth = colliderDistance(c.shape, body.before, start, startNormal) - r;
-        // buried deeper than its radius since before the sub-step: no contact response (below)
+        // buried deeper than its radius since before the sub-step (above)
         if (startDepth < -r) {
-          touched = buried = true;
-          continue;
+          buried = true;
+          if (held || startNormal.dot(normal) < kTurnedNormal) {  // no velocity response (above)
+            touched = true;
+            continue;
+          }
         }
         const Eigen::Vector3d origin = body.now.translation();
         const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - origin);
@@ -241,8 +263,8 @@ void Solver::contactPass(double h) {
         Eigen::Vector3d normal;
         const double depth = colliderDistance(body.collider->shape, body.now, x, normal) - r;
         if (!(depth < 0.0)) continue;
-        // at most r per sub-step; a buried particle no farther than r beyond its goal along the normal
-        const double most = buried ? std::min(r, std::max(0.0, r - normal.dot(x - goal))) : r;
+        // at most r per sub-step; a buried particle of a held object no farther than r beyond its goal
+        const double most = buried && held ? std::min(r, std::max(0.0, r - normal.dot(x - goal))) : r;
         x += std::min(-depth, most) * normal;
       }
       x_[i] = x;
