@@ -132,8 +132,9 @@ void Solver::beginContactStep() {
 //     matching would pull them back at that distance over h.
 // A particle buried deeper than its radius r since before the sub-step (startDepth < -r) is in a
 // state no motion into the collider made (a collider set, moved or reset onto it). Two cases of
-// it get a rule of their own; otherwise it is treated as above, which is what pushes an object
-// out of an indenter moved into it by more than r in one command and lets it rest there.
+// it get a rule of their own; otherwise it is treated as above (its approach stopped, pushed out
+// by up to r), which is what pushes a free object out of an indenter moved into it by more than
+// r in one command and lets it rest there.
 //   - Its normal turned within the sub-step (startNormal . normal < kTurnedNormal: the particle
 //     crossed the collider's medial axis, a sphere's centre, a capsule's axis, a box's
 //     diagonal planes): no velocity response. "Stop the approach along the normal" means
@@ -141,20 +142,24 @@ void Solver::beginContactStep() {
 //     filter on the velocity that removes a different component every sub-step, and with shape
 //     matching's overshoot (alpha > 1 moves a particle past its goal) it does not only take
 //     energy out: a particle crossing a buried collider's centre, between pinned or
-//     hard-dragged neighbours, swung a little farther every few sub-steps until the state blew
+//     hard-dragged neighbours, swings a little farther every few sub-steps until the state blows
 //     up. Such a particle has no surface near to rest on; what it needs is to be moved out.
 //     Where the normal stays put (an indenter pressed in, the particle under its surface), the
 //     approach is well defined and stopping it is what keeps shape matching from pulling the
 //     particle back in as fast as the push-out moves it out.
-//   - The object cannot leave (a pinned or hard-dragged particle holds it): the push-out takes
-//     the particle no farther than r beyond its goal g (this sub-step's shape-matching goal)
-//     along the normal. Unbounded, an object held inside a collider it cannot leave (a sphere of
-//     1e9 m) is pushed out by r every sub-step as long as the collider stays, its free part
-//     stretched away from what holds it without bound, and shape matching's pull-back
-//     (alpha |g - x| / h) grows with the stretch; released, the stretch snaps back at that
-//     speed. Bounded by the goal, the push-out deforms the material by at most about the
-//     particle's own size per sub-step beyond what its regions follow: the particles leave as
-//     far as the held body lets its goals go, and no farther by tearing. Where the pins and the
+//   - The object cannot leave (a pinned or hard-dragged particle holds it): no velocity
+//     response either, and the push-out takes the particle no farther than r beyond its goal g
+//     (this sub-step's shape-matching goal) along the normal. Unbounded, an object held inside a
+//     collider it cannot leave (a sphere of 1e9 m) is pushed out by r every sub-step as long as
+//     the collider stays, its free part stretched away from what holds it without bound, and
+//     shape matching's pull-back (alpha |g - x| / h) grows with the stretch; released, the
+//     stretch snaps back at that speed. Bounded by the goal, the push-out deforms the material
+//     by at most about the particle's own size per sub-step beyond what its regions follow: the
+//     particles leave as far as the held body lets its goals go, and no farther by tearing.
+//     Stopping only the inward motion of such a particle would be a ratchet: shape matching's
+//     pull back towards the held part is stopped, its overshoot outwards let through, so the
+//     free part is pumped away from the pins against the material (with hard drags yanking it,
+//     until the state blows up, even where the normal stays put). Where the pins and the
 //     collider disagree, the pins win and the particles stay buried, as a pinned particle
 //     inside a collider does. A free object is pushed out at r per sub-step as a body: its
 //     goals move with it, and nothing stretches.
