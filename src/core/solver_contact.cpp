@@ -133,8 +133,8 @@ void Solver::beginContactStep() {
 // A particle buried deeper than its radius r since before the sub-step (startDepth < -r) is in a
 // state no motion into the collider made (a collider set, moved or reset onto it). Two cases of
 // it get a rule of their own; otherwise it is treated as above (its approach stopped, pushed out
-// by up to r), which is what pushes a free object out of an indenter moved into it by more than
-// r in one command and lets it rest there.
+// by up to r), which is what pushes an object out of an indenter moved into it by more than r in
+// one command and lets it rest there.
 //   - Its normal turned within the sub-step (startNormal . normal < kTurnedNormal: the particle
 //     crossed the collider's medial axis, a sphere's centre, a capsule's axis, a box's
 //     diagonal planes): no velocity response. "Stop the approach along the normal" means
@@ -147,9 +147,12 @@ void Solver::beginContactStep() {
 //     Where the normal stays put (an indenter pressed in, the particle under its surface), the
 //     approach is well defined and stopping it is what keeps shape matching from pulling the
 //     particle back in as fast as the push-out moves it out.
-//   - The object cannot leave (a pinned or hard-dragged particle holds it): no velocity
-//     response either, and the push-out takes the particle no farther than r beyond its goal g
-//     (this sub-step's shape-matching goal) along the normal. Unbounded, an object held inside a
+//   - The object cannot leave: a pinned or hard-dragged particle holds it, and the particle's
+//     centre is deeper than the object's size L (Lattice::objectSize()) in the collider. A
+//     signed distance changes by at most the distance moved, and every particle is within L of
+//     this one, so the whole object is inside the collider, pins included. Then: no velocity
+//     response, and the push-out takes the particle no farther than r beyond its goal g (this
+//     sub-step's shape-matching goal) along the normal. Unbounded, an object held inside a
 //     collider it cannot leave (a sphere of 1e9 m) is pushed out by r every sub-step as long as
 //     the collider stays, its free part stretched away from what holds it without bound, and
 //     shape matching's pull-back (alpha |g - x| / h) grows with the stretch; released, the
@@ -161,8 +164,10 @@ void Solver::beginContactStep() {
 //     free part is pumped away from the pins against the material (with hard drags yanking it,
 //     until the state blows up, even where the normal stays put). Where the pins and the
 //     collider disagree, the pins win and the particles stay buried, as a pinned particle
-//     inside a collider does. A free object is pushed out at r per sub-step as a body: its
-//     goals move with it, and nothing stretches.
+//     inside a collider does. Shallower, part of the object is outside: pushing the buried
+//     part out deforms the object by at most about L, as an indenter pressed into a pinned
+//     object does, and it is pushed out as a free object is. A free object is pushed out at r
+//     per sub-step as a body: its goals move with it, and nothing stretches.
 // A particle that touches a surface (shallower than r at the start) is pushed out by up to r
 // whatever its goal: a squeeze between two colliders deforms it, and it must not sink in.
 // The impulses m dv, and their moments about each collider's origin taken at the contact point
@@ -199,9 +204,11 @@ void Solver::contactPass(double h) {
   const auto& m = lattice_->masses();
   // the goals of this sub-step's region pass (the implicit step's linearisation point)
   const std::vector<Eigen::Vector3d>& goals = params_.integrator == Integrator::Implicit ? implicitGoal_ : goal_;
-  // held: a pinned or hard-dragged particle keeps the object from leaving a collider as a body
+  // held: a pinned or hard-dragged particle keeps the object from leaving a collider as a body;
+  // it cannot leave one whose surface is farther than its size from a particle (above)
   bool held = pinnedCount_ > 0;
   for (const auto& entry : drags_) held = held || entry.second.stiffness <= 0.0;
+  const double enclosed = -lattice_->objectSize() - r;  // a depth phi - r below which all the object is inside
   // the thread count the governor gave this step (the sums do not depend on it)
   const int threads = singleSummer_ && activeSummer_ == singleSummer_.get() ? 1 : threads_;
 #pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
@@ -242,7 +249,7 @@ void Solver::contactPass(double h) {
         // buried deeper than its radius since before the sub-step (above)
         if (startDepth < -r) {
           buried = true;
-          if (held || startNormal.dot(normal) < kTurnedNormal) {  // no velocity response (above)
+          if ((held && depth < enclosed) || startNormal.dot(normal) < kTurnedNormal) {  // no velocity response (above)
             touched = true;
             continue;
           }
@@ -268,8 +275,10 @@ void Solver::contactPass(double h) {
         Eigen::Vector3d normal;
         const double depth = colliderDistance(body.collider->shape, body.now, x, normal) - r;
         if (!(depth < 0.0)) continue;
-        // at most r per sub-step; a buried particle of a held object no farther than r beyond its goal
-        const double most = buried && held ? std::min(r, std::max(0.0, r - normal.dot(x - goal))) : r;
+        // at most r per sub-step; a buried particle of a held object all inside the collider no
+        // farther than r beyond its goal
+        const double most =
+            buried && held && depth < enclosed ? std::min(r, std::max(0.0, r - normal.dot(x - goal))) : r;
         x += std::min(-depth, most) * normal;
       }
       x_[i] = x;
