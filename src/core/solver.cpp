@@ -121,6 +121,7 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
   pinPosition_ = x0;
   impulseDv_.assign(n, Eigen::Vector3d::Zero());
   forceAccel_.assign(n, Eigen::Vector3d::Zero());
+  goal_.assign(n, Eigen::Vector3d::Zero());
 }
 
 void Solver::setParams(const SolverParams& params) {
@@ -382,6 +383,7 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
     }
     // v <- v_obj + keep (v - v_obj) + alpha s_i (g - x) / h + h (gravity + f / m) + kd (v_rigid - v);
     // x <- x + h v
+    goal_[i] = g;  // the contact pass bounds its push-out by it
     // (a pinned or hard-dragged particle is left to finishSubstep())
     if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
     Eigen::Vector3d a = params_.gravity;

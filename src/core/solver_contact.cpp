@@ -17,6 +17,13 @@ namespace {
 /// added in order: the wrenches do not depend on how many threads share the chunks.
 constexpr std::size_t kContactChunk = 1024;
 
+/// A buried particle's normal "turned" within a sub-step when the cosine between its normals at
+/// the start and at the end is below this (more than 60 degrees: across a medial axis the normal
+/// flips, or jumps from one face to the next, 90 degrees on a box; a path along a surface turns
+/// it by its length over the curvature radius, a small angle for any particle that is near the
+/// surface rather than near the centre).
+constexpr double kTurnedNormal = 0.5;
+
 bool isRotation(const Eigen::Matrix3d& R) {
   return (R.transpose() * R).isIdentity(1e-6) && R.determinant() > 0.0;
 }
@@ -123,6 +130,46 @@ void Solver::beginContactStep() {
 //     set around the object, as large as it may be (a sphere of 1e9 m), pushes it out over
 //     sub-steps instead of throwing its particles to a surface however far, whence shape
 //     matching would pull them back at that distance over h.
+// A particle buried deeper than its radius r since before the sub-step (startDepth < -r) is in a
+// state no motion into the collider made (a collider set, moved or reset onto it). Two cases of
+// it get a rule of their own; otherwise it is treated as above (its approach stopped, pushed out
+// by up to r), which is what pushes an object out of an indenter moved into it by more than r in
+// one command and lets it rest there.
+//   - Its normal turned within the sub-step (startNormal . normal < kTurnedNormal: the particle
+//     crossed the collider's medial axis, a sphere's centre, a capsule's axis, a box's
+//     diagonal planes): no velocity response. "Stop the approach along the normal" means
+//     nothing where the normal is not one direction over the particle's path: it is a one-sided
+//     filter on the velocity that removes a different component every sub-step, and with shape
+//     matching's overshoot (alpha > 1 moves a particle past its goal) it does not only take
+//     energy out: a particle crossing a buried collider's centre, between pinned or
+//     hard-dragged neighbours, swings a little farther every few sub-steps until the state blows
+//     up. Such a particle has no surface near to rest on; what it needs is to be moved out.
+//     Where the normal stays put (an indenter pressed in, the particle under its surface), the
+//     approach is well defined and stopping it is what keeps shape matching from pulling the
+//     particle back in as fast as the push-out moves it out.
+//   - The object cannot leave: a pinned or hard-dragged particle holds it, and the particle's
+//     centre is deeper than the object's size L (Lattice::objectSize()) in the collider. A
+//     signed distance changes by at most the distance moved, and every particle is within L of
+//     this one, so the whole object is inside the collider, pins included. Then: no velocity
+//     response, and the push-out takes the particle no farther than r beyond its goal g (this
+//     sub-step's shape-matching goal) along the normal. Unbounded, an object held inside a
+//     collider it cannot leave (a sphere of 1e9 m) is pushed out by r every sub-step as long as
+//     the collider stays, its free part stretched away from what holds it without bound, and
+//     shape matching's pull-back (alpha |g - x| / h) grows with the stretch; released, the
+//     stretch snaps back at that speed. Bounded by the goal, the push-out deforms the material
+//     by at most about the particle's own size per sub-step beyond what its regions follow: the
+//     particles leave as far as the held body lets its goals go, and no farther by tearing.
+//     Stopping only the inward motion of such a particle would be a ratchet: shape matching's
+//     pull back towards the held part is stopped, its overshoot outwards let through, so the
+//     free part is pumped away from the pins against the material (with hard drags yanking it,
+//     until the state blows up, even where the normal stays put). Where the pins and the
+//     collider disagree, the pins win and the particles stay buried, as a pinned particle
+//     inside a collider does. Shallower, part of the object is outside: pushing the buried
+//     part out deforms the object by at most about L, as an indenter pressed into a pinned
+//     object does, and it is pushed out as a free object is. A free object is pushed out at r
+//     per sub-step as a body: its goals move with it, and nothing stretches.
+// A particle that touches a surface (shallower than r at the start) is pushed out by up to r
+// whatever its goal: a squeeze between two colliders deforms it, and it must not sink in.
 // The impulses m dv, and their moments about each collider's origin taken at the contact point
 // x* - r n, are summed per chunk, then over the chunks in order.
 // Pinned and hard-dragged particles are left alone: their motion is prescribed.
@@ -155,6 +202,13 @@ void Solver::contactPass(double h) {
   const std::size_t bodies = contactBodies_.size();
   const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + kContactChunk - 1) / kContactChunk);
   const auto& m = lattice_->masses();
+  // the goals of this sub-step's region pass (the implicit step's linearisation point)
+  const std::vector<Eigen::Vector3d>& goals = params_.integrator == Integrator::Implicit ? implicitGoal_ : goal_;
+  // held: a pinned or hard-dragged particle keeps the object from leaving a collider as a body;
+  // it cannot leave one whose surface is farther than its size from a particle (above)
+  bool held = pinnedCount_ > 0;
+  for (const auto& entry : drags_) held = held || entry.second.stiffness <= 0.0;
+  const double enclosed = -lattice_->objectSize() - r;  // a depth phi - r below which all the object is inside
   // the thread count the governor gave this step (the sums do not depend on it)
   const int threads = singleSummer_ && activeSummer_ == singleSummer_.get() ? 1 : threads_;
 #pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
@@ -181,7 +235,7 @@ void Solver::contactPass(double h) {
       if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
       Eigen::Vector3d x = x_[i], v = v_[i];
       const Eigen::Vector3d start = x - h * v;  // where the sub-step began: x* = x + h v
-      bool touched = false;
+      bool touched = false, buried = false;
       for (int k = 0; k < nearCount; ++k) {
         const int a = near[k];
         const ContactBody& body = contactBodies_[a];
@@ -192,6 +246,14 @@ void Solver::contactPass(double h) {
         if (!(depth < 0.0)) continue;
         Eigen::Vector3d startNormal;
         const double startDepth = colliderDistance(c.shape, body.before, start, startNormal) - r;
+        // buried deeper than its radius since before the sub-step (above)
+        if (startDepth < -r) {
+          buried = true;
+          if ((held && depth < enclosed) || startNormal.dot(normal) < kTurnedNormal) {  // no velocity response (above)
+            touched = true;
+            continue;
+          }
+        }
         const Eigen::Vector3d origin = body.now.translation();
         const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - origin);
         const Eigen::Vector3d dv = contactVelocityChange(depth, startDepth, normal, v, vc, h, c.staticFriction,
@@ -206,12 +268,18 @@ void Solver::contactPass(double h) {
         touched = true;
       }
       if (!touched) continue;
+      const Eigen::Vector3d& goal = goals[i];
       for (int k = 0; k < nearCount; ++k) {
         const ContactBody& body = contactBodies_[near[k]];
         if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
         Eigen::Vector3d normal;
         const double depth = colliderDistance(body.collider->shape, body.now, x, normal) - r;
-        if (depth < 0.0) x -= std::max(depth, -r) * normal;
+        if (!(depth < 0.0)) continue;
+        // at most r per sub-step; a buried particle of a held object all inside the collider no
+        // farther than r beyond its goal
+        const double most =
+            buried && held && depth < enclosed ? std::min(r, std::max(0.0, r - normal.dot(x - goal))) : r;
+        x += std::min(-depth, most) * normal;
       }
       x_[i] = x;
       v_[i] = v;

@@ -6,6 +6,8 @@
 
 #include "deformable_flsm/core/embedding.h"
 #include "deformable_flsm/core/mesh.h"
+#include "deformable_flsm/core/resolution.h"
+#include "deformable_flsm/core/section.h"
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/voxelizer.h"
 #include "fixtures.h"
@@ -16,6 +18,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <random>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 using namespace deformable_flsm;
@@ -431,6 +436,203 @@ TEST(Contact, AHalfPinnedObjectInsideAGiantSphereAndBelowAPlaneStaysBounded) {
   EXPECT_LE(last, 2.0 * second);
 }
 
+namespace {
+
+/// The node's default object: the bunny at its particle budget of 2500 (2472 particles, w = 1
+/// across the ears' section), so that E 1e7 Pa saturates alpha at the explicit step's cap.
+struct NodeBunny {
+  std::shared_ptr<const Lattice> lattice;
+  SolverParams params;
+};
+
+NodeBunny nodeBunny() {
+  NodeBunny b;
+  const ResolutionChoice c = finestResolutionWithin(zUpBunny(), 2500);
+  const int w = regionHalfWidthForSection(measureSectionThickness(c.voxels).thinnest, 5);
+  b.lattice = std::make_shared<const Lattice>(c.voxels, 1000.0, w);
+  b.params.regionHalfWidth = w;
+  b.params.youngsModulus = 1e7;
+  b.params.timeStep = 1.0 / 60.0;
+  b.params.substeps = 11;
+  return b;
+}
+
+/// Uniform in [-1, 1] from the generator's raw output (the same sequence with any library).
+double uniform(std::mt19937& rng) { return 2.0 * static_cast<double>(rng()) / 4294967295.0 - 1.0; }
+
+struct FloodFigures {
+  double topSpeed = 0.0;  // m/s, over the run
+  double farthest = 0.0;  // m, the farthest particle from rest at the end
+  double stretch = 0.0;   // m, the largest shapeError() (RMS distance from the best rigid fit)
+  int blownUpAt = -1;     // the step the guard's threshold (1e12 m or m/s) was passed
+};
+
+/// A scene of the soak's kind, drawn from a seed.
+struct FloodScene {
+  unsigned seed = 1;
+  bool pins = true;              // the part of the object on one side of its centre pinned
+  bool giant = true;             // a collider of 1e9 m around the object
+  ColliderType giantType = ColliderType::Sphere;
+  int planes = 0;                // tilted planes through the object's centre, 0 to 2
+  double youngsModulus = 1e7;    // Pa
+  double damping = 10.0, ambientDamping = 0.5;  // 1/s
+  double gravityZ = -9.81;       // m/s^2
+};
+
+/// The soak's scene in the core: the object with the ground below, a collider of 1e9 m centred
+/// within 0.1 m of the object's centre (every particle buried), planes, part of it pinned, and
+/// every 7 steps a drag of 1 or 7 particles (hard, or a spring of 50 N/m) to a target within
+/// reach of the centre of mass, released every 11 steps.
+FloodFigures flood(const NodeBunny& b, const FloodScene& scene, int steps) {
+  std::mt19937 rng(scene.seed);
+  SolverParams p = b.params;
+  p.youngsModulus = scene.youngsModulus;
+  p.damping = scene.damping;
+  p.ambientDamping = scene.ambientDamping;
+  p.gravity = Eigen::Vector3d(0, 0, scene.gravityZ);
+  Solver s(b.lattice, p);
+  s.setCollider("ground", groundBelow(s, 0.02));
+  const Eigen::Vector3d c = centreOfMass(s);
+  if (scene.pins)
+    s.pinBox(Eigen::Vector3d::Constant(-10.0), Eigen::Vector3d(c.x() + 0.02 * uniform(rng), 10.0, 10.0), true);
+  if (scene.giant) {
+    Collider giant;
+    giant.shape.type = scene.giantType;
+    giant.shape.radius = 1e9;
+    giant.shape.halfLength = 0.05;
+    giant.pose.translation() = c + 0.1 * Eigen::Vector3d(uniform(rng), uniform(rng), uniform(rng));
+    giant.staticFriction = 0.5;
+    giant.kineticFriction = 0.3;
+    s.setCollider("giant", giant);
+  }
+  for (int k = 0; k < scene.planes; ++k) {
+    Collider plane;
+    const Eigen::Vector3d axis = Eigen::Vector3d(uniform(rng), uniform(rng), uniform(rng)).normalized();
+    plane.pose = Eigen::Translation3d(c) * Eigen::AngleAxisd(M_PI * uniform(rng), axis);
+    plane.staticFriction = plane.kineticFriction = 0.5;
+    s.setCollider("plane" + std::to_string(k), plane);
+  }
+  FloodFigures f;
+  for (int i = 0; i < steps; ++i) {
+    if (i % 7 == 0) {
+      const Eigen::Vector3d com = centreOfMass(s);
+      const Eigen::Vector3d point = com + 0.12 * Eigen::Vector3d(uniform(rng), uniform(rng), uniform(rng));
+      const std::vector<std::uint32_t> particles =
+          rng() % 2 != 0 ? s.nearestParticles(point, 7)
+                         : std::vector<std::uint32_t>{static_cast<std::uint32_t>(rng() % s.positions().size())};
+      const Eigen::Vector3d target = com + 0.12 * Eigen::Vector3d(uniform(rng), uniform(rng), uniform(rng));
+      const double stiffness = rng() % 3 == 0 ? 50.0 : 0.0;
+      try {
+        s.grab("d", particles, target, stiffness);
+      } catch (const std::invalid_argument&) {  // a spring over the stability limit: refused
+      }
+    }
+    if (i % 11 == 0) s.release("d");
+    s.step();
+    const double v = maxSpeed(s);
+    f.topSpeed = std::max(f.topSpeed, v);
+    if (!allFinite(s) || !(v < 1e12) || !(s.maxDisplacement() < 1e12)) {
+      f.blownUpAt = i;
+      break;
+    }
+    if (i % 20 == 0) f.stretch = std::max(f.stretch, s.shapeError());
+  }
+  f.farthest = s.maxDisplacement();
+  return f;
+}
+
+/// The diagonal of the object's rest bounding box (m).
+double objectSize(const Solver& s) {
+  Eigen::Vector3d lo = s.positions()[0], hi = lo;
+  for (const auto& x : s.positions()) {
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  return (hi - lo).norm();
+}
+
+}  // namespace
+
+TEST(Contact, DragsOnAPinnedObjectBuriedInAGiantColliderStayBounded) {
+  // The soak's remaining blown-up states: the node's bunny, E 1e7 Pa (alpha at its cap, above 1),
+  // most of it pinned, buried in a sphere or capsule of 1e9 m, and drags grabbed and released.
+  // Near the collider's centre the outward normal turns within a sub-step's path, and stopping
+  // a buried particle's "approach" there (the contact velocity response) is a one-sided filter on
+  // its velocity that, with shape matching's overshoot at alpha > 1, pumped a drag's yank up a
+  // little every few sub-steps until the state passed 1e12. Bound: shape matching changes a
+  // particle's velocity by alpha (g - x) / h per sub-step, g - x at most the object's extent
+  // D, and the dampings take it out again over a few sub-steps: the speeds stay below
+  // alpha 2 D / h. D: pins hold one side and the hard drags' targets are within 0.21 m (0.7 L)
+  // of the centre of mass, so a particle pulled by them stays within about L of where its
+  // regions' shape puts it; the stretch (shapeError(), the RMS distance from the best rigid
+  // fit) stays below 2 L with room for the push-out's r per particle, and D = L + 2 L. Pushed
+  // out without bound (the free side away from the pins at r per sub-step) the stretch grows
+  // with the steps.
+  ASSERT_TRUE(std::filesystem::exists(kBunnyPath)) << kBunnyPath << " missing: install glmark2-data (a test dependency)";
+  const NodeBunny b = nodeBunny();
+  const Solver probe(b.lattice, b.params);
+  ASSERT_TRUE(probe.stiffnessSaturated());
+  ASSERT_GT(probe.alpha(), 1.0);
+  const double L = objectSize(probe);
+  const double speedBound = probe.alpha() * 2.0 * 3.0 * L / b.params.substepLength();
+  const struct {
+    unsigned seed;
+    ColliderType type;
+  } cases[] = {{1, ColliderType::Sphere}, {4, ColliderType::Sphere}, {2, ColliderType::Capsule}, {4, ColliderType::Capsule}};
+  for (const auto& c : cases) {
+    FloodScene scene;
+    scene.seed = c.seed;
+    scene.giantType = c.type;
+    const FloodFigures f = flood(b, scene, 600);
+    std::printf("[ buried  ] seed %u, %s: top speed %.3g m/s (bound %.3g), stretch %.3g m (bound %.3g), farthest "
+                "particle %.3g m%s\n", c.seed, toString(c.type), f.topSpeed, speedBound, f.stretch, 2.0 * L, f.farthest,
+                f.blownUpAt >= 0 ? (", BLOWN UP at step " + std::to_string(f.blownUpAt)).c_str() : "");
+    EXPECT_EQ(f.blownUpAt, -1) << "seed " << c.seed;
+    EXPECT_LT(f.topSpeed, speedBound) << "seed " << c.seed;
+    EXPECT_LT(f.stretch, 2.0 * L) << "seed " << c.seed;
+  }
+}
+
+TEST(Contact, RandomFloodScenesStayBoundedForTwoThousandSteps) {
+  // Scenes of the soak's kind drawn at random: pins on part of the object or none, a 1e9 m sphere
+  // or capsule around it or none, 0 to 2 planes through it, E 1e7 Pa (alpha at the cap) or
+  // 3e4 Pa, the soak's ranges of damping and gravity, drags grabbed and released, 2000 steps.
+  // The bounds of the test above: the stretch below 2 L, the speeds below alpha 2 (3 L) / h,
+  // never the guard's 1e12 m or m/s. A buried object that nothing holds leaves the collider as
+  // a body (at most r per sub-step), so its distance from rest is not bounded; its shape is.
+  ASSERT_TRUE(std::filesystem::exists(kBunnyPath)) << kBunnyPath << " missing: install glmark2-data (a test dependency)";
+  const NodeBunny b = nodeBunny();
+  const Solver probe(b.lattice, b.params);
+  const double L = objectSize(probe);
+  std::mt19937 draw(2026);
+  const int scenes = 8;
+  for (int k = 0; k < scenes; ++k) {
+    FloodScene scene;
+    scene.seed = draw();
+    scene.pins = draw() % 2 == 0;
+    scene.giant = draw() % 4 != 0;
+    scene.giantType = draw() % 2 == 0 ? ColliderType::Sphere : ColliderType::Capsule;
+    scene.planes = static_cast<int>(draw() % 3);
+    scene.youngsModulus = draw() % 3 == 0 ? 3e4 : 1e7;
+    scene.damping = 15.0 + 15.0 * uniform(draw);
+    scene.ambientDamping = 1.5 + 1.5 * uniform(draw);
+    scene.gravityZ = -7.5 + 12.5 * uniform(draw);
+    SolverParams p = b.params;
+    p.youngsModulus = scene.youngsModulus;
+    const Solver material(b.lattice, p);
+    const FloodFigures f = flood(b, scene, 2000);
+    const double speedBound = material.alpha() * 2.0 * 3.0 * L / p.substepLength();
+    std::printf("[ flood   ] scene %d: pins %d, giant %s, %d plane(s), E %.3g Pa, alpha %.2f: top speed %.3g m/s "
+                "(bound %.3g), stretch %.3g m (bound %.3g), farthest particle %.3g m%s\n",
+                k, scene.pins ? 1 : 0, scene.giant ? toString(scene.giantType) : "none", scene.planes,
+                scene.youngsModulus, material.alpha(), f.topSpeed, speedBound, f.stretch, 2.0 * L, f.farthest,
+                f.blownUpAt >= 0 ? (", BLOWN UP at step " + std::to_string(f.blownUpAt)).c_str() : "");
+    EXPECT_EQ(f.blownUpAt, -1) << "scene " << k;
+    EXPECT_LT(f.topSpeed, speedBound) << "scene " << k;
+    EXPECT_LT(f.stretch, 2.0 * L) << "scene " << k;
+  }
+}
+
 TEST(Contact, TurntableCarriesTheBlockByFriction) {
   // a ground spinning about its normal at 1 rad/s under a block centred on the axis: friction on
   // the velocity relative to the surface (omega x r) turns the block with it
@@ -710,6 +912,84 @@ TEST(ContactScene, SpherePressedIntoTheBunnyMeetsAGrowingReaction) {
     EXPECT_GT(force, previous) << "deeper, harder";
     previous = force;
     EXPECT_TRUE(allFinite(s));
+  }
+}
+
+TEST(ContactScene, IndenterMovedIntoTheBunnyInOneCommandPushesItOutAndItRests) {
+  // The node's default object and material (config/flsm.yaml at contact.test's particle budget)
+  // on the ground, free or with its bottom 3 cm pinned; a sphere set touching its back is then
+  // moved down in one command (a pose, no velocity) by 1 cm, then by 2 cm more, each time
+  // farther than the contact radius r: particle centres start the next sub-step inside the
+  // sphere (their spheres deeper than r). They must be pushed out: at r per sub-step a few
+  // sub-steps suffice, so after 3 steps (33 sub-steps) no particle centre is inside the sphere.
+  // And the object must settle under the indenter: within 30 s every particle slower than r per
+  // second for a whole second (the indentation moved centimetres in a fraction of a second;
+  // what is left is far below a particle's size per second), and the object pushes the sphere
+  // up. A buried particle that got no velocity response was pulled back in by shape matching as
+  // fast as the push-out moved it out; one of a pinned object pushed no farther than r beyond
+  // its goal stayed inside: the pins do not keep this object in the sphere, most of it is out.
+  ASSERT_TRUE(std::filesystem::exists(kBunnyPath)) << kBunnyPath << " missing: install glmark2-data (a test dependency)";
+  const ResolutionChoice choice = finestResolutionWithin(zUpBunny(), 2000);
+  const int w = regionHalfWidthForSection(measureSectionThickness(choice.voxels).thinnest, 5);
+  auto lattice = std::make_shared<const Lattice>(choice.voxels, 1000.0, w);
+  SolverParams p;
+  p.regionHalfWidth = w;
+  p.youngsModulus = 3e4;
+  p.timeStep = 1.0 / 60.0;
+  p.substeps = 11;
+  for (bool pinned : {false, true}) {
+    Solver s(lattice, p);
+    s.setCollider("ground", groundBelow(s, 0.02));
+    for (int i = 0; i < stepsFor(5.0, s); ++i) s.step();
+    if (pinned) {
+      const double z = lowestZ(s) + 0.03;
+      ASSERT_GT(s.pinBox(Eigen::Vector3d::Constant(-10.0), Eigen::Vector3d(10.0, 10.0, z), true), 0u);
+    }
+    const Eigen::Vector3d c = centreOfMass(s);
+    const double r = s.contactRadius(), R = 0.02;
+    double top = -1.0;
+    for (const auto& x : s.positions())
+      if ((x - c).head<2>().norm() < 0.02) top = std::max(top, x.z() + r);
+    Collider ball;
+    ball.shape.type = ColliderType::Sphere;
+    ball.shape.radius = R;
+    ball.staticFriction = 0.6;
+    ball.kineticFriction = 0.5;
+    ball.pose.translation() = Eigen::Vector3d(c.x(), c.y(), top + R);
+    s.setCollider("ball", ball);
+    // the deepest particle centre inside the sphere (m; 0 when none is)
+    const auto deepest = [&] {
+      const Collider& now = s.colliders().at("ball");
+      double d = 0.0;
+      Eigen::Vector3d n;
+      for (const auto& x : s.positions()) d = std::max(d, -colliderDistance(now.shape, now.pose, x, n));
+      return d;
+    };
+    const int second = stepsFor(1.0, s);
+    for (double depth : {0.01, 0.03}) {
+      Eigen::Isometry3d pose = ball.pose;
+      pose.translation().z() -= depth;
+      ASSERT_TRUE(s.moveCollider("ball", pose, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()));
+      const double buried = deepest();
+      for (int i = 0; i < 3; ++i) s.step();
+      const double left = deepest();
+      // the first step after which every particle stayed slower than r per second for a second
+      int still = 0, rest = -1;
+      for (int i = 3; i < stepsFor(30.0, s) && rest < 0; ++i) {
+        s.step();
+        ASSERT_TRUE(allFinite(s));
+        still = maxSpeed(s) < r / 1.0 ? still + 1 : 0;
+        if (still >= second) rest = i + 1;
+      }
+      std::printf("[ indent  ] %s bunny, sphere r %.0f mm moved to %.0f mm into it in one command (contact radius "
+                  "%.1f mm): deepest particle centre %.1f mm inside it, %.2g mm after 3 steps; at rest after %.2f s, "
+                  "reaction %.3f N\n", pinned ? "pinned" : "free", 1e3 * R, 1e3 * depth, 1e3 * r, 1e3 * buried,
+                  1e3 * left, rest * p.timeStep, s.contactWrench("ball").force.z());
+      EXPECT_GT(buried, 0.0) << "the move buried particle spheres deeper than r";
+      EXPECT_LE(left, 0.0) << "pushed out within 3 steps" << (pinned ? " (pinned)" : "");
+      EXPECT_GT(rest, 0) << "the bunny comes to rest under the indenter" << (pinned ? " (pinned)" : "");
+      EXPECT_GT(s.contactWrench("ball").force.z(), 0.0) << "and pushes it up";
+    }
   }
 }
 

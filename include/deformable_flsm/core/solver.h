@@ -320,6 +320,7 @@ class Solver : private RegionKernel {
 
   std::vector<Eigen::Vector3d> x_, v_;
   std::vector<Eigen::Vector3d>* goalsOut_ = nullptr;  // where computeGoals() wants the goals
+  std::vector<Eigen::Vector3d> goal_;  // each particle's goal in the sub-step's region pass (contactPass())
   std::vector<Eigen::Quaterniond> rotations_;
   std::vector<Eigen::Vector3d> restCentered_;  // q_i = x0_i - rest centre of mass
   Eigen::Vector3d restCom_ = Eigen::Vector3d::Zero();
