@@ -4,6 +4,7 @@
 #include <ros/publisher.h>
 #include <ros/topic_manager.h>
 
+#include <algorithm>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -24,6 +25,9 @@ std::shared_ptr<PublishQueueBound> PublishQueueBound::of(const ros::Publisher& p
   if (!bound || bound->publication_ != publication) {
     bound = std::make_shared<PublishQueueBound>(std::move(publication), kTicks * messagesPerTick);
     registry[topic] = bound;
+  } else {
+    std::lock_guard<std::mutex> boundLock(bound->mutex_);
+    bound->capacity_ = std::max(bound->capacity_, kTicks * messagesPerTick);
   }
   return bound;
 }

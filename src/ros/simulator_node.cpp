@@ -243,6 +243,26 @@ CommandOutcome SimulatorNode::send(CommandBody body, bool wait, const std::strin
   return result.get();
 }
 
+CommandOutcome SimulatorNode::sendAndWaitForTheAnswer(CommandBody body) {
+  Command command{std::move(body), std::make_shared<std::promise<CommandOutcome>>(), std::string()};
+  std::future<CommandOutcome> result = command.outcome->get_future();
+  loop_->submit(std::move(command));
+  while (result.wait_for(std::chrono::duration<double>(kServiceTimeout)) != std::future_status::ready) {
+    if (!ros::ok()) {
+      CommandOutcome late;
+      late.message = "the node is shutting down";
+      return late;
+    }
+  }
+  try {
+    return result.get();
+  } catch (const std::future_error&) {  // the simulation thread ended without answering
+    CommandOutcome late;
+    late.message = "the simulation thread ended without answering";
+    return late;
+  }
+}
+
 bool SimulatorNode::startTfListener() {
   std::lock_guard<std::mutex> lock(tfListenerMutex_);
   if (tfListener_) return false;
@@ -483,7 +503,7 @@ bool SimulatorNode::onAddObject(AddObject::Request& req, AddObject::Response& re
     return refuseObject("invalid_object", e.what(), res);
   }
   const std::shared_ptr<const Lattice> lattice = prepared.object.lattice;
-  const CommandOutcome o = send(AddObjectCommand{spec.name, lattice, prepared.solverParams}, true);
+  const CommandOutcome o = sendAndWaitForTheAnswer(AddObjectCommand{spec.name, lattice, prepared.solverParams});
   res.success = o.accepted;
   res.message = o.message;  // a refusal is counted by the simulation thread
   if (!o.accepted) return true;
@@ -516,17 +536,27 @@ bool SimulatorNode::onRemoveObject(RemoveObject::Request& req, RemoveObject::Res
       return refuseObject("unknown_object", "~remove_object: object '" + req.name + "' is not in "
                           "the scene: nothing removed", res);
   }
-  const CommandOutcome o = send(RemoveObjectCommand{req.name}, true);
+  const CommandOutcome o = sendAndWaitForTheAnswer(RemoveObjectCommand{req.name});
   res.success = o.accepted;
   res.message = o.message;  // a refusal is counted by the simulation thread
   if (!o.accepted) return true;
-  std::unique_lock<std::shared_mutex> lock(objectsMutex_);
-  ObjectCommands& c = commands_[k];
-  c.removed = true;
-  c.dragSub.shutdown();
-  c.forceSub.shutdown();
-  c.pinBoxSrv.shutdown();
-  publisher_->removeObject(req.name, ros::Time::now());
+  ros::Subscriber dragSub, forceSub;
+  ros::ServiceServer pinBoxSrv;
+  {
+    std::unique_lock<std::shared_mutex> lock(objectsMutex_);
+    ObjectCommands& c = commands_[k];
+    c.removed = true;
+    std::swap(dragSub, c.dragSub);
+    std::swap(forceSub, c.forceSub);
+    std::swap(pinBoxSrv, c.pinBoxSrv);
+    publisher_->removeObject(req.name, ros::Time::now());
+  }
+  // Shut down outside the lock: roscpp's shutdown waits for the subscription's running callback,
+  // and onDrag / onForce / the pin box service wait for objectsMutex_ (shared): under the lock the
+  // two would wait for each other whenever a command stream to this object was arriving.
+  dragSub.shutdown();
+  forceSub.shutdown();
+  pinBoxSrv.shutdown();
   ROS_INFO("flsm_node: %s", o.message.c_str());
   return true;
 }

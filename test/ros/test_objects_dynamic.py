@@ -122,8 +122,30 @@ class ObjectsDynamicTest(unittest.TestCase):
             lambda: np.linalg.norm(self.client.particles('top')[p] - target) < HELD),
             'the added object was not dragged')
 
-        # removed: its marker deleted, its topics gone, no tf frame, no wrench; 'far' stays
-        res = self.remove_srv('top')
+        # removed while a stream of drag moves to it arrives (the node's command thread inside
+        # the object's drag callback as its subscription is shut down): its marker deleted, its
+        # topics gone, no tf frame, no wrench; 'far' stays and the node goes on
+        streaming = threading.Event()
+        streaming.set()
+
+        def stream():
+            move = DragCommand()
+            move.action = DragCommand.MOVE
+            move.id = 'test'
+            move.target.x, move.target.y, move.target.z = target
+            while streaming.is_set() and not rospy.is_shutdown():
+                pub.publish(move)
+                time.sleep(0.002)
+
+        streamer = threading.Thread(target=stream)
+        streamer.start()
+        try:
+            time.sleep(0.5)
+            res = self.remove_srv('top')
+            time.sleep(0.5)
+        finally:
+            streaming.clear()
+            streamer.join()
         self.assertTrue(res.success, res.message)
         self.assertTrue(self.wait(lambda: 'top' in self.deleted), 'no DELETE of its marker')
         self.assertTrue(self.wait(lambda: not self.published(NODE + '/objects/top/particles')),

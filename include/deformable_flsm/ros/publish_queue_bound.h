@@ -70,12 +70,16 @@ class PublishQueueBound {
 
   /// The bound of `publisher`'s topic, shared by every publisher of that topic in this process
   /// (roscpp keeps one publication, one queue and one sequence per topic): `messagesPerTick`
-  /// messages a tick, kTicks ticks. Call after advertising.
+  /// messages a tick, kTicks ticks. Call after advertising. A later call with more messages a
+  /// tick (an object added at run time publishes its marker on `~mesh` too) raises the capacity.
   static std::shared_ptr<PublishQueueBound> of(const ros::Publisher& publisher,
                                                std::uint32_t messagesPerTick);
 
   /// Messages the queue may hold.
-  std::uint32_t capacity() const { return capacity_; }
+  std::uint32_t capacity() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return capacity_;
+  }
   /// true while the queue holds `capacity()` messages or more: do not publish now.
   bool full();
   /// Call right before each Publisher::publish() on the topic: counted first, the poll thread

@@ -115,6 +115,10 @@ class SimulatorNode {
   /// Sends a command to the simulation thread, to object `object` ("" = the first, or the
   /// whole scene for colliders, reset and release-all); waits for its outcome when `wait`.
   CommandOutcome send(CommandBody body, bool wait, const std::string& object = std::string());
+  /// Submits and waits for the simulation thread's answer however long it takes (while ROS runs):
+  /// an object's addition or removal must reach the node's lists exactly when it reaches the
+  /// World's, or its topics and the simulation would disagree for good.
+  CommandOutcome sendAndWaitForTheAnswer(CommandBody body);
   void rejected(const Rejection& why);
   /// The transform at `stamp` if tf has it, else the latest one, else false: it never waits,
   /// except once, when the first command in a foreign frame starts the tf listener (see
