@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <memory>
 #include <new>
+#include <string>
 
 using deformable_flsm::Collider;
 using deformable_flsm::ColliderType;
@@ -342,13 +343,20 @@ TEST(ImplicitStep, StartPenetrationIsPushedOutByPosition) {
   }
 }
 
-// The bunny (ear up) with `particleBudget` particles, implicit at one sub-step of 1/60 s, E
-// `youngs`, nu 0, region damping 10, ambient 0.5, dropped `drop` onto the ground and left 2 s;
-// its ear then dragged 6 cm sideways over 2 s and released: 5 s later it is at rest by the node's
-// criterion (no particle moves farther than 2e-5 object sizes in a second, so the node stops
-// stepping it) for two seconds running.
-static void expectBunnyRestsAfterAnEarDrag(double youngs, int particleBudget, double drop) {
-  constexpr double kRestFraction = 2e-5;  // object sizes per second (SimulationLoopSettings)
+/// The node's rest criterion: no particle moves farther than this many object sizes in a second
+/// (SimulationLoopSettings), so the node stops stepping it.
+constexpr double kRestFraction = 2e-5;
+
+/// The bunny (ear up) with `particleBudget` particles, implicit at one sub-step of 1/60 s, E
+/// `youngs`, nu 0, w = 1, region damping 10, ambient 0.5, its lowest sphere `drop` above a ground
+/// plane; `top` its highest particle (an ear).
+struct GroundedBunny {
+  std::shared_ptr<const Lattice> lattice;
+  std::unique_ptr<Solver> solver;
+  std::uint32_t top = 0;
+};
+
+static GroundedBunny bunnyAboveTheGround(double youngs, int particleBudget, double drop) {
   deformable_flsm::TriMesh mesh = deformable_flsm::loadMesh(deformable_flsm::kBunnyMeshPath, 0.1);
   const Eigen::Matrix3d R = Eigen::AngleAxisd(0.5 * M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
   for (auto& v : mesh.vertices) v = R * v;
@@ -356,34 +364,50 @@ static void expectBunnyRestsAfterAnEarDrag(double youngs, int particleBudget, do
   SolverParams p = implicitParams(youngs, 0.0, 1, 1.0 / 60.0);
   p.ambientDamping = 0.5;
   p.damping = 10.0;
-  auto lattice = std::make_shared<const Lattice>(vox, kDensity, 1);
-  Solver s(lattice, p);
+  GroundedBunny b;
+  b.lattice = std::make_shared<const Lattice>(vox, kDensity, 1);
+  b.solver = std::make_unique<Solver>(b.lattice, p);
+  const std::vector<Eigen::Vector3d>& x = b.solver->positions();
   double lowest = kBig;
-  std::uint32_t top = 0;
-  for (std::uint32_t k = 0; k < s.positions().size(); ++k) {
-    lowest = std::min(lowest, s.positions()[k].z());
-    if (s.positions()[k].z() > s.positions()[top].z()) top = k;
+  for (std::uint32_t k = 0; k < x.size(); ++k) {
+    lowest = std::min(lowest, x[k].z());
+    if (x[k].z() > x[b.top].z()) b.top = k;
   }
   Collider ground;
   ground.shape.type = ColliderType::HalfSpace;
-  ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - s.contactRadius() - drop);
-  s.setCollider("ground", ground);
+  ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - b.solver->contactRadius() - drop);
+  b.solver->setCollider("ground", ground);
+  return b;
+}
+
+/// Two seconds more, each by the node's rest criterion.
+static void expectRestsForTwoSeconds(GroundedBunny& b, const std::string& what) {
+  Solver& s = *b.solver;
+  for (int second = 0; second < 2; ++second) {
+    const std::vector<Eigen::Vector3d> from = s.positions();
+    for (int i = 0; i < 60; ++i) s.step();
+    double moved = 0.0;
+    for (std::size_t k = 0; k < from.size(); ++k) moved = std::max(moved, (s.positions()[k] - from[k]).norm());
+    EXPECT_LT(moved, kRestFraction * b.lattice->objectSize()) << what << ", second " << second;
+  }
+}
+
+// The bunny of bunnyAboveTheGround() dropped `drop` onto the ground and left 2 s; its ear then
+// dragged 6 cm sideways over 2 s and released: 5 s later it is at rest by the node's criterion
+// for two seconds running.
+static void expectBunnyRestsAfterAnEarDrag(double youngs, int particleBudget, double drop) {
+  GroundedBunny b = bunnyAboveTheGround(youngs, particleBudget, drop);
+  Solver& s = *b.solver;
   for (int i = 0; i < 120; ++i) s.step();
-  s.grab("ear", {top}, s.positions()[top], 0.0);
-  const Eigen::Vector3d start = s.positions()[top];
+  s.grab("ear", {b.top}, s.positions()[b.top], 0.0);
+  const Eigen::Vector3d start = s.positions()[b.top];
   for (int i = 1; i <= 120; ++i) {
     s.moveDrag("ear", start + Eigen::Vector3d(0.0005 * i, 0, 0));
     s.step();
   }
   s.release("ear");
   for (int i = 0; i < 300; ++i) s.step();
-  for (int second = 0; second < 2; ++second) {
-    const std::vector<Eigen::Vector3d> from = s.positions();
-    for (int i = 0; i < 60; ++i) s.step();
-    double moved = 0.0;
-    for (std::size_t k = 0; k < from.size(); ++k) moved = std::max(moved, (s.positions()[k] - from[k]).norm());
-    EXPECT_LT(moved, kRestFraction * lattice->objectSize()) << "E " << youngs << ", second " << second;
-  }
+  expectRestsForTwoSeconds(b, "E " + std::to_string(youngs));
 }
 
 // The bunny (1 MPa) on the ground, its ear dragged 6 cm sideways over 2 s so that its contacts
@@ -412,29 +436,8 @@ TEST(ImplicitStep, SoftBunnyComesToRestWithinSecondsAfterADrag) {
 // taken of the whole residual norm let its error gather on a few particles, sqrt(n) times the
 // per-particle figure the floor means: the ears kept jittering and the node never idled.
 TEST(ImplicitStep, TenThousandParticleBunnyDroppedOnTheGroundComesToRest) {
-  constexpr double kRestFraction = 2e-5;  // object sizes per second (SimulationLoopSettings)
-  deformable_flsm::TriMesh mesh = deformable_flsm::loadMesh(deformable_flsm::kBunnyMeshPath, 0.1);
-  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.5 * M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  for (auto& v : mesh.vertices) v = R * v;
-  const Voxelization vox = deformable_flsm::finestResolutionWithin(mesh, 10500).voxels;
-  SolverParams p = implicitParams(30e3, 0.0, 1, 1.0 / 60.0);
-  p.ambientDamping = 0.5;
-  p.damping = 10.0;
-  auto lattice = std::make_shared<const Lattice>(vox, kDensity, 1);
-  ASSERT_GT(lattice->size(), 10000u);
-  Solver s(lattice, p);
-  double lowest = kBig;
-  for (const Eigen::Vector3d& x : s.positions()) lowest = std::min(lowest, x.z());
-  Collider ground;
-  ground.shape.type = ColliderType::HalfSpace;
-  ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - s.contactRadius() - 0.02);
-  s.setCollider("ground", ground);
-  for (int i = 0; i < 360; ++i) s.step();
-  for (int second = 0; second < 2; ++second) {
-    const std::vector<Eigen::Vector3d> from = s.positions();
-    for (int i = 0; i < 60; ++i) s.step();
-    double moved = 0.0;
-    for (std::size_t k = 0; k < from.size(); ++k) moved = std::max(moved, (s.positions()[k] - from[k]).norm());
-    EXPECT_LT(moved, kRestFraction * lattice->objectSize()) << "second " << second;
-  }
+  GroundedBunny b = bunnyAboveTheGround(30e3, 10500, 0.02);
+  ASSERT_GT(b.lattice->size(), 10000u);
+  for (int i = 0; i < 360; ++i) b.solver->step();
+  expectRestsForTwoSeconds(b, "dropped");
 }
