@@ -57,6 +57,13 @@ constexpr int kCgMaxIterations = 300;
 /// Largest volumetric strain the Poisson term acts on (as computeVolumetricForces()): beyond it
 /// the force is constant, so its Hessian is zero.
 constexpr double kMaxVolumetricStrain = 0.5;
+/// The solves after the first one of a sub-step (the contact set changed) stop when the residual
+/// is this fraction of the first solve's initial residual (or at kCgTolerance of their own, or the
+/// floor). Their own initial residual is that of a few contacts changed, and kCgTolerance of it
+/// made each one cost as many iterations as the first solve; kCgTolerance of the first solve's, on
+/// the other hand, left a 10 MPa block dropped on the ground rocking between contact sets for
+/// good. This fraction was chosen by measurement (docs/performance.md).
+constexpr double kCgContactTolerance = 3e-3;
 /// Solves per sub-step with contacts: the first, and again after letting go of the contacts that
 /// pulled (one-sided contact by an active set, at most this many passes; what remains pulling
 /// after the last is released by the next sub-step's prediction).
@@ -121,7 +128,6 @@ void Solver::configureIntegrator() {
     implicitContactBody_.assign(n, -1);
     implicitContactState_.assign(n, kNoContact);
     implicitFriction_.assign(n, Eigen::Vector3d::Zero());
-    implicitResidual_.assign(n, Eigen::Vector3d::Zero());
   }
   volumetricLinear_.resize(volumetric_ ? n : 0);
 }
@@ -246,11 +252,15 @@ void Solver::implicitSubstep(double h) {
     coarse_->apply(implicitInvPrecond_, r, z);
   };
   int iterations = 0;
+  double passFloor = floor;
+  bool guessChanged = true;
   for (int pass = 0;; ++pass) {
     implicitSolve_ = pcg_.solveWith(product, precondition, implicitConstraint_, implicitNormal_, implicitRhs_,
-                                    implicitVelocity_, floor, kCgTolerance, kCgMaxIterations);
+                                    implicitVelocity_, passFloor, kCgTolerance, kCgMaxIterations, !guessChanged);
     iterations += implicitSolve_.iterations;
-    if (!contacts || pass + 1 >= kContactPasses || !updateContactSet(h)) break;
+    if (pass == 0) passFloor = std::max(floor, kCgContactTolerance * implicitSolve_.initialResidual);
+    guessChanged = false;
+    if (!contacts || pass + 1 >= kContactPasses || !updateContactSet(h, guessChanged)) break;
   }
   implicitSolve_.iterations = iterations;
   if (contacts) sumContactImpulses(h);
@@ -354,7 +364,7 @@ int Solver::deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, do
 }
 
 // The active set after a solve, from the constraint impulse on each contact particle, what its
-// equation lacks: J = (A v+ - b)_i. A contact with J.n < 0 pulls the particle towards the
+// equation lacks: J = (A v+ - b)_i, the solve's residual with the sign turned. A contact with J.n < 0 pulls the particle towards the
 // collider: let go. A sticking contact with |J_t| > mu_s J.n leaves Coulomb's cone: it slides
 // (normal velocity kept, tangential free) under kinetic friction mu_k J.n along J_t, a force of
 // the next solve: the slip it allows moves the whole object, which relaxes the shear that pushed
@@ -364,11 +374,8 @@ int Solver::deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, do
 // at rest for as long as they touched: the object never came to rest after a drag.) A free
 // particle that the solution carries into a collider (deeper than kContactSlop) becomes a
 // sticking contact. Returns whether the set changed.
-bool Solver::updateContactSet(double h) {
-  // the impulses are read at the contacts only: without any, no product (a collider near the
-  // object but not touching it costs its distance queries alone)
-  if (std::any_of(implicitContactBody_.begin(), implicitContactBody_.end(), [](int b) { return b >= 0; }))
-    implicitProduct(implicitVelocity_, implicitResidual_);
+bool Solver::updateContactSet(double h, bool& guessChanged) {
+  const std::vector<Eigen::Vector3d>& residual = pcg_.residual();
   const double slop = kContactSlop * contactRadius();
   bool changed = false;
   for (std::size_t i = 0; i < x_.size(); ++i) {
@@ -386,14 +393,16 @@ bool Solver::updateContactSet(double h) {
       implicitContactBody_[i] = b;
       implicitContactState_[i] = kSticking;
       changed = true;
+      guessChanged = true;
       continue;
     }
     const Collider& c = *contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])].collider;
-    const Eigen::Vector3d J = implicitResidual_[i] - implicitRhs_[i];
+    const Eigen::Vector3d J = -residual[i];
     const double Jn = J.dot(implicitNormal_[i]);
     const Eigen::Vector3d& n = implicitNormal_[i];
     if (Jn < 0.0) {
       implicitRhs_[i] -= implicitFriction_[i];
+      pcg_.addToResidual(i, -implicitFriction_[i]);
       implicitFriction_[i].setZero();
       implicitConstraint_[i] = PcgConstraint::Free;
       implicitContactBody_[i] = -1;
@@ -408,6 +417,7 @@ bool Solver::updateContactSet(double h) {
         // moves with the slip
         implicitFriction_[i] = (c.kineticFriction * Jn / t) * Jt;
         implicitRhs_[i] += implicitFriction_[i];
+        pcg_.addToResidual(i, implicitFriction_[i]);
         implicitConstraint_[i] = PcgConstraint::Normal;
         implicitContactState_[i] = kSliding;
         changed = true;
@@ -421,11 +431,13 @@ bool Solver::updateContactSet(double h) {
       const Eigen::Vector3d rel = implicitVelocity_[i] - vc;
       if ((rel - rel.dot(n) * n).dot(implicitFriction_[i]) > 0.0) {
         implicitRhs_[i] -= implicitFriction_[i];
+        pcg_.addToResidual(i, -implicitFriction_[i]);
         implicitFriction_[i].setZero();
         implicitVelocity_[i] = vc + (implicitVelocity_[i] - vc).dot(n) * n;
         implicitConstraint_[i] = PcgConstraint::Fixed;
         implicitContactState_[i] = kSticking;
         changed = true;
+        guessChanged = true;
       }
     }
   }
@@ -435,15 +447,14 @@ bool Solver::updateContactSet(double h) {
 // After the last solve: the impulses of every contact go to its collider's wrench, as the contact
 // pass's do.
 void Solver::sumContactImpulses(double h) {
-  if (std::none_of(implicitContactBody_.begin(), implicitContactBody_.end(), [](int b) { return b >= 0; })) return;
-  implicitProduct(implicitVelocity_, implicitResidual_);
+  const std::vector<Eigen::Vector3d>& residual = pcg_.residual();
   const double r = contactRadius();
   for (std::size_t i = 0; i < x_.size(); ++i) {
     if (implicitContactBody_[i] < 0) continue;
     ContactBody& body = contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])];
     const Eigen::Vector3d& n = implicitNormal_[i];
     const Eigen::Isometry3d& pose = body.now;
-    Eigen::Vector3d J = implicitResidual_[i] - implicitRhs_[i];
+    Eigen::Vector3d J = -residual[i];
     // a sliding contact's impulse: the normal one and the kinetic friction the solve applied
     if (implicitConstraint_[i] == PcgConstraint::Normal) J = std::max(0.0, J.dot(n)) * n + implicitFriction_[i];
     const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];

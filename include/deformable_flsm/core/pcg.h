@@ -17,6 +17,8 @@ struct PcgResult {
   /// ||r||_P at the end over the larger of ||r_0||_P and the floor (P the preconditioner)
   double relativeResidual = 0.0;
   bool converged = false;
+  /// ||r_0||_P, the initial guess's filtered residual
+  double initialResidual = 0.0;
 };
 
 /// How an entry of the unknown is constrained (PCG's filter S_i).
@@ -33,6 +35,9 @@ enum class PcgConstraint : char {
 /// (Jacobi) preconditioner, on the entries and directions the constraints leave free: the
 /// residual, the preconditioned residual and the search directions are filtered by S (Baraff &
 /// Witkin 1998's modified PCG), so the constrained parts of x keep the values they have on entry.
+/// The unfiltered residual b - A x is kept as well (residual()): at the constrained entries it is
+/// what the constraints must supply, and a caller that changes b only (not x) between two solves
+/// can correct it (addToResidual()) and start the next solve without a product with A.
 /// Buffers are sized by resize(), so that solve() allocates nothing. Dot products are summed in
 /// chunks of fixed size, in order: the result does not depend on how the products are computed
 /// in parallel.
@@ -42,6 +47,7 @@ class Pcg {
   static constexpr std::size_t kChunk = 1024;
 
   void resize(std::size_t n) {
+    residual_.assign(n, Eigen::Vector3d::Zero());
     r_.assign(n, Eigen::Vector3d::Zero());
     z_.assign(n, Eigen::Vector3d::Zero());
     p_.assign(n, Eigen::Vector3d::Zero());
@@ -57,15 +63,18 @@ class Pcg {
   /// @param[in]     floor        stop when ||r||_P <= floor ...
   /// @param[in]     tolerance    ... or ||r||_P <= tolerance ||r_0||_P (r_0 the initial guess's)
   /// @param[in]     maxIterations  at most this many products with A
+  /// @param[in]     keepResidual   start from residual() as b - A x instead of computing it (x
+  ///                               unchanged since the last solve, b changed only through
+  ///                               addToResidual())
   template <class Apply>
   PcgResult solve(Apply&& apply, const std::vector<Eigen::Vector3d>& invDiagonal,
                   const std::vector<PcgConstraint>& constraint, const std::vector<Eigen::Vector3d>& normal,
                   const std::vector<Eigen::Vector3d>& b, std::vector<Eigen::Vector3d>& x, double floor,
-                  double tolerance, int maxIterations) {
+                  double tolerance, int maxIterations, bool keepResidual = false) {
     const auto jacobi = [&invDiagonal](const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
       for (std::size_t i = 0; i < r.size(); ++i) z[i] = invDiagonal[i].cwiseProduct(r[i]);
     };
-    return solveWith(apply, jacobi, constraint, normal, b, x, floor, tolerance, maxIterations);
+    return solveWith(apply, jacobi, constraint, normal, b, x, floor, tolerance, maxIterations, keepResidual);
   }
 
   /// As solve(), with a general symmetric positive definite preconditioner:
@@ -74,7 +83,8 @@ class Pcg {
   template <class Apply, class Precondition>
   PcgResult solveWith(Apply&& apply, Precondition&& precondition, const std::vector<PcgConstraint>& constraint,
                       const std::vector<Eigen::Vector3d>& normal, const std::vector<Eigen::Vector3d>& b,
-                      std::vector<Eigen::Vector3d>& x, double floor, double tolerance, int maxIterations) {
+                      std::vector<Eigen::Vector3d>& x, double floor, double tolerance, int maxIterations,
+                      bool keepResidual = false) {
     const auto filter = [&](std::size_t i, const Eigen::Vector3d& v) -> Eigen::Vector3d {
       switch (constraint[i]) {
         case PcgConstraint::Free: return v;
@@ -85,8 +95,11 @@ class Pcg {
     };
     const std::size_t n = b.size();
     PcgResult result;
-    apply(x, q_);
-    for (std::size_t i = 0; i < n; ++i) r_[i] = filter(i, b[i] - q_[i]);
+    if (!keepResidual) {
+      apply(x, q_);
+      for (std::size_t i = 0; i < n; ++i) residual_[i] = b[i] - q_[i];
+    }
+    for (std::size_t i = 0; i < n; ++i) r_[i] = filter(i, residual_[i]);
     precondition(r_, z_);
     for (std::size_t i = 0; i < n; ++i) {
       z_[i] = filter(i, z_[i]);
@@ -95,16 +108,18 @@ class Pcg {
     double rz = dot(r_, z_);
     const double goal = std::max(tolerance * tolerance * rz, floor * floor);
     const double reference = std::sqrt(std::max(rz, floor * floor));
+    result.initialResidual = std::sqrt(std::max(rz, 0.0));
     while (!(rz <= goal) && result.iterations < maxIterations) {
       apply(p_, q_);
-      for (std::size_t i = 0; i < n; ++i) q_[i] = filter(i, q_[i]);
       ++result.iterations;
+      // p is filtered (S p = p, S an orthogonal projection), so p . A p = p . S A p
       const double pq = dot(p_, q_);
       if (!(pq > 0.0)) break;  // A not positive on p: round-off at convergence
       const double step = rz / pq;
       for (std::size_t i = 0; i < n; ++i) {
         x[i] += step * p_[i];
-        r_[i] -= step * q_[i];
+        residual_[i] -= step * q_[i];
+        r_[i] = filter(i, residual_[i]);
       }
       precondition(r_, z_);
       for (std::size_t i = 0; i < n; ++i) z_[i] = filter(i, z_[i]);
@@ -117,6 +132,11 @@ class Pcg {
     result.converged = rz <= goal;
     return result;
   }
+
+  /// b - A x at the end of the last solve (unfiltered; from the recurrence, not a product).
+  const std::vector<Eigen::Vector3d>& residual() const { return residual_; }
+  /// Keeps residual() consistent with a change d of b at entry i.
+  void addToResidual(std::size_t i, const Eigen::Vector3d& d) { residual_[i] += d; }
 
   /// sum a_i . b_i in chunks of kChunk entries, added in order.
   static double dot(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b) {
@@ -131,7 +151,7 @@ class Pcg {
   }
 
  private:
-  std::vector<Eigen::Vector3d> r_, z_, p_, q_;
+  std::vector<Eigen::Vector3d> residual_, r_, z_, p_, q_;
 };
 
 }  // namespace deformable_flsm

@@ -450,20 +450,20 @@ class Solver : private RegionKernel {
   std::vector<int> implicitContactBody_;           // the contact body of a contact, else -1
   /// per particle: no contact, sticking, sliding or released (pulling) in the last sub-step
   std::vector<char> implicitContactState_;
-  std::vector<Eigen::Vector3d> implicitResidual_;  // A v+ - b: the constraint impulses
   std::vector<Eigen::Vector3d> implicitFriction_;  // kinetic friction impulse of a sliding contact
   /// Constrains the free particles that v_n + h g would carry into a collider (see
   /// solver_implicit.cpp); returns whether any is.
   bool constrainContacts(double h);
   /// The contact active set after a solve: lets go of pulling contacts, turns sticking ones out
   /// of the friction cone into sliding ones, adds particles the solution carries into a
-  /// collider; returns whether it changed.
-  bool updateContactSet(double h);
-  /// The collider (index into contactBodies_, at body.now) x is deepest in, or -1; its depth
-  /// phi - r (< 0), outward normal and surface velocity at x.
+  /// collider; returns whether it changed. Sets guessChanged when it prescribed a velocity (the
+  /// next solve then needs its residual computed again).
+  bool updateContactSet(double h, bool& guessChanged);
   /// phi - r of particle i at the start of the sub-step against contact body b at its pose then
   /// (negative: a penetration the sub-step did not make).
   double startDepth(std::size_t i, int b) const;
+  /// The collider (index into contactBodies_, at body.now) x is deepest in, or -1; its depth
+  /// phi - r (< 0), outward normal and surface velocity at x.
   int deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, double& depth,
                      Eigen::Vector3d& colliderVelocity) const;
   /// Every contact's impulse on its collider after the last solve.
