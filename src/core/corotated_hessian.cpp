@@ -112,34 +112,42 @@ void CorotatedHessian::particleData(std::size_t begin, std::size_t end, double* 
   }
 }
 
+// In scalars rather than Eigen's small vectors: built from components, those went through the
+// stack, and their two 8-byte stores read back as one 16-byte load stalled the loop (store
+// forwarding fails); this is the hottest loop of the implicit step.
 void CorotatedHessian::regionData(std::size_t begin, std::size_t end, const double* sums, double* out) {
   for (std::size_t r = begin; r < end; ++r) {
     const double* s = sums + (r - begin) * 12;
     double* o = out + (r - begin) * 12;
     const Eigen::Matrix3d& R = rotation_[r];
-    const Eigen::Vector3d mp(s[0], s[1], s[2]);
+    const double mx = s[0], my = s[1], mz = s[2];
     // A = S R^T (S = sum m~ p q^T, row-major at s + 3): only its antisymmetric part is needed,
     // A_ab = S_a . R_b (rows)
     const auto A = [&](int a, int b) { return s[3 + 3 * a] * R(b, 0) + s[4 + 3 * a] * R(b, 1) + s[5 + 3 * a] * R(b, 2); };
     const Eigen::Vector3d& Rc0 = rotatedCenter_[r];
-    // sum m~ q~ x p, q~ = R (q - c0)
-    const Eigen::Vector3d L = Eigen::Vector3d(A(2, 1) - A(1, 2), A(0, 2) - A(2, 0), A(1, 0) - A(0, 1)) - Rc0.cross(mp);
+    const double cx = Rc0.x(), cy = Rc0.y(), cz = Rc0.z();
+    // L = sum m~ q~ x p, q~ = R (q - c0): vec(A) - (R c0) x sum m~ p
+    const double Lx = A(2, 1) - A(1, 2) - (cy * mz - cz * my);
+    const double Ly = A(0, 2) - A(2, 0) - (cz * mx - cx * mz);
+    const double Lz = A(1, 0) - A(0, 1) - (cx * my - cy * mx);
     const std::array<double, 6>& J = rotatedInertiaInverse_[r];
-    const Eigen::Vector3d theta(J[0] * L.x() + J[3] * L.y() + J[4] * L.z(), J[3] * L.x() + J[1] * L.y() + J[5] * L.z(),
-                                J[4] * L.x() + J[5] * L.y() + J[2] * L.z());
     const double c = coefficient_[r];
-    const Eigen::Vector3d ct = c * theta;
+    // c theta, theta = J L
+    const double tx = c * (J[0] * Lx + J[3] * Ly + J[4] * Lz);
+    const double ty = c * (J[3] * Lx + J[1] * Ly + J[5] * Lz);
+    const double tz = c * (J[4] * Lx + J[5] * Ly + J[2] * Lz);
     // c [theta]x R: column b is c theta x (R e_b); theta x (R q) = ([theta]x R) q
     for (int b = 0; b < 3; ++b) {
-      const Eigen::Vector3d col = ct.cross(R.col(b));
-      o[b] = col.x();
-      o[3 + b] = col.y();
-      o[6 + b] = col.z();
+      const double ux = R(0, b), uy = R(1, b), uz = R(2, b);
+      o[b] = ty * uz - tz * uy;
+      o[3 + b] = tz * ux - tx * uz;
+      o[6 + b] = tx * uy - ty * ux;
     }
-    const Eigen::Vector3d shift = (c / regionMass_[r]) * mp - ct.cross(Rc0);
-    o[9] = shift.x();
-    o[10] = shift.y();
-    o[11] = shift.z();
+    // c / M_r sum m~ p - c theta x R c0
+    const double cm = c / regionMass_[r];
+    o[9] = cm * mx - (ty * cz - tz * cy);
+    o[10] = cm * my - (tz * cx - tx * cz);
+    o[11] = cm * mz - (tx * cy - ty * cx);
   }
 }
 
