@@ -22,7 +22,11 @@
 // capped), at 30 kPa, 1 MPa and 10 MPa (nu 0.3, w = 2), on the bunny at --particles and at a
 // quarter of it, dropped 2 cm onto a ground plane and left to settle (2 s): ns per particle per
 // 1/60 s step, and the implicit step's conjugate-gradient iterations per step (mean and largest).
-// --only implicit prints that table alone.
+// Then the node's demo on the ground with the implicit step (the bunny upright, dropped, its ear
+// dragged round flsm_demo's circle, released, poked and pushed) at 30 kPa and 1 MPa, w = 1 and 2,
+// at --particles and a quarter of it: CPU ms per step and CG iterations in each phase, the figure
+// that says whether the node keeps real time at 60 steps a second.
+// --only implicit prints those two tables alone.
 //
 //   bench_solver [--mesh PATH] [--particles N] [--steps N] [--repeats N] [--max-naive-w W]
 //                [--only implicit] [--implicit-alone 1] [--moduli E1,E2,...] [--w W]
@@ -283,6 +287,96 @@ void implicitTable(const TriMesh& mesh, std::size_t particles, const Args& args)
   }
 }
 
+/// The node's demo on the ground (flsm_demo): the bunny upright, dropped 2 cm onto a ground plane
+/// and left 2.5 s; the 6 particles nearest its top dragged (hard) round the demo's circle for 5 s,
+/// the target moved at 20 Hz; released and left 2.5 s; poked sideways (an impulse of 0.6 object
+/// sizes per second on the particles within a quarter of its size of the centre) and left 2.5 s;
+/// pushed for 0.5 s and left 2 s more. Per phase: CPU time per step (this thread's) and CG
+/// iterations per step (mean, largest).
+void demoRow(const TriMesh& upright, std::size_t particles, int w, double E) {
+  const Voxelization vox = voxelizeNear(upright, particles);
+  auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
+  SolverParams p;
+  p.regionHalfWidth = w;
+  p.youngsModulus = E;
+  p.poissonsRatio = 0.0;
+  p.damping = 10.0;
+  p.ambientDamping = 0.5;
+  p.substeps = 1;
+  p.integrator = Integrator::Implicit;
+  Solver s(lattice, p);
+  double lowest = s.positions()[0].z();
+  std::uint32_t top = 0;
+  for (std::uint32_t k = 0; k < s.positions().size(); ++k) {
+    lowest = std::min(lowest, s.positions()[k].z());
+    if (s.positions()[k].z() > s.positions()[top].z()) top = k;
+  }
+  Collider ground;
+  ground.shape.type = ColliderType::HalfSpace;
+  ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - s.contactRadius() - 0.02);
+  s.setCollider("ground", ground);
+  const auto threadCpu = [] {
+    timespec t;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+  };
+  std::printf("%10zu %3d %9.3g", lattice->size(), w, E);
+  const auto phase = [&](int steps, const auto& before) {
+    long total = 0;
+    int most = 0;
+    const double t0 = threadCpu();
+    for (int i = 0; i < steps; ++i) {
+      before(i);
+      s.step();
+      total += s.lastImplicitSolve().iterations;
+      most = std::max(most, s.lastImplicitSolve().iterations);
+    }
+    std::printf(" %8.2f %5.1f %4d", 1e3 * (threadCpu() - t0) / steps, double(total) / steps, most);
+  };
+  const auto nothing = [](int) {};
+  phase(150, nothing);
+  Eigen::Vector3d lo = s.positions()[0], hi = lo, centre = Eigen::Vector3d::Zero();
+  for (const auto& x : s.positions()) {
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+    centre += x;
+  }
+  centre /= double(s.positions().size());
+  const double size = (hi - lo).norm();
+  const Eigen::Vector3d start = s.positions()[top];
+  s.grab("ear", s.nearestParticles(start, 6), start, 0.0);
+  const double radius = 0.12 * size;
+  phase(300, [&](int i) {
+    if (i % 3 != 0) return;
+    const double phi = 2.0 * M_PI * i / 300.0;
+    s.moveDrag("ear", start + Eigen::Vector3d(radius * std::sin(phi), 0.5 * radius * (1.0 - std::cos(phi)),
+                                              0.5 * radius * std::sin(phi)));
+  });
+  s.release("ear");
+  phase(150, nothing);
+  const std::vector<std::uint32_t> body = s.particlesWithin(centre, 0.25 * size);
+  const double sphereMass = 1000.0 * 4.0 / 3.0 * M_PI * std::pow(0.25 * size, 3);
+  s.applyImpulse(body, Eigen::Vector3d(0.6 * size * sphereMass, 0, 0));
+  phase(150, nothing);
+  s.applyForce(body, Eigen::Vector3d(0, -4.0 * size * sphereMass, 0), 0.5);
+  phase(150, nothing);
+  std::printf("\n");
+}
+
+void demoTable(const TriMesh& mesh, std::size_t particles) {
+  TriMesh upright = mesh;
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.5 * M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  for (auto& v : upright.vertices) v = R * v;
+  std::printf("\nimplicit, the node's demo on the ground (nu 0, region damping 10, ambient damping 0.5, one sub-step\n"
+              "of 1/60 s, single thread): dropped and settled, dragged round the demo's circle, released, poked,\n"
+              "pushed; per phase CPU ms per step, CG iterations per step (mean, largest)\n"
+              "%10s %3s %9s %19s %19s %19s %19s %19s\n", "particles", "w", "E (Pa)", "drop: ms  CG  max",
+              "drag: ms  CG  max", "released", "poked", "pushed");
+  for (std::size_t n : {particles / 4, particles})
+    for (int w : {1, 2})
+      for (double E : {30e3, 1e6}) demoRow(upright, n, w, E);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -294,6 +388,7 @@ int main(int argc, char** argv) {
               vox.cells.size());
   if (args.onlyImplicit) {
     implicitTable(mesh, args.particles, args);
+    demoTable(mesh, args.particles);
     return 0;
   }
   {
@@ -491,5 +586,6 @@ int main(int argc, char** argv) {
     std::printf("%10zu %14.1f %14.1f %8.2fx %8.0f%% %11.2f / %.2f ms %22.3g\n", b.particles, b.one, b.all, b.cost,
                 100.0 * b.threaded, b.msThreads, b.msOne, b.diff);
   implicitTable(mesh, args.particles, args);
+  demoTable(mesh, args.particles);
   return 0;
 }
