@@ -155,6 +155,10 @@ void Solver::reset() {
   impulsePending_ = false;
   frameRotation_.setIdentity();
   for (ContactBody& body : contactBodies_) body.wrench = ContactWrench();
+  // the implicit step's memory of the last sub-step: its warm start and contact states
+  std::fill(implicitLastDv_.begin(), implicitLastDv_.end(), Eigen::Vector3d::Zero());
+  std::fill(implicitContactState_.begin(), implicitContactState_.end(), char(0));
+  std::fill(implicitFriction_.begin(), implicitFriction_.end(), Eigen::Vector3d::Zero());
   time_ = 0.0;
   substeps_ = 0;
 }
