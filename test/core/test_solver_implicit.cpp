@@ -184,6 +184,35 @@ TEST(ImplicitStep, ResetForgetsTheWarmStartAndTheContacts) {
   }
 }
 
+// A block resting on the ground with ambient damping: the ground carries its whole weight (the
+// wrench averaged over a second, statics: within 0.1 %). The contacts are in the solve, their
+// velocities prescribed, so a resting object feels no drag. (Damping gravity's increment of the
+// step relative to h g instead of rest loads the ground with (1 + h c) times the weight; a support
+// applied after the solve, as between objects in a World, reads 1 / (1 + h c) of it:
+// docs/method.md.)
+TEST(ImplicitStep, GroundCarriesTheWholeWeightWithAmbientDamping) {
+  for (double c : {0.5, 2.0}) {
+    SolverParams p = implicitParams(1e6, 0.3, 1, 1.0 / 60.0);
+    p.ambientDamping = c;
+    auto lattice = std::make_shared<const Lattice>(deformable_flsm::test::makeBox(6, 6, 3, 0.01), kDensity, 1);
+    Solver s(lattice, p);
+    double lowest = kBig;
+    for (const auto& xi : s.positions()) lowest = std::min(lowest, xi.z());
+    Collider ground;
+    ground.shape.type = ColliderType::HalfSpace;
+    ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - s.contactRadius());
+    s.setCollider("ground", ground);
+    for (int i = 0; i < 120; ++i) s.step();
+    Eigen::Vector3d force = Eigen::Vector3d::Zero();
+    for (int i = 0; i < 60; ++i) {
+      s.step();
+      force += s.contactWrench("ground").force / 60.0;
+    }
+    const double weight = lattice->totalMass() * 9.81;
+    EXPECT_NEAR(-force.z(), weight, 1e-3 * weight) << "ambient damping " << c;
+  }
+}
+
 // The clamped cantilever at ONE sub-step of 1/60 s settles within 10 % of the FEM oracle from a
 // soft to a stiff material, with and without the Poisson term, where the explicit step at one
 // sub-step saturates (and would be 1.3 to 300 times too soft). With the two-level preconditioner
