@@ -47,6 +47,16 @@ SolverParams implicitParams(double E, double nu, int w, double timeStep) {
 }
 
 /// A notched block (regions clipped by the surface and the notch), 6 x 5 x 4 cells of 1 cm.
+/// A ground plane `gap` below the solver's lowest particle's contact sphere.
+Collider groundBelow(const Solver& s, double gap) {
+  double lowest = kBig;
+  for (const auto& x : s.positions()) lowest = std::min(lowest, x.z());
+  Collider ground;
+  ground.shape.type = ColliderType::HalfSpace;
+  ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - s.contactRadius() - gap);
+  return ground;
+}
+
 Voxelization notched() {
   return deformable_flsm::test::makeVoxels(Eigen::Vector3i(6, 5, 4), 0.01,
                                            [](int i, int j, int k) { return !(i >= 3 && j >= 3 && k >= 2); });
@@ -159,11 +169,7 @@ TEST(ImplicitStep, ResetForgetsTheWarmStartAndTheContacts) {
   SolverParams p = implicitParams(1e6, 0.3, 2, 1.0 / 60.0);
   auto lattice = std::make_shared<const Lattice>(notched(), kDensity, 2);
   Solver dragged(lattice, p), fresh(lattice, p);
-  double lowest = kBig;
-  for (const auto& x : fresh.positions()) lowest = std::min(lowest, x.z());
-  Collider ground;
-  ground.shape.type = ColliderType::HalfSpace;
-  ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - fresh.contactRadius() - 0.01);
+  const Collider ground = groundBelow(fresh, 0.01);
   dragged.setCollider("ground", ground);
   fresh.setCollider("ground", ground);
   for (int i = 0; i < 60; ++i) dragged.step();
@@ -196,12 +202,7 @@ TEST(ImplicitStep, GroundCarriesTheWholeWeightWithAmbientDamping) {
     p.ambientDamping = c;
     auto lattice = std::make_shared<const Lattice>(deformable_flsm::test::makeBox(6, 6, 3, 0.01), kDensity, 1);
     Solver s(lattice, p);
-    double lowest = kBig;
-    for (const auto& xi : s.positions()) lowest = std::min(lowest, xi.z());
-    Collider ground;
-    ground.shape.type = ColliderType::HalfSpace;
-    ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - s.contactRadius());
-    s.setCollider("ground", ground);
+    s.setCollider("ground", groundBelow(s, 0.0));
     for (int i = 0; i < 120; ++i) s.step();
     Eigen::Vector3d force = Eigen::Vector3d::Zero();
     for (int i = 0; i < 60; ++i) {
@@ -353,12 +354,7 @@ TEST(ImplicitStep, BlockOnTheGroundComesToRestAndStays) {
     SolverParams p = implicitParams(E, 0.3, 1, 1.0 / 60.0);
     auto lattice = std::make_shared<const Lattice>(deformable_flsm::test::makeBox(8, 8, 8, 0.01), kDensity, 1);
     Solver s(lattice, p);
-    double lowest = kBig;
-    for (const auto& xi : s.positions()) lowest = std::min(lowest, xi.z());
-    Collider ground;
-    ground.shape.type = ColliderType::HalfSpace;
-    ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - s.contactRadius() - 0.005);
-    s.setCollider("ground", ground);
+    s.setCollider("ground", groundBelow(s, 0.005));
     const auto maxSpeed = [&s] {
       double v = 0.0;
       for (const auto& vi : s.velocities()) v = std::max(v, vi.norm());
