@@ -94,9 +94,11 @@ TEST(Pcg, SolvesTheFilteredSystemAndKeepsItsResidual) {
     EXPECT_GT(result.initialResidual, 0.0);
     EXPECT_LT(maxDifference(x, sys.exact(x0)), 1e-10) << "seed " << seed;
     for (int i = 0; i < kParticles; ++i) {
-      if (sys.constraint[i] == PcgConstraint::Fixed) EXPECT_EQ(x[i], x0[i]);
-      if (sys.constraint[i] == PcgConstraint::Normal)
+      if (sys.constraint[i] == PcgConstraint::Fixed) {
+        EXPECT_EQ(x[i], x0[i]);
+      } else if (sys.constraint[i] == PcgConstraint::Normal) {
         EXPECT_NEAR(x[i].dot(sys.normal[i]), x0[i].dot(sys.normal[i]), 1e-12);
+      }
     }
     std::vector<Eigen::Vector3d> Ax(kParticles), r(kParticles);
     sys.apply(x, Ax);
