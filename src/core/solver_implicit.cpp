@@ -364,8 +364,8 @@ int Solver::deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, do
 }
 
 // The active set after a solve, from the constraint impulse on each contact particle, what its
-// equation lacks: J = (A v+ - b)_i, the solve's residual with the sign turned. A contact with J.n < 0 pulls the particle towards the
-// collider: let go. A sticking contact with |J_t| > mu_s J.n leaves Coulomb's cone: it slides
+// equation lacks: J = (A v+ - b)_i, the solve's residual with the sign turned. A contact with
+// J.n < 0 pulls the particle towards the collider: let go. A sticking contact with |J_t| > mu_s J.n leaves Coulomb's cone: it slides
 // (normal velocity kept, tangential free) under kinetic friction mu_k J.n along J_t, a force of
 // the next solve: the slip it allows moves the whole object, which relaxes the shear that pushed
 // the contact out of the cone. A sliding contact whose slip the friction turned backwards (slip
