@@ -57,50 +57,69 @@ Eigen::Vector3d restCenterOfMass(const Lattice& L) {
 
 InteractiveDrag::InteractiveDrag(const ros::NodeHandle& pnh, const std::string& frameId,
                                  const std::vector<Handle>& handles, SendDrag sendDrag)
-    : sendDrag_(std::move(sendDrag)) {
+    : frameId_(frameId), sendDrag_(std::move(sendDrag)) {
   server_ = std::make_unique<interactive_markers::InteractiveMarkerServer>(
       pnh.resolveName("drag_marker"), "", false);
-  states_.resize(handles.size());
-  for (std::size_t k = 0; k < handles.size(); ++k) {
-    const Lattice& lattice = *handles[k].lattice;
-    State& state = states_[k];
-    state.name = handles[k].name;
-    state.objectSize = lattice.objectSize();
-    const Eigen::Vector3d com = restCenterOfMass(lattice);
-    state.handlePose = Eigen::Translation3d(com);
-
-    visualization_msgs::InteractiveMarker im;
-    im.header.frame_id = frameId;
-    im.name = state.name;
-    im.description = "";
-    im.scale = static_cast<float>(state.objectSize);
-    im.pose = tf2::toMsg(state.handlePose);
-
-    // What RViz picks: a coarse copy of the object, invisible, in the object's frame.
-    visualization_msgs::Marker handle;
-    initTriangleListMarker(frameId, "flsm_handle", {1.0f, 1.0f, 1.0f, kHandleAlpha}, handle);
-    TriMesh coarse = simplifyMesh(*handles[k].renderMesh, kHandleTriangles).mesh;
-    offsetAlongNormals(coarse, kHandleOffsetSpacings * lattice.spacing());
-    for (Eigen::Vector3d& v : coarse.vertices) v -= com;
-    setTriangleListPoints(coarse.vertices, coarse.triangles, handle);
-    handle.header.frame_id.clear();  // in the interactive marker's frame
-
-    visualization_msgs::InteractiveMarkerControl control;
-    control.name = "drag";
-    control.interaction_mode = visualization_msgs::InteractiveMarkerControl::MOVE_3D;
-    control.orientation.w = 1.0;
-    control.always_visible = true;
-    control.markers.push_back(handle);
-    im.controls.push_back(control);
-
-    server_->insert(im, [this, k](const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback) {
-      onFeedback(k, feedback);
-    });
-  }
+  for (std::size_t k = 0; k < handles.size(); ++k) insert(k, handles[k]);
   server_->applyChanges();
 }
 
+void InteractiveDrag::add(std::size_t object, const Handle& handle) {
+  insert(object, handle);
+  server_->applyChanges();
+}
+
+void InteractiveDrag::remove(std::size_t object) {
+  if (object >= states_.size() || !states_[object].present) return;
+  State& state = states_[object];
+  state.present = false;
+  state.dragging = false;
+  server_->erase(state.name);
+  server_->applyChanges();
+}
+
+void InteractiveDrag::insert(std::size_t object, const Handle& handle) {
+  if (states_.size() <= object) states_.resize(object + 1);
+  const Lattice& lattice = *handle.lattice;
+  State& state = states_[object];
+  state = State();
+  state.name = handle.name;
+  state.objectSize = lattice.objectSize();
+  state.present = true;
+  const Eigen::Vector3d com = restCenterOfMass(lattice);
+  state.handlePose = Eigen::Translation3d(com);
+
+  visualization_msgs::InteractiveMarker im;
+  im.header.frame_id = frameId_;
+  im.name = state.name;
+  im.description = "";
+  im.scale = static_cast<float>(state.objectSize);
+  im.pose = tf2::toMsg(state.handlePose);
+
+  // What RViz picks: a coarse copy of the object, invisible, in the object's frame.
+  visualization_msgs::Marker marker;
+  initTriangleListMarker(frameId_, "flsm_handle", {1.0f, 1.0f, 1.0f, kHandleAlpha}, marker);
+  TriMesh coarse = simplifyMesh(*handle.renderMesh, kHandleTriangles).mesh;
+  offsetAlongNormals(coarse, kHandleOffsetSpacings * lattice.spacing());
+  for (Eigen::Vector3d& v : coarse.vertices) v -= com;
+  setTriangleListPoints(coarse.vertices, coarse.triangles, marker);
+  marker.header.frame_id.clear();  // in the interactive marker's frame
+
+  visualization_msgs::InteractiveMarkerControl control;
+  control.name = "drag";
+  control.interaction_mode = visualization_msgs::InteractiveMarkerControl::MOVE_3D;
+  control.orientation.w = 1.0;
+  control.always_visible = true;
+  control.markers.push_back(marker);
+  im.controls.push_back(control);
+
+  server_->insert(im, [this, object](const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback) {
+    onFeedback(object, feedback);
+  });
+}
+
 void InteractiveDrag::follow(std::size_t object, const Eigen::Isometry3d& objectFrame) {
+  if (object >= states_.size() || !states_[object].present) return;
   State& state = states_[object];
   if (state.dragging) return;  // RViz owns the handle while the mouse holds it
   const double moved = (objectFrame.translation() - state.handlePose.translation()).norm();
@@ -114,6 +133,7 @@ void InteractiveDrag::follow(std::size_t object, const Eigen::Isometry3d& object
 void InteractiveDrag::onFeedback(std::size_t object,
                                  const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback) {
   using visualization_msgs::InteractiveMarkerFeedback;
+  if (object >= states_.size() || !states_[object].present) return;
   State& state = states_[object];
   DragCommand drag;
   drag.header = feedback->header;

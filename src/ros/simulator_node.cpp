@@ -58,7 +58,6 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   loop_ = std::make_unique<SimulationLoop>(std::move(scene.world), settings, stats_);
 
   commands_.resize(objects_.size());
-  for (const SceneObject& o : objects_) startNames_.push_back(o.name);
   for (std::size_t k = 0; k < objects_.size(); ++k) {
     const Lattice& L = *objects_[k].lattice;
     commands_[k].validator = std::make_unique<CommandValidator>(
@@ -197,13 +196,22 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
   publisher_->publishTf(s, stamp);
   colliders_->publishFrames(s, stamp);
   colliders_->publishMarkers(s, stamp);
-  // The mouse's handles are the start-up objects'; the snapshot lists the objects in the order
-  // they were added, without those removed: matched by name.
+  // The handles of objects added or removed since the last tick, then every handle to its
+  // object's frame: the snapshot lists the objects in the order they were added, without those
+  // removed, as objects_ does with the removed ones marked.
+  {
+    std::lock_guard<std::mutex> handlesLock(handlesMutex_);
+    for (std::size_t k : handlesToAdd_)
+      mouse_->add(k, {objects_[k].name, objects_[k].lattice.get(), &objects_[k].renderMesh});
+    for (std::size_t k : handlesToRemove_) mouse_->remove(k);
+    handlesToAdd_.clear();
+    handlesToRemove_.clear();
+  }
   std::size_t next = 0;
   for (const ObjectSnapshot& o : s.objects) {
     std::size_t k = next;
-    while (k < startNames_.size() && startNames_[k] != o.name) ++k;
-    if (k == startNames_.size()) break;  // the rest were added at run time
+    while (k < objects_.size() && (commands_[k].removed || objects_[k].name != o.name)) ++k;
+    if (k == objects_.size()) break;  // added since: its handle comes with the next snapshot
     mouse_->follow(k, o.objectFrame);
     next = k + 1;
   }
@@ -523,6 +531,10 @@ bool SimulatorNode::onAddObject(AddObject::Request& req, AddObject::Response& re
       [this, name] { return loop_->centerOfMass(name); });
   subscribeCommands(k, "objects/" + name + "/", c.dragSub, c.forceSub, c.pinBoxSrv);
   publisher_->addObject(objects_.back());
+  {
+    std::lock_guard<std::mutex> handlesLock(handlesMutex_);
+    handlesToAdd_.push_back(k);
+  }
   ROS_INFO("flsm_node: %s", o.message.c_str());
   return true;
 }
@@ -550,6 +562,8 @@ bool SimulatorNode::onRemoveObject(RemoveObject::Request& req, RemoveObject::Res
     std::swap(forceSub, c.forceSub);
     std::swap(pinBoxSrv, c.pinBoxSrv);
     publisher_->removeObject(req.name, ros::Time::now());
+    std::lock_guard<std::mutex> handlesLock(handlesMutex_);
+    handlesToRemove_.push_back(k);
   }
   // Shut down outside the lock: roscpp's shutdown waits for the subscription's running callback,
   // and onDrag / onForce / the pin box service wait for objectsMutex_ (shared): under the lock the

@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Objects added and removed at run time: ~add_object builds an object from a parameter holding
-one ~objects entry; its tf frame, ~objects/<name>/ topics and ~mesh marker appear and it takes
-drags by its name; ~remove_object takes it out (its marker deleted with a DELETE action, its
-topics unadvertised, its tf frame and contact wrenches gone). A duplicate name, an unknown key,
+one ~objects entry; its tf frame, ~objects/<name>/ topics, ~mesh marker and RViz mouse handle
+appear and it takes drags by its name and by the mouse; ~remove_object takes it out (its marker
+deleted with a DELETE action, its mouse handle erased, its topics unadvertised, its tf frame and
+contact wrenches gone). A duplicate name, an unknown key,
 a mesh that cannot be loaded, an object that starts inside another and an unknown name are
 refused with a reason, counted, and the node simulates on."""
 
@@ -13,10 +14,11 @@ import unittest
 import numpy as np
 import rospy
 import rostest
+from geometry_msgs.msg import Point
 from tf2_msgs.msg import TFMessage
-from visualization_msgs.msg import Marker
+from visualization_msgs.msg import InteractiveMarkerFeedback, InteractiveMarkerUpdate, Marker
 
-from deformable_flsm.msg import ContactWrenches, DragCommand
+from deformable_flsm.msg import ContactWrenches, DragCommand, SimulationState
 from deformable_flsm.srv import AddObject, RemoveObject
 from flsm_testing import ObjectsClient
 
@@ -49,6 +51,14 @@ class ObjectsDynamicTest(unittest.TestCase):
         cls.frames = {}      # child frame -> wall time last seen on /tf
         cls.deleted = set()  # marker namespaces deleted on ~mesh
         cls.wrench_ids = set()
+        cls.handles = set()  # the RViz mouse's handles on the interactive marker server
+        cls.object_states = {}
+        rospy.Subscriber(NODE + '/drag_marker/update', InteractiveMarkerUpdate, cls.on_handles,
+                         queue_size=100)
+        rospy.Subscriber(NODE + '/objects/top/state', SimulationState, cls.on_object_state,
+                         callback_args='top', queue_size=10)
+        cls.mouse = rospy.Publisher(NODE + '/drag_marker/feedback', InteractiveMarkerFeedback,
+                                    queue_size=10)
         rospy.Subscriber('/tf', TFMessage, cls.on_tf, queue_size=100)
         rospy.Subscriber(NODE + '/mesh', Marker, cls.on_marker, queue_size=100)
         rospy.Subscriber(NODE + '/contact_wrenches', ContactWrenches, cls.on_wrenches, queue_size=10)
@@ -65,6 +75,36 @@ class ObjectsDynamicTest(unittest.TestCase):
         if msg.action == Marker.DELETE:
             with cls.lock:
                 cls.deleted.add(msg.ns)
+
+    @classmethod
+    def on_handles(cls, msg):
+        with cls.lock:
+            cls.handles |= set(m.name for m in msg.markers)
+            cls.handles -= set(msg.erases)
+
+    @classmethod
+    def on_object_state(cls, msg, name):
+        with cls.lock:
+            cls.object_states[name] = msg
+
+    def drags_on(self, name):
+        with self.lock:
+            s = self.object_states.get(name)
+        return None if s is None else s.active_drags
+
+    def press(self, name, event, point=None):
+        m = InteractiveMarkerFeedback()
+        m.header.frame_id = 'world'
+        m.header.stamp = rospy.Time.now()
+        m.client_id = '/rviz/InteractiveMarkers'
+        m.marker_name = name
+        m.control_name = 'drag'
+        m.event_type = event
+        m.pose.orientation.w = 1.0
+        if point is not None:
+            m.mouse_point = Point(*point)
+            m.mouse_point_valid = True
+        self.mouse.publish(m)
 
     @classmethod
     def on_wrenches(cls, msg):
@@ -105,6 +145,15 @@ class ObjectsDynamicTest(unittest.TestCase):
         # it rests on the left cube: a wrench between them
         self.assertTrue(self.wait(lambda: any('top' in i and 'left' in i for i in self.wrench_ids)),
                         'no contact wrench between top and left: %s' % sorted(self.wrench_ids))
+
+        # the RViz mouse: its handle appears; pressed on it, the mouse grabs the added object
+        self.assertTrue(self.wait(lambda: 'top' in self.handles), 'no mouse handle for top')
+        self.assertTrue(self.wait(lambda: self.mouse.get_num_connections() > 0))
+        x = self.client.particles('top')
+        self.press('top', InteractiveMarkerFeedback.MOUSE_DOWN, point=x[int(np.argmax(x[:, 2]))])
+        self.assertTrue(self.wait(lambda: self.drags_on('top') == 1), 'the mouse did not grab top')
+        self.press('top', InteractiveMarkerFeedback.MOUSE_UP)
+        self.assertTrue(self.wait(lambda: self.drags_on('top') == 0), 'the mouse did not let go')
 
         # a drag addressed to it by name lifts its top particle
         pub = rospy.Publisher(NODE + '/objects/top/drag', DragCommand, queue_size=10)
@@ -148,6 +197,7 @@ class ObjectsDynamicTest(unittest.TestCase):
             streamer.join()
         self.assertTrue(res.success, res.message)
         self.assertTrue(self.wait(lambda: 'top' in self.deleted), 'no DELETE of its marker')
+        self.assertTrue(self.wait(lambda: 'top' not in self.handles), 'its mouse handle stays')
         self.assertTrue(self.wait(lambda: not self.published(NODE + '/objects/top/particles')),
                         'its topics are still advertised')
         time.sleep(1.0)

@@ -45,6 +45,10 @@ class InteractiveDrag {
   InteractiveDrag(const ros::NodeHandle& pnh, const std::string& frameId,
                   const std::vector<Handle>& handles, SendDrag sendDrag);
 
+  /// Adds the handle of object `object` (an object added at run time: the next index).
+  void add(std::size_t object, const Handle& handle);
+  /// Erases the handle of object `object` (removed at run time): RViz no longer shows it.
+  void remove(std::size_t object);
   /// Moves handle `object` to the object's rigid frame when it moved or turned noticeably,
   /// unless the mouse holds it.
   void follow(std::size_t object, const Eigen::Isometry3d& objectFrame);
@@ -53,6 +57,7 @@ class InteractiveDrag {
   struct State {
     std::string name;
     double objectSize = 0.0;
+    bool present = false;  // its handle is on the server
     bool dragging = false;
     Eigen::Vector3d grabPoint = Eigen::Vector3d::Zero();
     Eigen::Vector3d grabPose = Eigen::Vector3d::Zero();
@@ -61,6 +66,10 @@ class InteractiveDrag {
   void onFeedback(std::size_t object,
                   const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback);
 
+  /// Puts handle `object` on the server (applyChanges() is the caller's).
+  void insert(std::size_t object, const Handle& handle);
+
+  std::string frameId_;
   SendDrag sendDrag_;
   std::unique_ptr<interactive_markers::InteractiveMarkerServer> server_;
   std::vector<State> states_;

@@ -170,8 +170,10 @@ class SimulatorNode {
     bool removed = false;  ///< taken out with ~remove_object: its handles are shut down
   };
   std::deque<ObjectCommands> commands_;
-  /// the objects at start-up (the RViz mouse's handles, by index)
-  std::vector<std::string> startNames_;
+  /// objects (indices into objects_) whose RViz handles the main thread is still to add or
+  /// erase: ~add_object and ~remove_object run on the service thread, the mouse on the main one
+  std::mutex handlesMutex_;
+  std::vector<std::size_t> handlesToAdd_, handlesToRemove_;
   std::unique_ptr<ColliderTopics> colliders_;  ///< ~collider, ~contact_wrenches, ~colliders
 
   tf2_ros::Buffer tfBuffer_;
