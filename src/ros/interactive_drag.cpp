@@ -57,48 +57,26 @@ Eigen::Vector3d restCenterOfMass(const Lattice& L) {
 
 InteractiveDrag::InteractiveDrag(const ros::NodeHandle& pnh, const std::string& frameId,
                                  const std::vector<Handle>& handles, SendDrag sendDrag)
-    : frameId_(frameId), sendDrag_(std::move(sendDrag)) {
+    : sendDrag_(std::move(sendDrag)) {
   server_ = std::make_unique<interactive_markers::InteractiveMarkerServer>(
       pnh.resolveName("drag_marker"), "", false);
-  for (std::size_t k = 0; k < handles.size(); ++k) insert(k, handles[k]);
+  for (std::size_t k = 0; k < handles.size(); ++k) insert(k, makeHandle(handles[k], frameId));
   server_->applyChanges();
 }
 
-void InteractiveDrag::add(std::size_t object, const Handle& handle) {
-  insert(object, handle);
-  server_->applyChanges();
-}
-
-void InteractiveDrag::remove(std::size_t object) {
-  if (object >= states_.size() || !states_[object].present) return;
-  State& state = states_[object];
-  state.present = false;
-  state.dragging = false;
-  server_->erase(state.name);
-  server_->applyChanges();
-}
-
-void InteractiveDrag::insert(std::size_t object, const Handle& handle) {
-  if (states_.size() <= object) states_.resize(object + 1);
+visualization_msgs::InteractiveMarker InteractiveDrag::makeHandle(const Handle& handle, const std::string& frameId) {
   const Lattice& lattice = *handle.lattice;
-  State& state = states_[object];
-  state = State();
-  state.name = handle.name;
-  state.objectSize = lattice.objectSize();
-  state.present = true;
   const Eigen::Vector3d com = restCenterOfMass(lattice);
-  state.handlePose = Eigen::Translation3d(com);
-
   visualization_msgs::InteractiveMarker im;
-  im.header.frame_id = frameId_;
-  im.name = state.name;
+  im.header.frame_id = frameId;
+  im.name = handle.name;
   im.description = "";
-  im.scale = static_cast<float>(state.objectSize);
-  im.pose = tf2::toMsg(state.handlePose);
+  im.scale = static_cast<float>(lattice.objectSize());
+  im.pose = tf2::toMsg(Eigen::Isometry3d(Eigen::Translation3d(com)));
 
   // What RViz picks: a coarse copy of the object, invisible, in the object's frame.
   visualization_msgs::Marker marker;
-  initTriangleListMarker(frameId_, "flsm_handle", {1.0f, 1.0f, 1.0f, kHandleAlpha}, marker);
+  initTriangleListMarker(frameId, "flsm_handle", {1.0f, 1.0f, 1.0f, kHandleAlpha}, marker);
   TriMesh coarse = simplifyMesh(*handle.renderMesh, kHandleTriangles).mesh;
   offsetAlongNormals(coarse, kHandleOffsetSpacings * lattice.spacing());
   for (Eigen::Vector3d& v : coarse.vertices) v -= com;
@@ -112,8 +90,32 @@ void InteractiveDrag::insert(std::size_t object, const Handle& handle) {
   control.always_visible = true;
   control.markers.push_back(marker);
   im.controls.push_back(control);
+  return im;
+}
 
-  server_->insert(im, [this, object](const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback) {
+void InteractiveDrag::add(std::size_t object, const visualization_msgs::InteractiveMarker& handle) {
+  insert(object, handle);
+  server_->applyChanges();
+}
+
+void InteractiveDrag::remove(std::size_t object) {
+  if (object >= states_.size() || !states_[object].present) return;
+  State& state = states_[object];
+  state.present = false;
+  state.dragging = false;
+  server_->erase(state.name);
+  server_->applyChanges();
+}
+
+void InteractiveDrag::insert(std::size_t object, const visualization_msgs::InteractiveMarker& handle) {
+  if (states_.size() <= object) states_.resize(object + 1);
+  State& state = states_[object];
+  state = State();
+  state.name = handle.name;
+  state.objectSize = handle.scale;
+  state.present = true;
+  tf2::fromMsg(handle.pose, state.handlePose);
+  server_->insert(handle, [this, object](const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback) {
     onFeedback(object, feedback);
   });
 }

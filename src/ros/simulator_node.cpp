@@ -201,8 +201,7 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
   // removed, as objects_ does with the removed ones marked.
   {
     std::lock_guard<std::mutex> handlesLock(handlesMutex_);
-    for (std::size_t k : handlesToAdd_)
-      mouse_->add(k, {objects_[k].name, objects_[k].lattice.get(), &objects_[k].renderMesh});
+    for (const auto& [k, handle] : handlesToAdd_) mouse_->add(k, handle);
     for (std::size_t k : handlesToRemove_) mouse_->remove(k);
     handlesToAdd_.clear();
     handlesToRemove_.clear();
@@ -511,6 +510,9 @@ bool SimulatorNode::onAddObject(AddObject::Request& req, AddObject::Response& re
     return refuseObject("invalid_object", e.what(), res);
   }
   const std::shared_ptr<const Lattice> lattice = prepared.object.lattice;
+  // its RViz handle too: simplifying the render mesh is no work for the main thread's tick
+  visualization_msgs::InteractiveMarker handle = InteractiveDrag::makeHandle(
+      {spec.name, lattice.get(), &prepared.object.renderMesh}, defaults.frameId);
   const CommandOutcome o = sendAndWaitForTheAnswer(AddObjectCommand{spec.name, lattice, prepared.solverParams});
   res.success = o.accepted;
   res.message = o.message;  // a refusal is counted by the simulation thread
@@ -533,7 +535,7 @@ bool SimulatorNode::onAddObject(AddObject::Request& req, AddObject::Response& re
   publisher_->addObject(objects_.back());
   {
     std::lock_guard<std::mutex> handlesLock(handlesMutex_);
-    handlesToAdd_.push_back(k);
+    handlesToAdd_.emplace_back(k, std::move(handle));
   }
   ROS_INFO("flsm_node: %s", o.message.c_str());
   return true;

@@ -10,6 +10,7 @@
 #include <deformable_flsm/DragCommand.h>
 #include <interactive_markers/interactive_marker_server.h>
 #include <ros/node_handle.h>
+#include <visualization_msgs/InteractiveMarker.h>
 #include <visualization_msgs/InteractiveMarkerFeedback.h>
 
 #include <Eigen/Core>
@@ -45,8 +46,11 @@ class InteractiveDrag {
   InteractiveDrag(const ros::NodeHandle& pnh, const std::string& frameId,
                   const std::vector<Handle>& handles, SendDrag sendDrag);
 
-  /// Adds the handle of object `object` (an object added at run time: the next index).
-  void add(std::size_t object, const Handle& handle);
+  /// The interactive marker of one object's handle (a simplified copy of its render mesh, which
+  /// takes a while for a large mesh: any thread, before add()).
+  static visualization_msgs::InteractiveMarker makeHandle(const Handle& handle, const std::string& frameId);
+  /// Adds the handle of object `object` (an object added at run time), made by makeHandle().
+  void add(std::size_t object, const visualization_msgs::InteractiveMarker& handle);
   /// Erases the handle of object `object` (removed at run time): RViz no longer shows it.
   void remove(std::size_t object);
   /// Moves handle `object` to the object's rigid frame when it moved or turned noticeably,
@@ -67,9 +71,8 @@ class InteractiveDrag {
                   const visualization_msgs::InteractiveMarkerFeedbackConstPtr& feedback);
 
   /// Puts handle `object` on the server (applyChanges() is the caller's).
-  void insert(std::size_t object, const Handle& handle);
+  void insert(std::size_t object, const visualization_msgs::InteractiveMarker& handle);
 
-  std::string frameId_;
   SendDrag sendDrag_;
   std::unique_ptr<interactive_markers::InteractiveMarkerServer> server_;
   std::vector<State> states_;

@@ -38,6 +38,7 @@
 #include <mutex>
 #include <shared_mutex>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace deformable_flsm {
@@ -173,7 +174,8 @@ class SimulatorNode {
   /// objects (indices into objects_) whose RViz handles the main thread is still to add or
   /// erase: ~add_object and ~remove_object run on the service thread, the mouse on the main one
   std::mutex handlesMutex_;
-  std::vector<std::size_t> handlesToAdd_, handlesToRemove_;
+  std::vector<std::pair<std::size_t, visualization_msgs::InteractiveMarker>> handlesToAdd_;
+  std::vector<std::size_t> handlesToRemove_;
   std::unique_ptr<ColliderTopics> colliders_;  ///< ~collider, ~contact_wrenches, ~colliders
 
   tf2_ros::Buffer tfBuffer_;
