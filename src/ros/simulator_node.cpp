@@ -201,8 +201,9 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
   // removed, as objects_ does with the removed ones marked.
   {
     std::lock_guard<std::mutex> handlesLock(handlesMutex_);
-    for (const auto& [k, handle] : handlesToAdd_) mouse_->add(k, handle);
+    // erased first: an object removed and one of the same name added within a tick
     for (std::size_t k : handlesToRemove_) mouse_->remove(k);
+    for (const auto& [k, handle] : handlesToAdd_) mouse_->add(k, handle);
     handlesToAdd_.clear();
     handlesToRemove_.clear();
   }
