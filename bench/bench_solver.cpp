@@ -233,14 +233,19 @@ struct DropRun {
   int maxIterations = 0;
 };
 
-DropRun drop(const std::shared_ptr<const Lattice>& lattice, const SolverParams& p, double seconds) {
-  Solver s(lattice, p);
+/// A ground plane 2 cm below the solver's lowest contact sphere, set as collider "ground".
+void setGroundBelow(Solver& s) {
   double lowest = s.positions()[0].z();
   for (const auto& x : s.positions()) lowest = std::min(lowest, x.z());
   Collider ground;
   ground.shape.type = ColliderType::HalfSpace;
   ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - s.contactRadius() - 0.02);
   s.setCollider("ground", ground);
+}
+
+DropRun drop(const std::shared_ptr<const Lattice>& lattice, const SolverParams& p, double seconds) {
+  Solver s(lattice, p);
+  setGroundBelow(s);
   const int steps = static_cast<int>(std::lround(seconds / p.timeStep));
   DropRun out;
   long total = 0;
@@ -305,16 +310,10 @@ void demoRow(const TriMesh& upright, std::size_t particles, int w, double E) {
   p.substeps = 1;
   p.integrator = Integrator::Implicit;
   Solver s(lattice, p);
-  double lowest = s.positions()[0].z();
+  setGroundBelow(s);
   std::uint32_t top = 0;
-  for (std::uint32_t k = 0; k < s.positions().size(); ++k) {
-    lowest = std::min(lowest, s.positions()[k].z());
+  for (std::uint32_t k = 0; k < s.positions().size(); ++k)
     if (s.positions()[k].z() > s.positions()[top].z()) top = k;
-  }
-  Collider ground;
-  ground.shape.type = ColliderType::HalfSpace;
-  ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - s.contactRadius() - 0.02);
-  s.setCollider("ground", ground);
   const auto threadCpu = [] {
     timespec t;
     clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
