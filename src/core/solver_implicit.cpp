@@ -365,17 +365,22 @@ int Solver::deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, do
 
 // The active set after a solve, from the constraint impulse on each contact particle, what its
 // equation lacks: J = (A v+ - b)_i, the solve's residual with the sign turned. A contact with
-// J.n < 0 pulls the particle towards the collider: let go. A sticking contact with |J_t| > mu_s J.n leaves Coulomb's cone: it slides
-// (normal velocity kept, tangential free) under kinetic friction mu_k J.n along J_t, a force of
-// the next solve: the slip it allows moves the whole object, which relaxes the shear that pushed
-// the contact out of the cone. A sliding contact whose slip the friction turned backwards (slip
-// along the friction force) has stopped: it sticks again. (Friction applied to the contact
-// particles after the solve, instead, left the object's shear in place and the contacts sliding
-// at rest for as long as they touched: the object never came to rest after a drag.) A free
-// particle that the solution carries into a collider (deeper than kContactSlop) becomes a
-// sticking contact. Returns whether the set changed.
+// J.n < 0 pulls the particle towards the collider: let go. A sticking contact with |J_t| > mu_s J.n
+// leaves Coulomb's cone: it slides (normal velocity kept, tangential free) under kinetic friction
+// mu_k J.n along J_t, a force of the next solve: the slip it allows moves the whole object, which
+// relaxes the shear that pushed the contact out of the cone. A sliding contact whose slip the
+// friction turned backwards (slip along the friction force) has stopped: it sticks again. (Friction
+// applied to the contact particles after the solve, instead, left the object's shear in place and
+// the contacts sliding at rest for as long as they touched: the object never came to rest after a
+// drag.) A free particle that the solution carries into a collider (deeper than kContactSlop)
+// becomes a sticking contact. Returns whether the set changed.
 bool Solver::updateContactSet(double h, bool& guessChanged) {
   const std::vector<Eigen::Vector3d>& residual = pcg_.residual();
+  // a friction force of the solve: the right-hand side and the residual PCG keeps change together
+  const auto addFriction = [this](std::size_t i, const Eigen::Vector3d& f) {
+    implicitRhs_[i] += f;
+    pcg_.addToResidual(i, f);
+  };
   const double slop = kContactSlop * contactRadius();
   bool changed = false;
   for (std::size_t i = 0; i < x_.size(); ++i) {
@@ -401,8 +406,7 @@ bool Solver::updateContactSet(double h, bool& guessChanged) {
     const double Jn = J.dot(implicitNormal_[i]);
     const Eigen::Vector3d& n = implicitNormal_[i];
     if (Jn < 0.0) {
-      implicitRhs_[i] -= implicitFriction_[i];
-      pcg_.addToResidual(i, -implicitFriction_[i]);
+      addFriction(i, -implicitFriction_[i]);
       implicitFriction_[i].setZero();
       implicitConstraint_[i] = PcgConstraint::Free;
       implicitContactBody_[i] = -1;
@@ -416,8 +420,7 @@ bool Solver::updateContactSet(double h, bool& guessChanged) {
         // (against the slip it resisted) as a force of the solve, so that the rest of the object
         // moves with the slip
         implicitFriction_[i] = (c.kineticFriction * Jn / t) * Jt;
-        implicitRhs_[i] += implicitFriction_[i];
-        pcg_.addToResidual(i, implicitFriction_[i]);
+        addFriction(i, implicitFriction_[i]);
         implicitConstraint_[i] = PcgConstraint::Normal;
         implicitContactState_[i] = kSliding;
         changed = true;
@@ -430,8 +433,7 @@ bool Solver::updateContactSet(double h, bool& guessChanged) {
       const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - pose.translation());
       const Eigen::Vector3d rel = implicitVelocity_[i] - vc;
       if ((rel - rel.dot(n) * n).dot(implicitFriction_[i]) > 0.0) {
-        implicitRhs_[i] -= implicitFriction_[i];
-        pcg_.addToResidual(i, -implicitFriction_[i]);
+        addFriction(i, -implicitFriction_[i]);
         implicitFriction_[i].setZero();
         implicitVelocity_[i] = vc + (implicitVelocity_[i] - vc).dot(n) * n;
         implicitConstraint_[i] = PcgConstraint::Fixed;
