@@ -165,6 +165,25 @@ class FlsmClient(object):
         return self.wait_state(lambda s: s.idle and s.active_drags == 0, timeout)
 
 
+def mouse_feedback(pub, marker, event, pose=(0.0, 0.0, 0.0), point=None):
+    """Publishes on `pub` (~drag_marker/feedback) what RViz sends for a mouse event on the handle
+    `marker`: the handle moved to `pose`, and the point under the cursor when given."""
+    from visualization_msgs.msg import InteractiveMarkerFeedback
+    m = InteractiveMarkerFeedback()
+    m.header.frame_id = 'world'
+    m.header.stamp = rospy.Time.now()
+    m.client_id = '/rviz/InteractiveMarkers'
+    m.marker_name = marker
+    m.control_name = 'drag'
+    m.event_type = event
+    m.pose.position = Point(*pose)
+    m.pose.orientation.w = 1.0
+    if point is not None:
+        m.mouse_point = Point(*point)
+        m.mouse_point_valid = True
+    pub.publish(m)
+
+
 def top_particle(x):
     """Index of the highest particle (the bunny's ear)."""
     return int(np.argmax(x[:, 2]))

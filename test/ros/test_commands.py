@@ -13,11 +13,11 @@ import rospy
 import rostest
 import tf2_ros
 from dynamic_reconfigure.client import Client as ReconfigureClient
-from geometry_msgs.msg import Point, TransformStamped
+from geometry_msgs.msg import TransformStamped
 from visualization_msgs.msg import InteractiveMarkerFeedback
 
 from deformable_flsm.msg import DragCommand, ForceCommand
-from flsm_testing import FlsmClient, top_particle
+from flsm_testing import FlsmClient, mouse_feedback, top_particle
 
 PKG = 'deformable_flsm'
 
@@ -139,19 +139,7 @@ class CommandsTest(unittest.TestCase):
         p = top_particle(x)
 
         def feedback(event, pose_offset, mouse=None):
-            m = InteractiveMarkerFeedback()
-            m.header.frame_id = 'world'
-            m.header.stamp = rospy.Time.now()
-            m.client_id = '/rviz/InteractiveMarkers'
-            m.marker_name = 'object'
-            m.control_name = 'drag'
-            m.event_type = event
-            m.pose.position = Point(*pose_offset)
-            m.pose.orientation.w = 1.0
-            if mouse is not None:
-                m.mouse_point = Point(*mouse)
-                m.mouse_point_valid = True
-            pub.publish(m)
+            mouse_feedback(pub, 'object', event, pose=pose_offset, point=mouse)
 
         feedback(InteractiveMarkerFeedback.MOUSE_DOWN, (0, 0, 0), mouse=x[p])
         self.assertIsNotNone(f.wait_state(lambda s: s.active_drags == 1, 5.0), 'no grab')

@@ -14,13 +14,12 @@ import unittest
 import numpy as np
 import rospy
 import rostest
-from geometry_msgs.msg import Point
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import InteractiveMarkerFeedback, InteractiveMarkerUpdate, Marker
 
 from deformable_flsm.msg import ContactWrenches, DragCommand, SimulationState
 from deformable_flsm.srv import AddObject, RemoveObject
-from flsm_testing import ObjectsClient
+from flsm_testing import ObjectsClient, mouse_feedback
 
 PKG = 'deformable_flsm'
 NODE = '/flsm_node'
@@ -92,20 +91,6 @@ class ObjectsDynamicTest(unittest.TestCase):
             s = self.object_states.get(name)
         return None if s is None else s.active_drags
 
-    def press(self, name, event, point=None):
-        m = InteractiveMarkerFeedback()
-        m.header.frame_id = 'world'
-        m.header.stamp = rospy.Time.now()
-        m.client_id = '/rviz/InteractiveMarkers'
-        m.marker_name = name
-        m.control_name = 'drag'
-        m.event_type = event
-        m.pose.orientation.w = 1.0
-        if point is not None:
-            m.mouse_point = Point(*point)
-            m.mouse_point_valid = True
-        self.mouse.publish(m)
-
     @classmethod
     def on_wrenches(cls, msg):
         with cls.lock:
@@ -150,9 +135,10 @@ class ObjectsDynamicTest(unittest.TestCase):
         self.assertTrue(self.wait(lambda: 'top' in self.handles), 'no mouse handle for top')
         self.assertTrue(self.wait(lambda: self.mouse.get_num_connections() > 0))
         x = self.client.particles('top')
-        self.press('top', InteractiveMarkerFeedback.MOUSE_DOWN, point=x[int(np.argmax(x[:, 2]))])
+        mouse_feedback(self.mouse, 'top', InteractiveMarkerFeedback.MOUSE_DOWN,
+                       point=x[int(np.argmax(x[:, 2]))])
         self.assertTrue(self.wait(lambda: self.drags_on('top') == 1), 'the mouse did not grab top')
-        self.press('top', InteractiveMarkerFeedback.MOUSE_UP)
+        mouse_feedback(self.mouse, 'top', InteractiveMarkerFeedback.MOUSE_UP)
         self.assertTrue(self.wait(lambda: self.drags_on('top') == 0), 'the mouse did not let go')
 
         # a drag addressed to it by name lifts its top particle
