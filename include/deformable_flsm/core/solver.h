@@ -462,9 +462,10 @@ class Solver : private RegionKernel {
   /// phi - r of particle i at the start of the sub-step against contact body b at its pose then
   /// (negative: a penetration the sub-step did not make).
   double startDepth(std::size_t i, int b) const;
-  /// The collider (index into contactBodies_, at body.now) x is deepest in, or -1; its depth
-  /// phi - r (< 0), outward normal and surface velocity at x.
-  int deepestContact(const Eigen::Vector3d& x, Eigen::Vector3d& normal, double& depth,
+  /// The collider (index into contactBodies_, at body.now) x is deepest in, counting a depth
+  /// phi - r below `within` (0: inside; a small positive value: touching), or -1; its depth,
+  /// outward normal and surface velocity at x.
+  int deepestContact(const Eigen::Vector3d& x, double within, Eigen::Vector3d& normal, double& depth,
                      Eigen::Vector3d& colliderVelocity) const;
   /// Every contact's impulse on its collider after the last solve.
   void sumContactImpulses(double h);
