@@ -77,6 +77,9 @@ constexpr int kContactPasses = 4;
 /// contact pass's friction, at most mu times a normal change of about the slop over h: two pads
 /// gripping the bunny lifted it 2 cm of 10, then lost it (test_solver_implicit).
 constexpr double kContactSlop = 1e-3;
+/// A sliding contact's kinetic friction is set again to mu_k times the pass's normal impulse when
+/// they differ by more than this fraction (another pass for less would cost more than it gives).
+constexpr double kFrictionChange = 0.02;
 /// The contact states kept from one sub-step to the next (implicitContactState_).
 constexpr char kNoContact = 0, kSticking = 1, kSliding = 2, kReleased = 3;
 /// At most this many aggregates in the preconditioner's coarse space (6 unknowns each, a dense
@@ -323,6 +326,7 @@ bool Solver::constrainContacts(double h) {
     Eigen::Vector3d normal, vc;
     double depth = 0.0;
     const int b = deepestContact(x, slop, normal, depth, vc);
+    const Eigen::Vector3d slid = implicitFriction_[i];  // its kinetic friction, if it slid
     implicitFriction_[i].setZero();
     const char last = implicitContactState_[i];
     implicitContactState_[i] = b < 0 ? kNoContact : kSticking;
@@ -333,9 +337,24 @@ bool Solver::constrainContacts(double h) {
       implicitContactState_[i] = kReleased;
       continue;
     }
+    const double undo = (std::min(startDepth(i, b), 0.0) - depth) / h;
+    // a contact that ended the last sub-step sliding goes on sliding, under the kinetic friction
+    // it had (in this normal's tangent plane), until the solve finds its slip reversed: started
+    // sticking, a sliding object's contacts took its whole momentum in the first solve and only
+    // some of them left the cone per pass, and those left sticking after the last pass held it
+    if (last == kSliding && !slid.isZero(0.0)) {
+      implicitFriction_[i] = slid - slid.dot(normal) * normal;
+      implicitRhs_[i] += implicitFriction_[i];
+      implicitVelocity_[i] += (predicted.dot(normal) + undo - implicitVelocity_[i].dot(normal)) * normal;
+      implicitConstraint_[i] = PcgConstraint::Normal;
+      implicitNormal_[i] = normal;
+      implicitContactBody_[i] = b;
+      implicitContactState_[i] = kSliding;
+      any = true;
+      continue;
+    }
     // every other contact starts sticking (the solve then says whether its impulse stays in the
     // cone): at rest the set holds from step to step
-    const double undo = (std::min(startDepth(i, b), 0.0) - depth) / h;
     implicitVelocity_[i] = vc + (predicted.dot(normal) + undo - vc.dot(normal)) * normal;
     implicitConstraint_[i] = PcgConstraint::Fixed;
     implicitNormal_[i] = normal;
@@ -400,11 +419,21 @@ bool Solver::updateContactSet(double h, bool& guessChanged) {
       if (b < 0 || depth > -slop) continue;
       const Eigen::Vector3d v = implicitVelocity_[i];
       const double undo = (std::min(startDepth(i, b), 0.0) - depth) / h;
-      implicitVelocity_[i] = vc + (v.dot(normal) + undo - vc.dot(normal)) * normal;
-      implicitConstraint_[i] = PcgConstraint::Fixed;
+      const Eigen::Vector3d rel = v - vc;
       implicitNormal_[i] = normal;
       implicitContactBody_[i] = b;
-      implicitContactState_[i] = kSticking;
+      if (implicitContactState_[i] != kReleased || (rel - rel.dot(normal) * normal).isZero(0.0)) {
+        implicitVelocity_[i] = vc + (v.dot(normal) + undo - vc.dot(normal)) * normal;
+        implicitConstraint_[i] = PcgConstraint::Fixed;
+        implicitContactState_[i] = kSticking;
+      } else {
+        // a contact let go of (it pulled) that comes back slipping joins sliding, its kinetic
+        // friction set by the next pass: added sticking, the uphill edge of a block sliding down
+        // a slope came back into the plane, held the block, pulled, was let go, ... every pass
+        implicitVelocity_[i] = v + undo * normal;
+        implicitConstraint_[i] = PcgConstraint::Normal;
+        implicitContactState_[i] = kSliding;
+      }
       changed = true;
       guessChanged = true;
       continue;
@@ -434,13 +463,25 @@ bool Solver::updateContactSet(double h, bool& guessChanged) {
         changed = true;
       }
     } else {
-      // sliding: friction that carried the particle backwards (its slip along the friction
-      // force) means it stops: it sticks
       const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
       const Eigen::Isometry3d& pose = contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])].now;
       const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - pose.translation());
       const Eigen::Vector3d rel = implicitVelocity_[i] - vc;
-      if ((rel - rel.dot(n) * n).dot(implicitFriction_[i]) > 0.0) {
+      const Eigen::Vector3d slip = rel - rel.dot(n) * n;
+      const double f = implicitFriction_[i].norm(), kinetic = c.kineticFriction * Jn;
+      if (f == 0.0) {
+        // joined sliding in this sub-step: kinetic friction against its slip from now on
+        const double s = slip.norm();
+        if (s > 0.0 && kinetic > 0.0) {
+          implicitFriction_[i] = -(kinetic / s) * slip;
+          addFriction(i, implicitFriction_[i]);
+          changed = true;
+        }
+        continue;
+      }
+      // sliding: friction that carried the particle backwards (its slip along the friction
+      // force) means it stops: it sticks
+      if (slip.dot(implicitFriction_[i]) > 0.0) {
         addFriction(i, -implicitFriction_[i]);
         implicitFriction_[i].setZero();
         implicitVelocity_[i] = vc + (implicitVelocity_[i] - vc).dot(n) * n;
@@ -448,6 +489,13 @@ bool Solver::updateContactSet(double h, bool& guessChanged) {
         implicitContactState_[i] = kSticking;
         changed = true;
         guessChanged = true;
+      } else if (std::abs(kinetic - f) > kFrictionChange * f) {
+        // still sliding: kinetic friction mu_k J.n with this pass's normal impulse (the one it
+        // was set with, the sticking solve's, held a sliding object's momentum too)
+        const Eigen::Vector3d df = (kinetic / f - 1.0) * implicitFriction_[i];
+        addFriction(i, df);
+        implicitFriction_[i] += df;
+        changed = true;
       }
     }
   }

@@ -588,3 +588,73 @@ TEST(ImplicitStep, PadsLiftTheBunnyWithFrictionAndLoseItWithout) {
   std::printf("[ pads    ] mu 0.05, squeeze 3.5 cm: lifted %.1f mm\n", 1e3 * lost.lift);
   EXPECT_LT(lost.lift, 0.02) << "without friction the bunny slips out";
 }
+
+namespace {
+
+struct Incline {
+  double displacement = 0.0;  // downhill over the settling time after the tilt (m)
+  double acceleration = 0.0;  // downhill over the following second (m/s^2)
+};
+
+// test_contact's incline at one implicit sub-step of 1/60 s: a 10 x 5 x 3 cm block (1 cm cells,
+// 100 kPa) settles on a horizontal plane through the origin, which then tilts at 0.1 rad/s about
+// y to theta (downhill is the plane's +x); the block's downhill displacement over `settle` s after
+// the tilt and its acceleration over the next second.
+Incline inclineAtOneSubstep(double theta, double mus, double muk, double settle) {
+  auto lattice = std::make_shared<const Lattice>(deformable_flsm::test::makeBox(10, 5, 3, 0.01), kDensity, 1);
+  SolverParams p = implicitParams(1e5, 0.0, 1, 1.0 / 60.0);
+  p.ambientDamping = 0.0;  // air drag would slow the slide
+  Solver s(lattice, p);
+  Collider plane;
+  plane.staticFriction = mus;
+  plane.kineticFriction = muk;
+  s.setCollider("incline", plane);
+  for (int i = 0; i < 30; ++i) s.step();
+  const int tilting = std::max(1, static_cast<int>(std::lround(theta / 0.1 * 60.0)));
+  const Eigen::Vector3d omega(0, theta / (tilting * p.timeStep), 0);
+  s.moveCollider("incline", Eigen::Isometry3d::Identity(), Eigen::Vector3d::Zero(), omega);
+  for (int i = 0; i < tilting; ++i) s.step();
+  const Eigen::Isometry3d tilted(Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitY()));
+  s.moveCollider("incline", tilted, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  const Eigen::Vector3d downhill = tilted.linear().col(0);
+  const auto& m = lattice->masses();
+  const auto along = [&] {
+    double a = 0.0;
+    for (std::size_t i = 0; i < m.size(); ++i) a += m[i] * s.positions()[i].dot(downhill);
+    return a / lattice->totalMass();
+  };
+  const auto velocity = [&] { return s.linearMomentum().dot(downhill) / lattice->totalMass(); };
+  const double along0 = along();
+  for (int i = 0; i < static_cast<int>(std::lround(settle * 60.0)); ++i) s.step();
+  Incline out;
+  out.displacement = along() - along0;
+  const double v1 = velocity(), t1 = s.time();
+  for (int i = 0; i < 60; ++i) s.step();
+  out.acceleration = (velocity() - v1) / (s.time() - t1);
+  return out;
+}
+
+}  // namespace
+
+// Coulomb's law with friction in the solve, at one sub-step of 1/60 s: the block sticks below the
+// friction angle (mu_k = mu_s) and slides above it with g (sin theta - mu_k cos theta).
+TEST(ImplicitStep, BlockOnAnInclineSticksBelowTheFrictionAngleAndSlidesAbove) {
+  const double mus = 0.6;
+  for (double ratio : {0.5, 0.9}) {
+    const double theta = std::atan(ratio * mus);
+    const Incline held = inclineAtOneSubstep(theta, mus, mus, 2.0);
+    std::printf("[ incline ] mu_s = mu_k = %.1f, tan theta = %.1f mu_s: moved %.3f mm in 2 s, acceleration %.4f m/s^2\n",
+                mus, ratio, 1e3 * held.displacement, held.acceleration);
+    EXPECT_LT(std::abs(held.displacement), 1e-3) << "the block sticks at tan(theta) = " << ratio << " mu_s";
+    EXPECT_LT(std::abs(held.acceleration), 0.01);
+  }
+  for (auto [muk, tanTheta] : {std::pair<double, double>{mus, 1.1 * mus}, {0.5, 1.2 * mus}, {0.5, 1.0}}) {
+    const double theta = std::atan(tanTheta);
+    const double expected = 9.81 * (std::sin(theta) - muk * std::cos(theta));
+    const Incline slide = inclineAtOneSubstep(theta, mus, muk, 0.5);
+    std::printf("[ incline ] mu_s %.1f, mu_k %.1f, theta %.1f deg: acceleration %.4f m/s^2, g (sin - mu_k cos) = %.4f "
+                "(%+.2f %%)\n", mus, muk, theta * 180 / M_PI, slide.acceleration, expected,
+                100 * (slide.acceleration / expected - 1));
+    EXPECT_NEAR(slide.acceleration, expected, 0.05 * expected) << "theta " << theta;
+  }
+}
