@@ -399,8 +399,10 @@ int Solver::deepestContact(const Eigen::Vector3d& x, double within, Eigen::Vecto
 // friction turned backwards (slip along the friction force) has stopped: it sticks again. (Friction
 // applied to the contact particles after the solve, instead, left the object's shear in place and
 // the contacts sliding at rest for as long as they touched: the object never came to rest after a
-// drag.) A free particle that the solution carries into a collider (deeper than kContactSlop)
-// becomes a sticking contact. Returns whether the set changed.
+// drag.) A sliding contact's kinetic friction follows each pass's normal impulse. A free particle
+// that the solution carries into a collider (deeper than kContactSlop) becomes a sticking contact,
+// or a sliding one if it was let go of in this sub-step and comes back slipping. Returns whether
+// the set changed.
 bool Solver::updateContactSet(double h, bool& guessChanged) {
   const std::vector<Eigen::Vector3d>& residual = pcg_.residual();
   // a friction force of the solve: the right-hand side and the residual PCG keeps change together
