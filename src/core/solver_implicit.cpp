@@ -185,12 +185,19 @@ void Solver::implicitSubstep(double h) {
   const bool relative = params_.ambientDamping > 0.0 && !heldByWorld();
   if (relative) computeRigidMotion();
 
-  // The system: A = diag(M (1 + h c) + h^2 k_spring) + sum_r (h^2 k beta_r + h damping) K_r
+  // The system: A = diag(M (1 + h c [a free object]) + h^2 k_spring) + sum_r (h^2 k beta_r + h damping) K_r
   // (+ h^2 H_vol), h^2 k = alpha.
   hessian_->setRotations(rotations_);
   hessian_->setCoefficients(alpha_, h * params_.damping, regionWeight_, weightSum_, invCount_);
   const double c = params_.ambientDamping;
-  for (std::size_t i = 0; i < n; ++i) implicitDiagonal_[i].setConstant(m[i] * (1.0 + h * c));
+  // Ambient damping relative to the object's rigid motion (a free object) is in the system; an
+  // object held by the world is damped as the explicit step damps it, v_n by exp(-c h) before
+  // the step: in the system it would damp the sub-step's fall onto a support the solve does not
+  // see (another object, whose contact comes after the solve), which then carried 1 / (1 + h c)
+  // of the weight above it.
+  const double damped = relative ? 1.0 + h * c : 1.0;
+  const double keep = relative ? 1.0 : std::exp(-c * h);
+  for (std::size_t i = 0; i < n; ++i) implicitDiagonal_[i].setConstant(m[i] * damped);
   for (const auto& entry : drags_) {
     const Drag& drag = entry.second;
     const Eigen::Isometry3d& frame = drag.frame;
@@ -211,7 +218,7 @@ void Solver::implicitSubstep(double h) {
     Eigen::Vector3d a = params_.gravity;
     if (!forcedParticles_.empty()) a += forceAccel_[i];
     if (volumetric_) a += volumetricAccel_[i];
-    Eigen::Vector3d b = m[i] * (v_[i] + h * a + pull * stiffnessFactor_[i] * (implicitGoal_[i] - x_[i]));
+    Eigen::Vector3d b = m[i] * (keep * v_[i] + h * a + pull * stiffnessFactor_[i] * (implicitGoal_[i] - x_[i]));
     // relative ambient damping pulls towards the object's rigid motion as gravity carries it
     // over the sub-step (as the explicit step damps before adding gravity): free fall is exact
     if (relative) b += (h * c * m[i]) * (rigidVelocity_ + rigidSpin_.cross(x_[i] - xref_) + h * params_.gravity);

@@ -9,12 +9,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <random>
 
 using deformable_flsm::FemMaterial;
 using deformable_flsm::FemOracle;
 using deformable_flsm::FemSolution;
+using deformable_flsm::Integrator;
 using deformable_flsm::Lattice;
 using deformable_flsm::Solver;
 using deformable_flsm::SolverParams;
@@ -480,58 +482,104 @@ TEST(AmbientDamping, ThrownSpinningObjectKeepsMomentumAndStopsWobbling) {
 // light load oscillates about its sag in its first bending mode; the logarithmic decrement of its
 // tip's swings gives zeta = delta / sqrt(4 pi^2 + delta^2), which must be c / (2 omega_n) within
 // 20 % (omega_n from the measured period). Region damping off: it is the other channel.
-TEST(AmbientDamping, LogarithmicDecrementGivesTheDampingRatio) {
+namespace {
+
+struct Decay {
+  double zeta = 0.0;    // from the logarithmic decrement of the tip's swings
+  double omegaN = 0.0;  // natural angular frequency from the measured period (rad/s)
+  bool swung = false;   // at least six extremes
+};
+
+// The cantilever of the test below, released from rest under a light load, with ambient damping
+// c (1/s) and `integrator` at `substeps` sub-steps; region damping off.
+Decay cantileverDecay(double c, Integrator integrator, int substeps) {
   const double t = 0.1, L = 0.8, h = 0.05;
   const Voxelization vox = box(18, 2, 2, h, Eigen::Vector3d(-2 * h, 0, 0));
   const double E = modulusFor(h);
   const double omegaBeam = analytic::cantileverFirstBendingFrequency(L, t, E, kDensity);
+  SolverParams p = physical(E, 0.0, 1, substeps);
+  p.integrator = integrator;
+  p.damping = 0.0;
+  p.ambientDamping = c;
+  p.gravity = Eigen::Vector3d(0, 0, -0.01 * L * E * t * t / (1.5 * kDensity * std::pow(L, 4)));
+  auto lattice = std::make_shared<const Lattice>(vox, kDensity, 1);
+  Solver s(lattice, p);
+  s.pinBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(0.0, kBig, kBig), true);
+  std::vector<std::uint32_t> tip;
+  for (std::uint32_t i = 0; i < lattice->size(); ++i)
+    if (lattice->restPositions()[i].x() > L - h) tip.push_back(i);
+  const double period = 2.0 * M_PI / omegaBeam;
+  const int steps = static_cast<int>(6.0 * period / kStep);
+  std::vector<double> z(static_cast<std::size_t>(steps));
+  for (int k = 0; k < steps; ++k) {
+    s.step();
+    double sum = 0.0;
+    for (std::uint32_t i : tip) sum += s.positions()[i].z();
+    z[static_cast<std::size_t>(k)] = sum / tip.size();
+  }
+  // swings: extremes of the tip, each the largest or smallest within a quarter of a period
+  // (so that the faint higher modes cannot make extremes of their own)
+  const int window = static_cast<int>(0.25 * period / kStep);
+  std::vector<std::pair<int, double>> extremes;
+  for (int k = window; k + window < steps; ++k) {
+    bool isMax = true, isMin = true;
+    for (int j = k - window; j <= k + window; ++j) {
+      isMax = isMax && z[static_cast<std::size_t>(j)] <= z[static_cast<std::size_t>(k)];
+      isMin = isMin && z[static_cast<std::size_t>(j)] >= z[static_cast<std::size_t>(k)];
+    }
+    if (isMax || isMin) extremes.emplace_back(k, z[static_cast<std::size_t>(k)]);
+  }
+  Decay out;
+  out.swung = extremes.size() >= 6u;
+  if (!out.swung) return out;
+  double logRatio = 0.0;
+  const std::size_t swings = extremes.size() - 2;
+  for (std::size_t e = 0; e < swings; ++e) {
+    const double r0 = std::abs(extremes[e + 1].second - extremes[e].second);
+    const double r1 = std::abs(extremes[e + 2].second - extremes[e + 1].second);
+    logRatio += std::log(r0 / r1);
+  }
+  const double halfPeriods = (extremes.back().first - extremes.front().first) * kStep / (extremes.size() - 1);
+  const double delta = 2.0 * logRatio / swings;  // per full period
+  out.zeta = delta / std::sqrt(4.0 * M_PI * M_PI + delta * delta);
+  out.omegaN = M_PI / halfPeriods / std::sqrt(1.0 - out.zeta * out.zeta);
+  return out;
+}
+
+double cantileverOmega() {
+  const double t = 0.1, L = 0.8, h = 0.05;
+  return analytic::cantileverFirstBendingFrequency(L, t, modulusFor(h), kDensity);
+}
+
+}  // namespace
+
+TEST(AmbientDamping, LogarithmicDecrementGivesTheDampingRatio) {
+  const double omegaBeam = cantileverOmega();
   for (double zeta : {0.02, 0.08}) {
-    SolverParams p = physical(E, 0.0, 1, 4);
-    p.damping = 0.0;
-    p.ambientDamping = 2.0 * zeta * omegaBeam;
-    p.gravity = Eigen::Vector3d(0, 0, -0.01 * L * E * t * t / (1.5 * kDensity * std::pow(L, 4)));
-    auto lattice = std::make_shared<const Lattice>(vox, kDensity, 1);
-    Solver s(lattice, p);
-    s.pinBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(0.0, kBig, kBig), true);
-    std::vector<std::uint32_t> tip;
-    for (std::uint32_t i = 0; i < lattice->size(); ++i)
-      if (lattice->restPositions()[i].x() > L - h) tip.push_back(i);
-    const double period = 2.0 * M_PI / omegaBeam;
-    const int steps = static_cast<int>(6.0 * period / kStep);
-    std::vector<double> z(static_cast<std::size_t>(steps));
-    for (int k = 0; k < steps; ++k) {
-      s.step();
-      double sum = 0.0;
-      for (std::uint32_t i : tip) sum += s.positions()[i].z();
-      z[static_cast<std::size_t>(k)] = sum / tip.size();
-    }
-    // swings: extremes of the tip, each the largest or smallest within a quarter of a period
-    // (so that the faint higher modes cannot make extremes of their own)
-    const int window = static_cast<int>(0.25 * period / kStep);
-    std::vector<std::pair<int, double>> extremes;
-    for (int k = window; k + window < steps; ++k) {
-      bool isMax = true, isMin = true;
-      for (int j = k - window; j <= k + window; ++j) {
-        isMax = isMax && z[static_cast<std::size_t>(j)] <= z[static_cast<std::size_t>(k)];
-        isMin = isMin && z[static_cast<std::size_t>(j)] >= z[static_cast<std::size_t>(k)];
-      }
-      if (isMax || isMin) extremes.emplace_back(k, z[static_cast<std::size_t>(k)]);
-    }
-    ASSERT_GE(extremes.size(), 6u) << "zeta " << zeta;
-    double logRatio = 0.0, halfPeriods = 0.0;
-    const std::size_t swings = extremes.size() - 2;
-    for (std::size_t e = 0; e < swings; ++e) {
-      const double r0 = std::abs(extremes[e + 1].second - extremes[e].second);
-      const double r1 = std::abs(extremes[e + 2].second - extremes[e + 1].second);
-      logRatio += std::log(r0 / r1);
-    }
-    halfPeriods = (extremes.back().first - extremes.front().first) * kStep / (extremes.size() - 1);
-    const double delta = 2.0 * logRatio / swings;  // per full period
-    const double measured = delta / std::sqrt(4.0 * M_PI * M_PI + delta * delta);
-    const double omegaN = M_PI / halfPeriods / std::sqrt(1.0 - measured * measured);
-    const double expected = p.ambientDamping / (2.0 * omegaN);
-    EXPECT_NEAR(measured / expected, 1.0, 0.20) << "zeta asked " << zeta << ": measured " << measured
-                                                << ", c / (2 omega_n) " << expected << ", omega_n " << omegaN
-                                                << " rad/s (Euler-Bernoulli " << omegaBeam << ")";
+    const double c = 2.0 * zeta * omegaBeam;
+    const Decay d = cantileverDecay(c, Integrator::Explicit, 4);
+    ASSERT_TRUE(d.swung) << "zeta " << zeta;
+    const double expected = c / (2.0 * d.omegaN);
+    EXPECT_NEAR(d.zeta / expected, 1.0, 0.20) << "zeta asked " << zeta << ": measured " << d.zeta
+                                              << ", c / (2 omega_n) " << expected << ", omega_n " << d.omegaN
+                                              << " rad/s (Euler-Bernoulli " << omegaBeam << ")";
+  }
+}
+
+// With the implicit step at one sub-step the ambient damping ratio adds to the step's own
+// numerical damping (about omega h / 2): the ratio measured with c, less the one without, is
+// c / (2 omega_n) within 20 %.
+TEST(AmbientDamping, ImplicitStepAddsTheDampingRatioToItsOwn) {
+  const double omegaBeam = cantileverOmega();
+  const Decay own = cantileverDecay(0.0, Integrator::Implicit, 1);
+  ASSERT_TRUE(own.swung);
+  for (double zeta : {0.02, 0.08}) {
+    const double c = 2.0 * zeta * omegaBeam;
+    const Decay d = cantileverDecay(c, Integrator::Implicit, 1);
+    ASSERT_TRUE(d.swung) << "zeta " << zeta;
+    const double expected = c / (2.0 * d.omegaN);
+    std::printf("[ damping ] implicit, 1 sub-step: omega_n h %.3f, own zeta %.4f, with c %.3f /s: %.4f, added %.4f, "
+                "c / (2 omega_n) %.4f\n", d.omegaN * kStep, own.zeta, c, d.zeta, d.zeta - own.zeta, expected);
+    EXPECT_NEAR((d.zeta - own.zeta) / expected, 1.0, 0.20) << "zeta asked " << zeta;
   }
 }
