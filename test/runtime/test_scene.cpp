@@ -261,6 +261,31 @@ TEST(PrepareObject, AMeshThatCannotBeLoadedNamesTheObject) {
   }
 }
 
+// Two objects with the implicit step stop the node at start-up saying why and what to set (one
+// object with it is built).
+TEST(BuildScene, SeveralObjectsWithTheImplicitStepAreRefused) {
+  NodeParams params = cubeParams();
+  params.solver.integrator = Integrator::Implicit;
+  params.solver.substeps = 1;
+  std::vector<ObjectSpec> objects(2);
+  for (int k = 0; k < 2; ++k) {
+    objects[k].name = k == 0 ? "a" : "b";
+    objects[k].params = params;
+    objects[k].pose.translation() = Eigen::Vector3d(3.0 * k, 0.0, 0.0);
+  }
+  const auto cube = [](const NodeParams&) { return test::boxMesh(Eigen::Vector3d::Ones()); };
+  try {
+    buildWorld(params, objects, cube);
+    FAIL() << "no error";
+  } catch (const ParamError& e) {
+    EXPECT_NE(std::string(e.what()).find("~integrator"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("explicit"), std::string::npos) << e.what();
+  }
+  objects.pop_back();
+  const WorldScene one = buildWorld(params, objects, cube);
+  EXPECT_EQ(one.world->objectCount(), 1u);
+}
+
 /// The message of the ParamError that validate() throws, or "" when it passes.
 std::string problem(const NodeParams& p) {
   try {
