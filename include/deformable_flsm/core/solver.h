@@ -439,7 +439,7 @@ class Solver : private RegionKernel {
   std::vector<Eigen::Vector3d> implicitGoal_;   // goals at the start of the sub-step
   std::vector<Eigen::Vector3d> implicitRhs_;    // M v_n + h f(x_n)
   std::vector<Eigen::Vector3d> implicitVelocity_;  // v_{n+1}, the unknown
-  std::vector<Eigen::Vector3d> implicitDiagonal_;  // M (1 + h c) + h^2 spring stiffness
+  std::vector<Eigen::Vector3d> implicitDiagonal_;  // M (1 + h c for a free object) + h^2 spring stiffness
   std::vector<Eigen::Vector3d> implicitInvPrecond_;  // inverse of the Jacobi diagonal
   /// the last sub-step's v_{n+1} - v_n - h g (warm start: the next guess is v_n + h g + this)
   std::vector<Eigen::Vector3d> implicitLastDv_;
