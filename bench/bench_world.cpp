@@ -16,7 +16,7 @@
 // A benchmark, not a test: it prints figures and never fails because the machine is slow.
 // Entries run in turns, one run each per round; figures are medians over the rounds.
 //
-//   bench_world [--resolution R] [--objects N] [--triangles T] [--rounds K]
+//   bench_world [--resolution R] [--objects N] [--triangles T] [--rounds K] [--only sizes|bin]
 
 #include "deformable_flsm/core/embedding.h"
 #include "deformable_flsm/core/lattice.h"
@@ -47,6 +47,7 @@ struct Args {
   int objects = 150;
   std::size_t triangles = 1000;
   int rounds = 3;
+  std::string only;  // "sizes" or "bin": that part alone
 };
 
 Args parse(int argc, char** argv) {
@@ -58,6 +59,7 @@ Args parse(int argc, char** argv) {
     else if (k == "--objects") a.objects = std::max(1, std::atoi(v));
     else if (k == "--triangles") a.triangles = std::max<std::size_t>(4, std::strtoul(v, nullptr, 10));
     else if (k == "--rounds") a.rounds = std::max(1, std::atoi(v));
+    else if (k == "--only" && (std::string(v) == "sizes" || std::string(v) == "bin")) a.only = v;
     else {
       std::fprintf(stderr, "unknown option %s\n", k.c_str());
       std::exit(2);
@@ -254,10 +256,13 @@ int main(int argc, char** argv) {
 
   // --- 1. N objects against one alone ---
   const int steps = 20;
-  std::printf("\nN objects: ms per step (median of %d rounds of %d steps)\n", args.rounds, steps);
-  std::printf("%6s %10s %10s %10s %12s %12s %14s %10s\n", "N", "N x alone", "apart", "pile", "apart/Nx1", "pile/apart",
-              "pile contacts", "overlap/r");
+  if (args.only != "bin") {
+    std::printf("\nN objects: ms per step (median of %d rounds of %d steps)\n", args.rounds, steps);
+    std::printf("%6s %10s %10s %10s %12s %12s %14s %10s %12s\n", "N", "N x alone", "apart", "pile", "apart/Nx1",
+                "pile/apart", "pile contacts", "overlap/r", "list builds");
+  }
   for (int n : {1, 10, 50, args.objects}) {
+    if (args.only == "bin") break;
     const Placed one = place(shape, Eigen::Vector3d::Zero());
     Solver alone(one.lattice, params(*one.lattice));
     alone.setCollider("ground", groundCollider());
@@ -269,6 +274,7 @@ int main(int argc, char** argv) {
       pile->step();
     }
     std::vector<double> tAlone, tApart, tPile, ratioApart, ratioPile;
+    const std::size_t builds0 = pile->contactListBuilds();
     for (int r = 0; r < args.rounds; ++r) {
       const double a = n * secondsOf([&] { for (int i = 0; i < steps; ++i) alone.step(); }) / steps;
       const double b = secondsOf([&] { for (int i = 0; i < steps; ++i) spread->step(); }) / steps;
@@ -279,11 +285,15 @@ int main(int argc, char** argv) {
       ratioApart.push_back(b / a);
       ratioPile.push_back(c / b);
     }
-    std::printf("%6d %10.3f %10.3f %10.3f %12.3f %12.3f %14zu %10.3f\n", n, 1e3 * median(tAlone), 1e3 * median(tApart),
-                1e3 * median(tPile), median(ratioApart), median(ratioPile), pairContacts(*pile), deepestOverlap(*pile));
+    // the pile's candidate list builds per sub-step over the timed steps
+    const double builds = double(pile->contactListBuilds() - builds0) / (args.rounds * steps * kSubsteps);
+    std::printf("%6d %10.3f %10.3f %10.3f %12.3f %12.3f %14zu %10.3f %12.2f\n", n, 1e3 * median(tAlone),
+                1e3 * median(tApart), 1e3 * median(tPile), median(ratioApart), median(ratioPile), pairContacts(*pile),
+                deepestOverlap(*pile), builds);
   }
 
   // --- 2. the bin against real time ---
+  if (args.only == "sizes") return 0;
   std::vector<Placed> placed;
   auto world = bin(shape, args.objects, &placed);
   std::vector<Embedding> embeddings;
@@ -306,6 +316,7 @@ int main(int argc, char** argv) {
   for (const char* phase : {"falling (first 1.5 s)", "settled (after 4 s)"}) {
     std::vector<double> step, render;
     const int frames = 45;
+    const std::size_t builds0 = world->contactListBuilds();
     for (int f = 0; f < frames; ++f) {
       const auto t = frame();
       step.push_back(t.first);
@@ -314,10 +325,11 @@ int main(int argc, char** argv) {
     if (phase[0] == 'f')
       for (int f = 0; f < 75; ++f) world->step();  // on to 4 s
     const double ms = 1e3 * median(step), msr = 1e3 * median(render);
+    const double builds = double(world->contactListBuilds() - builds0) / (frames * kSubsteps);
     std::printf("  %-22s step %.2f ms, render meshes %.2f ms, frame %.2f ms (%s 33.3 ms at 30 Hz), %.3f ms per "
-                "object, object contacts %zu, deepest overlap %.3f r\n",
+                "object, object contacts %zu, deepest overlap %.3f r, list builds per sub-step %.2f\n",
                 phase, ms, msr, ms + msr, ms + msr <= 1e3 / 30.0 ? "within" : "over", (ms + msr) / args.objects,
-                pairContacts(*world), deepestOverlap(*world));
+                pairContacts(*world), deepestOverlap(*world), builds);
   }
   std::printf("  FastLSM's penguins: 150 objects of 150 particles at 25 frames per second on a Pentium 4, 0.27 ms per "
               "object per frame, no contact between them\n");

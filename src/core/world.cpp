@@ -214,6 +214,8 @@ void World::setContactParams(const ObjectContactParams& contact) {
 
 const std::vector<ObjectPairWrench>& World::objectWrenches() const { return impl_->wrenches; }
 
+std::size_t World::contactListBuilds() const { return impl_->contact.listBuilds(); }
+
 ContactWrench World::objectWrench(const std::string& from, const std::string& on) const {
   for (const ObjectPairWrench& w : impl_->wrenches)
     if (w.from == from && w.on == on) return w.wrench;

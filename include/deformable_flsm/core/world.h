@@ -98,6 +98,9 @@ class World {
   const std::vector<ObjectPairWrench>& objectWrenches() const;
   /// what object `from` exerted on object `on` over the last step; zero when they did not touch
   ContactWrench objectWrench(const std::string& from, const std::string& on) const;
+  /// How many times the object contact's candidate list was built (wholly or for some objects)
+  /// since the world was made: a figure for benchmarks.
+  std::size_t contactListBuilds() const;
 
   // --- the step -----------------------------------------------------------------------
   /// Advances every object by one time step: per sub-step each object's dynamics and collider
