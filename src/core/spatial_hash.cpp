@@ -6,6 +6,14 @@
 
 namespace deformable_flsm {
 
+void SpatialHash::reserve(std::size_t count) {
+  std::size_t buckets = 64;
+  while (buckets < 2 * count) buckets *= 2;
+  if (start_.size() < buckets + 1) start_.resize(buckets + 1);
+  if (entries_.size() < count) entries_.resize(count);
+  if (pointBucket_.size() < count) pointBucket_.resize(count);
+}
+
 void SpatialHash::build(const std::vector<Eigen::Vector3d>& points, std::size_t count, double cellSize) {
   if (!(cellSize > 0.0) || !std::isfinite(cellSize))
     throw std::invalid_argument("spatial hash: the cell size must be positive and finite");

@@ -6,6 +6,7 @@
 #include "deformable_flsm/core/world.h"
 
 #include "deformable_flsm/core/contact.h"
+#include "deformable_flsm/core/object_contact.h"
 #include "allocation_counter.h"
 #include "fixtures.h"
 
@@ -18,6 +19,7 @@
 #include <cstdio>
 #include <memory>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -613,6 +615,80 @@ TEST(World, ResultsDoNotDependOnTheThreadCount) {
   for (std::size_t i = 0; i < one.size(); ++i) ASSERT_EQ(one[i], two[i]) << i;
 }
 
+// The candidate list is built again for the objects whose particles left their allowances only:
+// objects swinging into each other and others at rest beside them, moved by hand each sub-step
+// (the pass's own corrections ignored: any motion must be caught), against every pair of
+// particles closer than their reaches at the end or the start of the sub-step, by brute force.
+TEST(ObjectContact, TheCandidateListHoldsEveryPairThatComesWithinReach) {
+  const double h = kStep / kSubsteps;
+  std::vector<std::unique_ptr<Solver>> solvers;
+  std::vector<Solver*> objects;
+  for (int o = 0; o < 8; ++o) {
+    auto lattice = boxAt(3, 3, 3, 0.01, Eigen::Vector3d(0.035 * (o % 4), 0.035 * (o / 4), 0.0));
+    solvers.push_back(std::make_unique<Solver>(lattice, paramsFor(*lattice)));
+    objects.push_back(solvers.back().get());
+  }
+  ObjectContactParams params;
+  params.selfContact = true;
+  params.selfExclusion = 1;
+  ObjectContactSolver contact;
+  std::mt19937 rng(5);
+  std::normal_distribution<double> jitter(0.0, 0.01);
+  std::vector<std::vector<Eigen::Vector3d>> x, v;
+  for (const Solver* s : objects) {
+    x.push_back(s->positions());
+    v.emplace_back(s->positions().size(), Eigen::Vector3d::Zero());
+  }
+  std::size_t nearPairs = 0, listed = 0, missing = 0, substeps = 0;
+  for (int step = 0; step < 400; ++step, ++substeps) {
+    const double t = step * h;
+    for (std::size_t o = 0; o < objects.size(); ++o) {
+      // the first row swings along x and y into its neighbours (0.3 m/s at most; the first
+      // of it 3 m/s, more than its radius in a sub-step: its particles search wide); the second
+      // rests, its particles trembling (1 cm/s)
+      const double a = o == 0 ? 3.0 : 0.3, w = o == 0 ? 40.0 : 8.0;
+      const Eigen::Vector3d V = o < 4 ? Eigen::Vector3d(a * std::sin(w * t + o), 0.3 * std::sin(5.0 * t), 0.0)
+                                      : Eigen::Vector3d::Zero();
+      for (std::size_t i = 0; i < x[o].size(); ++i) {
+        v[o][i] = V + Eigen::Vector3d(jitter(rng), jitter(rng), jitter(rng));
+        x[o][i] += h * v[o][i];
+      }
+      objects[o]->setPositions(x[o]);
+      objects[o]->setVelocities(v[o]);
+    }
+    contact.substep(objects, {}, params, h, true);
+    std::set<std::pair<std::uint32_t, std::uint32_t>> candidates(contact.candidatePairs().begin(),
+                                                                  contact.candidatePairs().end());
+    listed += candidates.size();
+    std::uint32_t g1 = 0;
+    for (std::size_t a = 0; a < objects.size(); ++a)
+      for (std::size_t i = 0; i < x[a].size(); ++i, ++g1) {
+        std::uint32_t g2 = 0;
+        for (std::size_t b = 0; b < objects.size(); ++b)
+          for (std::size_t j = 0; j < x[b].size(); ++j, ++g2) {
+            if (g2 <= g1) continue;
+            if (a == b) {
+              const Eigen::Vector3i d = objects[a]->lattice().cells()[i] - objects[a]->lattice().cells()[j];
+              if (d.cwiseAbs().maxCoeff() <= params.selfExclusion) continue;
+            }
+            const double reach = 1.25 * (objects[a]->contactRadius() + objects[b]->contactRadius());
+            const bool atEnd = (x[a][i] - x[b][j]).norm() < reach;
+            const bool atStart = ((x[a][i] - h * v[a][i]) - (x[b][j] - h * v[b][j])).norm() < reach;
+            if (!atEnd && !atStart) continue;
+            ++nearPairs;
+            if (!candidates.count({g1, g2})) ++missing;
+          }
+      }
+  }
+  std::printf("candidate list: %zu builds in %zu sub-steps, %zu pairs within reach, %zu listed, %zu missing\n",
+              contact.listBuilds(), substeps, nearPairs, listed, missing);
+  EXPECT_GT(nearPairs, 1000u) << "the objects come near each other";
+  EXPECT_EQ(missing, 0u);
+  EXPECT_LT(contact.listBuilds(), substeps) << "the list is kept over some sub-steps";
+  // 8 x 27 particles: 23,220 pairs a sub-step; the list holds a small share
+  EXPECT_LT(listed, substeps * 23220 / 5);
+}
+
 TEST(World, StepDoesNotAllocateOnceItsBuffersHaveGrown) {
   // a stack on the ground pushed by a kinematic box, with self-contact: every path of the pass
   ObjectContactParams contact;
@@ -695,14 +771,15 @@ TEST(WorldScene, TwentySoftObjectsInABinGoToRestAndStayThere) {
   // sees on an object of a few cm, and the contacts' own tolerance of penetration) over 2 s
   const double bound = 0.01 * r / dt;
   double fastest = 0.0;
+  const std::size_t builds = world.contactListBuilds();
   for (long i = 0; i < std::lround(2.0 / dt); ++i) {
     world.step();
     fastest = std::max(fastest, maxSpeed(world));
   }
   const double overlap = deepestOverlap(world);
   std::printf("bin of 20 soft objects: from 10 to 12 s the fastest particle %.3g m/s (bound %.3g m/s), deepest "
-              "overlap %.3g r\n",
-              fastest, bound, overlap);
+              "overlap %.3g r, contact list built %zu times\n",
+              fastest, bound, overlap, world.contactListBuilds() - builds);
   EXPECT_TRUE(allFinite(world));
   EXPECT_LT(fastest, bound) << "the pile stays at rest";
   EXPECT_LT(overlap, 0.1) << "no two objects interpenetrate";

@@ -58,20 +58,26 @@ class ObjectContactSolver {
   /// removed (a new object could take a removed one's place in memory).
   void invalidate() { built_ = false; }
 
-  /// How many times the candidate list was built since this solver was made.
+  /// How many times the candidate list was built (for all objects or for some) since this
+  /// solver was made.
   std::size_t listBuilds() const { return listBuilds_; }
+  /// The candidate pairs of the last substep() (for tests): particles by their global numbers
+  /// (object o's particle i is i plus the particles of the objects before o), the lower first.
+  const std::vector<std::pair<std::uint32_t, std::uint32_t>>& candidatePairs() const { return keys_; }
 
   /// The contact pass after every object's sub-step of length h:
   ///  1. a candidate list of particle pairs (a Verlet list: Verlet 1967), kept over sub-steps
   ///     and steps while no particle has moved farther than its allowance (a fraction of its
-  ///     radius, more for a fast one) from where it was at the build (its anchor), rebuilt
-  ///     otherwise: a broad phase of each object's bounds (inflated by its contact radius, the
-  ///     margin and the allowance) lets only the particles where an object's bounds meet
-  ///     another's (or with self-contact) into a spatial hash of the anchors, which gives the
-  ///     pairs closer than the sum of their reaches and allowances:
-  ///     pairs of different objects, and with params.selfContact pairs of one object farther
-  ///     apart than params.selfExclusion cells in its rest lattice. A resting pile rebuilds
-  ///     seldom, and far objects cost a pass over their particles only;
+  ///     radius, more for a fast one) from where it was at its object's build (its anchor);
+  ///     built again for the objects one of whose particles did, the pairs of two other
+  ///     objects kept: a broad phase of each object's bounds (inflated by its contact radius,
+  ///     the margin and the allowance) lets only the particles where a rebuilt object's bounds
+  ///     meet another's (or with self-contact) into a spatial hash of the anchors, which gives
+  ///     the pairs closer than the sum of their reaches and allowances: pairs of different
+  ///     objects, and with params.selfContact pairs of one object farther apart than
+  ///     params.selfExclusion cells in its rest lattice. A resting pile rebuilds seldom, a
+  ///     falling one the objects that move, and far objects cost a pass over their particles
+  ///     only;
   ///  2. of the candidates, the pairs closer than the sum of their radii with the margin at the
   ///     end or at the start of the sub-step (a sphere that passed through another is caught);
   ///     each particle in such a pair also gets a contact with every collider it touches, so
@@ -116,13 +122,17 @@ class ObjectContactSolver {
   };
   /// A collider contact's impulses kept for the next sub-step's warm start.
   struct KeptImpulse {
-    std::uint32_t k = 0, collider = 0;
+    std::uint32_t k = 0, collider = 0;  // the particle's global number
     double lambda = 0.0;
     Eigen::Vector3d friction = Eigen::Vector3d::Zero();
     bool sliding = false;
   };
-  bool listStale(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h) const;
-  void buildList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h);
+  enum class Staleness { kNone, kSome, kAll };
+  /// Marks in stale_ the objects whose particles left their allowances; kAll when the objects
+  /// or the parameters changed since the build.
+  Staleness findStale(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h);
+  /// Builds the list again for the stale objects (all of them with `all`).
+  void buildList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h, bool all);
   void gather(const std::vector<Solver*>& objects, double h);
   void findPairs(const ObjectContactParams& params);
   void findColliderContacts(const std::vector<SubstepCollider>& colliders, double h);
@@ -142,13 +152,21 @@ class ObjectContactSolver {
   int builtExclusion_ = 0;
   std::vector<const Solver*> builtObjects_;
   std::vector<double> builtRadius_;
-  std::vector<std::size_t> offset_;      // per object, its first particle in anchor_ (#objects + 1)
-  std::vector<Eigen::Vector3d> anchor_;  // every particle's mid-sub-step position at the build
+  std::vector<std::size_t> offset_;      // per object, its first particle's global number (#objects + 1)
+  std::vector<std::uint32_t> owner_;     // per particle (global number), its object
+  std::vector<Eigen::Vector3d> anchor_;  // every particle's mid-sub-step position at its object's build
   std::vector<double> allowance_;        // how far each particle may move from its anchor
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> candidates_;  // (k1 < k2): anchors closer than reach + allowance, summed
+  std::vector<char> stale_;              // per object, whether its anchors are built again
+  // the candidate pairs (anchors closer than reach + allowance, summed): by global numbers
+  // (g1 < g2), and by their places in the gathered arrays
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> keys_, candidates_;
   std::vector<std::uint32_t> scratch_;   // the buckets of a wide search
-  // the last sub-step's impulses: per candidate pair, and per collider contact in (k, collider)
-  // order; kept while the list is
+  // the particles hashed in a build: global number, object, anchor, reach + allowance
+  std::vector<std::uint32_t> hashGlobal_, hashObject_;
+  std::vector<Eigen::Vector3d> hashX_;
+  std::vector<double> hashBall_;
+  // the last sub-step's impulses: per candidate pair (kept while both its objects' anchors
+  // are), and per collider contact in (global number, collider) order
   std::vector<double> keptLambda_;
   std::vector<Eigen::Vector3d> keptFriction_;
   std::vector<char> keptSliding_;
@@ -156,14 +174,15 @@ class ObjectContactSolver {
   // per object, at the build
   std::vector<Eigen::Vector3d> lo_, hi_;  // bounds of the anchors inflated by reach_ + the largest allowance
   std::vector<double> radius_, reach_;    // contact radius, and radius with the margin
+  std::vector<double> most_;              // the largest allowance of its particles
   std::vector<char> near_;                // its bounds meet another object's (or self-contact)
   std::vector<std::uint32_t> order_;  // objects by their lower x bound
   std::vector<std::pair<std::uint32_t, std::uint32_t>> objectPairs_;  // whose bounds meet
   std::vector<std::uint32_t> neighborStart_, neighbors_;  // per object, the others its bounds meet
-  std::vector<std::int32_t> renumber_;  // per gathered particle at the build, its place in the list or -1
+  std::vector<std::int32_t> renumber_;  // per particle (global number), its place in the list or -1
   // the particles of the candidate list, object by object, each object's in index order
   std::size_t count_ = 0;
-  std::vector<std::uint32_t> object_, index_;
+  std::vector<std::uint32_t> global_, object_, index_;
   std::vector<Eigen::Vector3d> x_, v_;
   std::vector<double> w_, r_;
   std::vector<Eigen::Vector3d> start_;  // x - h v: where the particles began the sub-step

@@ -25,6 +25,8 @@ class SpatialHash {
   /// @param[in] count     how many of them to sort
   /// @param[in] cellSize  > 0 (m)
   void build(const std::vector<Eigen::Vector3d>& points, std::size_t count, double cellSize);
+  /// Grows the buffers for builds of up to `count` points, so that those allocate nothing.
+  void reserve(std::size_t count);
 
   /// Calls f(j) for every point j sorted into the 27 cells around the cell of p, each bucket
   /// once, in a fixed order (the buckets' in increasing number, the points of a bucket in
