@@ -446,6 +446,14 @@ void ObjectContactSolver::findPairs(const ObjectContactParams& params) {
 void ObjectContactSolver::findColliderContacts(const std::vector<SubstepCollider>& colliders, double h) {
   colliderContacts_.clear();
   if (colliders.empty()) return;
+  // each collider's bounds once per sub-step, not per particle
+  colliderLo_.resize(colliders.size());
+  colliderHi_.resize(colliders.size());
+  colliderBounded_.resize(colliders.size());
+  for (std::size_t ci = 0; ci < colliders.size(); ++ci)
+    colliderBounded_[ci] = colliders[ci].collider->shape.type != ColliderType::HalfSpace &&
+                           colliderBounds(colliders[ci].collider->shape, colliders[ci].now, colliderLo_[ci],
+                                          colliderHi_[ci]);
   std::size_t kept = 0;  // walks keptCollider_, in the same (k, collider) order
   for (std::size_t k = 0; k < count_; ++k) {
     if (!touched_[k] || w_[k] == 0.0) continue;
@@ -453,7 +461,14 @@ void ObjectContactSolver::findColliderContacts(const std::vector<SubstepCollider
     for (std::size_t ci = 0; ci < colliders.size(); ++ci) {
       const SubstepCollider& sc = colliders[ci];
       const Collider& col = *sc.collider;
-      if (!boxNearCollider(col.shape, sc.now, x_[k], x_[k], r * (1.0 + kContactMargin))) continue;
+      const double margin = r * (1.0 + kContactMargin);
+      if (colliderBounded_[ci]) {
+        if (((x_[k].array() - margin) > colliderHi_[ci].array()).any() ||
+            ((x_[k].array() + margin) < colliderLo_[ci].array()).any())
+          continue;
+      } else if (!boxNearCollider(col.shape, sc.now, x_[k], x_[k], margin)) {
+        continue;
+      }
       Eigen::Vector3d n;
       const double gap = colliderDistance(col.shape, sc.now, x_[k], n) - r;
       if (!(gap < r * kContactMargin)) continue;

@@ -188,6 +188,8 @@ class ObjectContactSolver {
   std::vector<Eigen::Vector3d> start_;  // x - h v: where the particles began the sub-step
   std::vector<char> touched_;
   SpatialHash hash_;  // of the anchors, at the build
+  std::vector<Eigen::Vector3d> colliderLo_, colliderHi_;  // each collider's bounds in the sub-step
+  std::vector<char> colliderBounded_;                     // whether it has them (not a half-space)
   std::vector<Contact> colliderContacts_, contacts_;  // the colliders' first in the solve, then the pairs
   // the step's sums
   std::size_t colliderCount_ = 0;
