@@ -1,7 +1,7 @@
 // Prints what a World of several objects costs against its objects stepped alone, and what the
 // contact between them adds; then a bin of many small objects against real time. Objects: the
 // bunny scaled to 5 cm and voxelized at --resolution cells along its longest axis (about 150
-// particles at 7), classic FastLSM (alpha 1, w = 1), 30 Hz in 8 sub-steps, one thread; render
+// particles at 7), classic FastLSM (alpha 1, w = 1), 30 Hz in 8 sub-steps (--substeps), one thread; render
 // mesh: the bunny simplified to --triangles triangles (meshoptimizer, as the node does), embedded
 // in each object's lattice (core/embedding.h).
 //   1. N objects: "alone" one object resting on the ground stepped by a bare Solver, times N;
@@ -16,7 +16,7 @@
 // A benchmark, not a test: it prints figures and never fails because the machine is slow.
 // Entries run in turns, one run each per round; figures are medians over the rounds.
 //
-//   bench_world [--resolution R] [--objects N] [--triangles T] [--rounds K] [--only sizes|bin]
+//   bench_world [--resolution R] [--objects N] [--triangles T] [--substeps S] [--rounds K] [--only sizes|bin]
 
 #include "deformable_flsm/core/embedding.h"
 #include "deformable_flsm/core/lattice.h"
@@ -50,6 +50,8 @@ struct Args {
   std::string only;  // "sizes" or "bin": that part alone
 };
 
+int kSubsteps = 8;  // sub-steps per step (--substeps)
+
 Args parse(int argc, char** argv) {
   Args a;
   for (int i = 1; i + 1 < argc; i += 2) {
@@ -58,6 +60,7 @@ Args parse(int argc, char** argv) {
     if (k == "--resolution") a.resolution = std::max(2, std::atoi(v));
     else if (k == "--objects") a.objects = std::max(1, std::atoi(v));
     else if (k == "--triangles") a.triangles = std::max<std::size_t>(4, std::strtoul(v, nullptr, 10));
+    else if (k == "--substeps") kSubsteps = std::max(1, std::atoi(v));
     else if (k == "--rounds") a.rounds = std::max(1, std::atoi(v));
     else if (k == "--only" && (std::string(v) == "sizes" || std::string(v) == "bin")) a.only = v;
     else {
@@ -74,7 +77,6 @@ double median(std::vector<double> x) {
 }
 
 constexpr double kStep = 1.0 / 30.0;
-constexpr int kSubsteps = 8;
 constexpr double kSize = 0.05;  // the bunny's longest extent (m)
 
 /// The object: the bunny at kSize, Z up, its lower corner at the origin, voxelized; its render
