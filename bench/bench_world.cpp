@@ -50,7 +50,8 @@ struct Args {
   std::string only;  // "sizes" or "bin": that part alone
 };
 
-int kSubsteps = 8;  // sub-steps per step (--substeps)
+// sub-steps per step: set once from --substeps, before anything is built
+int substepsPerStep = 8;
 
 Args parse(int argc, char** argv) {
   Args a;
@@ -60,7 +61,7 @@ Args parse(int argc, char** argv) {
     if (k == "--resolution") a.resolution = std::max(2, std::atoi(v));
     else if (k == "--objects") a.objects = std::max(1, std::atoi(v));
     else if (k == "--triangles") a.triangles = std::max<std::size_t>(4, std::strtoul(v, nullptr, 10));
-    else if (k == "--substeps") kSubsteps = std::max(1, std::atoi(v));
+    else if (k == "--substeps") substepsPerStep = std::max(1, std::atoi(v));
     else if (k == "--rounds") a.rounds = std::max(1, std::atoi(v));
     else if (k == "--only" && (std::string(v) == "sizes" || std::string(v) == "bin")) a.only = v;
     else {
@@ -123,7 +124,7 @@ SolverParams params(const Lattice& lattice) {
   p.regionHalfWidth = lattice.regionHalfWidth();
   p.stiffness = 1.0;
   p.timeStep = kStep;
-  p.substeps = kSubsteps;
+  p.substeps = substepsPerStep;
   p.ambientDamping = 2.0;
   return p;
 }
@@ -157,7 +158,7 @@ Collider boxCollider(const Eigen::Vector3d& centre, const Eigen::Vector3d& half)
 
 /// N objects on the ground in a square grid, two sizes apart.
 std::unique_ptr<World> apart(const Shape& shape, int n) {
-  auto world = std::make_unique<World>(kStep, kSubsteps);
+  auto world = std::make_unique<World>(kStep, substepsPerStep);
   world->setCollider("ground", groundCollider());
   const int side = static_cast<int>(std::ceil(std::sqrt(double(n))));
   for (int i = 0; i < n; ++i) {
@@ -170,7 +171,7 @@ std::unique_ptr<World> apart(const Shape& shape, int n) {
 /// A bin of floor and four walls sized for n objects in about three layers, the objects in a grid of layers above
 /// its floor, each spinning; `vertices` receives each object's render vertices.
 std::unique_ptr<World> bin(const Shape& shape, int n, std::vector<Placed>* placed) {
-  auto world = std::make_unique<World>(kStep, kSubsteps);
+  auto world = std::make_unique<World>(kStep, substepsPerStep);
   const int side = std::max(1, static_cast<int>(std::lround(std::sqrt(n / 3.0))));
   const double pitch = 1.15 * shape.extent.head<2>().maxCoeff();
   const double inner = 0.5 * side * pitch + 0.01, wall = 0.05, height = 0.3;
@@ -254,7 +255,7 @@ int main(int argc, char** argv) {
   std::printf("object: the bunny at %.0f mm, resolution %d: %zu particles; render mesh %zu triangles, %zu vertices; "
               "%.0f Hz in %d sub-steps, one thread\n",
               1000 * kSize, args.resolution, shape.voxels.cells.size(), shape.renderTriangles,
-              shape.renderVertices.size(), 1.0 / kStep, kSubsteps);
+              shape.renderVertices.size(), 1.0 / kStep, substepsPerStep);
 
   // --- 1. N objects against one alone ---
   const int steps = 20;
@@ -288,7 +289,7 @@ int main(int argc, char** argv) {
       ratioPile.push_back(c / b);
     }
     // the pile's candidate list builds per sub-step over the timed steps
-    const double builds = double(pile->contactListBuilds() - builds0) / (args.rounds * steps * kSubsteps);
+    const double builds = double(pile->contactListBuilds() - builds0) / (args.rounds * steps * substepsPerStep);
     std::printf("%6d %10.3f %10.3f %10.3f %12.3f %12.3f %14zu %10.3f %12.2f\n", n, 1e3 * median(tAlone),
                 1e3 * median(tApart), 1e3 * median(tPile), median(ratioApart), median(ratioPile), pairContacts(*pile),
                 deepestOverlap(*pile), builds);
@@ -327,7 +328,7 @@ int main(int argc, char** argv) {
     if (phase[0] == 'f')
       for (int f = 0; f < 75; ++f) world->step();  // on to 4 s
     const double ms = 1e3 * median(step), msr = 1e3 * median(render);
-    const double builds = double(world->contactListBuilds() - builds0) / (frames * kSubsteps);
+    const double builds = double(world->contactListBuilds() - builds0) / (frames * substepsPerStep);
     std::printf("  %-22s step %.2f ms, render meshes %.2f ms, frame %.2f ms (%s 33.3 ms at 30 Hz), %.3f ms per "
                 "object, object contacts %zu, deepest overlap %.3f r, list builds per sub-step %.2f\n",
                 phase, ms, msr, ms + msr, ms + msr <= 1e3 / 30.0 ? "within" : "over", (ms + msr) / args.objects,
