@@ -90,6 +90,7 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
   if (!params.enabled && !params.selfContact) return;
   const Staleness stale = findStale(objects, params, h);
   if (stale != Staleness::kNone) buildList(objects, params, h, stale == Staleness::kAll);
+  takeCoupling(objects, stale != Staleness::kNone, last);
   if (candidates_.empty()) return;
   gather(objects, h);
   findPairs(params);
@@ -432,6 +433,7 @@ void ObjectContactSolver::findPairs(const ObjectContactParams& params) {
     c.muS = params.staticFriction;
     c.muK = params.kineticFriction;
     c.slot = static_cast<std::uint32_t>(i);
+    if (!springLambda_.empty()) c.spring = springLambda_[i];
     c.lambda = lambda;
     c.friction = friction - friction.dot(c.n) * c.n;
     c.sliding = sliding;
@@ -522,8 +524,9 @@ void ObjectContactSolver::warmStart(double h) {
 // A contact slides in the next sub-step when its friction reached the bound of its regime in
 // this one (mu_s lambda sticking, mu_k lambda sliding).
 bool ObjectContactSolver::slides(const Contact& c) {
-  const double bound = (c.sliding ? c.muK : c.muS) * c.lambda;
-  return c.lambda > 0.0 && c.friction.squaredNorm() >= bound * bound * (1.0 - 1e-9);
+  const double normal = c.lambda + c.spring;
+  const double bound = (c.sliding ? c.muK : c.muS) * normal;
+  return normal > 0.0 && c.friction.squaredNorm() >= bound * bound * (1.0 - 1e-9);
 }
 
 void ObjectContactSolver::keep() {
@@ -573,7 +576,7 @@ void ObjectContactSolver::solve(double h, int iterations) {
         c.lambda = std::max(0.0, old + (c.target - gap) * c.invHW);
         // a contact that neither pushes nor holds (most of those found within the margin) has
         // nothing to apply
-        if (c.lambda == 0.0 && old == 0.0 && c.friction.isZero(0.0)) continue;
+        if (c.lambda == 0.0 && old == 0.0 && c.spring == 0.0 && c.friction.isZero(0.0)) continue;
         const double w1 = w_[c.k1];
         const double w2 = pair ? w_[c.k2] : 0.0;
         Eigen::Vector3d J = (c.lambda - old) * c.n;
@@ -582,7 +585,7 @@ void ObjectContactSolver::solve(double h, int iterations) {
         const Eigen::Vector3d ut = u - u.dot(c.n) * c.n;
         const Eigen::Vector3d oldF = c.friction;
         Eigen::Vector3d f = oldF - ut * c.invW;
-        const double fn2 = f.squaredNorm(), cone = (c.sliding ? c.muK : c.muS) * c.lambda;
+        const double fn2 = f.squaredNorm(), cone = (c.sliding ? c.muK : c.muS) * (c.lambda + c.spring);
         if (fn2 > cone * cone) f *= cone / std::sqrt(fn2);
         c.friction = f;
         J += f - oldF;
@@ -688,6 +691,46 @@ PairImpulse& ObjectContactSolver::pairSlot(std::uint32_t a, std::uint32_t b) {
   p.b = b;
   pairs_.push_back(p);
   return pairs_.back();
+}
+
+const std::vector<std::pair<std::uint32_t, std::uint32_t>>* ObjectContactSolver::currentCandidates(
+    const std::vector<Solver*>& objects, const ObjectContactParams& params) const {
+  if (!built_ || params.enabled != builtEnabled_ || params.selfContact != builtSelf_ ||
+      params.selfExclusion != builtExclusion_ || objects.size() != builtObjects_.size())
+    return nullptr;
+  for (std::size_t o = 0; o < objects.size(); ++o)
+    if (objects[o] != builtObjects_[o] || objects[o]->positions().size() != offset_[o + 1] - offset_[o] ||
+        objects[o]->contactRadius() != builtRadius_[o])
+      return nullptr;
+  return &keys_;
+}
+
+void ObjectContactSolver::takeCoupling(const std::vector<Solver*>& objects, bool rebuilt, bool last) {
+  springLambda_.clear();
+  if (coupling_ == nullptr || coupling_->empty()) return;
+  if (!rebuilt) {
+    springLambda_.resize(keys_.size(), 0.0);
+    for (const CouplingImpulse& ci : *coupling_)
+      if (ci.slot < keys_.size() && keys_[ci.slot].first == std::min(ci.g1, ci.g2) &&
+          keys_[ci.slot].second == std::max(ci.g1, ci.g2))
+        springLambda_[ci.slot] = ci.lambda;
+  }
+  for (const CouplingImpulse& ci : *coupling_) {
+    const std::uint32_t o1 = owner_[ci.g1], o2 = owner_[ci.g2];
+    if (o1 == o2) continue;  // self-contact: no wrench between objects
+    const Solver& s1 = *objects[o1];
+    const Solver& s2 = *objects[o2];
+    const Eigen::Vector3d& x1 = s1.positions()[ci.g1 - offset_[o1]];
+    const Eigen::Vector3d& x2 = s2.positions()[ci.g2 - offset_[o2]];
+    const double r1 = s1.contactRadius(), r2 = s2.contactRadius();
+    const Eigen::Vector3d point = x2 + (r2 / (r1 + r2)) * (x1 - x2);
+    const Eigen::Vector3d J = ci.lambda * ci.n;  // on o1
+    const Eigen::Vector3d onB = o1 < o2 ? Eigen::Vector3d(-J) : J;
+    PairImpulse& p = pairSlot(std::min(o1, o2), std::max(o1, o2));
+    p.impulse += onB;
+    p.moment += point.cross(onB);
+    if (last) ++p.contacts;
+  }
 }
 
 void ObjectContactSolver::endStep() {

@@ -24,6 +24,7 @@
 // six rigid modes of the solution are corrected (correctRigidModes()).
 #include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/core/solver.h"
+#include "implicit_solve.h"
 
 #include <Eigen/Eigenvalues>
 
@@ -32,42 +33,13 @@
 
 namespace deformable_flsm {
 
+using namespace implicit_solve;
+
 namespace {
 
-/// CG stops when the residual's preconditioned norm is this fraction of its initial one (the warm
-/// start's): the error is a fraction of what the warm start misses, so that at rest, where it
-/// misses nothing, the step stays at rest, and a vibration is not fed by a solve stopped along its
-/// last increment carried forward. (Against the whole right-hand side M v_n + h f a cantilever at
-/// 30 kPa gained 2 % of amplitude per period, and a resting object kept jittering at ~1e-3 g h.)
-/// Chosen by measurement: against 1e-3, the cantilever's first bending frequency, its amplitude
-/// decay over seven periods and its settled tip are unchanged within 0.1 % from 30 kPa to 10 MPa
-/// for a third fewer iterations (docs/performance.md).
-constexpr double kCgTolerance = 1e-2;
-/// ... or when it is this fraction of the step's force impulse per particle (the larger of h f(x_n)
-/// and the gravity impulse M g h, their norms over sqrt(n), n the free particles): a warm start this
-/// good needs no iteration. Per particle rather than of the whole norm, because the residual left
-/// may sit on a few particles: within a fraction of the whole norm, one particle's error could be
-/// sqrt(n) times the mean, and a 10k lattice's ears kept jittering and never came to rest. So the
-/// error left at any one particle is at most ~1e-3 of its gravity impulse g h whatever the lattice
-/// size, far below the rest tests' bound (test_solver_implicit).
-constexpr double kCgFloor = 1e-3;
-/// At most this many CG iterations per sub-step: a bound on the cost of a step, far above the
-/// counts measured (docs/performance.md); the step then takes the iterate reached.
-constexpr int kCgMaxIterations = 300;
 /// Largest volumetric strain the Poisson term acts on (as computeVolumetricForces()): beyond it
 /// the force is constant, so its Hessian is zero.
 constexpr double kMaxVolumetricStrain = 0.5;
-/// The solves after the first one of a sub-step (the contact set changed) stop when the residual
-/// is this fraction of the first solve's initial residual (or at kCgTolerance of their own, or the
-/// floor). Their own initial residual is that of a few contacts changed, and kCgTolerance of it
-/// made each one cost as many iterations as the first solve; kCgTolerance of the first solve's, on
-/// the other hand, left a 10 MPa block dropped on the ground rocking between contact sets for
-/// good. This fraction was chosen by measurement (docs/performance.md).
-constexpr double kCgContactTolerance = 3e-3;
-/// Solves per sub-step with contacts: the first, and again after letting go of the contacts that
-/// pulled (one-sided contact by an active set, at most this many passes; what remains pulling
-/// after the last is released by the next sub-step's prediction).
-constexpr int kContactPasses = 4;
 /// A free particle joins the contacts when the solution carries it deeper into a collider than
 /// this fraction of the contact radius (the contact pass after the solve takes what is less).
 /// At the start of a sub-step a particle predicted within it of a surface, outside as well as
@@ -142,6 +114,33 @@ void Solver::configureIntegrator() {
 }
 
 void Solver::implicitSubstep(double h) {
+  implicitBegin(h);
+  const bool contacts = !contactBodies_.empty();
+  // Contacts by an active set (see constrainContacts()): solve, let go of the contacts whose
+  // impulse pulls, turn the sticking ones whose impulse leaves the friction cone into sliding
+  // ones, and solve again from where it was.
+  const auto product = [this](const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
+    implicitProduct(p, y);
+  };
+  const auto precondition = [this](const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
+    coarse_->apply(implicitInvPrecond_, r, z);
+  };
+  int iterations = 0;
+  double passFloor = implicitFloor_;
+  bool guessChanged = true;
+  for (int pass = 0;; ++pass) {
+    implicitSolve_ = pcg_.solveWith(product, precondition, implicitConstraint_, implicitNormal_, implicitRhs_,
+                                    implicitVelocity_, passFloor, kCgTolerance, kCgMaxIterations, !guessChanged);
+    iterations += implicitSolve_.iterations;
+    if (pass == 0) passFloor = std::max(implicitFloor_, kCgContactTolerance * implicitSolve_.initialResidual);
+    guessChanged = false;
+    if (!contacts || pass + 1 >= kContactPasses || !updateContactSet(h, guessChanged, pcg_, 0)) break;
+  }
+  implicitSolve_.iterations = iterations;
+  implicitEnd(h, pcg_.residual(), 0);
+}
+
+void Solver::implicitBegin(double h) {
   const std::size_t n = x_.size();
   const auto& m = lattice_->masses();
   implicitH_ = h;
@@ -244,7 +243,6 @@ void Solver::implicitSubstep(double h) {
       }
     }
   }
-  const bool contacts = !contactBodies_.empty();
   constrainContacts(h);
   assembleCoarse(h);
   std::size_t free = 0;
@@ -256,30 +254,16 @@ void Solver::implicitSubstep(double h) {
     const Eigen::Vector3d g = (m[i] * h) * params_.gravity;
     gravityNorm += g.dot(implicitInvPrecond_[i].cwiseProduct(g));
   }
-  const double floor = kCgFloor * std::max({std::sqrt(rhsNorm), std::sqrt(gravityNorm), 1e-300}) /
-                       std::sqrt(static_cast<double>(std::max<std::size_t>(free, 1)));
-  // Contacts by an active set (see constrainContacts()): solve, let go of the contacts whose
-  // impulse pulls, turn the sticking ones whose impulse leaves the friction cone into sliding
-  // ones, and solve again from where it was.
-  const auto product = [this](const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
-    implicitProduct(p, y);
-  };
-  const auto precondition = [this](const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
-    coarse_->apply(implicitInvPrecond_, r, z);
-  };
-  int iterations = 0;
-  double passFloor = floor;
-  bool guessChanged = true;
-  for (int pass = 0;; ++pass) {
-    implicitSolve_ = pcg_.solveWith(product, precondition, implicitConstraint_, implicitNormal_, implicitRhs_,
-                                    implicitVelocity_, passFloor, kCgTolerance, kCgMaxIterations, !guessChanged);
-    iterations += implicitSolve_.iterations;
-    if (pass == 0) passFloor = std::max(floor, kCgContactTolerance * implicitSolve_.initialResidual);
-    guessChanged = false;
-    if (!contacts || pass + 1 >= kContactPasses || !updateContactSet(h, guessChanged)) break;
-  }
-  implicitSolve_.iterations = iterations;
-  if (contacts) sumContactImpulses(h);
+  implicitFreeCount_ = free;
+  implicitRhsNorm2_ = rhsNorm;
+  implicitGravityNorm2_ = gravityNorm;
+  implicitFloor_ = kCgFloor * std::max({std::sqrt(rhsNorm), std::sqrt(gravityNorm), 1e-300}) /
+                   std::sqrt(static_cast<double>(std::max<std::size_t>(free, 1)));
+}
+
+void Solver::implicitEnd(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset) {
+  const std::size_t n = x_.size();
+  if (!contactBodies_.empty()) sumContactImpulses(h, residual, offset);
   if (!heldByWorld()) correctRigidModes(h);
 
   // v+ and x+ = x_n + h v+ for the free particles; the pinned and hard-dragged ones are
@@ -410,12 +394,12 @@ int Solver::deepestContact(const Eigen::Vector3d& x, double within, Eigen::Vecto
 // that the solution carries into a collider (deeper than kContactSlop) becomes a sticking contact,
 // or a sliding one if it was let go of in this sub-step and comes back slipping. Returns whether
 // the set changed.
-bool Solver::updateContactSet(double h, bool& guessChanged) {
-  const std::vector<Eigen::Vector3d>& residual = pcg_.residual();
+bool Solver::updateContactSet(double h, bool& guessChanged, Pcg& pcg, std::size_t offset) {
+  const std::vector<Eigen::Vector3d>& residual = pcg.residual();
   // a friction force of the solve: the right-hand side and the residual PCG keeps change together
-  const auto addFriction = [this](std::size_t i, const Eigen::Vector3d& f) {
+  const auto addFriction = [this, &pcg, offset](std::size_t i, const Eigen::Vector3d& f) {
     implicitRhs_[i] += f;
-    pcg_.addToResidual(i, f);
+    pcg.addToResidual(offset + i, f);
   };
   const double slop = kContactSlop * contactRadius();
   bool changed = false;
@@ -448,7 +432,7 @@ bool Solver::updateContactSet(double h, bool& guessChanged) {
       continue;
     }
     const Collider& c = *contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])].collider;
-    const Eigen::Vector3d J = -residual[i];
+    const Eigen::Vector3d J = -residual[offset + i];
     const double Jn = J.dot(implicitNormal_[i]);
     const Eigen::Vector3d& n = implicitNormal_[i];
     if (Jn < 0.0) {
@@ -513,15 +497,14 @@ bool Solver::updateContactSet(double h, bool& guessChanged) {
 
 // After the last solve: the impulses of every contact go to its collider's wrench, as the contact
 // pass's do.
-void Solver::sumContactImpulses(double h) {
-  const std::vector<Eigen::Vector3d>& residual = pcg_.residual();
+void Solver::sumContactImpulses(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset) {
   const double r = contactRadius();
   for (std::size_t i = 0; i < x_.size(); ++i) {
     if (implicitContactBody_[i] < 0) continue;
     ContactBody& body = contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])];
     const Eigen::Vector3d& n = implicitNormal_[i];
     const Eigen::Isometry3d& pose = body.now;
-    Eigen::Vector3d J = -residual[i];
+    Eigen::Vector3d J = -residual[offset + i];
     // a sliding contact's impulse: the normal one and the kinetic friction the solve applied
     if (implicitConstraint_[i] == PcgConstraint::Normal) J = std::max(0.0, J.dot(n)) * n + implicitFriction_[i];
     const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
@@ -606,7 +589,8 @@ void Solver::correctRigidModes(double h) {
     const Eigen::Vector3d p = x_[i] - ref;
     Eigen::Vector3d target = v_[i] + h * params_.gravity;
     if (forced) target += h * forceAccel_[i];
-    const Eigen::Vector3d d = m[i] * (target - implicitVelocity_[i]);
+    Eigen::Vector3d d = m[i] * (target - implicitVelocity_[i]);
+    if (!implicitCouplingImpulse_.empty()) d += implicitCouplingImpulse_[i];
     M += m[i];
     mp += m[i] * p;
     dP += d;

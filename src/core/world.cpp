@@ -72,6 +72,8 @@ struct World::Impl {
   std::vector<SubstepCollider> substepColliders;
   std::vector<Eigen::Isometry3d> colliderStart;
   ObjectContactSolver contact;
+  ImplicitCoupling coupling;
+  std::vector<char> coupled;  // per object, whether its implicit sub-step is in the coupled solve
   std::vector<ObjectPairWrench> wrenches;
 
   std::size_t indexOf(const std::vector<std::string>& names, const std::string& name) const {
@@ -246,8 +248,28 @@ void World::step() {
   }
   for (Solver* s : im.pointers) s->beginStep();
   im.contact.beginStep(N, im.colliders.size());
+  // implicit objects that may touch each other (or themselves) are solved as one system
+  const bool touching = (N >= 2 && contact_.enabled) || contact_.selfContact;
+  im.coupled.assign(N, 0);
+  std::size_t implicitCount = 0;
+  for (std::size_t o = 0; o < N; ++o)
+    if (touching && im.objects[o]->params().integrator == Integrator::Implicit) {
+      im.coupled[o] = 1;
+      ++implicitCount;
+    }
+  const bool couple = implicitCount >= 2 || (implicitCount == 1 && contact_.selfContact);
   for (int s = 0; s < substeps_; ++s) {
-    for (Solver* object : im.pointers) object->advanceSubstep(s);
+    if (couple) {
+      for (std::size_t o = 0; o < N; ++o)
+        if (!im.coupled[o]) im.pointers[o]->advanceSubstep(s);
+      static const std::vector<std::pair<std::uint32_t, std::uint32_t>> kNone;
+      const auto* candidates = im.contact.currentCandidates(im.pointers, contact_);
+      im.coupling.substep(im.pointers, im.coupled, candidates != nullptr ? *candidates : kNone, s, h);
+      im.contact.setCouplingImpulses(&im.coupling.impulses());
+    } else {
+      for (Solver* object : im.pointers) object->advanceSubstep(s);
+      im.contact.setCouplingImpulses(nullptr);
+    }
     if (N < 2 && !contact_.selfContact) continue;
     for (std::size_t c = 0; c < im.substepColliders.size(); ++c) {
       SubstepCollider& sc = im.substepColliders[c];

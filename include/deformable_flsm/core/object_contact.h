@@ -7,6 +7,7 @@
 #pragma once
 
 #include "deformable_flsm/core/collider.h"
+#include "deformable_flsm/core/implicit_coupling.h"
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/spatial_hash.h"
 
@@ -65,6 +66,16 @@ class ObjectContactSolver {
   /// (object o's particle i is i plus the particles of the objects before o), the lower first.
   const std::vector<std::pair<std::uint32_t, std::uint32_t>>& candidatePairs() const { return keys_; }
 
+  /// The candidate list as substep() left it, in global numbers, when it was built for these
+  /// objects and parameters (the objects' positions have not changed since): what
+  /// ImplicitCoupling makes its springs of before the objects' sub-step; nullptr otherwise.
+  const std::vector<std::pair<std::uint32_t, std::uint32_t>>* currentCandidates(
+      const std::vector<Solver*>& objects, const ObjectContactParams& params) const;
+  /// The impulses the implicit step's contact springs carried in this sub-step (nullptr: none),
+  /// for the next substep(): they bound the friction of their pairs as the pass's own normal
+  /// impulses do, and count into the pair wrenches. The list must live until then.
+  void setCouplingImpulses(const std::vector<CouplingImpulse>* impulses) { coupling_ = impulses; }
+
   /// The contact pass after every object's sub-step of length h:
   ///  1. a candidate list of particle pairs (a Verlet list: Verlet 1967), kept over sub-steps
   ///     and steps while no particle has moved farther than its allowance (a fraction of its
@@ -117,6 +128,7 @@ class ObjectContactSolver {
     Eigen::Vector3d vc = Eigen::Vector3d::Zero();  // collider surface velocity
     double lambda = 0.0;                           // normal impulse (N s)
     Eigen::Vector3d friction = Eigen::Vector3d::Zero();  // tangential impulse on k1 (N s)
+    double spring = 0.0;  // the implicit step's spring impulse on this pair (N s, >= 0)
     std::uint32_t slot = 0;  // its candidate pair (a pair contact)
     bool sliding = false;    // its friction reached its bound in the last sub-step
   };
@@ -144,6 +156,12 @@ class ObjectContactSolver {
   void scatter(const std::vector<Solver*>& objects);
   void accumulate(const std::vector<SubstepCollider>& colliders, bool last);
   PairImpulse& pairSlot(std::uint32_t a, std::uint32_t b);
+  /// The coupling impulses into springLambda_ (by candidate slot, when the list was not built
+  /// again since they were found) and into the pair sums.
+  void takeCoupling(const std::vector<Solver*>& objects, bool rebuilt, bool last);
+
+  const std::vector<CouplingImpulse>* coupling_ = nullptr;
+  std::vector<double> springLambda_;  // per candidate slot, this sub-step's spring impulse
 
   // the candidate list (a Verlet list): what it was built for, and every particle's anchor
   bool built_ = false;

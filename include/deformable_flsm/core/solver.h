@@ -416,8 +416,17 @@ class Solver : private RegionKernel {
   const PcgResult& lastImplicitSolve() const { return implicitSolve_; }
 
  private:
-  /// One sub-step of linearly implicit backward Euler (see solver_implicit.cpp).
+  friend class ImplicitCoupling;
+  /// One sub-step of linearly implicit backward Euler (see solver_implicit.cpp): implicitBegin(),
+  /// the solve with its contact passes, implicitEnd(). ImplicitCoupling solves several objects'
+  /// systems as one between the two.
   void implicitSubstep(double h);
+  /// The sub-step's system (right-hand side, diagonal, preconditioner, collider contacts, the
+  /// warm start) and the solve's floor (implicitFloor_).
+  void implicitBegin(double h);
+  /// After the solve (its residual b - A v at residual[offset + i]): the contacts' impulses, the
+  /// rigid modes of a free object, v+ and x+, the contact pass.
+  void implicitEnd(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset);
   /// After computeRegionWeights(): with the implicit integrator, alpha as requested (no cap) and
   /// the step's buffers sized; called from the constructor and setParams(), never in a step.
   void configureIntegrator();
@@ -435,6 +444,13 @@ class Solver : private RegionKernel {
   Pcg pcg_;
   PcgResult implicitSolve_;
   double implicitH_ = 0.0;                      // the sub-step being solved (s)
+  double implicitFloor_ = 0.0;                  // CG stops at this residual (implicitBegin())
+  std::size_t implicitFreeCount_ = 0;           // particles not prescribed, and the squared
+  double implicitRhsNorm2_ = 0.0;               // P-norms of h f(x_n) and of M g h over them
+  double implicitGravityNorm2_ = 0.0;
+  /// impulses another object gave the particles within the solve (ImplicitCoupling), which
+  /// correctRigidModes() counts as external; empty when none
+  std::vector<Eigen::Vector3d> implicitCouplingImpulse_;
   std::vector<double> weightSum_;               // sum_{r contains i} beta_r
   std::vector<Eigen::Vector3d> implicitGoal_;   // goals at the start of the sub-step
   std::vector<Eigen::Vector3d> implicitRhs_;    // M v_n + h f(x_n)
@@ -458,7 +474,8 @@ class Solver : private RegionKernel {
   /// of the friction cone into sliding ones, adds particles the solution carries into a
   /// collider; returns whether it changed. Sets guessChanged when it prescribed a velocity (the
   /// next solve then needs its residual computed again).
-  bool updateContactSet(double h, bool& guessChanged);
+  /// The solve's residual is pcg.residual()[offset + i].
+  bool updateContactSet(double h, bool& guessChanged, Pcg& pcg, std::size_t offset);
   /// phi - r of particle i at the start of the sub-step against contact body b at its pose then
   /// (negative: a penetration the sub-step did not make).
   double startDepth(std::size_t i, int b) const;
@@ -468,7 +485,7 @@ class Solver : private RegionKernel {
   int deepestContact(const Eigen::Vector3d& x, double within, Eigen::Vector3d& normal, double& depth,
                      Eigen::Vector3d& colliderVelocity) const;
   /// Every contact's impulse on its collider after the last solve.
-  void sumContactImpulses(double h);
+  void sumContactImpulses(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset);
   /// Per stencil of the Poisson term at x_n: its difference vectors F_ia scaled by 1 / d_ia, and
   /// the weights of its Gauss-Newton Hessian (0 where the strain is clamped).
   struct VolumetricLinearisation {

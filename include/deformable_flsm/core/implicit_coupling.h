@@ -1,0 +1,86 @@
+/// @file implicit_coupling.h
+/// The implicit sub-step of several objects solved as one system: each object's backward Euler
+/// system (Solver's, with its collider contacts, pins and drags) plus one-sided springs between
+/// the particles of different objects (or of one object, with self-contact) that touch, in one
+/// preconditioned conjugate-gradient solve. World runs it for its implicit objects, before the
+/// object contact pass, which then keeps the particles apart and adds the friction between them.
+#pragma once
+
+#include "deformable_flsm/core/pcg.h"
+
+#include <Eigen/Core>
+
+#include <cstddef>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+namespace deformable_flsm {
+
+class Solver;
+
+/// A contact spring's impulse over the last sub-step, for the object contact pass (friction,
+/// wrenches): on particle g1 from g2 (global numbers, World's order), lambda n.
+struct CouplingImpulse {
+  std::uint32_t g1 = 0, g2 = 0;
+  std::uint32_t slot = 0;  // its place in the candidate list it was made from
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  double lambda = 0.0;  // N s, >= 0
+};
+
+class ImplicitCoupling {
+ public:
+  /// One implicit sub-step s of length h of the objects marked in `coupled` (Integrator::Implicit;
+  /// the others are left alone), as one system:
+  ///   A_o v_o + sum_springs h^2 k n n^T (v_1 - v_2) = b_o - (h k)(gap - skin) n   (per object o)
+  /// with A_o, b_o each object's (Solver::implicitBegin()), and a spring for each candidate pair
+  /// (`candidates`, global particle numbers in World's order: object o's particle i is
+  /// offset[o] + i) whose gap at the end of the sub-step, x + h v with v = v_n (gravity moves
+  /// both alike), is predicted below the skin: gap = n . (x_1 - x_2) - (r_1 + r_2), n the
+  /// direction between the particles at the start of the sub-step. One-sided, by an active set
+  /// shared with each object's collider contacts: a spring whose solution gap ends above the
+  /// skin (it pulls) is let go of, a pair the solution carries into each other joins.
+  /// @param pairCandidates  of the object contact pass's list (ObjectContactSolver), valid for
+  ///                        the objects' positions now; both particles' objects coupled
+  void substep(const std::vector<Solver*>& objects, const std::vector<char>& coupled,
+               const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairCandidates, int s, double h);
+
+  /// The springs that carried an impulse in the last substep().
+  const std::vector<CouplingImpulse>& impulses() const { return impulses_; }
+  /// Springs active at the end of the last substep() (for tests and benchmarks).
+  std::size_t activeSprings() const { return impulses_.size(); }
+
+ private:
+  struct Spring {
+    std::uint32_t g1 = 0, g2 = 0;   // coupled numbers (into the solve's vectors)
+    std::uint32_t o1 = 0, o2 = 0;   // objects
+    std::uint32_t i1 = 0, i2 = 0;   // particles of their objects
+    std::uint32_t slot = 0;         // candidate index
+    Eigen::Vector3d n = Eigen::Vector3d::Zero();
+    double gap = 0.0;    // at the start of the sub-step, less the skin
+    double k = 0.0;      // h^2 times the stiffness
+    bool active = false;
+  };
+  void gather(const std::vector<Solver*>& objects);
+  void product(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& p,
+               std::vector<Eigen::Vector3d>& y);
+  void precondition(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& r,
+                    std::vector<Eigen::Vector3d>& z);
+  /// The springs' active set after a solve; returns whether it changed.
+  bool updateSprings(double h);
+
+  std::vector<std::uint32_t> members_;  // the coupled objects
+  std::vector<std::size_t> start_;      // per object, its first coupled number (members only)
+  std::size_t size_ = 0;
+  Pcg pcg_;
+  std::vector<Eigen::Vector3d> velocity_, rhs_, normal_, invPrecond_, springDiagonal_;
+  std::vector<PcgConstraint> constraint_;
+  std::vector<std::vector<Eigen::Vector3d>> in_, out_, inv_;  // per member: its segments
+  std::vector<Spring> springs_;
+  std::vector<CouplingImpulse> impulses_;
+  std::vector<std::size_t> globalStart_;  // per object, its first global number
+  std::vector<std::int64_t> place_;       // per object, its place among the members or -1
+  double h_ = 0.0;
+};
+
+}  // namespace deformable_flsm

@@ -1,0 +1,288 @@
+// Several objects' implicit sub-step as one system (see implicit_coupling.h).
+//
+// Why one system: with each object solved alone and the contact between objects after the solves
+// (a splitting), a contact stops the touching layer of particles only; the rest of an object
+// resting on another goes on falling for the sub-step and is stopped by its own stiffness in the
+// next one. At one sub-step of 1/60 s a stack of soft cubes crushed to half its height and
+// toppled that way; holding each object against the other's velocity in turn (Dirichlet-Neumann)
+// was exact at 2 and more sub-steps but unstable at one, and for stiff objects at any count up to
+// 8 (docs/method.md). In one solve the contact decelerates both objects through their stiffness
+// within the sub-step, as a collider contact does one object's.
+//
+// The contact is a one-sided spring per touching particle pair, about as stiff as the material
+// about it (kSpringStiffness), at rest at a skin (kSpringSkin of r_1 + r_2) outside the spheres'
+// touching distance, so that the weight it
+// carries leaves the spheres apart by a little less than the skin and the object contact pass
+// after the solve finds nothing to push; that pass still keeps every pair apart (the springs'
+// deflection under a larger load, pairs the solve did not see) and applies the friction between
+// the objects, bounded by the springs' normal impulse as well as its own. Backward Euler makes
+// the spring's stiffness free of a time-step bound.
+#include "deformable_flsm/core/implicit_coupling.h"
+
+#include "deformable_flsm/core/solver.h"
+#include "implicit_solve.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace deformable_flsm {
+
+using namespace implicit_solve;
+
+namespace {
+
+/// A contact spring's stiffness, h^2 k, is kSpringStiffness times the reduced diagonal of its
+/// particles' systems (mass, damping and the material's stiffness bound: as stiff as the material
+/// about it, a little more), at most kSpringMassCap times their reduced mass. Stiffer than the
+/// material, the springs spread the system's spectrum: CG took 250 iterations a sub-step instead
+/// of 21 on a stack of firm blocks (springs of 100 masses against 3 diagonals); the cap keeps a
+/// stiff material's springs (10 MPa: the diagonal is thousands of masses) from pushing a pair
+/// that strayed inside the skin out at more than the speed that closes it in one sub-step
+/// (docs/method.md). With 100 masses, the column of n particles resting on one pair deflects it
+/// by about 2 n g h^2 / 100 (n = 6 at 1/60 s: 0.3 mm).
+constexpr double kSpringStiffness = 3.0;
+constexpr double kSpringMassCap = 100.0;
+/// The spring is at rest this fraction of r_1 + r_2 outside the spheres' touching distance.
+constexpr double kSpringSkin = 0.05;
+/// CG's tolerance and floor for the coupled solve, against each object's own 1e-2 and 1e-3: a
+/// pile's slow modes (objects rocking on each other's springs) are where CG leaves its error. At
+/// 1e-2 a stack of three 10 MPa cubes began to rock after 3 s and its top slid a centimetre by
+/// 4 s (at 1e-3 it stood for the 20 s watched); at 1e-3 a bin of twenty 30 kPa objects kept one
+/// particle rocking at 1.3 cm/s, at 1e-4 it came to rest (2.2 mm/s, test_world's bound 4.5) for
+/// 37 % more CPU. The floor was measured with them (1e-3 and 1e-4 of a particle's gravity impulse
+/// left the bin rocking at 1.2 and 0.14 cm/s with the tolerance at 1e-3).
+constexpr double kCouplingCgTolerance = 1e-4;
+constexpr double kCouplingCgFloor = 3e-5;
+
+}  // namespace
+
+void ImplicitCoupling::gather(const std::vector<Solver*>& objects) {
+  for (std::size_t m = 0; m < members_.size(); ++m) {
+    const Solver& s = *objects[members_[m]];
+    const std::size_t b = start_[m], n = s.x_.size();
+    for (std::size_t i = 0; i < n; ++i) {
+      velocity_[b + i] = s.implicitVelocity_[i];
+      rhs_[b + i] = s.implicitRhs_[i];
+      constraint_[b + i] = s.implicitConstraint_[i];
+      normal_[b + i] = s.implicitNormal_[i];
+    }
+  }
+  for (const Spring& sp : springs_) {
+    if (!sp.active) continue;
+    const Eigen::Vector3d f = (-sp.k * sp.gap / h_) * sp.n;
+    rhs_[sp.g1] += f;
+    rhs_[sp.g2] -= f;
+  }
+  std::fill(springDiagonal_.begin(), springDiagonal_.end(), Eigen::Vector3d::Zero());
+  for (const Spring& sp : springs_) {
+    if (!sp.active) continue;
+    const Eigen::Vector3d d = sp.k * sp.n.cwiseAbs2();
+    springDiagonal_[sp.g1] += d;
+    springDiagonal_[sp.g2] += d;
+  }
+  for (std::size_t m = 0; m < members_.size(); ++m) {
+    const Solver& s = *objects[members_[m]];
+    const std::size_t b = start_[m], n = s.x_.size();
+    for (std::size_t i = 0; i < n; ++i)
+      inv_[m][i] = (s.implicitInvPrecond_[i].cwiseInverse() + springDiagonal_[b + i]).cwiseInverse();
+  }
+}
+
+void ImplicitCoupling::product(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& p,
+                               std::vector<Eigen::Vector3d>& y) {
+  for (std::size_t m = 0; m < members_.size(); ++m) {
+    Solver& s = *objects[members_[m]];
+    const std::size_t b = start_[m], n = s.x_.size();
+    std::copy(p.begin() + static_cast<std::ptrdiff_t>(b), p.begin() + static_cast<std::ptrdiff_t>(b + n), in_[m].begin());
+    s.implicitProduct(in_[m], out_[m]);
+    std::copy(out_[m].begin(), out_[m].end(), y.begin() + static_cast<std::ptrdiff_t>(b));
+  }
+  for (const Spring& sp : springs_) {
+    if (!sp.active) continue;
+    const Eigen::Vector3d f = (sp.k * sp.n.dot(p[sp.g1] - p[sp.g2])) * sp.n;
+    y[sp.g1] += f;
+    y[sp.g2] -= f;
+  }
+}
+
+void ImplicitCoupling::precondition(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& r,
+                                    std::vector<Eigen::Vector3d>& z) {
+  for (std::size_t m = 0; m < members_.size(); ++m) {
+    Solver& s = *objects[members_[m]];
+    const std::size_t b = start_[m], n = s.x_.size();
+    std::copy(r.begin() + static_cast<std::ptrdiff_t>(b), r.begin() + static_cast<std::ptrdiff_t>(b + n), in_[m].begin());
+    s.coarse_->apply(inv_[m], in_[m], out_[m]);
+    std::copy(out_[m].begin(), out_[m].end(), z.begin() + static_cast<std::ptrdiff_t>(b));
+  }
+}
+
+bool ImplicitCoupling::updateSprings(double h) {
+  bool changed = false;
+  for (Spring& sp : springs_) {
+    // the gap the solution ends the sub-step at, less the skin
+    const double gap = sp.gap + h * sp.n.dot(velocity_[sp.g1] - velocity_[sp.g2]);
+    if (sp.active && gap > 0.0) {
+      sp.active = false;  // it pulls
+      changed = true;
+    } else if (!sp.active && gap < 0.0) {  // carried within the skin
+      sp.active = true;
+      changed = true;
+    }
+  }
+  return changed;
+}
+
+void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::vector<char>& coupled,
+                               const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairCandidates, int s,
+                               double h) {
+  h_ = h;
+  // the coupled objects and their places in the solve's vectors
+  members_.clear();
+  start_.clear();
+  globalStart_.assign(objects.size() + 1, 0);
+  std::vector<std::int64_t>& place = place_;
+  place.assign(objects.size(), -1);
+  size_ = 0;
+  for (std::size_t o = 0; o < objects.size(); ++o) {
+    globalStart_[o + 1] = globalStart_[o] + objects[o]->x_.size();
+    if (!coupled[o]) continue;
+    place[o] = static_cast<std::int64_t>(members_.size());
+    members_.push_back(static_cast<std::uint32_t>(o));
+    start_.push_back(size_);
+    size_ += objects[o]->x_.size();
+  }
+  if (velocity_.size() != size_) {
+    pcg_.resize(size_);
+    velocity_.resize(size_);
+    rhs_.resize(size_);
+    normal_.resize(size_);
+    springDiagonal_.resize(size_);
+    constraint_.resize(size_);
+  }
+  in_.resize(members_.size());
+  out_.resize(members_.size());
+  inv_.resize(members_.size());
+  for (std::size_t m = 0; m < members_.size(); ++m) {
+    const std::size_t n = objects[members_[m]]->x_.size();
+    in_[m].resize(n);
+    out_[m].resize(n);
+    inv_[m].resize(n);
+  }
+
+  // every object's system at the start of the sub-step
+  double rhsNorm2 = 0.0, gravityNorm2 = 0.0;
+  std::size_t free = 0;
+  for (std::uint32_t o : members_) {
+    Solver& sv = *objects[o];
+    sv.interpolateDragFrames(static_cast<double>(s + 1) / sv.params_.substeps);
+    sv.implicitBegin(h);
+    rhsNorm2 += sv.implicitRhsNorm2_;
+    gravityNorm2 += sv.implicitGravityNorm2_;
+    free += sv.implicitFreeCount_;
+  }
+  const double floor = kCouplingCgFloor * std::max({std::sqrt(rhsNorm2), std::sqrt(gravityNorm2), 1e-300}) /
+                       std::sqrt(static_cast<double>(std::max<std::size_t>(free, 1)));
+
+  // a spring per candidate pair of coupled objects, active where predicted within the skin
+  springs_.clear();
+  const auto locate = [&](std::uint32_t g, std::uint32_t& o, std::uint32_t& i) {
+    o = static_cast<std::uint32_t>(std::upper_bound(globalStart_.begin(), globalStart_.end(), g) - globalStart_.begin() - 1);
+    i = static_cast<std::uint32_t>(g - globalStart_[o]);
+  };
+  for (std::size_t c = 0; c < pairCandidates.size(); ++c) {
+    Spring sp;
+    locate(pairCandidates[c].first, sp.o1, sp.i1);
+    locate(pairCandidates[c].second, sp.o2, sp.i2);
+    if (place[sp.o1] < 0 || place[sp.o2] < 0) continue;
+    const Solver& a = *objects[sp.o1];
+    const Solver& b = *objects[sp.o2];
+    const bool fixed1 = a.isPrescribed(sp.i1), fixed2 = b.isPrescribed(sp.i2);
+    if (fixed1 && fixed2) continue;
+    const Eigen::Vector3d d = a.x_[sp.i1] - b.x_[sp.i2];
+    const double len = d.norm();
+    const double R = a.contactRadius() + b.contactRadius();
+    if (!(len > 1e-9 * R)) continue;  // centres met: the contact pass sorts it out
+    sp.n = d / len;
+    sp.gap = len - R * (1.0 + kSpringSkin);
+    const double predicted = sp.gap + h * sp.n.dot(a.v_[sp.i1] - b.v_[sp.i2]);
+    // the particles' own diagonals (mass, damping, the material's stiffness bound)
+    const double d1 = 3.0 / a.implicitInvPrecond_[sp.i1].sum(), d2 = 3.0 / b.implicitInvPrecond_[sp.i2].sum();
+    const double m1 = a.lattice_->masses()[sp.i1], m2 = b.lattice_->masses()[sp.i2];
+    const double reducedD = fixed1 ? d2 : fixed2 ? d1 : d1 * d2 / (d1 + d2);
+    const double reducedM = fixed1 ? m2 : fixed2 ? m1 : m1 * m2 / (m1 + m2);
+    sp.k = std::min(kSpringStiffness * reducedD, kSpringMassCap * reducedM);
+    sp.g1 = static_cast<std::uint32_t>(start_[static_cast<std::size_t>(place[sp.o1])] + sp.i1);
+    sp.g2 = static_cast<std::uint32_t>(start_[static_cast<std::size_t>(place[sp.o2])] + sp.i2);
+    sp.slot = static_cast<std::uint32_t>(c);
+    sp.active = predicted < 0.0;
+    springs_.push_back(sp);
+  }
+
+  // one solve, with the objects' collider contacts and the springs in one active set
+  Pcg& pcg = pcg_;
+  const auto apply = [&](const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
+    product(objects, p, y);
+  };
+  const auto precond = [&](const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
+    precondition(objects, r, z);
+  };
+  int iterations = 0;
+  double passFloor = floor;
+  bool guessChanged = true;
+  PcgResult result;
+  for (int pass = 0;; ++pass) {
+    gather(objects);
+    result = pcg.solveWith(apply, precond, constraint_, normal_, rhs_, velocity_, passFloor, kCouplingCgTolerance,
+                           kCgMaxIterations, !guessChanged);
+    iterations += result.iterations;
+    if (pass == 0) passFloor = std::max(floor, kCgContactTolerance * result.initialResidual);
+    for (std::size_t m = 0; m < members_.size(); ++m) {
+      Solver& sv = *objects[members_[m]];
+      std::copy(velocity_.begin() + static_cast<std::ptrdiff_t>(start_[m]),
+                velocity_.begin() + static_cast<std::ptrdiff_t>(start_[m] + sv.x_.size()), sv.implicitVelocity_.begin());
+    }
+    if (pass + 1 >= kContactPasses) break;
+    guessChanged = false;
+    bool changed = false;
+    for (std::size_t m = 0; m < members_.size(); ++m) {
+      Solver& sv = *objects[members_[m]];
+      if (!sv.contactBodies_.empty() && sv.updateContactSet(h, guessChanged, pcg, start_[m])) changed = true;
+    }
+    if (updateSprings(h)) {
+      changed = true;
+      guessChanged = true;  // the matrix changed: the residual from a product
+    }
+    if (!changed) break;
+  }
+  // the springs' impulses, on the objects' momentum and for the contact pass
+  impulses_.clear();
+  for (std::uint32_t o : members_) {
+    Solver& sv = *objects[o];
+    sv.implicitCouplingImpulse_.assign(sv.x_.size(), Eigen::Vector3d::Zero());
+  }
+  for (const Spring& sp : springs_) {
+    if (!sp.active) continue;
+    const double gap = sp.gap + h * sp.n.dot(velocity_[sp.g1] - velocity_[sp.g2]);
+    const double lambda = std::max(0.0, -sp.k * gap / h);  // h times the spring's force on particle 1
+    if (lambda == 0.0) continue;
+    const Eigen::Vector3d J = lambda * sp.n;
+    objects[sp.o1]->implicitCouplingImpulse_[sp.i1] += J;
+    objects[sp.o2]->implicitCouplingImpulse_[sp.i2] -= J;
+    CouplingImpulse ci;
+    ci.g1 = static_cast<std::uint32_t>(globalStart_[sp.o1] + sp.i1);
+    ci.g2 = static_cast<std::uint32_t>(globalStart_[sp.o2] + sp.i2);
+    ci.slot = sp.slot;
+    ci.n = sp.n;
+    ci.lambda = lambda;
+    impulses_.push_back(ci);
+  }
+  for (std::size_t m = 0; m < members_.size(); ++m) {
+    Solver& sv = *objects[members_[m]];
+    sv.implicitSolve_ = result;
+    sv.implicitSolve_.iterations = iterations;
+    sv.implicitEnd(h, pcg.residual(), start_[m]);
+    sv.implicitCouplingImpulse_.clear();
+  }
+}
+
+}  // namespace deformable_flsm
