@@ -178,9 +178,6 @@ Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps
 WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& objects,
                       const MeshLoader& loadMesh) {
   WorldScene scene;
-  if (objects.size() > 1 && params.solver.integrator == Integrator::Implicit)
-    throw ParamError("~integrator is 'implicit' and ~objects lists " + std::to_string(objects.size()) +
-                     " objects: " + kImplicitOneObject);
   try {
     scene.world = std::make_unique<World>(params.solver.timeStep, params.solver.substeps,
                                           params.objectContact);

@@ -302,11 +302,6 @@ CommandOutcome SimulationLoop::addObject(const AddObjectCommand& c) {
   if (world_->objectCount() >= ObjectLimits::kMaxObjects)
     return reject("too_many_objects", "object '" + c.name + "': the scene has " +
                                           std::to_string(world_->objectCount()) + " objects, the most it may hold");
-  bool implicit = c.params.integrator == Integrator::Implicit;
-  for (const std::string& name : world_->objectNames())
-    implicit = implicit || world_->object(name)->params().integrator == Integrator::Implicit;
-  if (world_->objectCount() > 0 && implicit)
-    return reject("invalid_object", "object '" + c.name + "' cannot be added: " + kImplicitOneObject);
   try {
     world_->addObject(c.name, c.lattice, c.params);
   } catch (const std::invalid_argument& e) {  // a duplicate name, objects inside each other

@@ -137,13 +137,6 @@ class StartupFailureTest(unittest.TestCase):
                          {'name': 'second', 'resolution': 4, 'pose': [0.02, 0.0, 0.0]}])
         self.assert_fails_naming('flsm_overlap', ["'first'", "'second'", 'pose'])
 
-    def test_several_objects_with_the_implicit_step_are_refused(self):
-        rospy.set_param('/flsm_implicit_pair/objects',
-                        [{'name': 'first', 'resolution': 4, 'pose': [0.0, 0.0, 0.0]},
-                         {'name': 'second', 'resolution': 4, 'pose': [1.0, 0.0, 0.0]}])
-        self.assert_fails_naming('flsm_implicit_pair', ['~integrator', 'one object', 'explicit'],
-                                 '_integrator:=implicit', '_substeps:=1')
-
     def test_lattice_over_max_particles_is_refused(self):
         self.assert_fails_naming('flsm_too_fine', ['~max_particles', 'resolution'],
                                  '_resolution:=60', '_max_particles:=1000')

@@ -103,15 +103,6 @@ struct WorldScene {
 };
 
 
-/// Why the node holds one object only with the implicit step: the contact between objects comes
-/// after each object's solve (a splitting), and at one sub-step a stack of 8 cm cubes of 30 kPa
-/// (config/stack.yaml) crushed to half their height and toppled (docs/method.md). buildWorld()
-/// refuses ~objects of more than one object with it, the loop refuses ~add_object.
-inline constexpr const char* kImplicitOneObject =
-    "the implicit step simulates one object: the contact between objects comes after its solve and "
-    "does not hold soft objects stacked at one sub-step (they crush and topple); use ~integrator: "
-    "explicit for several objects";
-
 /// Builds the objects of ~objects into one World sharing the colliders (~colliders, and the
 /// ground below the lowest object) and the pins (~pinned boxes pin whatever object's rest
 /// particles lie in them). Each object's step cost is not measured (SceneInfo::stepSeconds 0).
