@@ -662,14 +662,14 @@ TEST(World, RefusesDuplicatesOverlapsAndOtherTimeSteps) {
   EXPECT_THROW(world.step(), std::logic_error);
 }
 
-TEST(World, ResultsDoNotDependOnTheThreadCount) {
-  auto run = [](int threads) {
-    World world(kStep, kSubsteps);
+static void threadCountIndependent(Integrator integrator) {
+  auto run = [integrator](int threads) {
+    World world(kStep, substepsOf(integrator));
     world.setCollider("ground", ground(0.0));
     std::vector<std::shared_ptr<const Lattice>> lattices = {boxAt(8, 8, 4, 0.01, Eigen::Vector3d(0, 0, 0)),
                                                             boxAt(4, 4, 4, 0.01, Eigen::Vector3d(0.02, 0.02, 0.045))};
     for (std::size_t o = 0; o < lattices.size(); ++o) {
-      SolverParams p = paramsFor(*lattices[o]);
+      SolverParams p = paramsFor(*lattices[o], 0.3, 0.5, integrator);
       p.threads = threads;
       world.addObject("o" + std::to_string(o), lattices[o], p);
     }
@@ -685,6 +685,10 @@ TEST(World, ResultsDoNotDependOnTheThreadCount) {
   EXPECT_NE(one.back(), Eigen::Vector3d::Zero()) << "the objects touch";
   for (std::size_t i = 0; i < one.size(); ++i) ASSERT_EQ(one[i], two[i]) << i;
 }
+
+TEST(World, ResultsDoNotDependOnTheThreadCount) { threadCountIndependent(Integrator::Explicit); }
+
+TEST(World, ImplicitResultsDoNotDependOnTheThreadCount) { threadCountIndependent(Integrator::Implicit); }
 
 // The candidate list is built again for the objects whose particles left their allowances only:
 // objects swinging into each other and others at rest beside them, moved by hand each sub-step
@@ -760,16 +764,17 @@ TEST(ObjectContact, TheCandidateListHoldsEveryPairThatComesWithinReach) {
   EXPECT_LT(listed, substeps * 23220 / 5);
 }
 
-TEST(World, StepDoesNotAllocateOnceItsBuffersHaveGrown) {
+static void stepWithoutAllocating(Integrator integrator) {
   // a stack on the ground pushed by a kinematic box, with self-contact: every path of the pass
+  // (with the implicit step, of the coupled solve too)
   ObjectContactParams contact;
   contact.selfContact = true;
-  World world(kStep, kSubsteps, contact);
+  World world(kStep, substepsOf(integrator), contact);
   world.setCollider("ground", ground(0.0));
   auto a = boxAt(4, 4, 2, 0.01, Eigen::Vector3d(0, 0, 0));
   auto b = boxAt(3, 3, 2, 0.01, Eigen::Vector3d(0.005, 0.005, 0.02));
-  world.addObject("a", a, paramsFor(*a));
-  world.addObject("b", b, paramsFor(*b));
+  world.addObject("a", a, paramsFor(*a, 0.3, 0.5, integrator));
+  world.addObject("b", b, paramsFor(*b, 0.3, 0.5, integrator));
   const Collider pusher = box(Eigen::Vector3d(0.07, 0.02, 0.02), Eigen::Vector3d(0.02, 0.05, 0.05));
   world.setCollider("pusher", pusher);
   world.moveCollider("pusher", pusher.pose, Eigen::Vector3d(-0.01, 0, 0), Eigen::Vector3d::Zero());
@@ -780,6 +785,10 @@ TEST(World, StepDoesNotAllocateOnceItsBuffersHaveGrown) {
   EXPECT_EQ(gAllocations.load() - before, 0);
   EXPECT_FALSE(world.objectWrenches().empty());
 }
+
+TEST(World, StepDoesNotAllocateOnceItsBuffersHaveGrown) { stepWithoutAllocating(Integrator::Explicit); }
+
+TEST(World, ImplicitStepDoesNotAllocateOnceItsBuffersHaveGrown) { stepWithoutAllocating(Integrator::Implicit); }
 
 // --- a pile at rest ---------------------------------------------------------------------------
 
