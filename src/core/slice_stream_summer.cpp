@@ -36,6 +36,8 @@ void SliceStreamSummer::reserveSliceScratch(int Kg, int Ks) {
     t.zCur.resize(s);
     t.colSum.resize(s);
     t.regionRing.resize(ring * s);
+    t.zRow.resize(ring);
+    t.zStart.resize(ring);
   }
   boundaryStore_.resize(boundaryBase_.back() * static_cast<std::size_t>(scratchKs_));
   // With one thread every region slice lives in the ring (and the boundary store) only.
@@ -86,12 +88,13 @@ class SliceStreamSummer::Sweep {
   void regionSlice(std::ptrdiff_t b) {
     const std::size_t k = static_cast<std::size_t>(b);
     const std::uint32_t r0 = s_.rowStart(k, yR0_), r1 = s_.rowStart(k, yR1_);
+    const std::ptrdiff_t off = windowSources(b, yD0_, [this](std::ptrdiff_t z) { return ringRow(z); });
     withChannels(Kg_, [&](auto kc) {
       constexpr int KK = decltype(kc)::value;
-      const double* ring = t_.ring.data();
-      auto src = [&](std::uint32_t p, std::ptrdiff_t z) {
-        const std::size_t slot = static_cast<std::size_t>(z) % ringSize_;
-        return ring + slot * dataStride_ + static_cast<std::size_t>(p - s_.rowStart(static_cast<std::size_t>(z), yD0_)) * KK;
+      const double* const* row = t_.zRow.data();
+      const std::uint32_t* start = t_.zStart.data();
+      auto src = [=](std::uint32_t p, std::ptrdiff_t z) {
+        return row[z + off] + static_cast<std::size_t>(p - start[z + off]) * KK;
       };
       zWindowRows<KK>(k, r0, r1, k > 0 ? s_.rowStart(k - 1, yR0_) : 0, b % kBlock == 0, w_, zOrder(), s_.zPos_.data(),
                       s_.zLen_.data(), s_.zBase_.data(), src, t_.sumPrev.data(), t_.sumCur.data());
@@ -117,10 +120,13 @@ class SliceStreamSummer::Sweep {
   void particleSlice(std::ptrdiff_t c) {
     const std::size_t k = static_cast<std::size_t>(c);
     const std::uint32_t n0 = s_.rowStart(k, yN0_), n1 = s_.rowStart(k, yR1_);
+    const std::ptrdiff_t off = windowSources(c, yN0_, [this](std::ptrdiff_t z) { return regionRow(z); });
     withChannels(Ks_, [&](auto kc) {
       constexpr int KK = decltype(kc)::value;
-      auto src = [&](std::uint32_t p, std::ptrdiff_t z) {
-        return regionRow(z) + static_cast<std::size_t>(p - s_.rowStart(static_cast<std::size_t>(z), yN0_)) * KK;
+      const double* const* row = t_.zRow.data();
+      const std::uint32_t* start = t_.zStart.data();
+      auto src = [=](std::uint32_t p, std::ptrdiff_t z) {
+        return row[z + off] + static_cast<std::size_t>(p - start[z + off]) * KK;
       };
       zWindowRows<KK>(k, n0, n1, k > 0 ? s_.rowStart(k - 1, yN0_) : 0, c % kBlock == 0, w_, zOrder(), s_.zPos_.data(),
                       s_.zLen_.data(), s_.zBase_.data(), src, t_.zPrev.data(), t_.zCur.data());
@@ -132,6 +138,20 @@ class SliceStreamSummer::Sweep {
 
  private:
   const std::uint32_t* zOrder() const { return s_.lattice_.runOrder(2).data(); }
+
+  /// The z-window of slice k reads slices k - w - 1 .. k + w: their rows (rowOf(z), from row y0)
+  /// and first particles (from row y0) go to the scratch's table, once per slice rather than per
+  /// particle (the ring slot is a division). Returns the offset of slice z's entry: z + offset.
+  template <typename RowOf>
+  std::ptrdiff_t windowSources(std::ptrdiff_t k, int y0, RowOf rowOf) {
+    const std::ptrdiff_t off = w_ + 1 - k;
+    const std::ptrdiff_t lo = std::max<std::ptrdiff_t>(0, k - w_ - 1), hi = std::min(slices_ - 1, k + w_);
+    for (std::ptrdiff_t z = lo; z <= hi; ++z) {
+      t_.zRow[static_cast<std::size_t>(z + off)] = rowOf(z);
+      t_.zStart[static_cast<std::size_t>(z + off)] = s_.rowStart(static_cast<std::size_t>(z), y0);
+    }
+    return off;
+  }
 
   /// Sliding windows over the y-runs of slice k within the particles [i0, i1) (whole rows), from
   /// and to rows at (p - i0) * K. A run cut by the range gives the right sums for the rows at

@@ -83,6 +83,10 @@ class SliceStreamSummer : public RegionSummer {
   /// Per-thread slice buffers of apply().
   struct alignas(64) SliceScratch {
     std::vector<double> run, rowSum, ring, sumPrev, sumCur, zPrev, zCur, colSum, regionRing;
+    // the z-window's sources of the current slice k: slice z's rows and first particle at
+    // z - k + w + 1 (2w + 2 entries)
+    std::vector<const double*> zRow;
+    std::vector<std::uint32_t> zStart;
   };
   /// One thread's sweep of a chunk of slices in one pass (slice_stream_summer.cpp).
   class Sweep;
