@@ -63,6 +63,7 @@ CorotatedHessian::CorotatedHessian(RegionSummer& summer, const std::vector<doubl
     rotatedInertiaInverse_[r] = {J(0, 0), J(1, 1), J(2, 2), J(0, 1), J(0, 2), J(1, 2)};
   }
   coefficient_.assign(n, 0.0);
+  coefficientPerMass_.assign(n, 0.0);
   coefficientSum_.assign(n, 0.0);
 }
 
@@ -83,6 +84,7 @@ void CorotatedHessian::setCoefficients(double a, double b, const std::vector<dou
                                        const std::vector<double>& invCount) {
   for (std::size_t r = 0; r < coefficient_.size(); ++r) {
     coefficient_[r] = a * beta[r] + b;
+    coefficientPerMass_[r] = coefficient_[r] / regionMass_[r];
     coefficientSum_[r] = a * weightSum[r] + b / invCount[r];
   }
 }
@@ -144,7 +146,7 @@ void CorotatedHessian::regionData(std::size_t begin, std::size_t end, const doub
       o[6 + b] = tx * uy - ty * ux;
     }
     // c / M_r sum m~ p - c theta x R c0
-    const double cm = c / regionMass_[r];
+    const double cm = coefficientPerMass_[r];
     o[9] = cm * mx - (ty * cz - tz * cy);
     o[10] = cm * my - (tz * cx - tx * cz);
     o[11] = cm * mz - (tx * cy - ty * cx);

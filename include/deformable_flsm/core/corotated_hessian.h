@@ -84,6 +84,7 @@ class CorotatedHessian : public RegionKernel {
   std::vector<Eigen::Vector3d> rotatedCenter_;       // R_r c0_r
   std::vector<std::array<double, 6>> rotatedInertiaInverse_;  // R_r I0_r^+ R_r^T: xx yy zz xy xz yz
   std::vector<double> coefficient_;                  // c_r
+  std::vector<double> coefficientPerMass_;           // c_r / M_r
   std::vector<double> coefficientSum_;               // sum_{r contains i} c_r
   const std::vector<Eigen::Vector3d>* diagonal_ = nullptr;
   const std::vector<Eigen::Vector3d>* input_ = nullptr;

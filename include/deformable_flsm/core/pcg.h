@@ -109,6 +109,13 @@ class Pcg {
     const double goal = std::max(tolerance * tolerance * rz, floor * floor);
     const double reference = std::sqrt(std::max(rz, floor * floor));
     result.initialResidual = std::sqrt(std::max(rz, 0.0));
+    // the vectors' storage, held locally: the loops below then keep it in registers
+    Eigen::Vector3d* const xv = x.data();
+    Eigen::Vector3d* const res = residual_.data();
+    Eigen::Vector3d* const rv = r_.data();
+    Eigen::Vector3d* const zv = z_.data();
+    Eigen::Vector3d* const pv = p_.data();
+    const Eigen::Vector3d* const qv = q_.data();
     while (!(rz <= goal) && result.iterations < maxIterations) {
       apply(p_, q_);
       ++result.iterations;
@@ -117,16 +124,25 @@ class Pcg {
       if (!(pq > 0.0)) break;  // A not positive on p: round-off at convergence
       const double step = rz / pq;
       for (std::size_t i = 0; i < n; ++i) {
-        x[i] += step * p_[i];
-        residual_[i] -= step * q_[i];
-        r_[i] = filter(i, residual_[i]);
+        xv[i] += step * pv[i];
+        res[i] -= step * qv[i];
+        rv[i] = filter(i, res[i]);
       }
       precondition(r_, z_);
-      for (std::size_t i = 0; i < n; ++i) z_[i] = filter(i, z_[i]);
-      const double rzNext = dot(r_, z_);
+      // z filtered and r . z in one pass (the chunks of dot())
+      double rzNext = 0.0;
+      for (std::size_t c = 0; c < n; c += kChunk) {
+        const std::size_t end = std::min(n, c + kChunk);
+        double partial = 0.0;
+        for (std::size_t i = c; i < end; ++i) {
+          zv[i] = filter(i, zv[i]);
+          partial += rv[i].dot(zv[i]);
+        }
+        rzNext += partial;
+      }
       const double beta = rzNext / rz;
       rz = rzNext;
-      for (std::size_t i = 0; i < n; ++i) p_[i] = z_[i] + beta * p_[i];
+      for (std::size_t i = 0; i < n; ++i) pv[i] = zv[i] + beta * pv[i];
     }
     result.relativeResidual = std::sqrt(std::max(0.0, rz)) / reference;
     result.converged = rz <= goal;
