@@ -349,23 +349,34 @@ bool TwoLevelPreconditioner::factorize() {
 void TwoLevelPreconditioner::apply(const std::vector<Eigen::Vector3d>& invDiagonal,
                                    const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
   const std::size_t n = r.size();
-  for (std::size_t i = 0; i < n; ++i) z[i] = invDiagonal[i].cwiseProduct(r[i]);
-  if (!factorized_) return;
+  const Eigen::Vector3d* const rv = r.data();
+  const Eigen::Vector3d* const inv = invDiagonal.data();
+  Eigen::Vector3d* const zv = z.data();
+  if (!factorized_) {
+    for (std::size_t i = 0; i < n; ++i) zv[i] = inv[i].cwiseProduct(rv[i]);
+    return;
+  }
+  const int* const aggregate = aggregate_.data();
+  const char* const fixed = fixed_.data();
+  const Eigen::Vector3d* const offset = offset_.data();
   coarseRhs_.setZero();
-  // P^T r: per aggregate sum r_i and sum y_i x r_i; then z_i += u_a + w_a x y_i
+  double* const rhs = coarseRhs_.data();
+  // P^T r: per aggregate sum r_i and sum y_i x r_i; the Jacobi part z_i = D^-1 r_i in the same pass
   for (std::size_t i = 0; i < n; ++i) {
-    if (fixed_[i] != 0) continue;
-    const Eigen::Index a = kModes * aggregate_[i];
-    coarseRhs_.segment<3>(a) += r[i];
-    coarseRhs_.segment<3>(a + 3) += offset_[i].cross(r[i]);
+    zv[i] = inv[i].cwiseProduct(rv[i]);
+    if (fixed[i] != 0) continue;
+    double* const u = rhs + kModes * aggregate[i];
+    Eigen::Map<Eigen::Vector3d>(u) += rv[i];
+    Eigen::Map<Eigen::Vector3d>(u + 3) += offset[i].cross(rv[i]);
   }
   for (std::size_t a = 0; a < rotates_.size(); ++a)
     if (rotates_[a] == 0) coarseRhs_.segment<3>(kModes * static_cast<Eigen::Index>(a) + 3).setZero();
   llt_.solveInPlace(coarseRhs_);
+  // then z_i += u_a + w_a x y_i
   for (std::size_t i = 0; i < n; ++i) {
-    if (fixed_[i] != 0) continue;
-    const Eigen::Index a = kModes * aggregate_[i];
-    z[i] += coarseRhs_.segment<3>(a) + coarseRhs_.segment<3>(a + 3).cross(offset_[i]);
+    if (fixed[i] != 0) continue;
+    const double* const u = rhs + kModes * aggregate[i];
+    zv[i] += Eigen::Map<const Eigen::Vector3d>(u) + Eigen::Map<const Eigen::Vector3d>(u + 3).cross(offset[i]);
   }
 }
 
