@@ -713,7 +713,7 @@ void ObjectContactSolver::takeCoupling(const std::vector<Solver*>& objects, bool
     for (const CouplingImpulse& ci : *coupling_)
       if (ci.slot < keys_.size() && keys_[ci.slot].first == std::min(ci.g1, ci.g2) &&
           keys_[ci.slot].second == std::max(ci.g1, ci.g2))
-        springLambda_[ci.slot] = ci.lambda;
+        springLambda_[ci.slot] = std::max(0.0, ci.lambda);  // a pulling spring bounds no friction
   }
   for (const CouplingImpulse& ci : *coupling_) {
     const std::uint32_t o1 = owner_[ci.g1], o2 = owner_[ci.g2];

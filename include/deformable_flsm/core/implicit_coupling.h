@@ -20,12 +20,13 @@ namespace deformable_flsm {
 class Solver;
 
 /// A contact spring's impulse over the last sub-step, for the object contact pass (friction,
-/// wrenches): on particle g1 from g2 (global numbers, World's order), lambda n.
+/// wrenches): on particle g1 from g2 (global numbers, World's order), lambda n; lambda < 0 for
+/// a spring the solve's last pass left pulling.
 struct CouplingImpulse {
   std::uint32_t g1 = 0, g2 = 0;
   std::uint32_t slot = 0;  // its place in the candidate list it was made from
   Eigen::Vector3d n = Eigen::Vector3d::Zero();
-  double lambda = 0.0;  // N s, >= 0
+  double lambda = 0.0;  // N s
 };
 
 class ImplicitCoupling {
@@ -35,8 +36,10 @@ class ImplicitCoupling {
   ///   A_o v_o + sum_springs h^2 k n n^T (v_1 - v_2) = b_o - (h k)(gap - skin) n   (per object o)
   /// with A_o, b_o each object's (Solver::implicitBegin()), and a spring for each candidate pair
   /// (`candidates`, global particle numbers in World's order: object o's particle i is
-  /// offset[o] + i) whose gap at the end of the sub-step, x + h v with v = v_n (gravity moves
-  /// both alike), is predicted below the skin: gap = n . (x_1 - x_2) - (r_1 + r_2), n the
+  /// offset[o] + i) whose gap at the end of the sub-step, x + h v with v = v_n (gravity's
+  /// increment left out: the same for two free particles of one world; a pair with a pinned
+  /// particle is caught by the solution, one pass later), is predicted below the skin:
+  /// gap = n . (x_1 - x_2) - (r_1 + r_2), n the
   /// direction between the particles at the start of the sub-step. One-sided, by an active set
   /// shared with each object's collider contacts: a spring whose solution gap ends above the
   /// skin (it pulls) is let go of, a pair the solution carries into each other joins.
@@ -47,8 +50,6 @@ class ImplicitCoupling {
 
   /// The springs that carried an impulse in the last substep().
   const std::vector<CouplingImpulse>& impulses() const { return impulses_; }
-  /// Springs active at the end of the last substep() (for tests and benchmarks).
-  std::size_t activeSprings() const { return impulses_.size(); }
 
  private:
   struct Spring {
@@ -73,7 +74,7 @@ class ImplicitCoupling {
   std::vector<std::size_t> start_;      // per object, its first coupled number (members only)
   std::size_t size_ = 0;
   Pcg pcg_;
-  std::vector<Eigen::Vector3d> velocity_, rhs_, normal_, invPrecond_, springDiagonal_;
+  std::vector<Eigen::Vector3d> velocity_, rhs_, normal_, springDiagonal_;
   std::vector<PcgConstraint> constraint_;
   std::vector<std::vector<Eigen::Vector3d>> in_, out_, inv_;  // per member: its segments
   std::vector<Spring> springs_;

@@ -67,8 +67,9 @@ class ObjectContactSolver {
   const std::vector<std::pair<std::uint32_t, std::uint32_t>>& candidatePairs() const { return keys_; }
 
   /// The candidate list as substep() left it, in global numbers, when it was built for these
-  /// objects and parameters (the objects' positions have not changed since): what
-  /// ImplicitCoupling makes its springs of before the objects' sub-step; nullptr otherwise.
+  /// objects and parameters: what ImplicitCoupling makes its springs of before the objects'
+  /// sub-step; nullptr otherwise. (Positions set between steps, a reset, are not checked: the
+  /// springs then miss for one sub-step the pairs the contact pass after the solve still finds.)
   const std::vector<std::pair<std::uint32_t, std::uint32_t>>* currentCandidates(
       const std::vector<Solver*>& objects, const ObjectContactParams& params) const;
   /// The impulses the implicit step's contact springs carried in this sub-step (nullptr: none),
@@ -157,7 +158,8 @@ class ObjectContactSolver {
   void accumulate(const std::vector<SubstepCollider>& colliders, bool last);
   PairImpulse& pairSlot(std::uint32_t a, std::uint32_t b);
   /// The coupling impulses into springLambda_ (by candidate slot, when the list was not built
-  /// again since they were found) and into the pair sums.
+  /// again since they were found: in a sub-step with a build the springs bound no friction) and
+  /// into the pair sums.
   void takeCoupling(const std::vector<Solver*>& objects, bool rebuilt, bool last);
 
   const std::vector<CouplingImpulse>* coupling_ = nullptr;
