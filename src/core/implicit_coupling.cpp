@@ -68,15 +68,12 @@ void ImplicitCoupling::gather(const std::vector<Solver*>& objects) {
       normal_[b + i] = s.implicitNormal_[i];
     }
   }
+  std::fill(springDiagonal_.begin(), springDiagonal_.end(), Eigen::Vector3d::Zero());
   for (const Spring& sp : springs_) {
     if (!sp.active) continue;
     const Eigen::Vector3d f = (-sp.k * sp.gap / h_) * sp.n;
     rhs_[sp.g1] += f;
     rhs_[sp.g2] -= f;
-  }
-  std::fill(springDiagonal_.begin(), springDiagonal_.end(), Eigen::Vector3d::Zero());
-  for (const Spring& sp : springs_) {
-    if (!sp.active) continue;
     const Eigen::Vector3d d = sp.k * sp.n.cwiseAbs2();
     springDiagonal_[sp.g1] += d;
     springDiagonal_[sp.g2] += d;
@@ -89,15 +86,20 @@ void ImplicitCoupling::gather(const std::vector<Solver*>& objects) {
   }
 }
 
+template <class Apply>
+void ImplicitCoupling::perMember(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& in,
+                                 std::vector<Eigen::Vector3d>& out, Apply&& apply) {
+  for (std::size_t m = 0; m < members_.size(); ++m) {
+    const std::size_t b = start_[m], n = in_[m].size();
+    std::copy(in.begin() + static_cast<std::ptrdiff_t>(b), in.begin() + static_cast<std::ptrdiff_t>(b + n), in_[m].begin());
+    apply(*objects[members_[m]], m);
+    std::copy(out_[m].begin(), out_[m].end(), out.begin() + static_cast<std::ptrdiff_t>(b));
+  }
+}
+
 void ImplicitCoupling::product(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& p,
                                std::vector<Eigen::Vector3d>& y) {
-  for (std::size_t m = 0; m < members_.size(); ++m) {
-    Solver& s = *objects[members_[m]];
-    const std::size_t b = start_[m], n = s.x_.size();
-    std::copy(p.begin() + static_cast<std::ptrdiff_t>(b), p.begin() + static_cast<std::ptrdiff_t>(b + n), in_[m].begin());
-    s.implicitProduct(in_[m], out_[m]);
-    std::copy(out_[m].begin(), out_[m].end(), y.begin() + static_cast<std::ptrdiff_t>(b));
-  }
+  perMember(objects, p, y, [this](Solver& s, std::size_t m) { s.implicitProduct(in_[m], out_[m]); });
   for (const Spring& sp : springs_) {
     if (!sp.active) continue;
     const Eigen::Vector3d f = (sp.k * sp.n.dot(p[sp.g1] - p[sp.g2])) * sp.n;
@@ -108,13 +110,7 @@ void ImplicitCoupling::product(const std::vector<Solver*>& objects, const std::v
 
 void ImplicitCoupling::precondition(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& r,
                                     std::vector<Eigen::Vector3d>& z) {
-  for (std::size_t m = 0; m < members_.size(); ++m) {
-    Solver& s = *objects[members_[m]];
-    const std::size_t b = start_[m], n = s.x_.size();
-    std::copy(r.begin() + static_cast<std::ptrdiff_t>(b), r.begin() + static_cast<std::ptrdiff_t>(b + n), in_[m].begin());
-    s.coarse_->apply(inv_[m], in_[m], out_[m]);
-    std::copy(out_[m].begin(), out_[m].end(), z.begin() + static_cast<std::ptrdiff_t>(b));
-  }
+  perMember(objects, r, z, [this](Solver& s, std::size_t m) { s.coarse_->apply(inv_[m], in_[m], out_[m]); });
 }
 
 bool ImplicitCoupling::updateSprings(double h) {

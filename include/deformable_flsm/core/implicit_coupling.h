@@ -67,6 +67,11 @@ class ImplicitCoupling {
                std::vector<Eigen::Vector3d>& y);
   void precondition(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& r,
                     std::vector<Eigen::Vector3d>& z);
+  /// For each member: its segment of `in` into in_[m], apply(solver, m) (which fills out_[m]),
+  /// out_[m] into its segment of `out`.
+  template <class Apply>
+  void perMember(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& in,
+                 std::vector<Eigen::Vector3d>& out, Apply&& apply);
   /// The springs' active set after a solve; returns whether it changed.
   bool updateSprings(double h);
 
