@@ -188,7 +188,9 @@ void Solver::contactPass(double h) {
     const Collider& c = *body.collider;
     body.before = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_ - h);
     body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_);
-    body.contacts = 0;
+    // the implicit solve's contacts, then the particles this pass moves out of the collider
+    body.contacts = body.solved;
+    body.solved = 0;
     body.bounded = colliderBounds(c.shape, body.now, body.lo, body.hi);
     if (body.bounded) {
       body.lo.array() -= r;
@@ -203,7 +205,8 @@ void Solver::contactPass(double h) {
   const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + kContactChunk - 1) / kContactChunk);
   const auto& m = lattice_->masses();
   // the goals of this sub-step's region pass (the implicit step's linearisation point)
-  const std::vector<Eigen::Vector3d>& goals = params_.integrator == Integrator::Implicit ? implicitGoal_ : goal_;
+  const bool implicitStep = params_.integrator == Integrator::Implicit;
+  const std::vector<Eigen::Vector3d>& goals = implicitStep ? implicitGoal_ : goal_;
   // held: a pinned or hard-dragged particle keeps the object from leaving a collider as a body;
   // it cannot leave one whose surface is farther than its size from a particle (above)
   bool held = pinnedCount_ > 0;
@@ -264,7 +267,7 @@ void Solver::contactPass(double h) {
         ContactPartial& p = partial[a];
         p.impulse += J;
         p.moment += (x - r * normal - origin).cross(J);
-        ++p.contacts;
+        if (!implicitStep || implicitContactBody_[i] != a) ++p.contacts;  // counted once (sumContactImpulses())
         touched = true;
       }
       if (!touched) continue;

@@ -499,6 +499,7 @@ bool Solver::updateContactSet(double h, bool& guessChanged, Pcg& pcg, std::size_
 // pass's do.
 void Solver::sumContactImpulses(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset) {
   const double r = contactRadius();
+  for (ContactBody& body : contactBodies_) body.solved = 0;
   for (std::size_t i = 0; i < x_.size(); ++i) {
     if (implicitContactBody_[i] < 0) continue;
     ContactBody& body = contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])];
@@ -510,6 +511,7 @@ void Solver::sumContactImpulses(double h, const std::vector<Eigen::Vector3d>& re
     const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
     body.impulse += J;
     body.moment += (x - r * n - pose.translation()).cross(J);
+    if (J.dot(n) > 0.0) ++body.solved;  // a contact that pushes (one the solve let go of does not)
   }
 }
 

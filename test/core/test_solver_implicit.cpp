@@ -211,6 +211,12 @@ TEST(ImplicitStep, GroundCarriesTheWholeWeightWithAmbientDamping) {
     }
     const double weight = lattice->totalMass() * 9.81;
     EXPECT_NEAR(-force.z(), weight, 1e-3 * weight) << "ambient damping " << c;
+    // every particle of the bottom layer pushes on the ground, counted once
+    std::size_t bottom = 0;
+    double lowest = lattice->restPositions()[0].z();
+    for (const Eigen::Vector3d& q : lattice->restPositions()) lowest = std::min(lowest, q.z());
+    for (const Eigen::Vector3d& q : lattice->restPositions()) bottom += q.z() < lowest + 1e-9 ? 1 : 0;
+    EXPECT_EQ(s.contactWrench("ground").contacts, bottom) << "ambient damping " << c;
   }
 }
 

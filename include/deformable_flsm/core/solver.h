@@ -352,6 +352,7 @@ class Solver : private RegionKernel {
     Eigen::Vector3d impulse = Eigen::Vector3d::Zero();  // sum of m dv on the particles this step
     Eigen::Vector3d moment = Eigen::Vector3d::Zero();   // sum of (contact point - origin) x m dv
     std::size_t contacts = 0;                            // in the last sub-step
+    std::size_t solved = 0;  // pushing contacts of this sub-step's implicit solve (contactPass() adds its own)
     ContactWrench wrench;                                // over the last step
   };
   /// One chunk's share of a body's impulse (chunks of fixed size: thread-count-independent sums).
