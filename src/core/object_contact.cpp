@@ -662,7 +662,8 @@ void ObjectContactSolver::accumulate(const std::vector<SubstepCollider>& collide
       PairImpulse& p = pairSlot(std::min(o1, o2), std::max(o1, o2));
       p.impulse += onB;
       p.moment += point.cross(onB);
-      if (last && active) ++p.contacts;
+      if (last && active && !std::binary_search(pushingSprings_.begin(), pushingSprings_.end(), keys_[c.slot]))
+        ++p.contacts;
     }
 }
 
@@ -707,6 +708,7 @@ const std::vector<std::pair<std::uint32_t, std::uint32_t>>* ObjectContactSolver:
 
 void ObjectContactSolver::takeCoupling(const std::vector<Solver*>& objects, bool rebuilt, bool last) {
   springLambda_.clear();
+  pushingSprings_.clear();
   if (coupling_ == nullptr || coupling_->empty()) return;
   if (!rebuilt) {
     springLambda_.resize(keys_.size(), 0.0);
@@ -729,8 +731,13 @@ void ObjectContactSolver::takeCoupling(const std::vector<Solver*>& objects, bool
     PairImpulse& p = pairSlot(std::min(o1, o2), std::max(o1, o2));
     p.impulse += onB;
     p.moment += point.cross(onB);
-    if (last) ++p.contacts;
+    if (last && ci.lambda > 0.0) {  // a contact that pushes, as the passes count theirs
+      ++p.contacts;
+      reserveDoubling(pushingSprings_, pushingSprings_.size() + 1);
+      pushingSprings_.emplace_back(std::min(ci.g1, ci.g2), std::max(ci.g1, ci.g2));
+    }
   }
+  std::sort(pushingSprings_.begin(), pushingSprings_.end());
 }
 
 void ObjectContactSolver::endStep() {

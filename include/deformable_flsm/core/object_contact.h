@@ -164,6 +164,9 @@ class ObjectContactSolver {
 
   const std::vector<CouplingImpulse>* coupling_ = nullptr;
   std::vector<double> springLambda_;  // per candidate slot, this sub-step's spring impulse
+  /// the particle pairs (global, lower first) whose spring pushed in the step's last sub-step,
+  /// sorted: a pair contact of the passes among them is not counted again (accumulate())
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pushingSprings_;
 
   // the candidate list (a Verlet list): what it was built for, and every particle's anchor
   bool built_ = false;
