@@ -104,7 +104,7 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
   keep();
   pushOut();
   scatter(objects);
-  accumulate(colliders, last);
+  accumulate(objects, colliders, last);
 }
 
 // The list holds every pair that can come within reach while each particle's end and start
@@ -639,7 +639,8 @@ void ObjectContactSolver::scatter(const std::vector<Solver*>& objects) {
 // (a < b) and its moment about the origin, taken at the point between the spheres' surfaces;
 // per object and collider the particles' impulse and its moment about the collider's origin,
 // taken at the contact point x - r n.
-void ObjectContactSolver::accumulate(const std::vector<SubstepCollider>& colliders, bool last) {
+void ObjectContactSolver::accumulate(const std::vector<Solver*>& objects, const std::vector<SubstepCollider>& colliders,
+                                     bool last) {
   for (const std::vector<Contact>* list : {&colliderContacts_, &contacts_})
     for (const Contact& c : *list) {
       const Eigen::Vector3d J = c.lambda * c.n + c.friction;  // on k1
@@ -649,7 +650,9 @@ void ObjectContactSolver::accumulate(const std::vector<SubstepCollider>& collide
         ColliderImpulse& ci = colliderImpulses_[object_[c.k1] * colliderCount_ + c.k2];
         ci.impulse += J;
         ci.moment += (x_[c.k1] - r * c.n - colliders[c.k2].now.translation()).cross(J);
-        if (last && active) ++ci.contacts;
+        // a particle its object's own contact pass (or solve) counted on this collider is one contact
+        if (last && active && !objects[object_[c.k1]]->countedContact(index_[c.k1], *colliders[c.k2].id))
+          ++ci.contacts;
         continue;
       }
       const std::uint32_t o1 = object_[c.k1], o2 = object_[c.k2];

@@ -174,6 +174,7 @@ void Solver::beginContactStep() {
 // x* - r n, are summed per chunk, then over the chunks in order.
 // Pinned and hard-dragged particles are left alone: their motion is prescribed.
 void Solver::contactPass(double h) {
+  ++contactPasses_;  // the counts of older passes no longer match (countedContact())
   if (contactBodies_.empty()) return;
   contactTime_ += h;
   const double r = contactRadius();
@@ -267,7 +268,11 @@ void Solver::contactPass(double h) {
         ContactPartial& p = partial[a];
         p.impulse += J;
         p.moment += (x - r * normal - origin).cross(J);
-        if (!implicitStep || implicitContactBody_[i] != a) ++p.contacts;  // counted once (sumContactImpulses())
+        if (!implicitStep || implicitContactBody_[i] != a) {  // counted once (sumContactImpulses())
+          ++p.contacts;
+          countedBody_[i] = a;
+          countedPass_[i] = contactPasses_;
+        }
         touched = true;
       }
       if (!touched) continue;
@@ -297,6 +302,17 @@ void Solver::contactPass(double h) {
       body.contacts += partial[a].contacts;
     }
   }
+}
+
+bool Solver::countedContact(std::uint32_t p, const std::string& id) const {
+  const bool byPass = countedPass_[p] == contactPasses_ && countedBody_[p] >= 0 &&
+                      static_cast<std::size_t>(countedBody_[p]) < contactBodies_.size() &&
+                      *contactBodies_[static_cast<std::size_t>(countedBody_[p])].id == id;
+  const bool bySolve = params_.integrator == Integrator::Implicit && p < implicitContactBody_.size() &&
+                       implicitContactBody_[p] >= 0 &&
+                       static_cast<std::size_t>(implicitContactBody_[p]) < contactBodies_.size() &&
+                       *contactBodies_[static_cast<std::size_t>(implicitContactBody_[p])].id == id;
+  return byPass || bySolve;
 }
 
 bool Solver::addColliderImpulse(const std::string& id, const Eigen::Vector3d& impulse, const Eigen::Vector3d& moment,

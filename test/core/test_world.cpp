@@ -913,10 +913,7 @@ static void softBin(Integrator integrator) {
   EXPECT_GT(counted, 0u);
   EXPECT_EQ(worst, 0u) << "a pair counts more contacts than it has touching particle pairs";
   EXPECT_GT(onColliders, 0u);
-  // The explicit step's count may hold a particle twice (a few of about 240 here): once by the
-  // object's own contact pass and once by the object contact pass's row for the same collider.
-  if (integrator == Integrator::Implicit)
-    EXPECT_EQ(worstCollider, 0u) << "a collider counts more contacts than particles near it";
+  EXPECT_EQ(worstCollider, 0u) << "a collider counts more contacts than particles near it";
 }
 
 TEST(WorldScene, TwentySoftObjectsInABinGoToRestAndStayThere) { softBin(Integrator::Explicit); }

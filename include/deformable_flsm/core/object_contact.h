@@ -155,7 +155,7 @@ class ObjectContactSolver {
   static bool slides(const Contact& c);
   void pushOut();
   void scatter(const std::vector<Solver*>& objects);
-  void accumulate(const std::vector<SubstepCollider>& colliders, bool last);
+  void accumulate(const std::vector<Solver*>& objects, const std::vector<SubstepCollider>& colliders, bool last);
   PairImpulse& pairSlot(std::uint32_t a, std::uint32_t b);
   /// The coupling impulses into springLambda_ (by candidate slot, when the list was not built
   /// again since they were found: in a sub-step with a build the springs bound no friction) and

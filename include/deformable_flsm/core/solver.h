@@ -260,6 +260,9 @@ class Solver : private RegionKernel {
   /// particles against collider `id` during the step begun (before endStep()): `impulse` the
   /// sum of m dv on the particles, `moment` its moment about the collider's origin, `contacts`
   /// the particles it touched in the last sub-step. Returns false if there is no such collider.
+  /// Whether particle p is already among collider `id`'s contacts of the last sub-step (its contact
+  /// pass, or the implicit solve, counted it): another contact solver does not count it again.
+  bool countedContact(std::uint32_t p, const std::string& id) const;
   bool addColliderImpulse(const std::string& id, const Eigen::Vector3d& impulse, const Eigen::Vector3d& moment,
                           std::size_t contacts);
 
@@ -363,6 +366,9 @@ class Solver : private RegionKernel {
   };
   std::vector<ContactBody> contactBodies_;
   std::vector<int> activeBodies_;               // bodies near the object in this sub-step
+  std::vector<int> countedBody_;                // per particle: the body the last contact pass counted it on
+  std::vector<std::uint32_t> countedPass_;      // ... in that pass (contactPasses_), else an older one
+  std::uint32_t contactPasses_ = 0;
   std::vector<ContactPartial> contactPartials_;  // chunk-major, #chunks x #bodies
   std::vector<int> chunkBodies_;                // per chunk, the active bodies near it (#chunks x #bodies)
   double contactTime_ = 0.0;                    // time since the start of the step (s)
