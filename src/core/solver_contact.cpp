@@ -268,7 +268,8 @@ void Solver::contactPass(double h) {
         ContactPartial& p = partial[a];
         p.impulse += J;
         p.moment += (x - r * normal - origin).cross(J);
-        if (!implicitStep || implicitContactBody_[i] != a) {  // counted once (sumContactImpulses())
+        // counted once: the implicit solve may have counted it on this body (sumContactImpulses())
+        if (countedPass_[i] != contactPasses_ || countedBody_[i] != a) {
           ++p.contacts;
           countedBody_[i] = a;
           countedPass_[i] = contactPasses_;
@@ -305,14 +306,9 @@ void Solver::contactPass(double h) {
 }
 
 bool Solver::countedContact(std::uint32_t p, const std::string& id) const {
-  const bool byPass = countedPass_[p] == contactPasses_ && countedBody_[p] >= 0 &&
-                      static_cast<std::size_t>(countedBody_[p]) < contactBodies_.size() &&
-                      *contactBodies_[static_cast<std::size_t>(countedBody_[p])].id == id;
-  const bool bySolve = params_.integrator == Integrator::Implicit && p < implicitContactBody_.size() &&
-                       implicitContactBody_[p] >= 0 &&
-                       static_cast<std::size_t>(implicitContactBody_[p]) < contactBodies_.size() &&
-                       *contactBodies_[static_cast<std::size_t>(implicitContactBody_[p])].id == id;
-  return byPass || bySolve;
+  return countedPass_[p] == contactPasses_ && countedBody_[p] >= 0 &&
+         static_cast<std::size_t>(countedBody_[p]) < contactBodies_.size() &&
+         *contactBodies_[static_cast<std::size_t>(countedBody_[p])].id == id;
 }
 
 bool Solver::addColliderImpulse(const std::string& id, const Eigen::Vector3d& impulse, const Eigen::Vector3d& moment,

@@ -366,8 +366,10 @@ class Solver : private RegionKernel {
   };
   std::vector<ContactBody> contactBodies_;
   std::vector<int> activeBodies_;               // bodies near the object in this sub-step
-  std::vector<int> countedBody_;                // per particle: the body the last contact pass counted it on
-  std::vector<std::uint32_t> countedPass_;      // ... in that pass (contactPasses_), else an older one
+  // per particle: the body the contact pass numbered countedPass_ (or the implicit solve before
+  // it) counted it on; contactPasses_ numbers the passes
+  std::vector<int> countedBody_;
+  std::vector<std::uint32_t> countedPass_;
   std::uint32_t contactPasses_ = 0;
   std::vector<ContactPartial> contactPartials_;  // chunk-major, #chunks x #bodies
   std::vector<int> chunkBodies_;                // per chunk, the active bodies near it (#chunks x #bodies)
