@@ -71,6 +71,17 @@ Collider box(const Eigen::Vector3d& centre, const Eigen::Vector3d& half, double 
   return c;
 }
 
+/// A bin's floor and four walls (boxes of thickness 2 wall) around a square of half-width
+/// `inner` on z = 0, the walls `depth` high.
+std::vector<std::pair<std::string, Collider>> binColliders(double inner, double depth, double wall) {
+  return {
+      {"floor", box(Eigen::Vector3d(0, 0, -wall), Eigen::Vector3d(inner + 2 * wall, inner + 2 * wall, wall))},
+      {"wall_x+", box(Eigen::Vector3d(inner + wall, 0, depth / 2), Eigen::Vector3d(wall, inner + 2 * wall, depth / 2))},
+      {"wall_x-", box(Eigen::Vector3d(-inner - wall, 0, depth / 2), Eigen::Vector3d(wall, inner + 2 * wall, depth / 2))},
+      {"wall_y+", box(Eigen::Vector3d(0, inner + wall, depth / 2), Eigen::Vector3d(inner + 2 * wall, wall, depth / 2))},
+      {"wall_y-", box(Eigen::Vector3d(0, -inner - wall, depth / 2), Eigen::Vector3d(inner + 2 * wall, wall, depth / 2))}};
+}
+
 int stepsFor(double seconds) { return static_cast<int>(std::lround(seconds / kStep)); }
 
 double maxSpeed(const World& world) {
@@ -421,12 +432,7 @@ TEST(WorldScene, TwentyObjectsDroppedIntoABinComeToRestInside) {
   // a 14 x 14 cm bin 10 cm deep: a floor and four walls (thicker than a particle can be pushed
   // into: a box pushes out through its nearest face)
   const double inner = 0.07, depth = 0.1, wall = 0.05;
-  const std::vector<std::pair<std::string, Collider>> colliders = {
-      {"floor", box(Eigen::Vector3d(0, 0, -wall), Eigen::Vector3d(inner + 2 * wall, inner + 2 * wall, wall))},
-      {"wall_x+", box(Eigen::Vector3d(inner + wall, 0, depth / 2), Eigen::Vector3d(wall, inner + 2 * wall, depth / 2))},
-      {"wall_x-", box(Eigen::Vector3d(-inner - wall, 0, depth / 2), Eigen::Vector3d(wall, inner + 2 * wall, depth / 2))},
-      {"wall_y+", box(Eigen::Vector3d(0, inner + wall, depth / 2), Eigen::Vector3d(inner + 2 * wall, wall, depth / 2))},
-      {"wall_y-", box(Eigen::Vector3d(0, -inner - wall, depth / 2), Eigen::Vector3d(inner + 2 * wall, wall, depth / 2))}};
+  const std::vector<std::pair<std::string, Collider>> colliders = binColliders(inner, depth, wall);
   for (const auto& c : colliders) world.setCollider(c.first, c.second);
   // five layers of four 3 x 3 x 3 cm blocks, each layer shifted, every block spinning so that
   // they tumble onto each other
@@ -841,12 +847,7 @@ static void softBin(Integrator integrator) {
   const int substeps = integrator == Integrator::Implicit ? 1 : 11;
   World world(dt, substeps);
   const double inner = 0.2, depth = 0.35, wall = 0.025;
-  const std::vector<std::pair<std::string, Collider>> colliders = {
-      {"floor", box(Eigen::Vector3d(0, 0, -wall), Eigen::Vector3d(inner + 2 * wall, inner + 2 * wall, wall))},
-      {"wall_x+", box(Eigen::Vector3d(inner + wall, 0, depth / 2), Eigen::Vector3d(wall, inner + 2 * wall, depth / 2))},
-      {"wall_x-", box(Eigen::Vector3d(-inner - wall, 0, depth / 2), Eigen::Vector3d(wall, inner + 2 * wall, depth / 2))},
-      {"wall_y+", box(Eigen::Vector3d(0, inner + wall, depth / 2), Eigen::Vector3d(inner + 2 * wall, wall, depth / 2))},
-      {"wall_y-", box(Eigen::Vector3d(0, -inner - wall, depth / 2), Eigen::Vector3d(inner + 2 * wall, wall, depth / 2))}};
+  const std::vector<std::pair<std::string, Collider>> colliders = binColliders(inner, depth, wall);
   for (const auto& c : colliders) world.setCollider(c.first, c.second);
   const double yaw[20] = {-0.785, -0.14, 0.506, -0.419, 0.227,  -0.698, -0.052, 0.593, -0.332, 0.314,
                           -0.611, 0.035, 0.681, -0.244, 0.401, -0.524, 0.122,  0.768, -0.157, 0.489};
