@@ -256,13 +256,13 @@ class Solver : private RegionKernel {
   /// Whether particle p's motion is prescribed (pinned or hard-dragged): to contact, a
   /// particle of infinite mass.
   bool isPrescribed(std::uint32_t p) const { return pinned_[p] != 0 || hardDragged_[p] != 0; }
+  /// Whether particle p is already among collider `id`'s contacts of the last sub-step (its contact
+  /// pass, or the implicit solve, counted it): another contact solver does not count it again.
+  bool countedContact(std::uint32_t p, const std::string& id) const;
   /// Counts into contactWrench(id) an impulse that another contact solver gave this object's
   /// particles against collider `id` during the step begun (before endStep()): `impulse` the
   /// sum of m dv on the particles, `moment` its moment about the collider's origin, `contacts`
   /// the particles it touched in the last sub-step. Returns false if there is no such collider.
-  /// Whether particle p is already among collider `id`'s contacts of the last sub-step (its contact
-  /// pass, or the implicit solve, counted it): another contact solver does not count it again.
-  bool countedContact(std::uint32_t p, const std::string& id) const;
   bool addColliderImpulse(const std::string& id, const Eigen::Vector3d& impulse, const Eigen::Vector3d& moment,
                           std::size_t contacts);
 
@@ -369,8 +369,8 @@ class Solver : private RegionKernel {
   // per particle: the body the contact pass numbered countedPass_ (or the implicit solve before
   // it) counted it on; contactPasses_ numbers the passes
   std::vector<int> countedBody_;
-  std::vector<std::uint32_t> countedPass_;
-  std::uint32_t contactPasses_ = 0;
+  std::vector<std::uint64_t> countedPass_;
+  std::uint64_t contactPasses_ = 0;
   std::vector<ContactPartial> contactPartials_;  // chunk-major, #chunks x #bodies
   std::vector<int> chunkBodies_;                // per chunk, the active bodies near it (#chunks x #bodies)
   double contactTime_ = 0.0;                    // time since the start of the step (s)
