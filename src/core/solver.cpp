@@ -117,7 +117,7 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
   rotations_.assign(n, Eigen::Quaterniond::Identity());
   pinned_.assign(n, 0);
   hardDragged_.assign(n, 0);
-  countedBody_.assign(n, -1);
+  countedBodies_.assign(n, 0);
   countedPass_.assign(n, 0);
   pinnedList_.reserve(n);
   pinPosition_ = x0;

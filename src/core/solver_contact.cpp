@@ -269,11 +269,7 @@ void Solver::contactPass(double h) {
         p.impulse += J;
         p.moment += (x - r * normal - origin).cross(J);
         // counted once: the implicit solve may have counted it on this body (sumContactImpulses())
-        if (countedPass_[i] != contactPasses_ || countedBody_[i] != a) {
-          ++p.contacts;
-          countedBody_[i] = a;
-          countedPass_[i] = contactPasses_;
-        }
+        if (markCounted(i, a, contactPasses_)) ++p.contacts;
         touched = true;
       }
       if (!touched) continue;
@@ -305,10 +301,23 @@ void Solver::contactPass(double h) {
   }
 }
 
+bool Solver::markCounted(std::size_t i, int a, std::uint64_t pass) {
+  if (a >= 64) return true;
+  if (countedPass_[i] != pass) {
+    countedPass_[i] = pass;
+    countedBodies_[i] = 0;
+  }
+  const std::uint64_t bit = std::uint64_t{1} << a;
+  if ((countedBodies_[i] & bit) != 0) return false;
+  countedBodies_[i] |= bit;
+  return true;
+}
+
 bool Solver::countedContact(std::uint32_t p, const std::string& id) const {
-  return countedPass_[p] == contactPasses_ && countedBody_[p] >= 0 &&
-         static_cast<std::size_t>(countedBody_[p]) < contactBodies_.size() &&
-         *contactBodies_[static_cast<std::size_t>(countedBody_[p])].id == id;
+  if (countedPass_[p] != contactPasses_) return false;
+  for (std::size_t a = 0; a < contactBodies_.size() && a < 64; ++a)
+    if (*contactBodies_[a].id == id) return (countedBodies_[p] >> a & 1u) != 0;
+  return false;
 }
 
 bool Solver::addColliderImpulse(const std::string& id, const Eigen::Vector3d& impulse, const Eigen::Vector3d& moment,

@@ -366,11 +366,14 @@ class Solver : private RegionKernel {
   };
   std::vector<ContactBody> contactBodies_;
   std::vector<int> activeBodies_;               // bodies near the object in this sub-step
-  // per particle: the body the contact pass numbered countedPass_ (or the implicit solve before
-  // it) counted it on; contactPasses_ numbers the passes
-  std::vector<int> countedBody_;
+  // per particle: the bodies (bit a for body a < 64) the contact pass numbered countedPass_, or
+  // the implicit solve before it, counted it on; contactPasses_ numbers the passes
+  std::vector<std::uint64_t> countedBodies_;
   std::vector<std::uint64_t> countedPass_;
   std::uint64_t contactPasses_ = 0;
+  /// Marks particle i as counted on body a in pass `pass`; false if it already was (a body past
+  /// the 64th is never marked: counted every time).
+  bool markCounted(std::size_t i, int a, std::uint64_t pass);
   std::vector<ContactPartial> contactPartials_;  // chunk-major, #chunks x #bodies
   std::vector<int> chunkBodies_;                // per chunk, the active bodies near it (#chunks x #bodies)
   double contactTime_ = 0.0;                    // time since the start of the step (s)
