@@ -221,33 +221,34 @@ TEST(Contact, BlockRestsOnTheGroundAndItsWeightIsTheNormalForce) {
 // whichever of the two the implicit solve holds it on and the contact pass meets first.
 TEST(Contact, ABlockInACornerCountsEachTouchingParticleOncePerCollider) {
   // the colliders are met in the order of their names: the wall before the ground, then after it
-  for (const char* name : {"a_wall", "wall"})
-  for (const bool implicit : {false, true}) {
-    auto lattice = std::make_shared<const Lattice>(test::makeBox(4, 4, 4, 0.01), 1000.0, 1);
-    SolverParams p = sceneParams(*lattice, 0.3);
-    p.gravity = Eigen::Vector3d(-4.0, 0.0, -kG);
-    p.ambientDamping = 2.0;  // settles within the 4 s
-    if (implicit) {
-      p.integrator = Integrator::Implicit;
-      p.substeps = 1;
-      p.youngsModulus = 1e5;
+  for (const char* name : {"a_wall", "wall"}) {
+    for (const bool implicit : {false, true}) {
+      auto lattice = std::make_shared<const Lattice>(test::makeBox(4, 4, 4, 0.01), 1000.0, 1);
+      SolverParams p = sceneParams(*lattice, 0.3);
+      p.gravity = Eigen::Vector3d(-4.0, 0.0, -kG);
+      p.ambientDamping = 2.0;  // settles within the 4 s
+      if (implicit) {
+        p.integrator = Integrator::Implicit;
+        p.substeps = 1;
+        p.youngsModulus = 1e5;
+      }
+      Solver s(lattice, p);
+      // frictionless: the wall takes all of the sideways load, every particle of the side presses
+      Collider ground = groundBelow(s, 0.0);
+      ground.staticFriction = ground.kineticFriction = 0.0;
+      s.setCollider("ground", ground);
+      double lowestX = s.positions()[0].x();
+      for (const Eigen::Vector3d& x : s.positions()) lowestX = std::min(lowestX, x.x());
+      Collider wall;  // a half-space whose normal is +x, touching the block's -x face
+      wall.pose.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()).toRotationMatrix();
+      wall.pose.translation() = Eigen::Vector3d(lowestX - s.contactRadius(), 0, 0);
+      wall.staticFriction = wall.kineticFriction = 0.0;
+      s.setCollider(name, wall);
+      for (int i = 0; i < 240; ++i) s.step();
+      EXPECT_LT(maxSpeed(s), 1e-3) << (implicit ? "implicit" : "explicit");
+      EXPECT_EQ(s.contactWrench("ground").contacts, 16u) << (implicit ? "implicit" : "explicit") << ": the 4 x 4 bottom";
+      EXPECT_EQ(s.contactWrench(name).contacts, 16u) << (implicit ? "implicit" : "explicit") << ": the 4 x 4 side";
     }
-    Solver s(lattice, p);
-    // frictionless: the wall takes all of the sideways load, every particle of the side presses
-    Collider ground = groundBelow(s, 0.0);
-    ground.staticFriction = ground.kineticFriction = 0.0;
-    s.setCollider("ground", ground);
-    double lowestX = s.positions()[0].x();
-    for (const Eigen::Vector3d& x : s.positions()) lowestX = std::min(lowestX, x.x());
-    Collider wall;  // a half-space whose normal is +x, touching the block's -x face
-    wall.pose.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()).toRotationMatrix();
-    wall.pose.translation() = Eigen::Vector3d(lowestX - s.contactRadius(), 0, 0);
-    wall.staticFriction = wall.kineticFriction = 0.0;
-    s.setCollider(name, wall);
-    for (int i = 0; i < 240; ++i) s.step();
-    EXPECT_LT(maxSpeed(s), 1e-3) << (implicit ? "implicit" : "explicit");
-    EXPECT_EQ(s.contactWrench("ground").contacts, 16u) << (implicit ? "implicit" : "explicit") << ": the 4 x 4 bottom";
-    EXPECT_EQ(s.contactWrench(name).contacts, 16u) << (implicit ? "implicit" : "explicit") << ": the 4 x 4 side";
   }
 }
 
