@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <functional>
@@ -588,6 +589,55 @@ TEST(SimulationLoop, ASlowMachineDropsDebtInsteadOfSpiralling) {
   const std::uint64_t waits = clock->waits();
   EXPECT_TRUE(rig.run(ResetCommand{}).accepted);
   ASSERT_TRUE(clock->awaitWaitBeyond(waits));
+}
+
+TEST(SimulationLoop, AStepSlowerThanItsShareOfTheClockStepsOnWithoutSleeping) {
+  // Each step costs 1.5 steps of the clock (the frame lookup before it moves the clock on): the
+  // loop is always behind, so it must step back to back, at 2/3 of real time, and drop what it
+  // cannot catch up. A loop that slept a step after every batch would wait here for a clock that
+  // only its own steps move.
+  LoopSettings settings;
+  settings.idleHold = 0.0;
+  SolverParams p = weightless();
+  p.timeStep = 0.02;
+  const double cost = 0.03;
+  const auto ticks = [](double s) { return std::chrono::duration_cast<LoopClock::Duration>(duration<double>(s)); };
+  auto clock = std::make_shared<ManualLoopClock>();
+  Rig rig(settings, p, 6, clock);
+  std::atomic<bool> slow{false};
+  rig.loop->setFrameSource([&](const std::string&, Eigen::Isometry3d& T) {
+    if (slow.load()) clock->advance(ticks(cost));
+    T = Eigen::Isometry3d::Identity();
+    return true;
+  });
+  rig.loop->start();
+  AttachCommand a;
+  a.grab.id = "hand";
+  a.grab.point = rig.loop->lattice().restPositions()[0];
+  a.grab.count = 1;
+  a.frame = "hand";
+  const std::uint64_t waits = clock->waits();
+  ASSERT_TRUE(rig.run(a).accepted);
+  ASSERT_TRUE(clock->awaitWaitBeyond(waits));  // stepped at once (borrowing a step), waiting
+  const LoopDiagnostics before = rig.loop->acquire().diag;
+  const LoopClock::TimePoint t0 = clock->now();
+  slow = true;
+  clock->advance(ticks(2 * p.timeStep));  // the borrowed step and the next are due
+  ASSERT_TRUE(rig.waitFor([&](const Snapshot& s) { return s.diag.steps >= before.steps + 100; }))
+      << "the loop stopped after " << rig.loop->acquire().diag.steps - before.steps << " steps";
+  rig.loop->stop();
+  const LoopDiagnostics d = rig.loop->acquire().diag;
+  // the clock moved by the kick and by each step since
+  const double clockTime = duration<double>(clock->now() - t0).count();
+  EXPECT_NEAR(clockTime, 2 * p.timeStep + cost * double(d.steps - before.steps), 1e-6);
+  EXPECT_NEAR(d.achievedRealTimeFactor, p.timeStep / cost, 1e-6);
+  // every step the clock owed is stepped, dropped, or still owed: the borrowed one, and at most
+  // what a batch of maxCatchUpSteps took
+  EXPECT_GT(d.droppedSteps, before.droppedSteps);
+  const double accounted =
+      (d.simTime - before.simTime) + p.timeStep * double(d.droppedSteps - before.droppedSteps);
+  EXPECT_LE(accounted, clockTime + 1e-9);
+  EXPECT_GE(accounted, clockTime - settings.maxCatchUpSteps * cost - 2 * p.timeStep - 1e-9);
 }
 
 TEST(SimulationLoop, NonFiniteStateIsResetNeverPublished) {
