@@ -127,9 +127,14 @@ void SimulationLoop::run() {
 
     const double rtf = realTimeFactor_.load();
     if (rtf != diag_.requestedRealTimeFactor) {
-      // A new pace: measure it afresh rather than average it with the old one.
+      // A new pace: the clock's time until now is owed at the old one (a wait cut short by the
+      // change is not a backlog at the new pace); measure it afresh rather than average it with
+      // the old one.
+      const Clock::time_point changed = clock_->now();
+      owed += seconds(changed - last) * diag_.requestedRealTimeFactor;
+      last = changed;
       diag_.requestedRealTimeFactor = rtf;
-      restartWindow(clock_->now());
+      restartWindow(changed);
     }
     if (idle_) {
       if (!acted && !woken) continue;  // only rejected commands: rest on
@@ -149,11 +154,14 @@ void SimulationLoop::run() {
     owed += seconds(now - last) * rtf;
     last = now;
     const double dt = world_->timeStep();
-    auto steps = static_cast<std::int64_t>(std::floor(owed / dt));
+    // whole steps owed (a sum of clock intervals a hair short of k steps is k steps)
+    auto steps = static_cast<std::int64_t>(std::floor(owed / dt + 1e-9));
     if (steps > settings_.maxCatchUpSteps) {
-      diag_.droppedSteps += static_cast<std::uint64_t>(steps - settings_.maxCatchUpSteps);
+      // drop the whole steps beyond the batch, each counted; the fraction of a step stays owed
+      const std::int64_t dropped = steps - settings_.maxCatchUpSteps;
+      diag_.droppedSteps += static_cast<std::uint64_t>(dropped);
+      owed -= static_cast<double>(dropped) * dt;
       steps = settings_.maxCatchUpSteps;
-      owed = steps * dt;  // drop the debt: only what is stepped now is still owed
     }
     if (steps == 0 && acted) {
       // A command took effect between steps (0 <= owed < dt): step now rather than at the next
