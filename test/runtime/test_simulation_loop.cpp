@@ -500,16 +500,21 @@ void advance(ManualLoopClock& clock, double seconds) {
       << "the loop did not wait on its clock again";
 }
 
+/// A rig that never rests, stepping `timeStep` at `realTimeFactor` of `clock` (moved by hand).
+Rig pacedRig(const std::shared_ptr<ManualLoopClock>& clock, double timeStep, double realTimeFactor = 1.0) {
+  LoopSettings settings;
+  settings.idleHold = 0.0;  // never rest: these tests are about pacing
+  settings.realTimeFactor = realTimeFactor;
+  SolverParams p = weightless();
+  p.timeStep = timeStep;
+  return Rig(settings, p, 6, clock);
+}
+
 TEST(SimulationLoop, PacedToItsClock) {
   // At half of real time, 1/50 s steps are due every 40 ms of the clock: one step per 40 ms,
   // simulated time half the clock's, whatever the machine's load.
-  LoopSettings settings;
-  settings.idleHold = 0.0;  // never rest: this is about pacing
-  settings.realTimeFactor = 0.5;
-  SolverParams p = weightless();
-  p.timeStep = 0.02;
   auto clock = std::make_shared<ManualLoopClock>();
-  Rig rig(settings, p, 6, clock);
+  Rig rig = pacedRig(clock, 0.02, 0.5);
   rig.loop->start();
   for (int i = 1; i <= 40; ++i) {
     advance(*clock, 0.04);
@@ -526,13 +531,8 @@ TEST(SimulationLoop, ACommandIsSteppedAtOnceAndThePaceKept) {
   // Steps of 0.1 s at a fifth of real time, 0.5 s of the clock apart: a command that had to wait
   // for the next step would show up to 0.5 s late. It is stepped at once, borrowing the next
   // step's time, and the pace is kept: simulated time never leads the clock's by more than a step.
-  LoopSettings settings;
-  settings.idleHold = 0.0;
-  settings.realTimeFactor = 0.2;
-  SolverParams p = weightless();
-  p.timeStep = 0.1;
   auto clock = std::make_shared<ManualLoopClock>();
-  Rig rig(settings, p, 6, clock);
+  Rig rig = pacedRig(clock, 0.1, 0.2);
   rig.loop->start();
   advance(*clock, 0.5);
   ASSERT_EQ(rig.loop->acquire().diag.steps, 1u);
@@ -595,12 +595,8 @@ TEST(SimulationLoop, ANewPaceOwesTheTimeBeforeItAtTheOldOne) {
   // Half a step of the clock at real time, then 10 x real time: the half step is half a step
   // owed, not five steps (which would step a batch at once and drop one); the rest of the step
   // comes after 0.001 s of the clock at the new pace.
-  LoopSettings settings;
-  settings.idleHold = 0.0;
-  SolverParams p = weightless();
-  p.timeStep = 0.02;
   auto clock = std::make_shared<ManualLoopClock>();
-  Rig rig(settings, p, 6, clock);
+  Rig rig = pacedRig(clock, 0.02);
   rig.loop->start();
   advance(*clock, 0.01);
   ASSERT_EQ(rig.loop->acquire().diag.steps, 0u);
@@ -621,15 +617,12 @@ TEST(SimulationLoop, AStepSlowerThanItsShareOfTheClockStepsOnWithoutSleeping) {
   // loop is always behind, so it must step back to back, at 2/3 of real time, and drop what it
   // cannot catch up. A loop that slept a step after every batch would wait here for a clock that
   // only its own steps move.
-  LoopSettings settings;
-  settings.idleHold = 0.0;
-  SolverParams p = weightless();
-  p.timeStep = 0.02;
-  const double cost = 0.03;
+  const double dt = 0.02, cost = 0.03;
+  const int batch = LoopSettings().maxCatchUpSteps;
   const auto ticks = [](double s) { return std::chrono::duration_cast<LoopClock::Duration>(duration<double>(s)); };
   auto clock = std::make_shared<ManualLoopClock>();
   std::atomic<bool> slow{false};  // before the rig: the loop's thread reads it until the rig goes
-  Rig rig(settings, p, 6, clock);
+  Rig rig = pacedRig(clock, dt);
   rig.loop->setFrameSource([&](const std::string&, Eigen::Isometry3d& T) {
     if (slow.load()) clock->advance(ticks(cost));
     T = Eigen::Isometry3d::Identity();
@@ -647,22 +640,22 @@ TEST(SimulationLoop, AStepSlowerThanItsShareOfTheClockStepsOnWithoutSleeping) {
   const LoopDiagnostics before = rig.loop->acquire().diag;
   const LoopClock::TimePoint t0 = clock->now();
   slow = true;
-  clock->advance(ticks(2 * p.timeStep));  // the borrowed step and the next are due
+  clock->advance(ticks(2 * dt));  // the borrowed step and the next are due
   ASSERT_TRUE(rig.waitFor([&](const Snapshot& s) { return s.diag.steps >= before.steps + 100; }))
       << "the loop stopped after " << rig.loop->acquire().diag.steps - before.steps << " steps";
   rig.loop->stop();
   const LoopDiagnostics d = rig.loop->acquire().diag;
   // the clock moved by the kick and by each step since
   const double clockTime = duration<double>(clock->now() - t0).count();
-  EXPECT_NEAR(clockTime, 2 * p.timeStep + cost * double(d.steps - before.steps), 1e-6);
-  EXPECT_NEAR(d.achievedRealTimeFactor, p.timeStep / cost, 1e-6);
+  EXPECT_NEAR(clockTime, 2 * dt + cost * double(d.steps - before.steps), 1e-6);
+  EXPECT_NEAR(d.achievedRealTimeFactor, dt / cost, 1e-6);
   // every step the clock owed is stepped, dropped (whole steps, each counted), or still owed:
   // the borrowed one, what the last batch of maxCatchUpSteps took, and a fraction of a step
   EXPECT_GT(d.droppedSteps, before.droppedSteps);
   const double accounted =
-      (d.simTime - before.simTime) + p.timeStep * double(d.droppedSteps - before.droppedSteps);
+      (d.simTime - before.simTime) + dt * double(d.droppedSteps - before.droppedSteps);
   EXPECT_LE(accounted, clockTime + 1e-9);
-  EXPECT_GE(accounted, clockTime - settings.maxCatchUpSteps * cost - 3 * p.timeStep);
+  EXPECT_GE(accounted, clockTime - batch * cost - 3 * dt);
 }
 
 TEST(SimulationLoop, NonFiniteStateIsResetNeverPublished) {
