@@ -183,8 +183,8 @@ void SimulationLoop::run() {
 
     // Sleep until the next step is due, or until a command arrives. The time the steps took is
     // owed too: a step slower than its share of the clock leaves the next one due at once, and
-    // the loop steps on without sleeping (it slept a whole step after every batch otherwise, and
-    // a node whose step took 1.5 times its share ran at 0.57 of real time instead of 0.67).
+    // the loop steps on without sleeping (a sleep of a step after every batch of 4 would run a
+    // step of 1.5 shares at 4/7 of the pace, not 2/3).
     const Clock::time_point stepped = clock_->now();
     owed += seconds(stepped - last) * rtf;
     last = stepped;
