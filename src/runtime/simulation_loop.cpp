@@ -104,6 +104,13 @@ void SimulationLoop::run() {
   Clock::time_point last = clock_->now();
   restartWindow(last);
   double owed = 0.0;  // simulated seconds due but not yet stepped
+  // the clock's time since `last` owed at `pace`; `last` moves on to now, which it returns
+  const auto accrue = [&](double pace) {
+    const Clock::time_point t = clock_->now();
+    owed += seconds(t - last) * pace;
+    last = t;
+    return t;
+  };
   std::vector<Command> batch;
   batch.reserve(CommandLimits::kQueueCapacity);
   for (;;) {
@@ -130,9 +137,7 @@ void SimulationLoop::run() {
       // A new pace: the clock's time until now is owed at the old one (a wait cut short by the
       // change is not a backlog at the new pace); measure it afresh rather than average it with
       // the old one.
-      const Clock::time_point changed = clock_->now();
-      owed += seconds(changed - last) * diag_.requestedRealTimeFactor;
-      last = changed;
+      const Clock::time_point changed = accrue(diag_.requestedRealTimeFactor);
       diag_.requestedRealTimeFactor = rtf;
       restartWindow(changed);
     }
@@ -150,9 +155,7 @@ void SimulationLoop::run() {
       restartStillness();
     }
 
-    const Clock::time_point now = clock_->now();
-    owed += seconds(now - last) * rtf;
-    last = now;
+    accrue(rtf);
     const double dt = world_->timeStep();
     // whole steps owed (a sum of clock intervals a hair short of k steps is k steps)
     auto steps = static_cast<std::int64_t>(std::floor(owed / dt + 1e-9));
@@ -185,9 +188,7 @@ void SimulationLoop::run() {
     // owed too: a step slower than its share of the clock leaves the next one due at once, and
     // the loop steps on without sleeping (a sleep of a step after every batch of 4 would run a
     // step of 1.5 shares at 4/7 of the pace, not 2/3).
-    const Clock::time_point stepped = clock_->now();
-    owed += seconds(stepped - last) * rtf;
-    last = stepped;
+    accrue(rtf);
     const double wait = std::max(0.0, (dt - owed) / rtf);
     std::unique_lock<std::mutex> lock(queueMutex_);
     clock_->waitUntil(lock, wakeUp_,
