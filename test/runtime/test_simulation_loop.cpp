@@ -492,12 +492,15 @@ TEST(SimulationLoop, RestsOnlyAtEquilibrium) {
       << "declared at rest at " << s.diag.simTime << " s of simulated time";
 }
 
+/// `seconds` in the loop clock's ticks.
+LoopClock::Duration ticks(double seconds) {
+  return std::chrono::duration_cast<LoopClock::Duration>(duration<double>(seconds));
+}
+
 /// The loop's clock moved by `seconds` once the loop waits on it; returns when the loop has
 /// stepped what that time asks and waits again.
 void advance(ManualLoopClock& clock, double seconds) {
-  ASSERT_TRUE(clock.advanceAndSettle(
-      std::chrono::duration_cast<LoopClock::Duration>(duration<double>(seconds))))
-      << "the loop did not wait on its clock again";
+  ASSERT_TRUE(clock.advanceAndSettle(ticks(seconds))) << "the loop did not wait on its clock again";
 }
 
 /// A rig that never rests, stepping `timeStep` at `realTimeFactor` of `clock` (moved by hand).
@@ -619,7 +622,6 @@ TEST(SimulationLoop, AStepSlowerThanItsShareOfTheClockStepsOnWithoutSleeping) {
   // only its own steps move.
   const double dt = 0.02, cost = 0.03;
   const int batch = LoopSettings().maxCatchUpSteps;
-  const auto ticks = [](double s) { return std::chrono::duration_cast<LoopClock::Duration>(duration<double>(s)); };
   auto clock = std::make_shared<ManualLoopClock>();
   std::atomic<bool> slow{false};  // before the rig: the loop's thread reads it until the rig goes
   Rig rig = pacedRig(clock, dt);
