@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <stdexcept>
 #include <thread>
 #include <utility>
 
@@ -22,26 +23,42 @@ void SliceStreamSummer::reserveSliceScratch(int Kg, int Ks) {
   if (Kg <= scratchKg_ && Ks <= scratchKs_) return;
   scratchKg_ = std::max(scratchKg_, Kg);
   scratchKs_ = std::max(scratchKs_, Ks);
+  growSliceScratch(*scratch_);
+  boundaryStore_.resize(boundaryBase_.back() * static_cast<std::size_t>(scratchKs_));
+  // With one thread every region slice lives in the ring (and the boundary store) only.
+  if (threads_ > 1) regionOut_.resize(particles_ * static_cast<std::size_t>(scratchKs_));
+}
+
+// Grows (never shrinks: a shared set serves larger summers too) every thread's buffers to this
+// summer's reservation.
+void SliceStreamSummer::growSliceScratch(SliceStreamScratch& scratch) const {
   const std::size_t g = maxData_ * static_cast<std::size_t>(scratchKg_);
   const std::size_t r = maxRegion_ * static_cast<std::size_t>(scratchKg_);
   const std::size_t s = maxScatter_ * static_cast<std::size_t>(scratchKs_);
   const std::size_t ring = 2 * static_cast<std::size_t>(lattice_.regionHalfWidth()) + 2;
-  for (SliceScratch& t : sliceScratch_) {
-    t.run.resize(maxRun_ * static_cast<std::size_t>(std::max(scratchKg_, scratchKs_)));
-    t.rowSum.resize(g);
-    t.ring.resize(ring * g);
-    t.sumPrev.resize(r);
-    t.sumCur.resize(r);
-    t.zPrev.resize(s);
-    t.zCur.resize(s);
-    t.colSum.resize(s);
-    t.regionRing.resize(ring * s);
-    t.zRow.resize(ring);
-    t.zStart.resize(ring);
+  if (scratch.threads.size() < static_cast<std::size_t>(threads_)) scratch.threads.resize(static_cast<std::size_t>(threads_));
+  const auto grow = [](auto& buffer, std::size_t size) {
+    if (buffer.size() < size) buffer.resize(size);
+  };
+  for (SliceScratch& t : scratch.threads) {
+    grow(t.run, maxRun_ * static_cast<std::size_t>(std::max(scratchKg_, scratchKs_)));
+    grow(t.rowSum, g);
+    grow(t.ring, ring * g);
+    grow(t.sumPrev, r);
+    grow(t.sumCur, r);
+    grow(t.zPrev, s);
+    grow(t.zCur, s);
+    grow(t.colSum, s);
+    grow(t.regionRing, ring * s);
+    grow(t.zRow, ring);
+    grow(t.zStart, ring);
   }
-  boundaryStore_.resize(boundaryBase_.back() * static_cast<std::size_t>(scratchKs_));
-  // With one thread every region slice lives in the ring (and the boundary store) only.
-  if (threads_ > 1) regionOut_.resize(particles_ * static_cast<std::size_t>(scratchKs_));
+}
+
+void SliceStreamSummer::shareScratch(std::shared_ptr<SliceStreamScratch> scratch) {
+  if (!scratch) throw std::invalid_argument("SliceStreamSummer::shareScratch: no scratch given");
+  growSliceScratch(*scratch);
+  scratch_ = std::move(scratch);
 }
 
 /// One thread's sweep of a chunk of slices in one pass: the kernel, the thread's scratch and the
@@ -306,7 +323,7 @@ void SliceStreamSummer::apply(RegionKernel& kernel) {
   auto unpublished = [](std::size_t, std::size_t) {};
   auto nothingLeft = [](auto&&) {};
   if (threads_ == 1) {
-    applyChunk(kernel, Kg, Ks, 0, slices, sliceScratch_[0], unpublished, nothingLeft);
+    applyChunk(kernel, Kg, Ks, 0, slices, scratch_->threads[0], unpublished, nothingLeft);
     return;
   }
   for (Progress& p : progress_) p.value.store(0, std::memory_order_relaxed);
@@ -317,7 +334,7 @@ void SliceStreamSummer::apply(RegionKernel& kernel) {
     // with the same sums.
     const int th = omp_get_thread_num();
     if (omp_get_num_threads() != threads_) {
-      if (th == 0) applyChunk(kernel, Kg, Ks, 0, slices, sliceScratch_[0], unpublished, nothingLeft);
+      if (th == 0) applyChunk(kernel, Kg, Ks, 0, slices, scratch_->threads[0], unpublished, nothingLeft);
     } else {
       const std::size_t me = static_cast<std::size_t>(th);
       const double start = omp_get_wtime();
@@ -354,7 +371,7 @@ void SliceStreamSummer::apply(RegionKernel& kernel) {
           }
         }
       };
-      applyChunk(kernel, Kg, Ks, chunkStart_[me], chunkStart_[me + 1], sliceScratch_[me], publish, drain);
+      applyChunk(kernel, Kg, Ks, chunkStart_[me], chunkStart_[me + 1], scratch_->threads[me], publish, drain);
     }
   }
   rebalance();

@@ -24,7 +24,8 @@ void SliceStreamSummer::initSchedule() {
     if (k < slices && target - sliceStart_[k] > sliceStart_[next] - target) k = next;
     chunkStart_[t] = std::min(k, slices);
   }
-  sliceScratch_.resize(static_cast<std::size_t>(threads_));
+  scratch_ = std::make_shared<SliceStreamScratch>();
+  scratch_->threads.resize(static_cast<std::size_t>(threads_));
   if (threads_ > 1) {  // whole capacity now: apply() only clears and refills
     const std::size_t T = static_cast<std::size_t>(threads_);
     const std::size_t blocks = bandCount() * (slices / kBlock + T + 1);

@@ -7,8 +7,10 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <random>
 #include <utility>
+#include <vector>
 
 using deformable_flsm::SliceStreamSummer;
 using deformable_flsm::Lattice;
@@ -266,6 +268,48 @@ TEST_P(SummationByWidth, DeferredBlocksWaitForWhatTheyRead) {
 }
 
 INSTANTIATE_TEST_SUITE_P(W, SummationByWidth, ::testing::Values(1, 2, 3, 4));
+
+// Summers sharing one set of slice buffers (the objects of a World) give, pass after pass and
+// whichever swept last, exactly what each gives with buffers of its own: lattices of different
+// sizes, widths, bands and thread counts, channel counts growing and shrinking between passes,
+// so that a summer sweeps buffers another one has grown and left full of its own data.
+TEST(Summation, SummersSharingTheirSliceBuffersGiveTheirOwnResults) {
+  struct Case {
+    int seed, layers, w, threads;
+    std::size_t band;
+  };
+  const std::vector<Case> cases = {{3, 14, 1, 1, SliceStreamSummer::kBandParticles},
+                                   {4, 30, 3, 2, SliceStreamSummer::kBandParticles},
+                                   {5, 9, 2, 1, std::size_t{60}},
+                                   {6, 5, 1, 3, std::size_t{1}}};
+  std::vector<std::unique_ptr<Lattice>> lattices;
+  std::vector<std::unique_ptr<SliceStreamSummer>> own, shared;
+  auto scratch = std::make_shared<deformable_flsm::SliceStreamScratch>();
+  for (const Case& c : cases) {
+    lattices.push_back(std::make_unique<Lattice>(raggedVoxels(c.seed, c.layers), 1000.0, c.w));
+    own.push_back(std::make_unique<SliceStreamSummer>(*lattices.back(), c.threads, c.band));
+    shared.push_back(std::make_unique<SliceStreamSummer>(*lattices.back(), c.threads, c.band));
+    shared.back()->shareScratch(scratch);
+    ASSERT_EQ(shared.back()->scratch(), scratch);
+    ASSERT_NE(own.back()->scratch(), scratch);
+  }
+  const std::vector<std::pair<int, int>> channels = {{3, 6}, {24, 18}, {1, 1}, {12, 12}, {6, 3}};
+  for (std::size_t pass = 0; pass < 2 * channels.size(); ++pass) {
+    const auto [Kg, Ks] = channels[pass % channels.size()];
+    for (std::size_t i = 0; i < cases.size(); ++i) {
+      // each object in turn, the order changing between passes
+      const std::size_t o = (i + pass) % cases.size();
+      const std::size_t n = lattices[o]->size();
+      RecordingKernel mine(n, Kg, Ks, static_cast<unsigned>(pass + o)), theirs(n, Kg, Ks, static_cast<unsigned>(pass + o));
+      own[o]->apply(mine);
+      shared[o]->apply(theirs);
+      for (std::size_t e = 0; e < mine.result().size(); ++e)
+        ASSERT_EQ(theirs.result()[e], mine.result()[e])
+            << "summer " << o << ", pass " << pass << ", K " << Kg << "/" << Ks << ", index " << e;
+    }
+  }
+  EXPECT_THROW(shared[0]->shareScratch(nullptr), std::invalid_argument);
+}
 
 TEST(Summation, FullBoxRegionSizesAreClippedCubes) {
   // In a full 9^3 box with w = 2, the region of a corner particle has 3^3 members, of an interior

@@ -11,6 +11,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace deformable_flsm {
@@ -47,6 +48,24 @@ namespace deformable_flsm {
 /// chunk's regions, and kSpareBlocks more) are left to whichever thread is free first, each as
 /// soon as the chunks it depends on have published the regions it reads. A thread that
 /// finishes its sweep early takes over its neighbour's blocks instead of waiting at a barrier.
+/// The slice buffers apply() sweeps through, one set per thread: a few slices' worth, rewritten
+/// in every pass (nothing in them outlives an apply()). Summers that never apply at once may
+/// share one set (SliceStreamSummer::shareScratch()): the objects of a World, stepped one after
+/// another, then sweep the same buffers, which stay in cache, instead of one set each; with many
+/// small objects those sets together outgrow the cache.
+class SliceStreamScratch {
+ public:
+  struct alignas(64) Thread {
+    std::vector<double> run, rowSum, ring, sumPrev, sumCur, zPrev, zCur, colSum, regionRing;
+    // the z-window's sources of the current slice k: slice z's rows and first particle at
+    // z - k + w + 1 (2w + 2 entries)
+    std::vector<const double*> zRow;
+    std::vector<std::uint32_t> zStart;
+  };
+  /// one set per thread, grown (never shrunk) by the summers that use them
+  std::vector<Thread> threads;
+};
+
 class SliceStreamSummer : public RegionSummer {
  public:
   /// Slices per block: z-windows restart at block starts, threads split the lattice at them.
@@ -73,6 +92,13 @@ class SliceStreamSummer : public RegionSummer {
   /// Makes room for passes of up to Kg gathered and Ks scattered channels now, so that the
   /// first apply() with them does not allocate (apply() otherwise grows on first use).
   void reserve(int Kg, int Ks) { reserveSliceScratch(Kg, Ks); }
+  /// Sweeps `scratch` from now on, grown to what this summer has reserved, instead of its own
+  /// buffers (released). Only for summers whose apply() never runs while another one's sharing
+  /// it does; the results are the same to the bit.
+  /// @throws std::invalid_argument for a null scratch
+  void shareScratch(std::shared_ptr<SliceStreamScratch> scratch);
+  /// the buffers apply() sweeps (this summer's own unless shared)
+  const std::shared_ptr<SliceStreamScratch>& scratch() const { return scratch_; }
   /// Bands of rows apply() sweeps one after the other (1: whole slices).
   std::size_t bandCount() const { return bandY_.size() - 1; }
   /// Particles in the widest slice of a band's data rows (its rows and the halo): the largest
@@ -80,14 +106,7 @@ class SliceStreamSummer : public RegionSummer {
   std::size_t widestBandSlice() const { return maxData_; }
 
  private:
-  /// Per-thread slice buffers of apply().
-  struct alignas(64) SliceScratch {
-    std::vector<double> run, rowSum, ring, sumPrev, sumCur, zPrev, zCur, colSum, regionRing;
-    // the z-window's sources of the current slice k: slice z's rows and first particle at
-    // z - k + w + 1 (2w + 2 entries)
-    std::vector<const double*> zRow;
-    std::vector<std::uint32_t> zStart;
-  };
+  using SliceScratch = SliceStreamScratch::Thread;
   /// One thread's sweep of a chunk of slices in one pass (slice_stream_summer.cpp).
   class Sweep;
   /// The initial chunks of the threads and the schedule's storage (thread_schedule.cpp).
@@ -95,6 +114,7 @@ class SliceStreamSummer : public RegionSummer {
   /// Grows the two scratch buffers to #P*K; never shrinks them (no refill between passes).
   void reserveScratch(int K);
   void reserveSliceScratch(int Kg, int Ks);
+  void growSliceScratch(SliceStreamScratch& scratch) const;
   /// apply() for the slices [k0, k1) (whole blocks), `t` the thread's scratch. The sweep calls
   /// published(b, r) after region slice r of band b, then drain(finish) once: the particle
   /// blocks near other chunks (ownsBlock()) are left to it (finish(b, c0, c1) does the
@@ -164,7 +184,7 @@ class SliceStreamSummer : public RegionSummer {
   std::vector<double> secondsPerParticle_;  // per chunk: smoothed busy time per particle
   /// sharedSlice_ from the chunk boundaries (see the definition).
   void markSharedSlices();
-  std::vector<SliceScratch> sliceScratch_;
+  std::shared_ptr<SliceStreamScratch> scratch_;
   std::vector<double> regionOut_;    // #P * K_s region data of the slices near chunk boundaries
   std::vector<char> sharedSlice_;    // per slice: its region data goes to regionOut_ (threads > 1)
   int scratchKg_ = 0, scratchKs_ = 0;
