@@ -181,21 +181,30 @@ void Solver::makeSummers() {
   if (params_.kind == SolverKind::Fast) {
     if (threads_ > 1) {
       // Each used only when the governor says so, possibly first in the middle of a run: no
-      // allocation then.
+      // allocation then. They never sweep at once: one set of slice buffers serves both.
       const int Kg = kShapeChannels + kDampingChannels, Ks = kTransformChannels + kVelocityFieldChannels;
       auto threaded = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
       threaded->reserve(Kg, Ks);
-      summer_ = std::move(threaded);
       auto single = std::make_unique<SliceStreamSummer>(*lattice_, 1);
       single->reserve(Kg, Ks);
+      if (sharedScratch_) threaded->shareScratch(sharedScratch_);
+      single->shareScratch(threaded->scratch());
+      summer_ = std::move(threaded);
       singleSummer_ = std::move(single);
     } else {
-      summer_ = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
+      auto summer = std::make_unique<SliceStreamSummer>(*lattice_, threads_);
+      if (sharedScratch_) summer->shareScratch(sharedScratch_);
+      summer_ = std::move(summer);
     }
   } else {
     summer_ = std::make_unique<NaiveSummer>(*lattice_);
   }
   activeSummer_ = summer_.get();
+}
+
+void Solver::shareRegionScratch(std::shared_ptr<SliceStreamScratch> scratch) {
+  sharedScratch_ = std::move(scratch);
+  makeSummers();
 }
 
 void Solver::step() {

@@ -21,6 +21,7 @@
 #include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/core/mesh_distance_field.h"
 #include "deformable_flsm/core/object_contact.h"
+#include "deformable_flsm/core/slice_stream_summer.h"
 #include "deformable_flsm/core/spatial_hash.h"
 
 #include <algorithm>
@@ -75,6 +76,8 @@ struct World::Impl {
   ImplicitCoupling coupling;
   std::vector<char> coupled;  // per object, whether its implicit sub-step is in the coupled solve
   std::vector<ObjectPairWrench> wrenches;
+  /// the slice buffers of every object's region sums: the objects step one after another
+  std::shared_ptr<SliceStreamScratch> scratch = std::make_shared<SliceStreamScratch>();
 
   std::size_t indexOf(const std::vector<std::string>& names, const std::string& name) const {
     return static_cast<std::size_t>(std::find(names.begin(), names.end(), name) - names.begin());
@@ -100,6 +103,7 @@ Solver& World::addObject(const std::string& name, std::shared_ptr<const Lattice>
                                 std::to_string(params.substeps) + " sub-steps, the world " + num(timeStep_) +
                                 " s in " + std::to_string(substeps_) + ": give it the world's");
   auto solver = std::make_unique<Solver>(std::move(lattice), params);
+  solver->shareRegionScratch(impl_->scratch);
   // refuse a start inside another object: the contact pass would push it out over many sub-steps
   const auto& x = solver->positions();
   const double r = solver->contactRadius();

@@ -107,6 +107,11 @@ class Solver : private RegionKernel {
   /// thread: each step times itself and a ThreadGovernor picks the faster (results are
   /// identical either way); nullptr with one thread.
   const ThreadGovernor* threadGovernor() const { return singleSummer_ ? &governor_ : nullptr; }
+  /// Sweeps its region sums through `scratch` (SliceStreamSummer::shareScratch()) from now on,
+  /// also after a setParams() that rebuilds its summers; nullptr: buffers of its own again. For
+  /// solvers that never step at once, such as the objects of a World (which gives them one set):
+  /// the results are the same to the bit. No effect with SolverKind::Naive.
+  void shareRegionScratch(std::shared_ptr<SliceStreamScratch> scratch);
 
   /// alpha used per sub-step: params().requestedAlpha(spacing), capped. Classic mode: the cap is
   /// params().stiffness. Physical mode: the cap follows the stability of the sub-step, symplectic
@@ -319,6 +324,7 @@ class Solver : private RegionKernel {
   /// With threads_ > 1: the same sums on one thread, for the steps the governor gives to it.
   std::unique_ptr<RegionSummer> singleSummer_;
   RegionSummer* activeSummer_ = nullptr;  // the summer of the step being run
+  std::shared_ptr<SliceStreamScratch> sharedScratch_;  // shareRegionScratch()'s, or null
   ThreadGovernor governor_;
 
   std::vector<Eigen::Vector3d> x_, v_;
