@@ -8,7 +8,7 @@
 //      "apart" a World of N objects resting on the ground apart from each other (no object
 //      contact: the broad phase's cost); "pile" a World of N objects dropped into a bin and
 //      settled, touching each other (object contact's cost). Ratios: apart / (N alone), and pile /
-//      apart, the contact's share.
+//      apart, the contact's share; the pile's list builds and Gauss-Seidel passes per sub-step.
 //   2. The bin of --objects objects while they fall and tumble, and settled: ms per step and
 //      per frame at 30 Hz with the render meshes' update, against FastLSM's 150 penguins of 150
 //      particles at 25 frames per second on a Pentium 4 (Rivers & James 2007, figure 1).
@@ -261,8 +261,8 @@ int main(int argc, char** argv) {
   const int steps = 20;
   if (args.only != "bin") {
     std::printf("\nN objects: ms per step (median of %d rounds of %d steps)\n", args.rounds, steps);
-    std::printf("%6s %10s %10s %10s %12s %12s %14s %10s %12s\n", "N", "N x alone", "apart", "pile", "apart/Nx1",
-                "pile/apart", "pile contacts", "overlap/r", "list builds");
+    std::printf("%6s %10s %10s %10s %12s %12s %14s %10s %12s %8s\n", "N", "N x alone", "apart", "pile", "apart/Nx1",
+                "pile/apart", "pile contacts", "overlap/r", "list builds", "passes");
   }
   for (int n : {1, 10, 50, args.objects}) {
     if (args.only == "bin") break;
@@ -278,6 +278,7 @@ int main(int argc, char** argv) {
     }
     std::vector<double> tAlone, tApart, tPile, ratioApart, ratioPile;
     const std::size_t builds0 = pile->contactListBuilds();
+    const World::ContactPasses passes0 = pile->contactPasses();
     for (int r = 0; r < args.rounds; ++r) {
       const double a = n * secondsOf([&] { for (int i = 0; i < steps; ++i) alone.step(); }) / steps;
       const double b = secondsOf([&] { for (int i = 0; i < steps; ++i) spread->step(); }) / steps;
@@ -290,9 +291,9 @@ int main(int argc, char** argv) {
     }
     // the pile's candidate list builds per sub-step over the timed steps
     const double builds = double(pile->contactListBuilds() - builds0) / (args.rounds * steps * substepsPerStep);
-    std::printf("%6d %10.3f %10.3f %10.3f %12.3f %12.3f %14zu %10.3f %12.2f\n", n, 1e3 * median(tAlone),
+    std::printf("%6d %10.3f %10.3f %10.3f %12.3f %12.3f %14zu %10.3f %12.2f %8.2f\n", n, 1e3 * median(tAlone),
                 1e3 * median(tApart), 1e3 * median(tPile), median(ratioApart), median(ratioPile), pairContacts(*pile),
-                deepestOverlap(*pile), builds);
+                deepestOverlap(*pile), builds, pile->contactPasses().since(passes0).perSubstep());
   }
 
   // --- 2. the bin against real time ---
@@ -320,19 +321,23 @@ int main(int argc, char** argv) {
     std::vector<double> step, render;
     const int frames = 45;
     const std::size_t builds0 = world->contactListBuilds();
+    const World::ContactPasses passes0 = world->contactPasses();
     for (int f = 0; f < frames; ++f) {
       const auto t = frame();
       step.push_back(t.first);
       render.push_back(t.second);
     }
+    // over the timed frames only
+    const double builds = double(world->contactListBuilds() - builds0) / (frames * substepsPerStep);
+    const double passes = world->contactPasses().since(passes0).perSubstep();
+    const double ms = 1e3 * median(step), msr = 1e3 * median(render);
+    std::printf("  %-22s step %.2f ms, render meshes %.2f ms, frame %.2f ms (%s 33.3 ms at 30 Hz), %.3f ms per "
+                "object, object contacts %zu, deepest overlap %.3f r, list builds per sub-step %.2f, contact passes "
+                "per sub-step %.2f\n",
+                phase, ms, msr, ms + msr, ms + msr <= 1e3 / 30.0 ? "within" : "over", (ms + msr) / args.objects,
+                pairContacts(*world), deepestOverlap(*world), builds, passes);
     if (phase[0] == 'f')
       for (int f = 0; f < 75; ++f) world->step();  // on to 4 s
-    const double ms = 1e3 * median(step), msr = 1e3 * median(render);
-    const double builds = double(world->contactListBuilds() - builds0) / (frames * substepsPerStep);
-    std::printf("  %-22s step %.2f ms, render meshes %.2f ms, frame %.2f ms (%s 33.3 ms at 30 Hz), %.3f ms per "
-                "object, object contacts %zu, deepest overlap %.3f r, list builds per sub-step %.2f\n",
-                phase, ms, msr, ms + msr, ms + msr <= 1e3 / 30.0 ? "within" : "over", (ms + msr) / args.objects,
-                pairContacts(*world), deepestOverlap(*world), builds);
   }
   std::printf("  FastLSM's penguins: 150 objects of 150 particles at 25 frames per second on a Pentium 4, 0.27 ms per "
               "object per frame, no contact between them\n");

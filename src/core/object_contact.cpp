@@ -100,7 +100,8 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
   }
   findColliderContacts(colliders, h);
   warmStart(h);
-  solve(h, params.iterations);
+  passes_ += static_cast<std::size_t>(solve(h, params.iterations));
+  ++solves_;
   keep();
   pushOut();
   scatter(objects);
@@ -552,7 +553,7 @@ void ObjectContactSolver::keep() {
 // The passes stop early once a whole pass changed no contact's relative velocity by more than
 // kSolveTolerance of the smallest radius per sub-step: what is left would move a particle by less
 // than that fraction of its radius, far below the penetration slop.
-void ObjectContactSolver::solve(double h, int iterations) {
+int ObjectContactSolver::solve(double h, int iterations) {
   double smallest = r_[contacts_.front().k1];
   for (const Contact& c : contacts_) smallest = std::min({smallest, r_[c.k1], r_[c.k2]});
   const double tolerance = kSolveTolerance * smallest / h;
@@ -599,8 +600,9 @@ void ObjectContactSolver::solve(double h, int iterations) {
           x_[c.k2] -= h * dv2;
         }
       }
-    if (largest2 < tolerance2) break;
+    if (largest2 < tolerance2) return it + 1;
   }
+  return iterations;
 }
 
 void ObjectContactSolver::pushOut() {

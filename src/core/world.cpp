@@ -222,6 +222,10 @@ const std::vector<ObjectPairWrench>& World::objectWrenches() const { return impl
 
 std::size_t World::contactListBuilds() const { return impl_->contact.listBuilds(); }
 
+World::ContactPasses World::contactPasses() const {
+  return {impl_->contact.solvePasses(), impl_->contact.solvedSubsteps()};
+}
+
 ContactWrench World::objectWrench(const std::string& from, const std::string& on) const {
   for (const ObjectPairWrench& w : impl_->wrenches)
     if (w.from == from && w.on == on) return w.wrench;

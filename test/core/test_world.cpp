@@ -293,6 +293,32 @@ TEST(World, CollisionWithFrictionConservesLinearMomentum) {
   EXPECT_LT((after.L - before.L).norm(), 2.0 * r * 0.6 * 2.0 * before.scaleP);
 }
 
+// The benchmarks' figure of Gauss-Seidel passes: counted in the sub-steps that have contacts
+// only, at least one pass and at most ObjectContactParams::iterations each.
+TEST(World, ContactPassesAreCountedInTheSubstepsWithContacts) {
+  for (int iterations : {1, 16}) {
+    ObjectContactParams contact;
+    contact.iterations = iterations;
+    World world(kStep, kSubsteps, contact);
+    throwTwoBlocks(world);
+    world.step();
+    EXPECT_EQ(world.contactPasses().substeps, 0u) << "the blocks start apart";
+    World::ContactPasses before = world.contactPasses();
+    std::size_t touching = 0;
+    for (int i = 0; i < 30; ++i) {
+      world.step();
+      touching += world.objectWrenches().empty() ? 0 : 1;
+    }
+    const World::ContactPasses during = world.contactPasses().since(before);
+    ASSERT_GT(touching, 0u) << "the blocks collide";
+    ASSERT_GT(during.substeps, 0u);
+    EXPECT_LE(during.substeps, 30u * kSubsteps);
+    EXPECT_GE(during.passes, during.substeps);
+    EXPECT_LE(during.passes, during.substeps * static_cast<std::size_t>(iterations));
+    if (iterations == 1) EXPECT_EQ(during.perSubstep(), 1.0);
+  }
+}
+
 // --- a stack ---------------------------------------------------------------------------------
 
 // The stack with `integrator` at `substeps` sub-steps of each 1/60 s step.

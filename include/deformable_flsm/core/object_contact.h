@@ -62,6 +62,10 @@ class ObjectContactSolver {
   /// How many times the candidate list was built (for all objects or for some) since this
   /// solver was made.
   std::size_t listBuilds() const { return listBuilds_; }
+  /// How many Gauss-Seidel passes over the contacts the sub-steps with contacts ran, and how
+  /// many such sub-steps, since this solver was made.
+  std::size_t solvePasses() const { return passes_; }
+  std::size_t solvedSubsteps() const { return solves_; }
   /// The candidate pairs of the last substep() (for tests): particles by their global numbers
   /// (object o's particle i is i plus the particles of the objects before o), the lower first.
   const std::vector<std::pair<std::uint32_t, std::uint32_t>>& candidatePairs() const { return keys_; }
@@ -150,7 +154,8 @@ class ObjectContactSolver {
   void findPairs(const ObjectContactParams& params);
   void findColliderContacts(const std::vector<SubstepCollider>& colliders, double h);
   void warmStart(double h);
-  void solve(double h, int iterations);
+  /// @return the passes it ran
+  int solve(double h, int iterations);
   void keep();
   static bool slides(const Contact& c);
   void pushOut();
@@ -171,6 +176,7 @@ class ObjectContactSolver {
   // the candidate list (a Verlet list): what it was built for, and every particle's anchor
   bool built_ = false;
   std::size_t listBuilds_ = 0;
+  std::size_t passes_ = 0, solves_ = 0;
   bool builtEnabled_ = false, builtSelf_ = false;
   int builtExclusion_ = 0;
   std::vector<const Solver*> builtObjects_;

@@ -101,6 +101,18 @@ class World {
   /// How many times the object contact's candidate list was built (wholly or for some objects)
   /// since the world was made: a figure for benchmarks.
   std::size_t contactListBuilds() const;
+  /// The object contact's Gauss-Seidel passes per sub-step with contacts, on average since the
+  /// world was made (at most ObjectContactParams::iterations; fewer once a pass changes nothing):
+  /// a figure for benchmarks. `since` = {passes, sub-steps} of an earlier contactPasses() call
+  /// gives the average since then.
+  struct ContactPasses {
+    std::size_t passes = 0, substeps = 0;
+    double perSubstep() const { return substeps > 0 ? double(passes) / double(substeps) : 0.0; }
+    ContactPasses since(const ContactPasses& before) const {
+      return {passes - before.passes, substeps - before.substeps};
+    }
+  };
+  ContactPasses contactPasses() const;
 
   // --- the step -----------------------------------------------------------------------
   /// Advances every object by one time step: per sub-step each object's dynamics and collider
