@@ -29,18 +29,21 @@ void SliceStreamSummer::reserveSliceScratch(int Kg, int Ks) {
   if (threads_ > 1) regionOut_.resize(particles_ * static_cast<std::size_t>(scratchKs_));
 }
 
-// Grows (never shrinks: a shared set serves larger summers too) every thread's buffers to this
-// summer's reservation.
+// Grows (never shrinks: a shared set serves larger summers too) the buffers of the threads this
+// summer sweeps with to its reservation.
 void SliceStreamSummer::growSliceScratch(SliceStreamScratch& scratch) const {
   const std::size_t g = maxData_ * static_cast<std::size_t>(scratchKg_);
   const std::size_t r = maxRegion_ * static_cast<std::size_t>(scratchKg_);
   const std::size_t s = maxScatter_ * static_cast<std::size_t>(scratchKs_);
   const std::size_t ring = 2 * static_cast<std::size_t>(lattice_.regionHalfWidth()) + 2;
-  if (scratch.threads.size() < static_cast<std::size_t>(threads_)) scratch.threads.resize(static_cast<std::size_t>(threads_));
+  const std::size_t T = static_cast<std::size_t>(threads_);
+  if (scratch.threads.size() < T) scratch.threads.resize(T);
   const auto grow = [](auto& buffer, std::size_t size) {
     if (buffer.size() < size) buffer.resize(size);
   };
-  for (SliceScratch& t : scratch.threads) {
+  // the sets of the threads this summer uses only
+  for (std::size_t th = 0; th < T; ++th) {
+    SliceScratch& t = scratch.threads[th];
     grow(t.run, maxRun_ * static_cast<std::size_t>(std::max(scratchKg_, scratchKs_)));
     grow(t.rowSum, g);
     grow(t.ring, ring * g);

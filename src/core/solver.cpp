@@ -207,6 +207,11 @@ void Solver::shareRegionScratch(std::shared_ptr<SliceStreamScratch> scratch) {
   makeSummers();
 }
 
+std::shared_ptr<const SliceStreamScratch> Solver::regionScratch() const {
+  const auto* streamed = dynamic_cast<const SliceStreamSummer*>(summer_.get());
+  return streamed != nullptr ? streamed->scratch() : nullptr;
+}
+
 void Solver::step() {
   beginStep();
   for (int s = 0; s < params_.substeps; ++s) advanceSubstep(s);

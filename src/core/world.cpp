@@ -103,7 +103,6 @@ Solver& World::addObject(const std::string& name, std::shared_ptr<const Lattice>
                                 std::to_string(params.substeps) + " sub-steps, the world " + num(timeStep_) +
                                 " s in " + std::to_string(substeps_) + ": give it the world's");
   auto solver = std::make_unique<Solver>(std::move(lattice), params);
-  solver->shareRegionScratch(impl_->scratch);
   // refuse a start inside another object: the contact pass would push it out over many sub-steps
   const auto& x = solver->positions();
   const double r = solver->contactRadius();
@@ -137,6 +136,7 @@ Solver& World::addObject(const std::string& name, std::shared_ptr<const Lattice>
       });
     }
   }
+  solver->shareRegionScratch(impl_->scratch);
   for (const auto& entry : impl_->colliders) solver->setCollider(entry.first, entry.second);
   Solver& added = *solver;
   impl_->objects.push_back(std::move(solver));

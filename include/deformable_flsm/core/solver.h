@@ -112,6 +112,8 @@ class Solver : private RegionKernel {
   /// solvers that never step at once, such as the objects of a World (which gives them one set):
   /// the results are the same to the bit. No effect with SolverKind::Naive.
   void shareRegionScratch(std::shared_ptr<SliceStreamScratch> scratch);
+  /// the slice buffers its region sums sweep (nullptr with SolverKind::Naive)
+  std::shared_ptr<const SliceStreamScratch> regionScratch() const;
 
   /// alpha used per sub-step: params().requestedAlpha(spacing), capped. Classic mode: the cap is
   /// params().stiffness. Physical mode: the cap follows the stability of the sub-step, symplectic

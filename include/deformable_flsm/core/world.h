@@ -66,7 +66,9 @@ class World {
 
   // --- objects ------------------------------------------------------------------------
   /// Adds object `name` (its lattice already placed where it starts: voxelize the mesh at its
-  /// pose and scale). The world's colliders are given to it.
+  /// pose and scale). The world's colliders are given to it. The objects' region sums share
+  /// one set of slice buffers (Solver::shareRegionScratch()): step them through step() only,
+  /// never two of them at once from different threads.
   /// @throws std::invalid_argument for an empty or duplicate name, params whose time step or
   ///         sub-steps differ from the world's, or an object that starts inside another
   ///         (particles closer than the sum of their contact radii), naming both objects
