@@ -174,24 +174,43 @@ TEST(World, OneObjectStepsExactlyAsTheBareSolver) {
 
 // Objects that do not touch each other step exactly as bare solvers, although their region sums
 // sweep one set of slice buffers (the World's) that the others have just filled: lattices of
-// different sizes and region widths, one object dragged, all falling onto the ground.
+// different sizes and region widths, one object on two threads, one dragged, all falling onto
+// the ground. The set stays shared when an object's summers are rebuilt (a new thread count).
 TEST(World, ObjectsApartStepExactlyAsBareSolvers) {
   const std::vector<std::shared_ptr<const Lattice>> lattices = {
       boxAt(5, 4, 3, 0.01, Eigen::Vector3d(0, 0, 0.02), 1), boxAt(9, 7, 6, 0.01, Eigen::Vector3d(0.2, 0, 0.03), 2),
       boxAt(4, 4, 8, 0.01, Eigen::Vector3d(-0.2, 0, 0.01), 3)};
+  const auto params = [&](std::size_t o) {
+    SolverParams p = paramsFor(*lattices[o]);
+    p.threads = o == 1 ? 2 : 1;
+    return p;
+  };
   World world(kStep, kSubsteps);
   world.setCollider("ground", ground(0.0));
   std::vector<std::unique_ptr<Solver>> bare;
   std::vector<Solver*> objects;
   for (std::size_t o = 0; o < lattices.size(); ++o) {
-    bare.push_back(std::make_unique<Solver>(lattices[o], paramsFor(*lattices[o])));
+    bare.push_back(std::make_unique<Solver>(lattices[o], params(o)));
     bare.back()->setCollider("ground", ground(0.0));
-    objects.push_back(&world.addObject("object" + std::to_string(o), lattices[o], paramsFor(*lattices[o])));
+    objects.push_back(&world.addObject("object" + std::to_string(o), lattices[o], params(o)));
+  }
+  const auto shared = objects[0]->regionScratch();
+  ASSERT_NE(shared, nullptr);
+  for (std::size_t o = 0; o < lattices.size(); ++o) {
+    EXPECT_EQ(objects[o]->regionScratch(), shared) << "object " << o;
+    EXPECT_NE(bare[o]->regionScratch(), shared) << "bare solver " << o;
   }
   const Eigen::Vector3d target = lattices[1]->restPositions()[0] + Eigen::Vector3d(0.0, 0.02, 0.05);
   bare[1]->grab("corner", {0, 1}, target, 0.0);
   objects[1]->grab("corner", {0, 1}, target, 0.0);
   for (int i = 0; i < 40; ++i) {
+    if (i == 20) {  // object 2 on two threads from now on: its summers are made again
+      SolverParams p = params(2);
+      p.threads = 2;
+      bare[2]->setParams(p);
+      objects[2]->setParams(p);
+      ASSERT_EQ(objects[2]->regionScratch(), shared);
+    }
     for (auto& s : bare) s->step();
     world.step();
   }
