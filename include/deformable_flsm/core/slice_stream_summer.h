@@ -16,6 +16,24 @@
 
 namespace deformable_flsm {
 
+/// The slice buffers SliceStreamSummer::apply() sweeps through, one set per thread: a few
+/// slices' worth, rewritten in every pass (nothing in them outlives an apply()). Summers that
+/// never apply at once may share one set (SliceStreamSummer::shareScratch()): the objects of a
+/// World, stepped one after another, then sweep the same buffers, which stay in cache, instead
+/// of one set each; with many small objects those sets together outgrow the cache.
+class SliceStreamScratch {
+ public:
+  struct alignas(64) Thread {
+    std::vector<double> run, rowSum, ring, sumPrev, sumCur, zPrev, zCur, colSum, regionRing;
+    // the z-window's sources of the current slice k: slice z's rows and first particle at
+    // z - k + w + 1 (2w + 2 entries)
+    std::vector<const double*> zRow;
+    std::vector<std::uint32_t> zStart;
+  };
+  /// one set per thread, grown (never shrunk) by the summers that use them
+  std::vector<Thread> threads;
+};
+
 /// FastLSM (Rivers & James 2007, sec. 4): sums along x-runs, then y-runs, then z-runs, each a
 /// sliding window of half-width w over the run, O(1) per particle and channel whatever w.
 /// Scatter applies the same windows in reverse order (z, y, x): the windows are symmetric, so
@@ -48,24 +66,6 @@ namespace deformable_flsm {
 /// chunk's regions, and kSpareBlocks more) are left to whichever thread is free first, each as
 /// soon as the chunks it depends on have published the regions it reads. A thread that
 /// finishes its sweep early takes over its neighbour's blocks instead of waiting at a barrier.
-/// The slice buffers apply() sweeps through, one set per thread: a few slices' worth, rewritten
-/// in every pass (nothing in them outlives an apply()). Summers that never apply at once may
-/// share one set (SliceStreamSummer::shareScratch()): the objects of a World, stepped one after
-/// another, then sweep the same buffers, which stay in cache, instead of one set each; with many
-/// small objects those sets together outgrow the cache.
-class SliceStreamScratch {
- public:
-  struct alignas(64) Thread {
-    std::vector<double> run, rowSum, ring, sumPrev, sumCur, zPrev, zCur, colSum, regionRing;
-    // the z-window's sources of the current slice k: slice z's rows and first particle at
-    // z - k + w + 1 (2w + 2 entries)
-    std::vector<const double*> zRow;
-    std::vector<std::uint32_t> zStart;
-  };
-  /// one set per thread, grown (never shrunk) by the summers that use them
-  std::vector<Thread> threads;
-};
-
 class SliceStreamSummer : public RegionSummer {
  public:
   /// Slices per block: z-windows restart at block starts, threads split the lattice at them.
