@@ -204,7 +204,13 @@ void Solver::makeSummers() {
 
 void Solver::shareRegionScratch(std::shared_ptr<SliceStreamScratch> scratch) {
   sharedScratch_ = std::move(scratch);
-  makeSummers();
+  if (!sharedScratch_) {  // buffers of its own again
+    makeSummers();
+    return;
+  }
+  // the summers as they are, their buffers the shared ones from now on
+  for (RegionSummer* summer : {summer_.get(), singleSummer_.get()})
+    if (auto* streamed = dynamic_cast<SliceStreamSummer*>(summer)) streamed->shareScratch(sharedScratch_);
 }
 
 std::shared_ptr<const SliceStreamScratch> Solver::regionScratch() const {
