@@ -664,3 +664,93 @@ TEST(ImplicitStep, BlockOnAnInclineSticksBelowTheFrictionAngleAndSlidesAbove) {
     EXPECT_NEAR(slide.acceleration, expected, 0.05 * expected) << "theta " << theta;
   }
 }
+
+// Coulomb's law over a slide at one sub-step of 1/60 s: a 10 x 5 x 3 cm block (1 cm cells,
+// 100 kPa, mu_s 0.6, mu_k 0.5) launched at 3 m/s along a level plane, resting on it or landing on
+// it from 1 cm, slides for the whole 0.4 s; the plane's impulse J = dP - M g t then has
+// |J_t| = mu_k J_n. (New contacts started sticking took the block's momentum in the first solve:
+// 1.08 mu_k.)
+TEST(ImplicitStep, SlidingBlockTakesKineticFrictionFromItsNormalImpulse) {
+  for (double drop : {0.0, 0.01}) {
+    auto lattice = std::make_shared<const Lattice>(deformable_flsm::test::makeBox(10, 5, 3, 0.01), kDensity, 1);
+    SolverParams p = implicitParams(1e5, 0.0, 1, 1.0 / 60.0);
+    p.ambientDamping = 0.0;
+    Solver s(lattice, p);
+    double lowest = kBig;
+    for (const auto& x : s.positions()) lowest = std::min(lowest, x.z());
+    Collider plane;
+    plane.staticFriction = 0.6;
+    plane.kineticFriction = 0.5;
+    plane.pose.translation().z() = lowest - s.contactRadius() - drop;
+    s.setCollider("plane", plane);
+    const double M = lattice->totalMass();
+    std::vector<std::uint32_t> all(s.positions().size());
+    for (std::uint32_t i = 0; i < all.size(); ++i) all[i] = i;
+    const Eigen::Vector3d P0(3.0 * M, 0.0, 0.0);
+    s.applyImpulse(all, P0);
+    for (int i = 0; i < 24; ++i) s.step();
+    ASSERT_GT(s.linearMomentum().x() / M, 0.5) << "still sliding, drop " << drop;
+    const Eigen::Vector3d J = s.linearMomentum() - P0 - M * s.time() * p.gravity;
+    const double ratio = std::hypot(J.x(), J.y()) / J.z();
+    std::printf("[ slide   ] launched at 3 m/s, dropped %.0f mm: |J_t| / J_n = %.4f (mu_k 0.5)\n", 1e3 * drop, ratio);
+    EXPECT_NEAR(ratio, 0.5, 0.01) << "drop " << drop;
+  }
+}
+
+// A block spinning on a level plane (8 x 8 x 3 cm, 1 cm cells, 100 kPa, mu 0.1, 20 rad/s about
+// the vertical, one sub-step of 1/60 s) spins down at Coulomb's rate: friction mu m g spread
+// over the bottom layer's contacts at their mean distance rbar from the axis,
+// alpha = mu g M rbar / I_z, so omega = omega0 - alpha t until it stops (0.7 s). (With each
+// sliding contact's friction along the slip it joined with, the block stopped in 0.4 s.)
+TEST(ImplicitStep, SpinningBlockSpinsDownAtCoulombsRate) {
+  auto lattice = std::make_shared<const Lattice>(deformable_flsm::test::makeBox(8, 8, 3, 0.01), kDensity, 1);
+  SolverParams p = implicitParams(1e5, 0.0, 1, 1.0 / 60.0);
+  p.ambientDamping = 0.0;
+  Solver s(lattice, p);
+  const auto& m = lattice->masses();
+  double lowest = kBig;
+  for (const auto& x : s.positions()) lowest = std::min(lowest, x.z());
+  const double mu = 0.1, omega0 = 20.0;
+  Collider plane;
+  plane.staticFriction = mu;
+  plane.kineticFriction = mu;
+  plane.pose.translation().z() = lowest - s.contactRadius();
+  s.setCollider("plane", plane);
+  const auto spin = [&](double* inertia) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < m.size(); ++i) c += m[i] * s.positions()[i];
+    c /= lattice->totalMass();
+    double L = 0.0, I = 0.0;
+    for (std::size_t i = 0; i < m.size(); ++i) {
+      const Eigen::Vector3d r(s.positions()[i].x() - c.x(), s.positions()[i].y() - c.y(), 0.0);
+      L += m[i] * r.cross(s.velocities()[i]).z();
+      I += m[i] * r.squaredNorm();
+    }
+    if (inertia) *inertia = I;
+    return L / I;
+  };
+  double I = 0.0;
+  spin(&I);
+  double rsum = 0.0;
+  int bottom = 0;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < m.size(); ++i) c += m[i] * s.positions()[i];
+  c /= lattice->totalMass();
+  for (std::size_t i = 0; i < m.size(); ++i) {
+    if (s.positions()[i].z() > lowest + 1e-9) continue;
+    rsum += std::hypot(s.positions()[i].x() - c.x(), s.positions()[i].y() - c.y());
+    ++bottom;
+  }
+  const double alpha = mu * std::abs(p.gravity.z()) * lattice->totalMass() * (rsum / bottom) / I;
+  for (std::size_t i = 0; i < m.size(); ++i) {
+    const Eigen::Vector3d r = s.positions()[i] - c;
+    s.applyImpulse({static_cast<std::uint32_t>(i)}, m[i] * Eigen::Vector3d(-omega0 * r.y(), omega0 * r.x(), 0.0));
+  }
+  for (int k = 1; k <= 36; ++k) {
+    s.step();
+    if (k % 6 != 0) continue;
+    const double expected = omega0 - alpha * s.time();
+    std::printf("[ spin    ] t %.2f s: omega %.2f rad/s, Coulomb %.2f\n", s.time(), spin(nullptr), expected);
+    EXPECT_NEAR(spin(nullptr), expected, 0.08 * omega0) << "t " << s.time();
+  }
+}
