@@ -342,27 +342,22 @@ bool Solver::constrainContacts(double h) {
     // sub-step (g h: slower, the direction is the solve's noise, and a grasp's contacts keep the
     // direction that held): kept along the slip it joined with, a spinning block's contacts
     // stopped it within a tenth of the time Coulomb's friction takes
-    if (last == kSliding && !slid.isZero(0.0)) {
-      implicitFriction_[i] = slid - slid.dot(normal) * normal;
-      if (slipSpeed > h * params_.gravity.norm())
-        implicitFriction_[i] = -(implicitFriction_[i].norm() / slipSpeed) * slip;
-      implicitRhs_[i] += implicitFriction_[i];
-      implicitVelocity_[i] += (predicted.dot(normal) + undo - implicitVelocity_[i].dot(normal)) * normal;
-      implicitConstraint_[i] = PcgConstraint::Normal;
-      implicitNormal_[i] = normal;
-      implicitContactBody_[i] = b;
-      implicitContactState_[i] = kSliding;
-      any = true;
-      continue;
-    }
-    // a contact that did not stick in the last sub-step and slips faster than its own approach
-    // could stop within the cone (|slip| > mu_s times its speed into the surface) starts sliding,
-    // its kinetic friction set by the first solve's normal impulse (updateContactSet()): started
-    // sticking, the contacts of a block landing while it slid took its whole tangential momentum
-    // in the first solve, and those the passes had not let slide when they ran out held it (a
-    // block launched at 3 m/s along the ground took 1.08 mu_k times its normal impulse)
-    if (last != kSticking &&
-        slipSpeed > contactBodies_[static_cast<std::size_t>(b)].collider->staticFriction * std::max(0.0, into)) {
+    //
+    // A contact that did not stick in the last sub-step and slips faster than its own approach
+    // could stop within the cone (|slip| > mu_s times its speed into the surface) starts sliding
+    // too, its kinetic friction set by the first solve's normal impulse (updateContactSet()):
+    // started sticking, the contacts of a block landing while it slid took its whole tangential
+    // momentum in the first solve, and those the passes had not let slide when they ran out held
+    // it (a block launched at 3 m/s along the ground took 1.08 mu_k times its normal impulse)
+    const bool carried = last == kSliding && !slid.isZero(0.0);
+    if (carried || (last != kSticking && slipSpeed > contactBodies_[static_cast<std::size_t>(b)].collider->staticFriction *
+                                                         std::max(0.0, into))) {
+      if (carried) {
+        implicitFriction_[i] = slid - slid.dot(normal) * normal;
+        if (slipSpeed > h * params_.gravity.norm())
+          implicitFriction_[i] = -(implicitFriction_[i].norm() / slipSpeed) * slip;
+        implicitRhs_[i] += implicitFriction_[i];
+      }
       implicitVelocity_[i] += (predicted.dot(normal) + undo - implicitVelocity_[i].dot(normal)) * normal;
       implicitConstraint_[i] = PcgConstraint::Normal;
       implicitNormal_[i] = normal;
