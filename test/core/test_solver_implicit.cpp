@@ -700,7 +700,8 @@ TEST(ImplicitStep, SlidingBlockTakesKineticFrictionFromItsNormalImpulse) {
 // A block spinning on a level plane (8 x 8 x 3 cm, 1 cm cells, 100 kPa, mu 0.1, 20 rad/s about
 // the vertical, one sub-step of 1/60 s) spins down at Coulomb's rate: friction mu m g spread
 // over the bottom layer's contacts at their mean distance rbar from the axis,
-// alpha = mu g M rbar / I_z, so omega = omega0 - alpha t until it stops (0.7 s). (With each
+// alpha = mu g M rbar / I_z, so omega = omega0 - alpha t until it stops (0.7 s), then stays
+// stopped (watched to 0.9 s). (With each
 // sliding contact's friction along the slip it joined with, the block stopped in 0.4 s.)
 TEST(ImplicitStep, SpinningBlockSpinsDownAtCoulombsRate) {
   auto lattice = std::make_shared<const Lattice>(deformable_flsm::test::makeBox(8, 8, 3, 0.01), kDensity, 1);
@@ -746,11 +747,11 @@ TEST(ImplicitStep, SpinningBlockSpinsDownAtCoulombsRate) {
     const Eigen::Vector3d r = s.positions()[i] - c;
     s.applyImpulse({static_cast<std::uint32_t>(i)}, m[i] * Eigen::Vector3d(-omega0 * r.y(), omega0 * r.x(), 0.0));
   }
-  for (int k = 1; k <= 36; ++k) {
+  for (int k = 1; k <= 54; ++k) {
     s.step();
     if (k % 6 != 0) continue;
-    const double expected = omega0 - alpha * s.time();
+    const double expected = std::max(0.0, omega0 - alpha * s.time());
     std::printf("[ spin    ] t %.2f s: omega %.2f rad/s, Coulomb %.2f\n", s.time(), spin(nullptr), expected);
-    EXPECT_NEAR(spin(nullptr), expected, 0.08 * omega0) << "t " << s.time();
+    EXPECT_NEAR(spin(nullptr), expected, 0.1 * omega0) << "t " << s.time();
   }
 }
