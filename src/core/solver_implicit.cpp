@@ -297,6 +297,9 @@ bool Solver::constrainContacts(double h) {
   if (contactBodies_.empty()) return false;
   const double r = contactRadius();
   const double slop = kContactSlop * r;
+  // below this slip speed a contact's slip direction is noise: what gravity adds in a sub-step
+  // (on a slope, along the surface), or the contact slop over a sub-step without gravity
+  const double slipFloor = std::max(h * params_.gravity.norm(), slop / h);
   // every collider where the contact pass will see it at the end of this sub-step (the contact
   // pass sets the same pose and bounds again)
   for (ContactBody& body : contactBodies_) {
@@ -334,9 +337,6 @@ bool Solver::constrainContacts(double h) {
     const double into = -rel.dot(normal);
     const Eigen::Vector3d slip = rel + into * normal;
     const double slipSpeed = slip.norm();
-    // below this slip speed its direction is noise: what gravity adds in a sub-step (on a
-    // slope, along the surface), or the contact slop over a sub-step without gravity
-    const double slipFloor = std::max(h * params_.gravity.norm(), slop / h);
     // a contact that ended the last sub-step sliding goes on sliding, under the kinetic friction
     // it had (in this normal's tangent plane), until the solve finds its slip reversed: started
     // sticking, a sliding object's contacts took its whole momentum in the first solve and only
