@@ -25,13 +25,18 @@
 // Then the node's demo on the ground with the implicit step (the bunny upright, dropped, its ear
 // dragged round flsm_demo's circle, released, poked and pushed) at 30 kPa and 1 MPa, w = 1 and 2,
 // at --particles and a quarter of it: CPU ms per step and CG iterations in each phase, the figure
-// that says whether the node keeps real time at 60 steps a second.
+// that says whether the node keeps real time at 60 steps a second (--demo-step 0.0333: at 30, the
+// implicit scene's config/implicit.yaml).
 // --only implicit prints those two tables alone.
+// Last, what the implicit step's numerical damping does to the bunny's sway after a poke (every
+// other damping off) at 1/240, 1/60 and 1/30 s, against the explicit step; --only sway prints it
+// alone.
 //
 //   bench_solver [--mesh PATH] [--particles N] [--steps N] [--repeats N] [--max-naive-w W]
-//                [--only implicit] [--implicit-alone 1] [--moduli E1,E2,...] [--w W]
+//                [--only implicit|sway] [--implicit-alone 1] [--moduli E1,E2,...] [--w W] [--demo-step S]
 // --implicit-alone 1 leaves the explicit runs out of the implicit table (its iterations and cost
-// alone, quicker); --moduli replaces its 30 kPa, 1 MPa, 10 MPa; --w its region half-width 2.
+// alone, quicker); --moduli replaces its 30 kPa, 1 MPa, 10 MPa; --w its region half-width 2;
+// --demo-step the demo's step, 1/60 s.
 
 #include "deformable_flsm/core/fast_summation.h"
 #include "deformable_flsm/core/lattice.h"
@@ -46,6 +51,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <ctime>
 #include <csignal>
 #include <malloc.h>
@@ -68,9 +74,11 @@ struct Args {
   int repeats = 11;
   int maxNaiveW = 4;
   bool onlyImplicit = false;
+  bool onlySway = false;
   bool implicitAlone = false;
   int regionHalfWidth = 2;  // of the implicit table
   std::vector<double> moduli = {30e3, 1e6, 10e6};
+  double demoStep = 1.0 / 60.0;  // the demo table's step (s)
 };
 
 Args parse(int argc, char** argv) {
@@ -84,8 +92,16 @@ Args parse(int argc, char** argv) {
     else if (k == "--repeats") a.repeats = std::atoi(v);
     else if (k == "--max-naive-w") a.maxNaiveW = std::atoi(v);
     else if (k == "--only" && std::string(v) == "implicit") a.onlyImplicit = true;
+    else if (k == "--only" && std::string(v) == "sway") a.onlySway = true;
     else if (k == "--implicit-alone") a.implicitAlone = std::atoi(v) != 0;
     else if (k == "--w") a.regionHalfWidth = std::max(1, std::atoi(v));
+    else if (k == "--demo-step") {
+      a.demoStep = std::strtod(v, nullptr);
+      if (!(a.demoStep > 0.0 && a.demoStep <= 0.1)) {
+        std::fprintf(stderr, "--demo-step: a step in seconds, > 0 and <= 0.1, got %s\n", v);
+        std::exit(2);
+      }
+    }
     else if (k == "--moduli") {
       a.moduli.clear();
       for (const char* c = v; *c != '\0';) {
@@ -296,9 +312,9 @@ void implicitTable(const TriMesh& mesh, std::size_t particles, const Args& args)
 /// and left 2.5 s; the 6 particles nearest its top dragged (hard) round the demo's circle for 5 s,
 /// the target moved at 20 Hz; released and left 2.5 s; poked sideways (an impulse of 0.6 object
 /// sizes per second on the particles within a quarter of its size of the centre) and left 2.5 s;
-/// pushed for 0.5 s and left 2 s more. Per phase: CPU time per step (this thread's) and CG
-/// iterations per step (mean, largest).
-void demoRow(const TriMesh& upright, std::size_t particles, int w, double E) {
+/// pushed for 0.5 s and left 2 s more, in steps of h seconds (one sub-step each). Per phase: CPU
+/// time per step (this thread's) and CG iterations per step (mean, largest).
+void demoRow(const TriMesh& upright, std::size_t particles, int w, double E, double h) {
   const Voxelization vox = voxelizeNear(upright, particles);
   auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
   SolverParams p;
@@ -308,6 +324,7 @@ void demoRow(const TriMesh& upright, std::size_t particles, int w, double E) {
   p.damping = 10.0;
   p.ambientDamping = 0.5;
   p.substeps = 1;
+  p.timeStep = h;
   p.integrator = Integrator::Implicit;
   Solver s(lattice, p);
   setGroundBelow(s);
@@ -320,7 +337,9 @@ void demoRow(const TriMesh& upright, std::size_t particles, int w, double E) {
     return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
   };
   std::printf("%10zu %3d %9.3g", lattice->size(), w, E);
-  const auto phase = [&](int steps, const auto& before) {
+  const auto stepsIn = [h](double seconds) { return std::max(1, static_cast<int>(std::lround(seconds / h))); };
+  const auto phase = [&](double seconds, const auto& before) {
+    const int steps = stepsIn(seconds);
     long total = 0;
     int most = 0;
     const double t0 = threadCpu();
@@ -333,7 +352,7 @@ void demoRow(const TriMesh& upright, std::size_t particles, int w, double E) {
     std::printf(" %8.2f %5.1f %4d", 1e3 * (threadCpu() - t0) / steps, double(total) / steps, most);
   };
   const auto nothing = [](int) {};
-  phase(150, nothing);
+  phase(2.5, nothing);
   Eigen::Vector3d lo = s.positions()[0], hi = lo, centre = Eigen::Vector3d::Zero();
   for (const auto& x : s.positions()) {
     lo = lo.cwiseMin(x);
@@ -345,35 +364,143 @@ void demoRow(const TriMesh& upright, std::size_t particles, int w, double E) {
   const Eigen::Vector3d start = s.positions()[top];
   s.grab("ear", s.nearestParticles(start, 6), start, 0.0);
   const double radius = 0.12 * size;
-  phase(300, [&](int i) {
-    if (i % 3 != 0) return;
-    const double phi = 2.0 * M_PI * i / 300.0;
+  const int dragSteps = stepsIn(5.0), every = stepsIn(0.05);  // the target moved at 20 Hz
+  phase(5.0, [&](int i) {
+    if (i % every != 0) return;
+    const double phi = 2.0 * M_PI * i / dragSteps;
     s.moveDrag("ear", start + Eigen::Vector3d(radius * std::sin(phi), 0.5 * radius * (1.0 - std::cos(phi)),
                                               0.5 * radius * std::sin(phi)));
   });
   s.release("ear");
-  phase(150, nothing);
+  phase(2.5, nothing);
   const std::vector<std::uint32_t> body = s.particlesWithin(centre, 0.25 * size);
   const double sphereMass = 1000.0 * 4.0 / 3.0 * M_PI * std::pow(0.25 * size, 3);
   s.applyImpulse(body, Eigen::Vector3d(0.6 * size * sphereMass, 0, 0));
-  phase(150, nothing);
+  phase(2.5, nothing);
   s.applyForce(body, Eigen::Vector3d(0, -4.0 * size * sphereMass, 0), 0.5);
-  phase(150, nothing);
+  phase(2.5, nothing);
   std::printf("\n");
 }
 
-void demoTable(const TriMesh& mesh, std::size_t particles) {
+void demoTable(const TriMesh& mesh, std::size_t particles, double h) {
   TriMesh upright = mesh;
   const Eigen::Matrix3d R = Eigen::AngleAxisd(0.5 * M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
   for (auto& v : upright.vertices) v = R * v;
   std::printf("\nimplicit, the node's demo on the ground (nu 0, region damping 10, ambient damping 0.5, one sub-step\n"
-              "of 1/60 s, single thread): dropped and settled, dragged round the demo's circle, released, poked,\n"
+              "of 1/%.4g s, single thread): dropped and settled, dragged round the demo's circle, released, poked,\n"
               "pushed; per phase CPU ms per step, CG iterations per step (mean, largest)\n"
-              "%10s %3s %9s %19s %19s %19s %19s %19s\n", "particles", "w", "E (Pa)", "drop: ms  CG  max",
+              "%10s %3s %9s %19s %19s %19s %19s %19s\n", 1.0 / h, "particles", "w", "E (Pa)", "drop: ms  CG  max",
               "drag: ms  CG  max", "released", "poked", "pushed");
   for (std::size_t n : {particles / 4, particles})
     for (int w : {1, 2})
-      for (double E : {30e3, 1e6}) demoRow(upright, n, w, E);
+      for (double E : {30e3, 1e6}) demoRow(upright, n, w, E, h);
+}
+
+/// The bunny's sway after a poke, with every damping off (region, ambient; no gravity, no ground:
+/// the material and the integrator alone): the 6 particles nearest its top, their mean
+/// displacement along the poke in the object's frame (Solver::rigidFrame()) after each step, for
+/// 1.5 s, fitted by least squares with a damped sinusoid A exp(-s t) cos(omega t + phi) + c (a
+/// search over omega and s, the rest linear): the period 2 pi / omega and the amplitude kept per
+/// period exp(-2 pi s / omega). Prints the row and returns the kept amplitude.
+double swayRow(const TriMesh& upright, std::size_t particles, int w, double E, Integrator integrator, double h,
+               int substeps, double reference) {
+  const Voxelization vox = voxelizeNear(upright, particles);
+  auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
+  SolverParams p;
+  p.regionHalfWidth = w;
+  p.youngsModulus = E;
+  p.poissonsRatio = 0.0;
+  p.damping = 0.0;
+  p.ambientDamping = 0.0;
+  p.gravity.setZero();
+  p.timeStep = h;
+  p.substeps = substeps;
+  p.integrator = integrator;
+  Solver s(lattice, p);
+  Eigen::Vector3d lo = s.positions()[0], hi = lo, centre = Eigen::Vector3d::Zero();
+  std::uint32_t top = 0;
+  for (std::uint32_t k = 0; k < s.positions().size(); ++k) {
+    const Eigen::Vector3d& x = s.positions()[k];
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+    centre += x;
+    if (x.z() > s.positions()[top].z()) top = k;
+  }
+  centre /= double(s.positions().size());
+  const double size = (hi - lo).norm();
+  const std::vector<std::uint32_t> ear = s.nearestParticles(s.positions()[top], 6);
+  const std::vector<std::uint32_t> body = s.particlesWithin(centre, 0.25 * size);
+  const double sphereMass = 1000.0 * 4.0 / 3.0 * M_PI * std::pow(0.25 * size, 3);
+  s.applyImpulse(body, Eigen::Vector3d(0.6 * size * sphereMass, 0, 0));
+  const auto& x0 = lattice->restPositions();
+  const auto sway = [&] {
+    const Eigen::Isometry3d toRest = s.rigidFrame().inverse();
+    double d = 0.0;
+    for (std::uint32_t k : ear) d += (toRest * s.positions()[k] - x0[k]).x();
+    return d / double(ear.size());
+  };
+  const int steps = static_cast<int>(std::lround(1.5 / h));
+  std::vector<double> t(steps), d(steps);
+  timespec t0, t1;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t0);
+  for (int i = 0; i < steps; ++i) {
+    s.step();
+    t[i] = h * (i + 1);
+    d[i] = sway();
+  }
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t1);
+  const double cpu = double(t1.tv_sec - t0.tv_sec) + 1e-9 * double(t1.tv_nsec - t0.tv_nsec);
+  // the fit: for each (omega, s) the best A cos, B sin and c by linear least squares
+  double best = std::numeric_limits<double>::infinity(), omega = 0.0, decay = 0.0;
+  for (double om = 5.0; om <= 60.0; om += 0.05) {
+    for (double sg = 0.0; sg <= 15.0; sg += 0.02) {
+      Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d Atb = Eigen::Vector3d::Zero();
+      for (int i = 0; i < steps; ++i) {
+        const double e = std::exp(-sg * t[i]);
+        const Eigen::Vector3d row(e * std::cos(om * t[i]), e * std::sin(om * t[i]), 1.0);
+        AtA += row * row.transpose();
+        Atb += row * d[i];
+      }
+      const Eigen::Vector3d c = AtA.ldlt().solve(Atb);
+      double r = 0.0;
+      for (int i = 0; i < steps; ++i) {
+        const double e = std::exp(-sg * t[i]);
+        const double f = c.x() * e * std::cos(om * t[i]) + c.y() * e * std::sin(om * t[i]) + c.z();
+        r += (f - d[i]) * (f - d[i]);
+      }
+      if (r < best) {
+        best = r;
+        omega = om;
+        decay = sg;
+      }
+    }
+  }
+  const double period = 2.0 * M_PI / omega;
+  const double kept = std::exp(-decay * period);
+  const double omegaH = omega * h / substeps;
+  std::printf("%10zu %3d %9.3g %9s %7.4f %9d %9.3f %9.3f %11.3f %12.3f %11.2f\n", lattice->size(), w, E,
+              integrator == Integrator::Implicit ? "implicit" : "explicit", h, substeps, period, kept,
+              integrator == Integrator::Implicit ? std::pow(1.0 + omegaH * omegaH, -M_PI / omegaH) : 1.0,
+              reference > 0.0 ? kept / reference : 1.0, cpu / 1.5);
+  return kept;
+}
+
+/// The sway of the implicit step at 1/240, 1/60 and 1/30 s against the explicit step at 80
+/// sub-steps of 1/60 s (its own loss per period, to other modes, is the reference).
+void swayTable(const TriMesh& mesh, std::size_t particles) {
+  TriMesh upright = mesh;
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.5 * M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  for (auto& v : upright.vertices) v = R * v;
+  std::printf("\nthe bunny's sway after a poke, every damping off (nu 0, w = 2, 30 kPa): period (s), amplitude kept\n"
+              "per period, backward Euler's (1 + (omega h)^2)^(-pi / (omega h)) at that period, kept over the\n"
+              "explicit step's, CPU s per simulated s (one thread)\n"
+              "%10s %3s %9s %9s %7s %9s %9s %9s %11s %12s %11s\n", "particles", "w", "E (Pa)", "step", "h (s)",
+              "substeps", "period", "kept", "BE formula", "over explicit", "CPU s/s");
+  const double reference = swayRow(upright, particles, 2, 30e3, Integrator::Explicit, 1.0 / 60.0, 80, 0.0);
+  swayRow(upright, particles, 2, 30e3, Integrator::Implicit, 1.0 / 60.0, 4, reference);
+  swayRow(upright, particles, 2, 30e3, Integrator::Implicit, 1.0 / 60.0, 1, reference);
+  swayRow(upright, particles, 2, 30e3, Integrator::Implicit, 1.0 / 30.0, 1, reference);
 }
 
 }  // namespace
@@ -385,9 +512,13 @@ int main(int argc, char** argv) {
   std::printf("mesh %s: %zu triangles; lattice %d x %d x %d cells, spacing %.4g m, %zu particles\n",
               args.mesh.c_str(), mesh.triangles.size(), vox.dims.x(), vox.dims.y(), vox.dims.z(), vox.spacing,
               vox.cells.size());
+  if (args.onlySway) {
+    swayTable(mesh, args.particles);
+    return 0;
+  }
   if (args.onlyImplicit) {
     implicitTable(mesh, args.particles, args);
-    demoTable(mesh, args.particles);
+    demoTable(mesh, args.particles, args.demoStep);
     return 0;
   }
   {
@@ -585,6 +716,7 @@ int main(int argc, char** argv) {
     std::printf("%10zu %14.1f %14.1f %8.2fx %8.0f%% %11.2f / %.2f ms %22.3g\n", b.particles, b.one, b.all, b.cost,
                 100.0 * b.threaded, b.msThreads, b.msOne, b.diff);
   implicitTable(mesh, args.particles, args);
-  demoTable(mesh, args.particles);
+  demoTable(mesh, args.particles, args.demoStep);
+  swayTable(mesh, args.particles);
   return 0;
 }
