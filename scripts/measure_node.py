@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """measure_node: the figures of flsm_node that docs/performance.md reports, measured on this machine.
 
-    ./scripts/flsm measure [--rviz] [--seconds N] [--params file.yaml]
+    ./scripts/flsm measure [--rviz] [--seconds N] [--params file.yaml] [--scene file.yaml]
 
-Starts a master on its own port and flsm.launch (the default scene unless --params), then:
+Starts a master on its own port and flsm.launch (the default scene unless --params; --scene
+loads a file over it, as demo.launch's scenes do: config/implicit.yaml), then:
   1. start-up: the node's own report (lattice, step cost, CPU share it expects);
   2. at rest, with subscribers on ~mesh, ~surface and ~particles (rospy.AnyMsg: the bytes are
      received, not decoded, as RViz or rostopic hz would) -- or RViz itself under Xvfb with
@@ -116,6 +117,7 @@ def main():
     parser.add_argument('--rviz', action='store_true', help='subscribe with RViz under Xvfb')
     parser.add_argument('--seconds', type=float, default=10.0, help='length of each window')
     parser.add_argument('--params', default='', help='YAML parameters (default config)')
+    parser.add_argument('--scene', default='', help='YAML parameters loaded over --params')
     args = parser.parse_args()
 
     env = dict(os.environ)
@@ -132,6 +134,8 @@ def main():
         launch = ['roslaunch', 'deformable_flsm', 'flsm.launch']
         if args.params:
             launch.append('params:=' + os.path.abspath(args.params))
+        if args.scene:
+            launch.append('scene_params:=' + os.path.abspath(args.scene))
         if args.rviz:
             env['DISPLAY'] = XVFB_DISPLAY
             env['LIBGL_ALWAYS_SOFTWARE'] = '1'
@@ -148,6 +152,8 @@ def main():
                          lambda m: state.__setitem__('msg', m), queue_size=1)
         rospy.wait_for_message('/flsm_node/state', SimulationState, timeout=120)
         pid = node_pid('/flsm_node')
+        step_length = rospy.get_param('/flsm_node/time_step', 1.0 / 60.0)
+        publish_period = 1.0 / rospy.get_param('/flsm_node/publish_rate', 30.0)
         print('== start-up report of flsm_node (pid %d)' % pid)
         with open(node_log) as f:
             for line in f:
@@ -275,7 +281,7 @@ def main():
         if len(lat):
             print('   received: median %.0f ms, min %.0f ms, max %.0f ms (step %.1f ms of simulated '
                   'time, publish period %.1f ms)' % (np.median(lat), lat.min(), lat.max(),
-                                                     1e3 / 60.0, 1e3 / 30.0))
+                                                     1e3 * step_length, 1e3 * publish_period))
             # The stamp of ~mesh, ~surface and ~particles is the start of the publish tick that
             # carries the state (the mesh is published first in it): what is left is building,
             # sending and this script's Python receiving.
