@@ -161,6 +161,7 @@ void Solver::reset() {
   std::fill(implicitLastDv_.begin(), implicitLastDv_.end(), Eigen::Vector3d::Zero());
   std::fill(implicitContactState_.begin(), implicitContactState_.end(), char(0));
   std::fill(implicitFriction_.begin(), implicitFriction_.end(), Eigen::Vector3d::Zero());
+  bdf2Ready_ = false;
   time_ = 0.0;
   substeps_ = 0;
 }
@@ -168,11 +169,13 @@ void Solver::reset() {
 void Solver::setPositions(const std::vector<Eigen::Vector3d>& x) {
   if (x.size() != x_.size()) throw std::invalid_argument("solver: setPositions with the wrong size");
   x_ = x;
+  bdf2Ready_ = false;
 }
 
 void Solver::setVelocities(const std::vector<Eigen::Vector3d>& v) {
   if (v.size() != v_.size()) throw std::invalid_argument("solver: setVelocities with the wrong size");
   v_ = v;
+  bdf2Ready_ = false;
 }
 
 void Solver::makeSummers() {
@@ -493,19 +496,19 @@ void Solver::substep(double h) {
   if (volumetric_) computeVolumetricForces();
   regionPass(step_.kd > 0.0);
   step_.integrate = false;
-  endSubstep(h);
+  endSubstep(h, h);
 }
 
 // What both integrators do after their velocity update: contact, the prescribed particles, the
 // timed forces' countdown and the clock.
-void Solver::endSubstep(double h) {
+void Solver::endSubstep(double h, double elapsed) {
   contactPass(h);
   finishSubstep(h);
-  for (TimedForce& f : forces_) f.remaining -= h;
+  for (TimedForce& f : forces_) f.remaining -= elapsed;
   forces_.erase(std::remove_if(forces_.begin(), forces_.end(),
                                [](const TimedForce& f) { return f.remaining <= 0.0; }),
                 forces_.end());
-  time_ += h;
+  time_ += elapsed;
   ++substeps_;
 }
 

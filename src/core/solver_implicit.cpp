@@ -111,9 +111,17 @@ void Solver::configureIntegrator() {
     implicitFriction_.assign(n, Eigen::Vector3d::Zero());
   }
   volumetricLinear_.resize(volumetric_ ? n : 0);
+  const bool bdf2 = params_.implicitScheme == ImplicitScheme::Bdf2;
+  bdf2LastX_.resize(bdf2 ? n : 0);
+  bdf2LastV_.resize(bdf2 ? n : 0);
+  bdf2Ready_ = false;  // a new step length or scheme: start again with backward Euler
 }
 
-void Solver::implicitSubstep(double h) {
+void Solver::implicitSubstep(double substep) {
+  const bool bdf2 = params_.implicitScheme == ImplicitScheme::Bdf2;
+  // the backward Euler step solved: the sub-step itself, or BDF2's 2/3 of it from its start
+  bdf2Step_ = false;
+  const double h = bdf2 ? bdf2Begin(substep) : substep;
   implicitBegin(h);
   const bool contacts = !contactBodies_.empty();
   // Contacts by an active set (see constrainContacts()): solve, let go of the contacts whose
@@ -137,7 +145,58 @@ void Solver::implicitSubstep(double h) {
     if (!contacts || pass + 1 >= kContactPasses || !updateContactSet(h, guessChanged, pcg_, 0)) break;
   }
   implicitSolve_.iterations = iterations;
-  implicitEnd(h, pcg_.residual(), 0);
+  implicitEnd(h, pcg_.residual(), 0, substep);
+  if (bdf2) bdf2End(substep);
+}
+
+double Solver::bdf2Begin(double h) {
+  const std::size_t n = x_.size();
+  if (impulsePending_) {
+    // an impulse changes v_n and, for the extrapolation, v_{n-1} alike
+    for (std::size_t i = 0; i < n; ++i) {
+      v_[i] += impulseDv_[i];
+      if (bdf2Ready_) bdf2LastV_[i] += impulseDv_[i];
+    }
+    std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
+    impulsePending_ = false;
+  }
+  if (!bdf2Ready_) {
+    bdf2LastX_ = x_;  // same size: no allocation
+    bdf2LastV_ = v_;
+    bdf2Ready_ = true;
+    return h;
+  }
+  // the momenta BDF2's solve must keep (correctRigidModes()): a linear multistep method keeps
+  // the linear one by itself, not the angular one
+  const auto& m = lattice_->masses();
+  bdf2P_.setZero();
+  bdf2L_.setZero();
+  for (std::size_t i = 0; i < n; ++i) {
+    bdf2P_ += m[i] * v_[i];
+    bdf2L_ += m[i] * x_[i].cross(v_[i]);
+  }
+  bdf2Step_ = true;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d x = x_[i], v = v_[i];
+    x_[i] = x + (x - bdf2LastX_[i]) / 3.0;
+    v_[i] = v + (v - bdf2LastV_[i]) / 3.0;
+    bdf2LastX_[i] = x;
+    bdf2LastV_[i] = v;
+  }
+  return 2.0 * h / 3.0;
+}
+
+void Solver::bdf2End(double h) {
+  const std::size_t n = x_.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    // implicitVelocity_ holds the solve's v+: the contact pass after it, a pin or a hard drag
+    // changed v_ since
+    const bool moved = pinned_[i] != 0 || hardDragged_[i] != 0 || implicitContactState_[i] != kNoContact ||
+                       v_[i] != implicitVelocity_[i];
+    if (!moved) continue;
+    bdf2LastX_[i] = x_[i] - h * v_[i];
+    bdf2LastV_[i] = v_[i];
+  }
 }
 
 void Solver::implicitBegin(double h) {
@@ -187,7 +246,10 @@ void Solver::implicitBegin(double h) {
   // The system: A = diag(M (1 + h c [a free object]) + h^2 k_spring) + sum_r (h^2 k beta_r + h damping) K_r
   // (+ h^2 H_vol), h^2 k = alpha.
   hessian_->setRotations(rotations_);
-  hessian_->setCoefficients(alpha_, h * params_.damping, regionWeight_, weightSum_, invCount_);
+  // alpha = h^2 k for the sub-step; a shorter solve (BDF2's 2/3 of it) keeps k
+  const double substep = params_.substepLength();
+  const double alpha = h == substep ? alpha_ : alpha_ * (h / substep) * (h / substep);
+  hessian_->setCoefficients(alpha, h * params_.damping, regionWeight_, weightSum_, invCount_);
   const double c = params_.ambientDamping;
   // Ambient damping relative to the object's rigid motion (a free object) is in the system; an
   // object held by the world is damped as the explicit step damps it, v_n by exp(-c h) before
@@ -211,7 +273,7 @@ void Solver::implicitBegin(double h) {
     }
   }
   // Right-hand side M v_n + h f_el(x_n), the initial guess and the Jacobi preconditioner.
-  const double pull = alpha_ / h;  // h k
+  const double pull = alpha / h;  // h k
   double rhsNorm = 0.0, gravityNorm = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     Eigen::Vector3d a = params_.gravity;
@@ -261,7 +323,8 @@ void Solver::implicitBegin(double h) {
                    std::sqrt(static_cast<double>(std::max<std::size_t>(free, 1)));
 }
 
-void Solver::implicitEnd(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset) {
+void Solver::implicitEnd(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset,
+                         double elapsed) {
   const std::size_t n = x_.size();
   if (!contactBodies_.empty()) sumContactImpulses(h, residual, offset);
   if (!heldByWorld()) correctRigidModes(h);
@@ -274,7 +337,7 @@ void Solver::implicitEnd(double h, const std::vector<Eigen::Vector3d>& residual,
     v_[i] = implicitVelocity_[i];
     x_[i] += h * v_[i];
   }
-  endSubstep(h);
+  endSubstep(h, elapsed > 0.0 ? elapsed : h);
 }
 
 // Contact inside the solve. A particle that its velocity with gravity's increment, v* = v_n + h g,
@@ -616,10 +679,15 @@ void Solver::correctRigidModes(double h) {
   Eigen::Vector3d mp = Eigen::Vector3d::Zero(), dP = Eigen::Vector3d::Zero(), dL = Eigen::Vector3d::Zero();
   Eigen::Matrix3d mpp = Eigen::Matrix3d::Zero();
   const bool forced = !forcedParticles_.empty();
+  // BDF2 (x_, v_ its extrapolated start, h 2/3 of the sub-step): P+ = P_n + H F and
+  // L+ = sum m x+ x v+ = sum m x_ x v+ = L_n + H sum x_ x m a_ext over the sub-step H
+  Eigen::Vector3d force = Eigen::Vector3d::Zero(), torque = Eigen::Vector3d::Zero();
+  Eigen::Vector3d solvedP = Eigen::Vector3d::Zero(), solvedL = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d p = x_[i] - ref;
-    Eigen::Vector3d target = v_[i] + h * params_.gravity;
-    if (forced) target += h * forceAccel_[i];
+    Eigen::Vector3d a = params_.gravity;
+    if (forced) a += forceAccel_[i];
+    const Eigen::Vector3d target = v_[i] + h * a;
     Eigen::Vector3d d = m[i] * (target - implicitVelocity_[i]);
     if (!implicitCouplingImpulse_.empty()) d += implicitCouplingImpulse_[i];
     M += m[i];
@@ -627,6 +695,18 @@ void Solver::correctRigidModes(double h) {
     dP += d;
     dL += p.cross(d);
     mpp.noalias() += m[i] * p * p.transpose();
+    if (bdf2Step_) {
+      force += m[i] * a;
+      torque += m[i] * x_[i].cross(a);
+      solvedP += m[i] * implicitVelocity_[i];
+      solvedL += m[i] * p.cross(implicitVelocity_[i]);
+    }
+  }
+  if (bdf2Step_) {
+    const double H = 1.5 * h;
+    const Eigen::Vector3d Pt = bdf2P_ + H * force;
+    dP = Pt - solvedP;
+    dL = (bdf2L_ + H * torque - ref.cross(Pt)) - solvedL;
   }
   const Eigen::Vector3d c = mp / M;
   const Eigen::Vector3d u = dP / M;

@@ -49,6 +49,14 @@ const char* toString(Integrator integrator) {
   return integrator == Integrator::Implicit ? "implicit" : "explicit";
 }
 
+ImplicitScheme parseImplicitScheme(const std::string& name) {
+  if (name == "backward_euler") return ImplicitScheme::BackwardEuler;
+  if (name == "bdf2") return ImplicitScheme::Bdf2;
+  throw std::invalid_argument("invalid implicit scheme '" + name + "': expected 'backward_euler' or 'bdf2'");
+}
+
+const char* toString(ImplicitScheme scheme) { return scheme == ImplicitScheme::Bdf2 ? "bdf2" : "backward_euler"; }
+
 int regionHalfWidthForRadius(double radius, double spacing) {
   if (!std::isfinite(radius) || radius <= 0.0)
     fail("region_radius", str(radius), "expected a finite radius > 0 (m)");
@@ -105,6 +113,8 @@ void SolverParams::validate() const {
     fail("density", str(density), "expected a finite density > 0 (kg/m^3)");
   if (integrator != Integrator::Explicit && integrator != Integrator::Implicit)
     fail("integrator", std::to_string(static_cast<int>(integrator)), "expected 'explicit' or 'implicit'");
+  if (implicitScheme != ImplicitScheme::BackwardEuler && implicitScheme != ImplicitScheme::Bdf2)
+    fail("implicit_scheme", std::to_string(static_cast<int>(implicitScheme)), "expected 'backward_euler' or 'bdf2'");
   if (!std::isfinite(contactRadius) || contactRadius < 0.0)
     fail("contact_radius", str(contactRadius),
          "expected a finite radius >= 0 (m; 0 uses half the lattice spacing)");

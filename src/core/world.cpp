@@ -84,6 +84,23 @@ struct World::Impl {
   }
 };
 
+namespace {
+
+/// Why these objects cannot be stepped with these contact settings, or nullptr: an implicit
+/// object with ImplicitScheme::Bdf2 steps alone, and objects that may touch each other (or one
+/// itself) are solved as one backward Euler system.
+const char* bdf2Refusal(const std::vector<const SolverParams*>& objects, const ObjectContactParams& contact) {
+  const bool coupled = (objects.size() >= 2 && contact.enabled) || contact.selfContact;
+  if (!coupled) return nullptr;
+  for (const SolverParams* p : objects)
+    if (p->integrator == Integrator::Implicit && p->implicitScheme == ImplicitScheme::Bdf2)
+      return "the implicit scheme bdf2 steps one object alone: objects in contact with each other or "
+             "themselves are solved together with backward_euler";
+  return nullptr;
+}
+
+}  // namespace
+
 World::World(double timeStep, int substeps, const ObjectContactParams& contact)
     : impl_(std::make_unique<Impl>()), contact_(contact), timeStep_(timeStep), substeps_(substeps) {
   if (!std::isfinite(timeStep) || !(timeStep > 0.0))
@@ -102,6 +119,11 @@ Solver& World::addObject(const std::string& name, std::shared_ptr<const Lattice>
     throw std::invalid_argument("world: object '" + name + "' has time step " + num(params.timeStep) + " s in " +
                                 std::to_string(params.substeps) + " sub-steps, the world " + num(timeStep_) +
                                 " s in " + std::to_string(substeps_) + ": give it the world's");
+  // objects that touch each other are solved as one backward Euler system (step())
+  std::vector<const SolverParams*> all{&params};
+  for (const auto& o : impl_->objects) all.push_back(&o->params());
+  if (const char* why = bdf2Refusal(all, contact_))
+    throw std::invalid_argument("world: object '" + name + "': " + why);
   auto solver = std::make_unique<Solver>(std::move(lattice), params);
   // refuse a start inside another object: the contact pass would push it out over many sub-steps
   const auto& x = solver->positions();
@@ -215,6 +237,9 @@ ContactWrench World::contactWrench(const std::string& id) const {
 
 void World::setContactParams(const ObjectContactParams& contact) {
   contact.validate();
+  std::vector<const SolverParams*> all;
+  for (const auto& o : impl_->objects) all.push_back(&o->params());
+  if (const char* why = bdf2Refusal(all, contact)) throw std::invalid_argument(std::string("world: ") + why);
   contact_ = contact;
 }
 

@@ -998,3 +998,33 @@ TEST(WorldScene, TwentySoftObjectsInABinGoToRestAndStayThere) { softBin(Integrat
 // The same at one implicit sub-step: the objects' systems and the springs between touching
 // particles in one solve.
 TEST(WorldScene, TwentySoftObjectsInABinGoToRestAndStayThereWithTheImplicitStep) { softBin(Integrator::Implicit); }
+
+// ImplicitScheme::Bdf2 steps one object alone: in a world of one it steps exactly as the bare
+// solver, and an object that could touch it (object contact on) is refused with a reason.
+TEST(World, Bdf2StepsOneObjectAsTheBareSolverAndRefusesObjectsThatTouchIt) {
+  auto lattice = boxAt(5, 4, 3, 0.01, Eigen::Vector3d(0, 0, 0.02));
+  SolverParams p = paramsFor(*lattice);
+  p.integrator = Integrator::Implicit;
+  p.implicitScheme = ImplicitScheme::Bdf2;
+  Solver bare(lattice, p);
+  World world(kStep, kSubsteps);
+  Solver& object = world.addObject("block", lattice, p);
+  bare.setCollider("ground", ground(0.0));
+  world.setCollider("ground", ground(0.0));
+  for (int i = 0; i < 30; ++i) {
+    bare.step();
+    world.step();
+  }
+  for (std::size_t i = 0; i < lattice->size(); ++i) ASSERT_EQ(bare.positions()[i], object.positions()[i]);
+  EXPECT_EQ(world.time(), bare.time());
+  auto other = boxAt(5, 4, 3, 0.01, Eigen::Vector3d(0.1, 0, 0.02));
+  SolverParams q = paramsFor(*other);
+  q.integrator = Integrator::Implicit;
+  try {
+    world.addObject("neighbour", other, q);
+    FAIL() << "an object beside a bdf2 one is refused";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("bdf2"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(world.objectCount(), 1u);
+}

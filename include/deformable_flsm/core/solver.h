@@ -282,9 +282,9 @@ class Solver : private RegionKernel {
   /// step_.integrate, the sub-step's update of every free particle (see particleResult()),
   /// else the goals into *goalsOut_ (computeGoals()).
   void regionPass(bool withDamping);
-  /// the end of every sub-step, either integrator: contactPass(), finishSubstep(), the timed
-  /// forces' countdown, the clock
-  void endSubstep(double h);
+  /// the end of every sub-step, either integrator: contactPass() and finishSubstep() over the
+  /// step h, the timed forces' countdown and the clock by elapsed (h but for BDF2's solve)
+  void endSubstep(double h, double elapsed);
   /// the sub-step's update of the pinned and hard-dragged particles
   void finishSubstep(double h);
   /// hardDragged_ from drags_ (solver_commands.cpp)
@@ -446,7 +446,10 @@ class Solver : private RegionKernel {
   void implicitBegin(double h);
   /// After the solve (its residual b - A v at residual[offset + i]): the contacts' impulses, the
   /// rigid modes of a free object, v+ and x+, the contact pass.
-  void implicitEnd(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset);
+  /// elapsed: the simulated time the sub-step advances, when it is not h (BDF2's solve of 2h/3);
+  /// 0 for h.
+  void implicitEnd(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset,
+                   double elapsed = 0.0);
   /// After computeRegionWeights(): with the implicit integrator, alpha as requested (no cap) and
   /// the step's buffers sized; called from the constructor and setParams(), never in a step.
   void configureIntegrator();
@@ -456,6 +459,16 @@ class Solver : private RegionKernel {
   void addVolumetricProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) const;
   /// Restores the linear and angular momentum the external forces give (free object only).
   void correctRigidModes(double h);
+  /// ImplicitScheme::Bdf2 at the start of a sub-step of length h: keeps (x_n, v_n) for the next
+  /// one and, with the last sub-step's kept, moves x_ and v_ to BDF2's extrapolated start
+  /// ((4 x_n - x_{n-1}) / 3, likewise v) and returns 2h/3, the backward Euler step from there
+  /// that is BDF2's; without (the first sub-step, after reset() or a change of the state or the
+  /// parameters) returns h: a backward Euler step.
+  double bdf2Begin(double h);
+  /// After a BDF2 sub-step of length h: a particle a contact, a pin or a hard drag moved keeps
+  /// as its last state the one its present velocity gives, x - h v and v, so that it starts
+  /// again from that velocity rather than extrapolating a motion the contact stopped.
+  void bdf2End(double h);
   /// Assembles and factorises the preconditioner's coarse matrix for the sub-step h.
   void assembleCoarse(double h);
   std::unique_ptr<CorotatedHessian> hessian_;
@@ -487,6 +500,12 @@ class Solver : private RegionKernel {
   /// per particle: no contact, sticking, sliding or released (pulling) in the last sub-step
   std::vector<char> implicitContactState_;
   std::vector<Eigen::Vector3d> implicitFriction_;  // kinetic friction impulse of a sliding contact
+  /// ImplicitScheme::Bdf2: x and v at the start of the last sub-step (x_{n-1}, v_{n-1} for the
+  /// next), valid while bdf2Ready_
+  std::vector<Eigen::Vector3d> bdf2LastX_, bdf2LastV_;
+  bool bdf2Ready_ = false;
+  bool bdf2Step_ = false;           // this sub-step solves BDF2 from its extrapolated start
+  Eigen::Vector3d bdf2P_, bdf2L_;   // its linear and angular momentum (about the origin) at x_n
   /// Constrains the free particles that v_n + h g would carry into a collider (see
   /// solver_implicit.cpp); returns whether any is.
   bool constrainContacts(double h);
