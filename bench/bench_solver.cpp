@@ -48,6 +48,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <complex>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -396,14 +397,25 @@ void demoTable(const TriMesh& mesh, std::size_t particles, double h) {
       for (double E : {30e3, 1e6}) demoRow(upright, n, w, E, h);
 }
 
+/// The amplitude a linear mode of angular frequency omega keeps per period under backward Euler
+/// ((1 + (omega h)^2)^(-pi / (omega h))) or BDF2 (its characteristic root r of
+/// (3/2 - i omega h) r^2 - 2 r + 1/2 = 0: |r|^(2 pi / arg r)), at omega h = z.
+double schemeKeeps(ImplicitScheme scheme, double z) {
+  if (scheme == ImplicitScheme::BackwardEuler) return std::pow(1.0 + z * z, -M_PI / z);
+  const std::complex<double> a(1.5, -z), sq = std::sqrt(std::complex<double>(4.0, 0.0) - 2.0 * a);
+  const std::complex<double> r1 = (2.0 + sq) / (2.0 * a), r2 = (2.0 - sq) / (2.0 * a);
+  const std::complex<double> r = std::abs(r1) > std::abs(r2) ? r1 : r2;
+  return std::pow(std::abs(r), 2.0 * M_PI / std::abs(std::arg(r)));
+}
+
 /// The bunny's sway after a poke, with every damping off (region, ambient; no gravity, no ground:
 /// the material and the integrator alone): the 6 particles nearest its top, their mean
 /// displacement along the poke in the object's frame (Solver::rigidFrame()) after each step, for
 /// 1.5 s, fitted by least squares with a damped sinusoid A exp(-s t) cos(omega t + phi) + c (a
 /// search over omega and s, the rest linear): the period 2 pi / omega and the amplitude kept per
 /// period exp(-2 pi s / omega). Prints the row and returns the kept amplitude.
-double swayRow(const TriMesh& upright, std::size_t particles, int w, double E, Integrator integrator, double h,
-               int substeps, double reference) {
+double swayRow(const TriMesh& upright, std::size_t particles, int w, double E, Integrator integrator,
+               ImplicitScheme scheme, double h, int substeps, double reference) {
   const Voxelization vox = voxelizeNear(upright, particles);
   auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
   SolverParams p;
@@ -416,6 +428,7 @@ double swayRow(const TriMesh& upright, std::size_t particles, int w, double E, I
   p.timeStep = h;
   p.substeps = substeps;
   p.integrator = integrator;
+  p.implicitScheme = scheme;
   Solver s(lattice, p);
   Eigen::Vector3d lo = s.positions()[0], hi = lo, centre = Eigen::Vector3d::Zero();
   std::uint32_t top = 0;
@@ -479,10 +492,11 @@ double swayRow(const TriMesh& upright, std::size_t particles, int w, double E, I
   const double period = 2.0 * M_PI / omega;
   const double kept = std::exp(-decay * period);
   const double omegaH = omega * h / substeps;
-  std::printf("%10zu %3d %9.3g %9s %7.4f %9d %9.3f %9.3f %11.3f %12.3f %11.2f\n", lattice->size(), w, E,
-              integrator == Integrator::Implicit ? "implicit" : "explicit", h, substeps, period, kept,
-              integrator == Integrator::Implicit ? std::pow(1.0 + omegaH * omegaH, -M_PI / omegaH) : 1.0,
-              reference > 0.0 ? kept / reference : 1.0, cpu / 1.5);
+  const bool implicit = integrator == Integrator::Implicit;
+  std::printf("%10zu %3d %9.3g %15s %7.4f %9d %9.3f %9.3f %11.3f %12.3f %11.2f\n", lattice->size(), w, E,
+              !implicit ? "explicit" : scheme == ImplicitScheme::Bdf2 ? "implicit bdf2" : "implicit BE", h, substeps,
+              period, kept, implicit ? schemeKeeps(scheme, omegaH) : 1.0, reference > 0.0 ? kept / reference : 1.0,
+              cpu / 1.5);
   return kept;
 }
 
@@ -493,14 +507,18 @@ void swayTable(const TriMesh& mesh, std::size_t particles) {
   const Eigen::Matrix3d R = Eigen::AngleAxisd(0.5 * M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
   for (auto& v : upright.vertices) v = R * v;
   std::printf("\nthe bunny's sway after a poke, every damping off (nu 0, w = 2, 30 kPa): period (s), amplitude kept\n"
-              "per period, backward Euler's (1 + (omega h)^2)^(-pi / (omega h)) at that period, kept over the\n"
-              "explicit step's, CPU s per simulated s (one thread)\n"
-              "%10s %3s %9s %9s %7s %9s %9s %9s %11s %12s %11s\n", "particles", "w", "E (Pa)", "step", "h (s)",
-              "substeps", "period", "kept", "BE formula", "over explicit", "CPU s/s");
-  const double reference = swayRow(upright, particles, 2, 30e3, Integrator::Explicit, 1.0 / 60.0, 80, 0.0);
-  swayRow(upright, particles, 2, 30e3, Integrator::Implicit, 1.0 / 60.0, 4, reference);
-  swayRow(upright, particles, 2, 30e3, Integrator::Implicit, 1.0 / 60.0, 1, reference);
-  swayRow(upright, particles, 2, 30e3, Integrator::Implicit, 1.0 / 30.0, 1, reference);
+              "per period, what the scheme keeps of a linear mode at that period, kept over the explicit step's,\n"
+              "CPU s per simulated s (one thread)\n"
+              "%10s %3s %9s %15s %7s %9s %9s %9s %11s %12s %11s\n", "particles", "w", "E (Pa)", "step", "h (s)",
+              "substeps", "period", "kept", "scheme's", "over explicit", "CPU s/s");
+  constexpr auto BE = ImplicitScheme::BackwardEuler;
+  constexpr auto BDF2 = ImplicitScheme::Bdf2;
+  const double reference = swayRow(upright, particles, 2, 30e3, Integrator::Explicit, BE, 1.0 / 60.0, 80, 0.0);
+  for (ImplicitScheme scheme : {BE, BDF2}) {
+    swayRow(upright, particles, 2, 30e3, Integrator::Implicit, scheme, 1.0 / 60.0, 4, reference);
+    swayRow(upright, particles, 2, 30e3, Integrator::Implicit, scheme, 1.0 / 60.0, 1, reference);
+    swayRow(upright, particles, 2, 30e3, Integrator::Implicit, scheme, 1.0 / 30.0, 1, reference);
+  }
 }
 
 }  // namespace
