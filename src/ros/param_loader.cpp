@@ -89,6 +89,13 @@ NodeParams ParamLoader::loadNodeParams() const {
                      "modulus capped by the sub-step) or 'implicit' (backward Euler, any modulus at one "
                      "sub-step)");
   }
+  const std::string scheme = getString("implicit_scheme", toString(s.implicitScheme));
+  try {
+    s.implicitScheme = parseImplicitScheme(scheme);
+  } catch (const std::invalid_argument&) {
+    throw ParamError("~implicit_scheme is '" + scheme + "': it must be 'backward_euler' (first order, damps "
+                     "the object's own vibration) or 'bdf2' (second order, keeps it; one object alone)");
+  }
 
   p.publishRate = getDouble("publish_rate", p.publishRate);
   p.republishAtRest = getBool("republish_at_rest", p.republishAtRest);

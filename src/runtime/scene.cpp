@@ -185,6 +185,14 @@ WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& o
     throw ParamError(std::string("the scene cannot be built: ") + e.what());
   }
   World& world = *scene.world;
+  // BDF2 steps one object alone (World::addObject() refuses it for objects that may touch)
+  const bool touching = (objects.size() >= 2 && params.objectContact.enabled) || params.objectContact.selfContact;
+  for (const ObjectSpec& spec : objects)
+    if (touching && spec.params.solver.integrator == Integrator::Implicit &&
+        spec.params.solver.implicitScheme == ImplicitScheme::Bdf2)
+      throw ParamError("object '" + spec.name + "': ~implicit_scheme bdf2 steps one object alone, and these objects "
+                       "touch each other (~object_contact) or themselves (~self_contact): set ~implicit_scheme to "
+                       "backward_euler, or turn object contact off");
   // Objects of the same mesh file, scale and orientation share one load.
   std::map<std::tuple<std::string, double, double, double, double>, TriMesh> loaded;
   std::vector<TriMesh> meshes;  // each object's mesh at its pose, for the ground

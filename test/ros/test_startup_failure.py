@@ -69,6 +69,10 @@ class StartupFailureTest(unittest.TestCase):
         self.assert_fails_naming('flsm_bad_solver', ["~solver is 'fastest'", "'fast'", "'naive'"],
                                  '_solver:=fastest')
 
+    def test_unknown_implicit_scheme_is_refused(self):
+        self.assert_fails_naming('flsm_bad_scheme', ["~implicit_scheme is 'bdf3'", "'backward_euler'", "'bdf2'"],
+                                 '_implicit_scheme:=bdf3')
+
     def test_spacing_and_resolution_together_are_refused(self):
         self.assert_fails_naming('flsm_both_lattice', ['~spacing', '~resolution', 'both set'],
                                  '_spacing:=0.01', '_resolution:=12')

@@ -283,6 +283,32 @@ TEST(BuildScene, SeveralObjectsWithTheImplicitStepAreBuilt) {
     for (const auto& x : scene.world->object(name)->positions()) ASSERT_TRUE(x.allFinite()) << name;
 }
 
+// The implicit scheme bdf2 steps one object alone: objects that touch each other are refused at
+// start-up with what to change; with object contact off they are built.
+TEST(BuildScene, Bdf2ObjectsThatTouchAreRefusedWithWhatToChange) {
+  NodeParams params = cubeParams();
+  params.solver.integrator = Integrator::Implicit;
+  params.solver.implicitScheme = ImplicitScheme::Bdf2;
+  params.solver.substeps = 1;
+  std::vector<ObjectSpec> objects(2);
+  for (int k = 0; k < 2; ++k) {
+    objects[k].name = k == 0 ? "a" : "b";
+    objects[k].params = params;
+    objects[k].pose.translation() = Eigen::Vector3d(3.0 * k, 0.0, 0.0);
+  }
+  const auto cube = [](const NodeParams&) { return test::boxMesh(Eigen::Vector3d::Ones()); };
+  try {
+    buildWorld(params, objects, cube);
+    FAIL() << "no error";
+  } catch (const ParamError& e) {
+    EXPECT_NE(std::string(e.what()).find("~implicit_scheme"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("backward_euler"), std::string::npos) << e.what();
+  }
+  params.objectContact.enabled = false;
+  const WorldScene scene = buildWorld(params, objects, cube);
+  EXPECT_EQ(scene.world->objectCount(), 2u);
+}
+
 /// The message of the ParamError that validate() throws, or "" when it passes.
 std::string problem(const NodeParams& p) {
   try {
