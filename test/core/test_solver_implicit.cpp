@@ -310,31 +310,37 @@ TEST(ImplicitStep, PinsAndDragsHold) {
   }
 }
 
-// One or two threads: the same sums in the same order, bit-identical states.
+// One or two threads: the same sums in the same order, bit-identical states, with either scheme.
 TEST(ImplicitStep, OneAndTwoThreadsGiveIdenticalResults) {
   const auto vox = deformable_flsm::test::makeBox(12, 10, 9, 0.01);
   auto lattice = std::make_shared<const Lattice>(vox, kDensity, 2);
-  std::vector<std::vector<Eigen::Vector3d>> result;
-  for (int threads : {1, 2}) {
-    SolverParams p = implicitParams(1e6, 0.3, 2, 1.0 / 60.0);
-    p.threads = threads;
-    Solver s(lattice, p);
-    s.pinBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(0.005, kBig, kBig), true);
-    s.grab("spring", s.particlesWithin(Eigen::Vector3d(0.11, 0.05, 0.05), 0.02), Eigen::Vector3d(0.15, 0.05, 0.1),
-           50.0);
-    for (int i = 0; i < 20; ++i) s.step();
-    result.push_back(s.positions());
+  for (auto scheme : {deformable_flsm::ImplicitScheme::BackwardEuler, deformable_flsm::ImplicitScheme::Bdf2}) {
+    std::vector<std::vector<Eigen::Vector3d>> result;
+    for (int threads : {1, 2}) {
+      SolverParams p = implicitParams(1e6, 0.3, 2, 1.0 / 60.0);
+      p.threads = threads;
+      p.implicitScheme = scheme;
+      Solver s(lattice, p);
+      s.pinBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(0.005, kBig, kBig), true);
+      s.grab("spring", s.particlesWithin(Eigen::Vector3d(0.11, 0.05, 0.05), 0.02),
+             Eigen::Vector3d(0.15, 0.05, 0.1), 50.0);
+      for (int i = 0; i < 20; ++i) s.step();
+      result.push_back(s.positions());
+    }
+    for (std::size_t i = 0; i < result[0].size(); ++i)
+      ASSERT_EQ(result[0][i], result[1][i]) << "particle " << i << ", " << toString(scheme);
   }
-  for (std::size_t i = 0; i < result[0].size(); ++i) ASSERT_EQ(result[0][i], result[1][i]) << "particle " << i;
 }
 
-// An implicit step allocates nothing once the solver has stepped once: the preconditioner's
+// An implicit step (either scheme) allocates nothing once the solver has stepped once: the preconditioner's
 // aggregates, region moments and coarse factorisation live in buffers sized outside the step,
 // with pins, a hard and a spring drag, a timed force, the Poisson term and a ground contact.
 TEST(ImplicitStep, StepDoesNotAllocate) {
-  for (int threads : {1, 2}) {
+  for (int run = 0; run < 4; ++run) {
+    const int threads = 1 + run % 2;
     SolverParams p = implicitParams(1e6, 0.3, 2, 1.0 / 60.0);
     p.threads = threads;
+    if (run >= 2) p.implicitScheme = deformable_flsm::ImplicitScheme::Bdf2;
     Solver s(std::make_shared<const Lattice>(deformable_flsm::test::makeBox(12, 4, 4, 0.01), kDensity, 2), p);
     s.pinBox(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d(0.016, 1.0, 1.0), true);
     s.grab("hard", {100}, Eigen::Vector3d(0.15, 0.0, 0.0), 0.0);
@@ -347,7 +353,7 @@ TEST(ImplicitStep, StepDoesNotAllocate) {
     s.step();
     const long before = gAllocations.load();
     for (int i = 0; i < 20; ++i) s.step();
-    EXPECT_EQ(gAllocations.load() - before, 0) << "threads " << threads;
+    EXPECT_EQ(gAllocations.load() - before, 0) << "threads " << threads << ", " << toString(p.implicitScheme);
   }
 }
 
