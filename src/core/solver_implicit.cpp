@@ -64,6 +64,10 @@ constexpr int kCoarseAggregates = 64;
 /// (docs/performance.md).
 constexpr double kCoarseTurn = 0.05;
 constexpr int kCoarseAge = 30;
+/// BDF2 steps the object while no particle lies farther than this (in cells) from its goal; beyond,
+/// far from the linear regime where its second order pays (a crushed or scrambled object), the
+/// sub-step is backward Euler's, which recovers from any start (docs/method.md).
+constexpr double kBdf2MaxGoalGap = 0.25;
 /// Inertia eigenvalues below this fraction of the largest are treated as zero (a collinear object
 /// cannot spin about its own line).
 constexpr double kInertiaRankTolerance = 1e-10;
@@ -160,7 +164,7 @@ double Solver::bdf2Begin(double h) {
     std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
     impulsePending_ = false;
   }
-  if (!bdf2Ready_) {
+  if (!bdf2Ready_ || implicitGoalGap_ > kBdf2MaxGoalGap) {
     bdf2LastX_ = x_;  // same size: no allocation
     bdf2LastV_ = v_;
     bdf2Ready_ = true;
@@ -274,12 +278,13 @@ void Solver::implicitBegin(double h) {
   }
   // Right-hand side M v_n + h f_el(x_n), the initial guess and the Jacobi preconditioner.
   const double pull = alpha / h;  // h k
-  double rhsNorm = 0.0, gravityNorm = 0.0;
+  double rhsNorm = 0.0, gravityNorm = 0.0, goalGap2 = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     Eigen::Vector3d a = params_.gravity;
     if (!forcedParticles_.empty()) a += forceAccel_[i];
     if (volumetric_) a += volumetricAccel_[i];
     Eigen::Vector3d b = m[i] * (keep * v_[i] + h * a + pull * stiffnessFactor_[i] * (implicitGoal_[i] - x_[i]));
+    goalGap2 = std::max(goalGap2, (implicitGoal_[i] - x_[i]).squaredNorm());
     // relative ambient damping pulls towards the object's rigid motion as gravity carries it
     // over the sub-step (as the explicit step damps before adding gravity): free fall is exact
     if (relative) b += (h * c * m[i]) * (rigidVelocity_ + rigidSpin_.cross(x_[i] - xref_) + h * params_.gravity);
@@ -317,6 +322,7 @@ void Solver::implicitBegin(double h) {
     gravityNorm += g.dot(implicitInvPrecond_[i].cwiseProduct(g));
   }
   implicitFreeCount_ = free;
+  implicitGoalGap_ = std::sqrt(goalGap2) / lattice_->spacing();
   implicitRhsNorm2_ = rhsNorm;
   implicitGravityNorm2_ = gravityNorm;
   implicitFloor_ = kCgFloor * std::max({std::sqrt(rhsNorm), std::sqrt(gravityNorm), 1e-300}) /
@@ -447,7 +453,10 @@ bool Solver::constrainContacts(double h) {
 double Solver::startDepth(std::size_t i, int b) const {
   const ContactBody& body = contactBodies_[static_cast<std::size_t>(b)];
   Eigen::Vector3d normal;
-  return colliderDistance(body.collider->shape, body.before, x_[i], normal) - contactRadius();
+  // BDF2 solves from its extrapolated start x_: the sub-step starts at x_n (a landing particle's
+  // extrapolation into the collider is not a penetration to keep)
+  const Eigen::Vector3d& x = bdf2Step_ ? bdf2LastX_[i] : x_[i];
+  return colliderDistance(body.collider->shape, body.before, x, normal) - contactRadius();
 }
 
 int Solver::deepestContact(const Eigen::Vector3d& x, double within, Eigen::Vector3d& normal, double& depth,
