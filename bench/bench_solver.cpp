@@ -309,6 +309,21 @@ void implicitTable(const TriMesh& mesh, std::size_t particles, const Args& args)
   }
 }
 
+/// The bunny's material in the demo and sway tables: E, nu 0, the node's region damping 10 and
+/// ambient damping 0.5, steps of h in `substeps`.
+SolverParams bunnyParams(int w, double E, Integrator integrator, double h, int substeps) {
+  SolverParams p;
+  p.regionHalfWidth = w;
+  p.youngsModulus = E;
+  p.poissonsRatio = 0.0;
+  p.damping = 10.0;
+  p.ambientDamping = 0.5;
+  p.timeStep = h;
+  p.substeps = substeps;
+  p.integrator = integrator;
+  return p;
+}
+
 /// The node's demo on the ground (flsm_demo): the bunny upright, dropped 2 cm onto a ground plane
 /// and left 2.5 s; the 6 particles nearest its top dragged (hard) round the demo's circle for 5 s,
 /// the target moved at 20 Hz; released and left 2.5 s; poked sideways (an impulse of 0.6 object
@@ -318,16 +333,7 @@ void implicitTable(const TriMesh& mesh, std::size_t particles, const Args& args)
 void demoRow(const TriMesh& upright, std::size_t particles, int w, double E, double h) {
   const Voxelization vox = voxelizeNear(upright, particles);
   auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
-  SolverParams p;
-  p.regionHalfWidth = w;
-  p.youngsModulus = E;
-  p.poissonsRatio = 0.0;
-  p.damping = 10.0;
-  p.ambientDamping = 0.5;
-  p.substeps = 1;
-  p.timeStep = h;
-  p.integrator = Integrator::Implicit;
-  Solver s(lattice, p);
+  Solver s(lattice, bunnyParams(w, E, Integrator::Implicit, h, 1));
   setGroundBelow(s);
   std::uint32_t top = 0;
   for (std::uint32_t k = 0; k < s.positions().size(); ++k)
@@ -418,16 +424,10 @@ double swayRow(const TriMesh& upright, std::size_t particles, int w, double E, I
                ImplicitScheme scheme, double h, int substeps, double reference) {
   const Voxelization vox = voxelizeNear(upright, particles);
   auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
-  SolverParams p;
-  p.regionHalfWidth = w;
-  p.youngsModulus = E;
-  p.poissonsRatio = 0.0;
+  SolverParams p = bunnyParams(w, E, integrator, h, substeps);
   p.damping = 0.0;
   p.ambientDamping = 0.0;
   p.gravity.setZero();
-  p.timeStep = h;
-  p.substeps = substeps;
-  p.integrator = integrator;
   p.implicitScheme = scheme;
   Solver s(lattice, p);
   Eigen::Vector3d lo = s.positions()[0], hi = lo, centre = Eigen::Vector3d::Zero();

@@ -15,10 +15,28 @@
 #include <functional>
 #include <random>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 namespace deformable_flsm {
 namespace test {
+
+/// The extremes of a sampled swing z: (index, value) of each sample that is the largest or the
+/// smallest within `window` samples either side, so that faint higher modes cannot make
+/// extremes of their own (a quarter of the period is a good window).
+inline std::vector<std::pair<int, double>> swingExtremes(const std::vector<double>& z, int window) {
+  std::vector<std::pair<int, double>> extremes;
+  const int n = static_cast<int>(z.size());
+  for (int k = window; k + window < n; ++k) {
+    bool isMax = true, isMin = true;
+    for (int j = k - window; j <= k + window; ++j) {
+      isMax = isMax && z[static_cast<std::size_t>(j)] <= z[static_cast<std::size_t>(k)];
+      isMin = isMin && z[static_cast<std::size_t>(j)] >= z[static_cast<std::size_t>(k)];
+    }
+    if (isMax || isMin) extremes.emplace_back(k, z[static_cast<std::size_t>(k)]);
+  }
+  return extremes;
+}
 
 /// Voxelization holding the cells of a dims-sized lattice for which `keep(i, j, k)` is true,
 /// sorted by (k, j, i) as voxelize() produces them, every cell full.

@@ -806,17 +806,8 @@ Swing barSwing(deformable_flsm::ImplicitScheme scheme) {
     for (std::uint32_t i : tip) sum += s.positions()[i].z();
     z[static_cast<std::size_t>(k)] = sum / tip.size();
   }
-  // extremes of the tip, each the largest or smallest within a quarter of a period
-  const int window = std::max(1, static_cast<int>(0.25 * period / step));
-  std::vector<std::pair<int, double>> extremes;
-  for (int k = window; k + window < steps; ++k) {
-    bool isMax = true, isMin = true;
-    for (int j = k - window; j <= k + window; ++j) {
-      isMax = isMax && z[static_cast<std::size_t>(j)] <= z[static_cast<std::size_t>(k)];
-      isMin = isMin && z[static_cast<std::size_t>(j)] >= z[static_cast<std::size_t>(k)];
-    }
-    if (isMax || isMin) extremes.emplace_back(k, z[static_cast<std::size_t>(k)]);
-  }
+  const auto extremes =
+      deformable_flsm::test::swingExtremes(z, std::max(1, static_cast<int>(0.25 * period / step)));
   Swing out;
   out.swung = extremes.size() >= 5u;
   if (!out.swung) return out;

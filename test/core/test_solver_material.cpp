@@ -519,16 +519,7 @@ Decay cantileverDecay(double c, Integrator integrator, int substeps) {
   }
   // swings: extremes of the tip, each the largest or smallest within a quarter of a period
   // (so that the faint higher modes cannot make extremes of their own)
-  const int window = static_cast<int>(0.25 * period / kStep);
-  std::vector<std::pair<int, double>> extremes;
-  for (int k = window; k + window < steps; ++k) {
-    bool isMax = true, isMin = true;
-    for (int j = k - window; j <= k + window; ++j) {
-      isMax = isMax && z[static_cast<std::size_t>(j)] <= z[static_cast<std::size_t>(k)];
-      isMin = isMin && z[static_cast<std::size_t>(j)] >= z[static_cast<std::size_t>(k)];
-    }
-    if (isMax || isMin) extremes.emplace_back(k, z[static_cast<std::size_t>(k)]);
-  }
+  const auto extremes = deformable_flsm::test::swingExtremes(z, static_cast<int>(0.25 * period / kStep));
   Decay out;
   out.swung = extremes.size() >= 6u;
   if (!out.swung) return out;

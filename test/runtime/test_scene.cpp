@@ -261,18 +261,24 @@ TEST(PrepareObject, AMeshThatCannotBeLoadedNamesTheObject) {
   }
 }
 
-// Several objects with the implicit step are built into one World, each with the implicit
-// integrator, and step (their contact is inside one solve: test_world).
-TEST(BuildScene, SeveralObjectsWithTheImplicitStepAreBuilt) {
-  NodeParams params = cubeParams();
-  params.solver.integrator = Integrator::Implicit;
-  params.solver.substeps = 1;
+/// Objects "a" and "b" with these parameters, 3 m apart along x.
+std::vector<ObjectSpec> twoCubesApart(const NodeParams& params) {
   std::vector<ObjectSpec> objects(2);
   for (int k = 0; k < 2; ++k) {
     objects[k].name = k == 0 ? "a" : "b";
     objects[k].params = params;
     objects[k].pose.translation() = Eigen::Vector3d(3.0 * k, 0.0, 0.0);
   }
+  return objects;
+}
+
+// Several objects with the implicit step are built into one World, each with the implicit
+// integrator, and step (their contact is inside one solve: test_world).
+TEST(BuildScene, SeveralObjectsWithTheImplicitStepAreBuilt) {
+  NodeParams params = cubeParams();
+  params.solver.integrator = Integrator::Implicit;
+  params.solver.substeps = 1;
+  const std::vector<ObjectSpec> objects = twoCubesApart(params);
   const auto cube = [](const NodeParams&) { return test::boxMesh(Eigen::Vector3d::Ones()); };
   const WorldScene scene = buildWorld(params, objects, cube);
   ASSERT_EQ(scene.world->objectCount(), 2u);
@@ -290,12 +296,7 @@ TEST(BuildScene, Bdf2ObjectsThatTouchAreRefusedWithWhatToChange) {
   params.solver.integrator = Integrator::Implicit;
   params.solver.implicitScheme = ImplicitScheme::Bdf2;
   params.solver.substeps = 1;
-  std::vector<ObjectSpec> objects(2);
-  for (int k = 0; k < 2; ++k) {
-    objects[k].name = k == 0 ? "a" : "b";
-    objects[k].params = params;
-    objects[k].pose.translation() = Eigen::Vector3d(3.0 * k, 0.0, 0.0);
-  }
+  const std::vector<ObjectSpec> objects = twoCubesApart(params);
   const auto cube = [](const NodeParams&) { return test::boxMesh(Eigen::Vector3d::Ones()); };
   try {
     buildWorld(params, objects, cube);
