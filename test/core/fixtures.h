@@ -21,6 +21,22 @@
 namespace deformable_flsm {
 namespace test {
 
+/// Steps the solver `steps` times and returns, after each step, the mean height (z) of the
+/// particles whose rest x is beyond `beyondX`: a cantilever's tip.
+inline std::vector<double> tipHeights(Solver& solver, double beyondX, int steps) {
+  std::vector<std::uint32_t> tip;
+  for (std::uint32_t i = 0; i < solver.lattice().size(); ++i)
+    if (solver.lattice().restPositions()[i].x() > beyondX) tip.push_back(i);
+  std::vector<double> z(static_cast<std::size_t>(steps));
+  for (int k = 0; k < steps; ++k) {
+    solver.step();
+    double sum = 0.0;
+    for (std::uint32_t i : tip) sum += solver.positions()[i].z();
+    z[static_cast<std::size_t>(k)] = sum / static_cast<double>(tip.size());
+  }
+  return z;
+}
+
 /// The extremes of a sampled swing z: (index, value) of each sample that is the largest or the
 /// smallest within `window` samples either side, so that faint higher modes cannot make
 /// extremes of their own (a quarter of the period is a good window).

@@ -793,19 +793,10 @@ Swing barSwing(deformable_flsm::ImplicitScheme scheme) {
   auto lattice = std::make_shared<const Lattice>(vox, kDensity, 1);
   Solver s(lattice, p);
   s.pinBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(0.0, kBig, kBig), true);
-  std::vector<std::uint32_t> tip;
-  for (std::uint32_t i = 0; i < lattice->size(); ++i)
-    if (lattice->restPositions()[i].x() > L - h) tip.push_back(i);
   const double omegaBeam = analytic::cantileverFirstBendingFrequency(L, t, E, kDensity);
   const double period = 2.0 * M_PI / omegaBeam;
-  const int steps = static_cast<int>(6.0 * period / step);
-  std::vector<double> z(static_cast<std::size_t>(steps));
-  for (int k = 0; k < steps; ++k) {
-    s.step();
-    double sum = 0.0;
-    for (std::uint32_t i : tip) sum += s.positions()[i].z();
-    z[static_cast<std::size_t>(k)] = sum / tip.size();
-  }
+  const std::vector<double> z =
+      deformable_flsm::test::tipHeights(s, L - h, static_cast<int>(6.0 * period / step));
   const auto extremes =
       deformable_flsm::test::swingExtremes(z, std::max(1, static_cast<int>(0.25 * period / step)));
   Swing out;

@@ -505,18 +505,9 @@ Decay cantileverDecay(double c, Integrator integrator, int substeps) {
   auto lattice = std::make_shared<const Lattice>(vox, kDensity, 1);
   Solver s(lattice, p);
   s.pinBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(0.0, kBig, kBig), true);
-  std::vector<std::uint32_t> tip;
-  for (std::uint32_t i = 0; i < lattice->size(); ++i)
-    if (lattice->restPositions()[i].x() > L - h) tip.push_back(i);
   const double period = 2.0 * M_PI / omegaBeam;
-  const int steps = static_cast<int>(6.0 * period / kStep);
-  std::vector<double> z(static_cast<std::size_t>(steps));
-  for (int k = 0; k < steps; ++k) {
-    s.step();
-    double sum = 0.0;
-    for (std::uint32_t i : tip) sum += s.positions()[i].z();
-    z[static_cast<std::size_t>(k)] = sum / tip.size();
-  }
+  const std::vector<double> z =
+      deformable_flsm::test::tipHeights(s, L - h, static_cast<int>(6.0 * period / kStep));
   // swings: extremes of the tip, each the largest or smallest within a quarter of a period
   // (so that the faint higher modes cannot make extremes of their own)
   const auto extremes = deformable_flsm::test::swingExtremes(z, static_cast<int>(0.25 * period / kStep));
