@@ -30,6 +30,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace deformable_flsm {
 
@@ -64,10 +65,12 @@ constexpr int kCoarseAggregates = 64;
 /// (docs/performance.md).
 constexpr double kCoarseTurn = 0.05;
 constexpr int kCoarseAge = 30;
-/// BDF2 steps the object while no particle lies farther than this (in cells) from its goal; beyond,
-/// far from the linear regime where its second order pays (a crushed or scrambled object), the
-/// sub-step is backward Euler's, which recovers from any start (docs/method.md).
-constexpr double kBdf2MaxGoalGap = 0.25;
+/// BDF2 steps the object while no particle's offset from its goal (goal - x, the elastic force
+/// it feels) changed by more than this (in cells) over the last sub-step; beyond, far from the
+/// slow, near-linear motion where its second order pays (a crushed or scrambled object, a hard
+/// drag's jerk, a landing), the sub-step is backward Euler's, which recovers from any start
+/// (docs/method.md). A steady load (an object standing under its weight) changes nothing.
+constexpr double kBdf2MaxGoalGapChange = 0.1;
 /// Inertia eigenvalues below this fraction of the largest are treated as zero (a collinear object
 /// cannot spin about its own line).
 constexpr double kInertiaRankTolerance = 1e-10;
@@ -118,6 +121,8 @@ void Solver::configureIntegrator() {
   const bool bdf2 = params_.implicitScheme == ImplicitScheme::Bdf2;
   bdf2LastX_.resize(bdf2 ? n : 0);
   bdf2LastV_.resize(bdf2 ? n : 0);
+  bdf2LastGap_.assign(bdf2 ? n : 0, Eigen::Vector3d::Zero());
+  bdf2GapChange_ = std::numeric_limits<double>::infinity();  // no last sub-step to compare with
   bdf2Ready_ = false;  // a new step length or scheme: start again with backward Euler
 }
 
@@ -164,7 +169,7 @@ double Solver::bdf2Begin(double h) {
     std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
     impulsePending_ = false;
   }
-  if (!bdf2Ready_ || implicitGoalGap_ > kBdf2MaxGoalGap) {
+  if (!bdf2Ready_ || bdf2GapChange_ > kBdf2MaxGoalGapChange) {
     bdf2LastX_ = x_;  // same size: no allocation
     bdf2LastV_ = v_;
     bdf2Ready_ = true;
@@ -279,12 +284,17 @@ void Solver::implicitBegin(double h) {
   // Right-hand side M v_n + h f_el(x_n), the initial guess and the Jacobi preconditioner.
   const double pull = alpha / h;  // h k
   double rhsNorm = 0.0, gravityNorm = 0.0, goalGap2 = 0.0;
+  const bool bdf2 = params_.implicitScheme == ImplicitScheme::Bdf2 && bdf2LastGap_.size() == n;
   for (std::size_t i = 0; i < n; ++i) {
     Eigen::Vector3d a = params_.gravity;
     if (!forcedParticles_.empty()) a += forceAccel_[i];
     if (volumetric_) a += volumetricAccel_[i];
     Eigen::Vector3d b = m[i] * (keep * v_[i] + h * a + pull * stiffnessFactor_[i] * (implicitGoal_[i] - x_[i]));
-    goalGap2 = std::max(goalGap2, (implicitGoal_[i] - x_[i]).squaredNorm());
+    if (bdf2) {
+      const Eigen::Vector3d gap = implicitGoal_[i] - x_[i];
+      goalGap2 = std::max(goalGap2, (gap - bdf2LastGap_[i]).squaredNorm());
+      bdf2LastGap_[i] = gap;
+    }
     // relative ambient damping pulls towards the object's rigid motion as gravity carries it
     // over the sub-step (as the explicit step damps before adding gravity): free fall is exact
     if (relative) b += (h * c * m[i]) * (rigidVelocity_ + rigidSpin_.cross(x_[i] - xref_) + h * params_.gravity);
@@ -322,7 +332,7 @@ void Solver::implicitBegin(double h) {
     gravityNorm += g.dot(implicitInvPrecond_[i].cwiseProduct(g));
   }
   implicitFreeCount_ = free;
-  implicitGoalGap_ = std::sqrt(goalGap2) / lattice_->spacing();
+  bdf2GapChange_ = std::sqrt(goalGap2) / lattice_->spacing();
   implicitRhsNorm2_ = rhsNorm;
   implicitGravityNorm2_ = gravityNorm;
   implicitFloor_ = kCgFloor * std::max({std::sqrt(rhsNorm), std::sqrt(gravityNorm), 1e-300}) /
@@ -597,6 +607,9 @@ bool Solver::updateContactSet(double h, bool& guessChanged, Pcg& pcg, std::size_
 // pass's do.
 void Solver::sumContactImpulses(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset) {
   const double r = contactRadius();
+  // BDF2's solve of 2/3 of the sub-step takes 2/3 of its impulses (its momentum balance is
+  // P+ = (4 P_n - P_{n-1}) / 3 + (2h/3) (F + contact)): the sub-step's impulse is 3/2 of it
+  const double perSubstep = bdf2Step_ ? params_.substepLength() / h : 1.0;
   for (ContactBody& body : contactBodies_) body.solved = 0;
   for (std::size_t i = 0; i < x_.size(); ++i) {
     if (implicitContactBody_[i] < 0) continue;
@@ -606,6 +619,7 @@ void Solver::sumContactImpulses(double h, const std::vector<Eigen::Vector3d>& re
     Eigen::Vector3d J = -residual[offset + i];
     // a sliding contact's impulse: the normal one and the kinetic friction the solve applied
     if (implicitConstraint_[i] == PcgConstraint::Normal) J = std::max(0.0, J.dot(n)) * n + implicitFriction_[i];
+    J *= perSubstep;
     const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
     body.impulse += J;
     body.moment += (x - r * n - pose.translation()).cross(J);

@@ -841,7 +841,7 @@ TEST(ImplicitStep, Bdf2KeepsTheVibrationThatBackwardEulerDamps) {
 
 // BDF2 conserves linear momentum where no external force acts (a linear multistep method keeps
 // linear invariants) and angular momentum (restored after the solve, as backward Euler's is), and
-// lands a dropped bunny at rest, standing.
+// lands a dropped bunny at rest, standing, the ground's force its weight.
 TEST(ImplicitStep, Bdf2KeepsLinearMomentumAndComesToRestOnTheGround) {
   {
     SolverParams p = implicitParams(1e6, 0.3, 2, 1.0 / 60.0);
@@ -873,8 +873,11 @@ TEST(ImplicitStep, Bdf2KeepsLinearMomentumAndComesToRestOnTheGround) {
     lo = std::min(lo, s.positions()[i].z());
     hi = std::max(hi, s.positions()[i].z());
   }
-  std::printf("[ bdf2 ] bunny after 10 s: fastest particle %.3g m/s, height %.3f of its rest height\n", vmax,
-              (hi - lo) / height0);
+  const double weight = lattice->totalMass() * 9.81;
+  const double carried = -s.contactWrench("ground").force.z() / weight;  // the force on the ground
+  std::printf("[ bdf2 ] bunny after 10 s: fastest particle %.3g m/s, height %.3f of its rest height, the ground "
+              "carries %.4f of its weight\n", vmax, (hi - lo) / height0, carried);
   EXPECT_LT(vmax, 1e-3);
   EXPECT_GT(hi - lo, 0.8 * height0);
+  EXPECT_NEAR(carried, 1.0, 0.01) << "the ground's force is the weight";
 }

@@ -505,7 +505,10 @@ class Solver : private RegionKernel {
   std::vector<Eigen::Vector3d> bdf2LastX_, bdf2LastV_;
   bool bdf2Ready_ = false;
   bool bdf2Step_ = false;           // this sub-step solves BDF2 from its extrapolated start
-  double implicitGoalGap_ = 0.0;    // the last sub-step's largest |goal - x| at its start (cells)
+  /// the largest change of a particle's goal - x over the last sub-step (cells), and each
+  /// particle's goal - x at its start
+  double bdf2GapChange_ = 0.0;
+  std::vector<Eigen::Vector3d> bdf2LastGap_;
   Eigen::Vector3d bdf2P_, bdf2L_;   // its linear and angular momentum (about the origin) at x_n
   /// Constrains the free particles that v_n + h g would carry into a collider (see
   /// solver_implicit.cpp); returns whether any is.

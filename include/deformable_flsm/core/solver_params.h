@@ -48,10 +48,11 @@ enum class ImplicitScheme {
   /// (2h / 3) v+, v+ likewise; still L-stable, and a mode keeps 0.96 of its amplitude a period at
   /// omega h = 0.32 where backward Euler keeps 0.38. Solved as a backward Euler step of 2h/3 from
   /// the extrapolated state; the first sub-step, and a particle that a contact, a pin or a hard
-  /// drag moved in the last one, start again from their present velocity. Far from the linear
-  /// regime (a particle more than a quarter of a cell from its goal: a crushed, scrambled or
-  /// violently dragged object) a sub-step is backward Euler's, which recovers from any start
-  /// (docs/method.md). One object, or objects that do not touch (World refuses it otherwise).
+  /// drag moved in the last one, start again from their present velocity. After a sub-step in
+  /// which some particle's goal - x changed by more than a tenth of a cell (a crushed, scrambled
+  /// or violently dragged object, a landing) a sub-step is backward Euler's, which recovers from
+  /// any start (docs/method.md). One object, or objects that do not touch (World refuses it
+  /// otherwise).
   Bdf2,
 };
 
