@@ -502,7 +502,7 @@ void Solver::substep(double h) {
 // What both integrators do after their velocity update: contact, the prescribed particles, the
 // timed forces' countdown and the clock.
 void Solver::endSubstep(double h, double elapsed) {
-  contactPass(h);
+  contactPass(h, elapsed);
   finishSubstep(h);
   for (TimedForce& f : forces_) f.remaining -= elapsed;
   forces_.erase(std::remove_if(forces_.begin(), forces_.end(),

@@ -173,10 +173,10 @@ void Solver::beginContactStep() {
 // The impulses m dv, and their moments about each collider's origin taken at the contact point
 // x* - r n, are summed per chunk, then over the chunks in order.
 // Pinned and hard-dragged particles are left alone: their motion is prescribed.
-void Solver::contactPass(double h) {
+void Solver::contactPass(double h, double elapsed) {
   ++contactPasses_;  // the counts of older passes no longer match (countedContact())
   if (contactBodies_.empty()) return;
-  contactTime_ += h;
+  contactTime_ += elapsed;
   const double r = contactRadius();
   Eigen::Vector3d lo = x_[0], hi = x_[0];
   for (const Eigen::Vector3d& x : x_) {
@@ -187,7 +187,7 @@ void Solver::contactPass(double h) {
   for (std::size_t b = 0; b < contactBodies_.size(); ++b) {
     ContactBody& body = contactBodies_[b];
     const Collider& c = *body.collider;
-    body.before = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_ - h);
+    body.before = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_ - elapsed);
     body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_);
     // the implicit solve's contacts, then the particles this pass moves out of the collider
     body.contacts = body.solved;

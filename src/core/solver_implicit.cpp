@@ -124,6 +124,7 @@ void Solver::configureIntegrator() {
   bdf2LastGap_.assign(bdf2 ? n : 0, Eigen::Vector3d::Zero());
   bdf2GapChange_ = std::numeric_limits<double>::infinity();  // no last sub-step to compare with
   bdf2Ready_ = false;  // a new step length or scheme: start again with backward Euler
+  bdf2Step_ = false;
 }
 
 void Solver::implicitSubstep(double substep) {
@@ -176,14 +177,18 @@ double Solver::bdf2Begin(double h) {
     return h;
   }
   // the momenta BDF2's solve must keep (correctRigidModes()): a linear multistep method keeps
-  // the linear one by itself, not the angular one
+  // the linear one by itself, not the spin
   const auto& m = lattice_->masses();
+  double M = 0.0;
+  Eigen::Vector3d mx = Eigen::Vector3d::Zero(), L = Eigen::Vector3d::Zero();
   bdf2P_.setZero();
-  bdf2L_.setZero();
   for (std::size_t i = 0; i < n; ++i) {
+    M += m[i];
+    mx += m[i] * (x_[i] - x_[0]);
     bdf2P_ += m[i] * v_[i];
-    bdf2L_ += m[i] * x_[i].cross(v_[i]);
+    L += m[i] * (x_[i] - x_[0]).cross(v_[i]);
   }
+  bdf2Spin_ = L - (mx / M).cross(bdf2P_);  // about the centre of mass
   bdf2Step_ = true;
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d x = x_[i], v = v_[i];
@@ -217,7 +222,8 @@ void Solver::implicitBegin(double h) {
     std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
     impulsePending_ = false;
   }
-  accumulateForces(h);
+  // a timed force's last sub-step is cut by the time the sub-step advances (BDF2 solves 2/3 of it)
+  accumulateForces(bdf2Step_ ? params_.substepLength() : h);
   // The linearisation point: one ordinary region pass gives the goals and the rotations R_r.
   computeGoals(implicitGoal_);
   if (volumetric_) {
@@ -374,6 +380,8 @@ void Solver::implicitEnd(double h, const std::vector<Eigen::Vector3d>& residual,
 // the solve would leave the rest of the object moving as if it slid, and feed energy into it.
 bool Solver::constrainContacts(double h) {
   if (contactBodies_.empty()) return false;
+  // the colliders move over the time the sub-step advances (BDF2 solves 2/3 of it)
+  const double elapsed = bdf2Step_ ? params_.substepLength() : h;
   const double r = contactRadius();
   const double slop = kContactSlop * r;
   // below this slip speed a contact's slip direction is noise: what gravity adds in a sub-step
@@ -384,7 +392,7 @@ bool Solver::constrainContacts(double h) {
   for (ContactBody& body : contactBodies_) {
     const Collider& c = *body.collider;
     body.before = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_);
-    body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_ + h);
+    body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_ + elapsed);
     body.bounded = colliderBounds(c.shape, body.now, body.lo, body.hi);
     if (body.bounded) {
       body.lo.array() -= r + slop;
@@ -702,15 +710,17 @@ void Solver::correctRigidModes(double h) {
   Eigen::Vector3d mp = Eigen::Vector3d::Zero(), dP = Eigen::Vector3d::Zero(), dL = Eigen::Vector3d::Zero();
   Eigen::Matrix3d mpp = Eigen::Matrix3d::Zero();
   const bool forced = !forcedParticles_.empty();
-  // BDF2 (x_, v_ its extrapolated start, h 2/3 of the sub-step): P+ = P_n + H F and
-  // L+ = sum m x+ x v+ = sum m x_ x v+ = L_n + H sum x_ x m a_ext over the sub-step H
+  // BDF2 (x_, v_ its extrapolated start, h 2/3 of the sub-step H): P+ = P_n + H F, and the spin
+  // about the centre of mass S+ = sum m (x+ - c+) x v+ = sum m (x_ - c) x v+ is S_n plus H times
+  // the external torque about c (a uniform gravity has none). (The angular momentum about a fixed
+  // point would need the centre's path within the step: x_'s centre is a third of a step ahead of
+  // x_n's, not half.)
   Eigen::Vector3d force = Eigen::Vector3d::Zero(), torque = Eigen::Vector3d::Zero();
   Eigen::Vector3d solvedP = Eigen::Vector3d::Zero(), solvedL = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d p = x_[i] - ref;
-    Eigen::Vector3d a = params_.gravity;
-    if (forced) a += forceAccel_[i];
-    const Eigen::Vector3d target = v_[i] + h * a;
+    Eigen::Vector3d target = v_[i] + h * params_.gravity;
+    if (forced) target += h * forceAccel_[i];
     Eigen::Vector3d d = m[i] * (target - implicitVelocity_[i]);
     if (!implicitCouplingImpulse_.empty()) d += implicitCouplingImpulse_[i];
     M += m[i];
@@ -719,21 +729,22 @@ void Solver::correctRigidModes(double h) {
     dL += p.cross(d);
     mpp.noalias() += m[i] * p * p.transpose();
     if (bdf2Step_) {
+      const Eigen::Vector3d a = forced ? Eigen::Vector3d(params_.gravity + forceAccel_[i]) : params_.gravity;
       force += m[i] * a;
-      torque += m[i] * x_[i].cross(a);
+      torque += m[i] * p.cross(a);
       solvedP += m[i] * implicitVelocity_[i];
       solvedL += m[i] * p.cross(implicitVelocity_[i]);
     }
   }
+  const Eigen::Vector3d c = mp / M;
+  Eigen::Vector3d dLc = dL - c.cross(dP);  // what remains about c once u is added
   if (bdf2Step_) {
     const double H = 1.5 * h;
-    const Eigen::Vector3d Pt = bdf2P_ + H * force;
-    dP = Pt - solvedP;
-    dL = (bdf2L_ + H * torque - ref.cross(Pt)) - solvedL;
+    const Eigen::Vector3d targetS = bdf2Spin_ + H * (torque - c.cross(force));
+    dP = bdf2P_ + H * force - solvedP;
+    dLc = targetS - (solvedL - c.cross(solvedP));
   }
-  const Eigen::Vector3d c = mp / M;
   const Eigen::Vector3d u = dP / M;
-  const Eigen::Vector3d dLc = dL - c.cross(dP);  // what remains about c once u is added
   const Eigen::Matrix3d P = mpp - M * c * c.transpose();
   const Eigen::Matrix3d I = P.trace() * Eigen::Matrix3d::Identity() - P;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;

@@ -266,6 +266,10 @@ void World::step() {
       throw std::logic_error("world: object '" + names_[o] + "' was set to a time step of " + num(p.timeStep) +
                              " s in " + std::to_string(p.substeps) + " sub-steps, the world steps " +
                              num(timeStep_) + " s in " + std::to_string(substeps_) + ": give it the world's");
+    if (((N >= 2 && contact_.enabled) || contact_.selfContact) && p.integrator == Integrator::Implicit &&
+        p.implicitScheme == ImplicitScheme::Bdf2)
+      throw std::logic_error("world: object '" + names_[o] + "' was set to the implicit scheme bdf2, which steps "
+                             "one object alone: objects in contact are solved together with backward_euler");
   }
   const double h = timeStep_ / substeps_;
   im.substepColliders.resize(im.colliders.size());

@@ -308,7 +308,7 @@ class Solver : private RegionKernel {
   /// Collider poses at the start of a step, wrench accumulators cleared.
   void beginContactStep();
   /// The contact response of the free particles after the region pass of a sub-step of length h.
-  void contactPass(double h);
+  void contactPass(double h, double elapsed);
   /// Wrenches averaged over the step; colliders left at their end-of-step poses.
   void endContactStep();
   /// contactBodies_ and the reduction buffers after a change of colliders_.
@@ -509,7 +509,7 @@ class Solver : private RegionKernel {
   /// particle's goal - x at its start
   double bdf2GapChange_ = 0.0;
   std::vector<Eigen::Vector3d> bdf2LastGap_;
-  Eigen::Vector3d bdf2P_, bdf2L_;   // its linear and angular momentum (about the origin) at x_n
+  Eigen::Vector3d bdf2P_, bdf2Spin_;  // its linear momentum and spin (about the centre of mass) at x_n
   /// Constrains the free particles that v_n + h g would carry into a collider (see
   /// solver_implicit.cpp); returns whether any is.
   bool constrainContacts(double h);
