@@ -90,8 +90,7 @@ namespace {
 /// object with ImplicitScheme::Bdf2 steps alone, and objects that may touch each other (or one
 /// itself) are solved as one backward Euler system.
 const char* bdf2Refusal(const std::vector<const SolverParams*>& objects, const ObjectContactParams& contact) {
-  const bool coupled = (objects.size() >= 2 && contact.enabled) || contact.selfContact;
-  if (!coupled) return nullptr;
+  if (!contact.couples(objects.size())) return nullptr;
   for (const SolverParams* p : objects)
     if (p->integrator == Integrator::Implicit && p->implicitScheme == ImplicitScheme::Bdf2)
       return "the implicit scheme bdf2 steps one object alone: objects in contact with each other or "
@@ -266,7 +265,7 @@ void World::step() {
       throw std::logic_error("world: object '" + names_[o] + "' was set to a time step of " + num(p.timeStep) +
                              " s in " + std::to_string(p.substeps) + " sub-steps, the world steps " +
                              num(timeStep_) + " s in " + std::to_string(substeps_) + ": give it the world's");
-    if (((N >= 2 && contact_.enabled) || contact_.selfContact) && p.integrator == Integrator::Implicit &&
+    if (contact_.couples(N) && p.integrator == Integrator::Implicit &&
         p.implicitScheme == ImplicitScheme::Bdf2)
       throw std::logic_error("world: object '" + names_[o] + "' was set to the implicit scheme bdf2, which steps "
                              "one object alone: objects in contact are solved together with backward_euler");
@@ -286,7 +285,7 @@ void World::step() {
   for (Solver* s : im.pointers) s->beginStep();
   im.contact.beginStep(N, im.colliders.size());
   // implicit objects that may touch each other (or themselves) are solved as one system
-  const bool touching = (N >= 2 && contact_.enabled) || contact_.selfContact;
+  const bool touching = contact_.couples(N);
   im.coupled.assign(N, 0);
   std::size_t implicitCount = 0;
   for (std::size_t o = 0; o < N; ++o)

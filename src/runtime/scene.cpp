@@ -186,7 +186,7 @@ WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& o
   }
   World& world = *scene.world;
   // BDF2 steps one object alone (World::addObject() refuses it for objects that may touch)
-  const bool touching = (objects.size() >= 2 && params.objectContact.enabled) || params.objectContact.selfContact;
+  const bool touching = params.objectContact.couples(objects.size());
   for (const ObjectSpec& spec : objects)
     if (touching && spec.params.solver.integrator == Integrator::Implicit &&
         spec.params.solver.implicitScheme == ImplicitScheme::Bdf2)

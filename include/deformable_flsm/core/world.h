@@ -40,6 +40,9 @@ struct ObjectContactParams {
 
   /// @throws std::invalid_argument saying which field is wrong
   void validate() const;
+  /// whether `objects` objects may touch each other or themselves: implicit ones are then
+  /// solved as one backward Euler system (World::step())
+  bool couples(std::size_t objects) const { return (objects >= 2 && enabled) || selfContact; }
 };
 
 /// What one object exerted on another over the last step.
