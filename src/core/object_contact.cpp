@@ -32,6 +32,7 @@
 #include "deformable_flsm/core/world.h"
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <initializer_list>
 
@@ -95,7 +96,7 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
   gather(objects, h);
   findPairs(params);
   if (contacts_.empty()) {
-    keptCollider_.clear();  // nothing to warm-start the next sub-step's collider contacts from
+    keepFrozenColliderImpulses();  // nothing else to warm-start the next sub-step's collider contacts from
     return;
   }
   findColliderContacts(colliders, h);
@@ -389,7 +390,7 @@ void ObjectContactSolver::gather(const std::vector<Solver*>& objects, double h) 
     x_[k] = s.positions()[i];
     v_[k] = s.velocities()[i];
     start_[k] = x_[k] - h * v_[k];
-    w_[k] = s.isPrescribed(i) ? 0.0 : 1.0 / s.lattice().masses()[i];
+    w_[k] = frozen(object_[k]) || s.isPrescribed(i) ? 0.0 : 1.0 / s.lattice().masses()[i];
     r_[k] = radius_[object_[k]];
     touched_[k] = 0;
   }
@@ -404,6 +405,8 @@ void ObjectContactSolver::findPairs(const ObjectContactParams& params) {
   contacts_.clear();
   for (std::size_t i = 0; i < candidates_.size(); ++i) {
     const std::uint32_t k1 = candidates_[i].first, k2 = candidates_[i].second;
+    // two objects held still: no contact, and the impulses they had kept for when one wakes
+    if (frozen(object_[k1]) && frozen(object_[k2])) continue;
     // the last sub-step's impulses, read once (keep() writes this sub-step's contacts' back)
     const double lambda = keptLambda_[i];
     const Eigen::Vector3d friction = keptFriction_[i];
@@ -411,13 +414,13 @@ void ObjectContactSolver::findPairs(const ObjectContactParams& params) {
     keptLambda_[i] = 0.0;
     keptFriction_[i].setZero();
     keptSliding_[i] = 0;
+    const double wsum = w_[k1] + w_[k2];
+    if (!(wsum > 0.0)) continue;  // both prescribed (or held still)
     const double R = r_[k1] + r_[k2];
     const double near2 = R * R * (1.0 + kContactMargin) * (1.0 + kContactMargin);
     const Eigen::Vector3d end = x_[k1] - x_[k2];
     const Eigen::Vector3d start = start_[k1] - start_[k2];
     if (end.squaredNorm() >= near2 && start.squaredNorm() >= near2) continue;
-    const double wsum = w_[k1] + w_[k2];
-    if (!(wsum > 0.0)) continue;  // both prescribed
     Contact c;
     c.k1 = k1;
     c.k2 = k2;
@@ -536,10 +539,18 @@ void ObjectContactSolver::keep() {
     keptFriction_[c.slot] = c.friction;
     keptSliding_[c.slot] = slides(c);
   }
+  // the frozen objects' particles have no collider contacts now: theirs are kept, in order
+  keptScratch_.swap(keptCollider_);
   keptCollider_.clear();
-  reserveDoubling(keptCollider_, colliderContacts_.size());
+  reserveDoubling(keptCollider_, colliderContacts_.size() + (frozen_ != nullptr ? keptScratch_.size() : 0));
+  std::size_t old = 0;
+  auto carryBefore = [&](std::uint32_t g, std::size_t ci) {
+    for (; old < keptScratch_.size() && (keptScratch_[old].k < g || (keptScratch_[old].k == g && keptScratch_[old].collider < ci)); ++old)
+      if (frozen(owner_[keptScratch_[old].k])) keptCollider_.push_back(keptScratch_[old]);
+  };
   for (const Contact& c : colliderContacts_) {
     if (c.lambda == 0.0 && c.friction.isZero(0.0)) continue;
+    carryBefore(global_[c.k1], c.k2);
     KeptImpulse k;
     k.k = global_[c.k1];
     k.collider = c.k2;
@@ -548,6 +559,14 @@ void ObjectContactSolver::keep() {
     k.sliding = slides(c);
     keptCollider_.push_back(k);
   }
+  carryBefore(std::numeric_limits<std::uint32_t>::max(), std::numeric_limits<std::size_t>::max());
+}
+
+void ObjectContactSolver::keepFrozenColliderImpulses() {
+  std::size_t n = 0;
+  for (const KeptImpulse& k : keptCollider_)
+    if (frozen(owner_[k.k])) keptCollider_[n++] = k;
+  keptCollider_.resize(n);
 }
 
 // The passes stop early once a whole pass changed no contact's relative velocity by more than

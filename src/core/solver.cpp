@@ -1,5 +1,6 @@
 #include "deformable_flsm/core/solver.h"
 
+#include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/core/polar.h"
 #include "deformable_flsm/core/small_matrix.h"
 #include "lanes.h"
@@ -143,6 +144,7 @@ void Solver::setParams(const SolverParams& params) {
   }
   computeRegionWeights();
   configureIntegrator();
+  ++stateVersion_;
 }
 
 void Solver::reset() {
@@ -164,18 +166,21 @@ void Solver::reset() {
   bdf2Ready_ = false;
   time_ = 0.0;
   substeps_ = 0;
+  ++stateVersion_;
 }
 
 void Solver::setPositions(const std::vector<Eigen::Vector3d>& x) {
   if (x.size() != x_.size()) throw std::invalid_argument("solver: setPositions with the wrong size");
   x_ = x;
   bdf2Ready_ = false;
+  ++stateVersion_;
 }
 
 void Solver::setVelocities(const std::vector<Eigen::Vector3d>& v) {
   if (v.size() != v_.size()) throw std::invalid_argument("solver: setVelocities with the wrong size");
   v_ = v;
   bdf2Ready_ = false;
+  ++stateVersion_;
 }
 
 void Solver::makeSummers() {
@@ -257,6 +262,23 @@ void Solver::endStep() {
     activeSummer_ = summer_.get();
   }
   for (auto& entry : drags_) entry.second.reached = entry.second.pose;
+}
+
+void Solver::idleStep() {
+  const double h = params_.timeStep / params_.substeps;
+  for (int s = 0; s < params_.substeps; ++s) {
+    time_ += h;
+    ++substeps_;
+  }
+  std::fill(v_.begin(), v_.end(), Eigen::Vector3d::Zero());
+  bdf2Ready_ = false;  // its history is of before it stopped
+  const double T = params_.timeStep;
+  for (ContactBody& body : contactBodies_) {
+    Collider& c = *body.collider;
+    body.start = c.pose;
+    c.pose = advancePose(body.start, c.linearVelocity, c.angularVelocity, T);
+    body.now = c.pose;
+  }
 }
 
 // One pass over the regions computes the goal positions and, when damping is on, the damping

@@ -66,7 +66,10 @@ void Solver::setPinned(std::uint32_t particle, bool pinned) {
     pinPosition_[particle] = x_[particle];
     v_[particle].setZero();
   }
-  if (pinned != (pinned_[particle] != 0)) pinned ? ++pinnedCount_ : --pinnedCount_;
+  if (pinned != (pinned_[particle] != 0)) {
+    pinned ? ++pinnedCount_ : --pinnedCount_;
+    ++stateVersion_;
+  }
   pinned_[particle] = pinned ? 1 : 0;
   pinnedListStale_ = true;
 }

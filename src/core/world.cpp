@@ -26,6 +26,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <stdexcept>
@@ -66,6 +67,13 @@ void ObjectContactParams::validate() const {
     throw std::invalid_argument("object contact: iterations must be >= 1 (got " + std::to_string(iterations) + ")");
 }
 
+void SleepParams::validate() const {
+  if (!std::isfinite(fraction) || fraction < 0.0)
+    throw std::invalid_argument("sleep: fraction must be finite and >= 0 (got " + num(fraction) + "; 0 never sleeps)");
+  if (!std::isfinite(hold) || !(hold > 0.0))
+    throw std::invalid_argument("sleep: hold must be finite and > 0 s (got " + num(hold) + ")");
+}
+
 struct World::Impl {
   std::vector<std::unique_ptr<Solver>> objects;
   std::vector<Solver*> pointers;
@@ -76,6 +84,45 @@ struct World::Impl {
   ImplicitCoupling coupling;
   std::vector<char> coupled;  // per object, whether its implicit sub-step is in the coupled solve
   std::vector<ObjectPairWrench> wrenches;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> wrenchObjects;  // per wrench: from, on
+  std::vector<ObjectPairWrench> heldWrenches;  // of two sleeping objects, kept over a step
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> heldObjects;
+
+  /// Per object, what sleeping (SleepParams) needs.
+  struct Rest {
+    bool asleep = false;
+    double quiet = 0.0;                   // s of simulated time within the limit of `anchor`
+    std::vector<Eigen::Vector3d> anchor;  // where that time began
+    std::uint64_t version = 0;            // Solver::stateVersion() when it fell asleep
+    Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();  // its particles' bounds
+    bool moved = false;                   // it left its limit in the last step
+  };
+  std::vector<Rest> rest;
+  std::vector<char> frozen;  // per object, asleep through this step
+  /// A collider set, moved or removed since the last step, or moving in this one: objects
+  /// within `margin` (plus two contact radii) of it at this pose wake.
+  struct Disturbance {
+    Collider collider;
+    double margin = 0.0;
+  };
+  std::vector<Disturbance> disturbances;
+
+  void wake(std::size_t o) {
+    Rest& r = rest[o];
+    r.asleep = false;
+    r.quiet = 0.0;
+    r.moved = false;
+    r.anchor = objects[o]->positions();
+  }
+  void bound(std::size_t o) {
+    const auto& x = objects[o]->positions();
+    Rest& r = rest[o];
+    r.lo = r.hi = x[0];
+    for (const Eigen::Vector3d& p : x) {
+      r.lo = r.lo.cwiseMin(p);
+      r.hi = r.hi.cwiseMax(p);
+    }
+  }
   /// the slice buffers of every object's region sums: the objects step one after another
   std::shared_ptr<SliceStreamScratch> scratch = std::make_shared<SliceStreamScratch>();
 
@@ -164,6 +211,9 @@ Solver& World::addObject(const std::string& name, std::shared_ptr<const Lattice>
   impl_->pointers.push_back(&added);
   names_.push_back(name);
   impl_->contact.invalidate();
+  impl_->rest.emplace_back();
+  impl_->bound(impl_->rest.size() - 1);
+  wakeAll();  // what rested may now be pushed
   return added;
 }
 
@@ -173,11 +223,17 @@ bool World::removeObject(const std::string& name) {
   impl_->objects.erase(impl_->objects.begin() + static_cast<std::ptrdiff_t>(o));
   impl_->pointers.erase(impl_->pointers.begin() + static_cast<std::ptrdiff_t>(o));
   names_.erase(names_.begin() + static_cast<std::ptrdiff_t>(o));
+  impl_->rest.erase(impl_->rest.begin() + static_cast<std::ptrdiff_t>(o));
   impl_->contact.invalidate();
   auto& w = impl_->wrenches;
   w.erase(std::remove_if(w.begin(), w.end(),
                          [&](const ObjectPairWrench& p) { return p.from == name || p.on == name; }),
           w.end());
+  impl_->wrenchObjects.resize(w.size());
+  for (std::size_t i = 0; i < w.size(); ++i)
+    impl_->wrenchObjects[i] = {static_cast<std::uint32_t>(impl_->indexOf(names_, w[i].from)),
+                               static_cast<std::uint32_t>(impl_->indexOf(names_, w[i].on))};
+  wakeAll();  // what it held may fall
   return true;
 }
 
@@ -198,6 +254,11 @@ void World::setCollider(const std::string& id, const Collider& collider) {
   if (c.shape.type == ColliderType::Mesh && !c.shape.distanceField)
     c.shape.distanceField = std::make_shared<const MeshDistanceField>(*c.shape.mesh);
   for (auto& object : impl_->objects) object->setCollider(id, c);
+  if (sleep_.fraction > 0.0) {
+    auto old = impl_->colliders.find(id);
+    if (old != impl_->colliders.end()) impl_->disturbances.push_back({old->second, 0.0});
+    impl_->disturbances.push_back({c, 0.0});
+  }
   impl_->colliders[id] = std::move(c);
 }
 
@@ -211,14 +272,20 @@ bool World::moveCollider(const std::string& id, const Eigen::Isometry3d& pose, c
     throw std::invalid_argument("world: collider '" + id +
                                 "' given a pose whose rotation is not orthonormal with determinant +1");
   for (auto& object : impl_->objects) object->moveCollider(id, pose, linearVelocity, angularVelocity);
+  const bool jumped = sleep_.fraction > 0.0 && !pose.isApprox(it->second.pose, 0.0);
+  if (jumped) impl_->disturbances.push_back({it->second, 0.0});  // where it was
   it->second.pose = pose;
   it->second.linearVelocity = linearVelocity;
   it->second.angularVelocity = angularVelocity;
+  if (jumped) impl_->disturbances.push_back({it->second, 0.0});  // where it is (where it goes: step())
   return true;
 }
 
 bool World::removeCollider(const std::string& id) {
-  if (impl_->colliders.erase(id) == 0) return false;
+  auto it = impl_->colliders.find(id);
+  if (it == impl_->colliders.end()) return false;
+  if (sleep_.fraction > 0.0) impl_->disturbances.push_back({it->second, 0.0});
+  impl_->colliders.erase(it);
   for (auto& object : impl_->objects) object->removeCollider(id);
   return true;
 }
@@ -248,6 +315,34 @@ std::size_t World::contactListBuilds() const { return impl_->contact.listBuilds(
 
 World::ContactPasses World::contactPasses() const {
   return {impl_->contact.solvePasses(), impl_->contact.solvedSubsteps()};
+}
+
+void World::setSleepParams(const SleepParams& sleep) {
+  sleep.validate();
+  sleep_ = sleep;
+  if (sleep_.fraction == 0.0) wakeAll();
+}
+
+bool World::asleep(const std::string& name) const {
+  const std::size_t o = impl_->indexOf(names_, name);
+  return o < names_.size() && impl_->rest[o].asleep;
+}
+
+std::size_t World::sleepingCount() const {
+  std::size_t n = 0;
+  for (const Impl::Rest& r : impl_->rest) n += r.asleep ? 1 : 0;
+  return n;
+}
+
+bool World::wake(const std::string& name) {
+  const std::size_t o = impl_->indexOf(names_, name);
+  if (o >= names_.size()) return false;
+  impl_->wake(o);
+  return true;
+}
+
+void World::wakeAll() {
+  for (std::size_t o = 0; o < impl_->objects.size(); ++o) impl_->wake(o);
 }
 
 ContactWrench World::objectWrench(const std::string& from, const std::string& on) const {
@@ -282,14 +377,17 @@ void World::step() {
       ++c;
     }
   }
-  for (Solver* s : im.pointers) s->beginStep();
+  wakeOrKeep();
+  for (std::size_t o = 0; o < N; ++o)
+    if (!im.frozen[o]) im.pointers[o]->beginStep();
   im.contact.beginStep(N, im.colliders.size());
+  im.contact.setFrozen(&im.frozen);
   // implicit objects that may touch each other (or themselves) are solved as one system
   const bool touching = contact_.couples(N);
   im.coupled.assign(N, 0);
   std::size_t implicitCount = 0;
   for (std::size_t o = 0; o < N; ++o)
-    if (touching && im.objects[o]->params().integrator == Integrator::Implicit) {
+    if (touching && !im.frozen[o] && im.objects[o]->params().integrator == Integrator::Implicit) {
       im.coupled[o] = 1;
       ++implicitCount;
     }
@@ -297,13 +395,14 @@ void World::step() {
   for (int s = 0; s < substeps_; ++s) {
     if (couple) {
       for (std::size_t o = 0; o < N; ++o)
-        if (!im.coupled[o]) im.pointers[o]->advanceSubstep(s);
+        if (!im.coupled[o] && !im.frozen[o]) im.pointers[o]->advanceSubstep(s);
       static const std::vector<std::pair<std::uint32_t, std::uint32_t>> kNone;
       const auto* candidates = im.contact.currentCandidates(im.pointers, contact_);
       im.coupling.substep(im.pointers, im.coupled, candidates != nullptr ? *candidates : kNone, s, h);
       im.contact.setCouplingImpulses(&im.coupling.impulses());
     } else {
-      for (Solver* object : im.pointers) object->advanceSubstep(s);
+      for (std::size_t o = 0; o < N; ++o)
+        if (!im.frozen[o]) im.pointers[o]->advanceSubstep(s);
       im.contact.setCouplingImpulses(nullptr);
     }
     if (N < 2 && !contact_.selfContact) continue;
@@ -317,6 +416,10 @@ void World::step() {
   // the clock as each object's: the sum of the sub-steps
   for (int s = 0; s < substeps_; ++s) time_ += h;
   for (std::size_t o = 0; o < N; ++o) {
+    if (im.frozen[o]) {
+      im.objects[o]->idleStep();
+      continue;
+    }
     for (std::size_t c = 0; c < im.substepColliders.size(); ++c) {
       const ColliderImpulse& ci = im.contact.colliderImpulse(o, c);
       if (ci.contacts == 0 && ci.impulse.isZero(0.0)) continue;
@@ -332,11 +435,26 @@ void World::step() {
       col.pose = advancePose(im.colliderStart[c++], col.linearVelocity, col.angularVelocity, timeStep_);
     }
   }
-  // the pair impulses as wrenches, both ways
+  // the pair impulses as wrenches, both ways; two sleeping objects keep what they exerted
+  im.heldWrenches.clear();
+  im.heldObjects.clear();
+  for (std::size_t i = 0; i < im.wrenches.size(); ++i)
+    if (im.frozen[im.wrenchObjects[i].first] && im.frozen[im.wrenchObjects[i].second]) {
+      im.heldWrenches.push_back(im.wrenches[i]);
+      im.heldObjects.push_back(im.wrenchObjects[i]);
+    }
+  const std::size_t held = im.heldWrenches.size();
   const auto& pairs = im.contact.pairImpulses();
-  im.wrenches.resize(2 * pairs.size());
+  im.wrenches.resize(2 * pairs.size() + held);
+  im.wrenchObjects.resize(im.wrenches.size());
+  for (std::size_t i = 0; i < held; ++i) {
+    im.wrenches[2 * pairs.size() + i] = im.heldWrenches[i];
+    im.wrenchObjects[2 * pairs.size() + i] = im.heldObjects[i];
+  }
   for (std::size_t i = 0; i < pairs.size(); ++i) {
     const PairImpulse& p = pairs[i];
+    im.wrenchObjects[2 * i] = {p.a, p.b};
+    im.wrenchObjects[2 * i + 1] = {p.b, p.a};
     ObjectPairWrench& onB = im.wrenches[2 * i];
     ObjectPairWrench& onA = im.wrenches[2 * i + 1];
     onB.from = names_[p.a];
@@ -349,6 +467,86 @@ void World::step() {
     onA.wrench.force = -onB.wrench.force;
     onA.wrench.torque = -onB.wrench.torque;
     onA.wrench.contacts = p.contacts;
+  }
+  settle();
+}
+
+// Before the step: what wakes a sleeping object (a command, a change of its state, a collider
+// changed or moving near it) and keeps an awake one from falling asleep; then which objects
+// sleep through the step.
+void World::wakeOrKeep() {
+  Impl& im = *impl_;
+  const std::size_t N = im.objects.size();
+  im.frozen.assign(N, 0);
+  if (!(sleep_.fraction > 0.0)) {
+    im.disturbances.clear();
+    return;
+  }
+  // colliders that move within the step: swept over it
+  for (const auto& entry : im.colliders) {
+    const Collider& c = entry.second;
+    if (c.linearVelocity.isZero(0.0) && c.angularVelocity.isZero(0.0)) continue;
+    double radius = std::numeric_limits<double>::infinity();  // a turning plane reaches everything
+    Eigen::Vector3d lo, hi;
+    if (colliderBounds(c.shape, c.pose, lo, hi)) radius = 0.5 * (hi - lo).norm() + (c.pose.translation() - 0.5 * (lo + hi)).norm();
+    const double sweep = timeStep_ * (c.linearVelocity.norm() + (c.angularVelocity.isZero(0.0) ? 0.0 : c.angularVelocity.norm() * radius));
+    im.disturbances.push_back({c, sweep});
+  }
+  for (std::size_t o = 0; o < N; ++o) {
+    Impl::Rest& r = im.rest[o];
+    const Solver& s = *im.objects[o];
+    bool disturbed = s.hasPendingCommands() || (r.asleep && s.stateVersion() != r.version);
+    const double reach = 2.0 * s.contactRadius();
+    for (std::size_t d = 0; d < im.disturbances.size() && !disturbed; ++d) {
+      const Impl::Disturbance& dist = im.disturbances[d];
+      disturbed = boxNearCollider(dist.collider.shape, dist.collider.pose, r.lo, r.hi, dist.margin + reach);
+    }
+    if (disturbed) im.wake(o);
+    im.frozen[o] = r.asleep ? 1 : 0;
+  }
+  im.disturbances.clear();
+}
+
+// After the step: how far each stepped object moved; an object touching a sleeping one that
+// moved wakes it for the next step; an object still for `hold` falls asleep.
+void World::settle() {
+  Impl& im = *impl_;
+  const std::size_t N = im.objects.size();
+  if (!(sleep_.fraction > 0.0)) return;
+  for (std::size_t o = 0; o < N; ++o) {
+    if (im.frozen[o]) continue;
+    Impl::Rest& r = im.rest[o];
+    const Solver& s = *im.objects[o];
+    const auto& x = s.positions();
+    const double limit = sleep_.fraction * s.lattice().objectSize();
+    // the mass-weighted RMS displacement: a particle's chatter in a contact is not the object's motion
+    const auto& m = s.lattice().masses();
+    double sum = 0.0, mass = 0.0;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      sum += m[i] * (x[i] - r.anchor[i]).squaredNorm();
+      mass += m[i];
+    }
+    im.bound(o);
+    r.moved = sum > limit * limit * mass || s.hasPendingCommands();
+    if (r.moved) {
+      r.anchor = x;
+      r.quiet = 0.0;
+    } else {
+      r.quiet += timeStep_;
+    }
+  }
+  for (const PairImpulse& p : im.contact.pairImpulses()) {
+    if (p.contacts == 0 && p.impulse.isZero(0.0)) continue;
+    if (im.frozen[p.a] && !im.frozen[p.b] && im.rest[p.b].moved) im.wake(p.a);
+    if (im.frozen[p.b] && !im.frozen[p.a] && im.rest[p.a].moved) im.wake(p.b);
+  }
+  for (std::size_t o = 0; o < N; ++o) {
+    Impl::Rest& r = im.rest[o];
+    if (im.frozen[o] || r.asleep || r.quiet < sleep_.hold * (1.0 - 1e-9)) continue;
+    r.asleep = true;
+    Solver& s = *im.objects[o];
+    std::fill(s.substepVelocities().begin(), s.substepVelocities().end(), Eigen::Vector3d::Zero());
+    r.version = s.stateVersion();
   }
 }
 

@@ -111,6 +111,7 @@ NodeParams ParamLoader::loadNodeParams() const {
   oc.selfContact = getBool("self_contact", oc.selfContact);
   oc.staticFriction = getDouble("object_static_friction", oc.staticFriction);
   oc.kineticFriction = getDouble("object_kinetic_friction", oc.kineticFriction);
+  p.objectSleep = getBool("object_sleep", p.objectSleep);
   p.validate();
   p.applyMaterial();
   return p;

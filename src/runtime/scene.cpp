@@ -4,6 +4,7 @@
 #include "deformable_flsm/core/section.h"
 #include "deformable_flsm/core/voxelizer.h"
 #include "deformable_flsm/runtime/render_mesh.h"
+#include "deformable_flsm/runtime/simulation_loop.h"
 
 #include <chrono>
 #include <limits>
@@ -185,6 +186,14 @@ WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& o
     throw ParamError(std::string("the scene cannot be built: ") + e.what());
   }
   World& world = *scene.world;
+  if (params.objectSleep) {
+    // at rest as the loop means it: its rest, per object
+    const LoopSettings rest;
+    SleepParams sleep;
+    sleep.fraction = rest.restFraction;
+    sleep.hold = rest.idleHold;
+    world.setSleepParams(sleep);
+  }
   // BDF2 steps one object alone (World::addObject() refuses it for objects that may touch)
   const bool touching = params.objectContact.couples(objects.size());
   for (const ObjectSpec& spec : objects)

@@ -121,6 +121,7 @@ void SimulationLoop::writeObject(const Solver& solver, std::size_t k, ObjectSnap
   // Figures that need the whole state, computed once here for every reader.
   LoopDiagnostics& d = o.diag;
   d = diag_;  // the loop's pace and counts
+  d.idle = d.idle || world_->asleep(names_[k]);  // the world does not step it
   const auto& x0 = lattices_[k]->restPositions();
   double shape2 = 0.0;
   for (std::size_t i = 0; i < n; ++i) shape2 += (o.positions[i] - rigid * x0[i]).squaredNorm();

@@ -911,23 +911,19 @@ std::shared_ptr<const Lattice> meshAt(const std::string& path, bool yUp, double 
 
 }  // namespace
 
-// A pile at rest must stay at rest: a contact solve that leaves each sub-step's impulses short of
-// convergence differently every time, or friction that flips between its static and kinetic
-// bounds within the passes, shakes the pile forever (a few particles at centimetres per second
-// in the node's bin scene), though it never explodes.
-static void softBin(Integrator integrator) {
-  // the node's bin scene (config/bin.yaml): bunnies 9 cm long and cubes 8 cm on a side of about
-  // a hundred particles, each turned about the vertical, a soft rubber (E = 30 kPa), 60 Hz in 11
-  // sub-steps (the implicit step: one), dropped in three layers into a 40 x 40 cm box
-  const double dt = 1.0 / 60.0;
-  const int substeps = integrator == Integrator::Implicit ? 1 : 11;
-  World world(dt, substeps);
+// The node's bin scene (config/bin.yaml): bunnies 9 cm long and cubes 8 cm on a side of about
+// a hundred particles, each turned about the vertical, a soft rubber (E = 30 kPa), 60 Hz in 11
+// sub-steps (the implicit step: one), dropped in three layers into a 40 x 40 cm box. Returns
+// the box's colliders and the smallest contact radius.
+static std::vector<std::pair<std::string, Collider>> fillSoftBin(World& world, Integrator integrator, double& r) {
+  const double dt = world.timeStep();
+  const int substeps = world.substeps();
   const double inner = 0.2, depth = 0.35, wall = 0.025;
   const std::vector<std::pair<std::string, Collider>> colliders = binColliders(inner, depth, wall);
   for (const auto& c : colliders) world.setCollider(c.first, c.second);
   const double yaw[20] = {-0.785, -0.14, 0.506, -0.419, 0.227,  -0.698, -0.052, 0.593, -0.332, 0.314,
                           -0.611, 0.035, 0.681, -0.244, 0.401, -0.524, 0.122,  0.768, -0.157, 0.489};
-  double r = 1.0;
+  r = 1.0;
   for (int n = 0; n < 20; ++n) {
     const int layer = n / 9, k = n % 9;
     const Eigen::Vector3d lo(-0.165 + 0.12 * (k % 3), -0.165 + 0.12 * (k / 3), 0.02 + 0.12 * layer);
@@ -944,6 +940,20 @@ static void softBin(Integrator integrator) {
     Solver& s = world.addObject("o" + std::to_string(n), lattice, p);
     r = std::min(r, s.contactRadius());
   }
+  return colliders;
+}
+
+// A pile at rest must stay at rest: a contact solve that leaves each sub-step's impulses short of
+// convergence differently every time, or friction that flips between its static and kinetic
+// bounds within the passes, shakes the pile forever (a few particles at centimetres per second
+// in the node's bin scene), though it never explodes.
+
+static void softBin(Integrator integrator) {
+  const double dt = 1.0 / 60.0;
+  const int substeps = integrator == Integrator::Implicit ? 1 : 11;
+  World world(dt, substeps);
+  double r = 1.0;
+  const auto colliders = fillSoftBin(world, integrator, r);
   for (long i = 0; i < std::lround(10.0 / dt); ++i) world.step();
   // at rest: no particle moves a hundredth of its radius in a step (far below what an eye
   // sees on an object of a few cm, and the contacts' own tolerance of penetration) over 2 s
@@ -1027,4 +1037,247 @@ TEST(World, Bdf2StepsOneObjectAsTheBareSolverAndRefusesObjectsThatTouchIt) {
     EXPECT_NE(std::string(e.what()).find("bdf2"), std::string::npos) << e.what();
   }
   EXPECT_EQ(world.objectCount(), 1u);
+}
+
+// --- sleeping objects ------------------------------------------------------------------------
+
+namespace {
+
+SleepParams sleepAfter(double hold) {
+  SleepParams s;
+  s.fraction = 2e-5;  // the node's rest (LoopSettings::restFraction)
+  s.hold = hold;
+  return s;
+}
+
+}  // namespace
+
+// The stack of three at rest sleeps; asleep, it is not stepped (nothing moves by a bit) and its
+// contacts keep carrying the weight above each within 2 %, the statics a stepped stack
+// converges to. A block thrown at the top one wakes it (an object that moved struck it), the top
+// block is pushed as far as without sleeping, and nothing interpenetrates.
+static double strikeTheStack(bool sleeping) {
+  World world(kStep, kSubsteps);
+  if (sleeping) world.setSleepParams(sleepAfter(0.5));
+  world.setCollider("ground", ground(0.0));
+  const double s = 0.01;
+  auto bottom = boxAt(6, 6, 2, s, Eigen::Vector3d(0, 0, 0));
+  auto middle = boxAt(4, 4, 2, s, Eigen::Vector3d(0.01, 0.01, 0.02));
+  auto top = boxAt(4, 2, 2, s, Eigen::Vector3d(0.01, 0.02, 0.04));
+  auto thrown = boxAt(2, 2, 2, s, Eigen::Vector3d(0.15, 0.02, 0.04));
+  world.addObject("bottom", bottom, paramsFor(*bottom, 1.0, 2.0));
+  world.addObject("middle", middle, paramsFor(*middle, 1.0, 2.0));
+  const Solver& T = world.addObject("top", top, paramsFor(*top, 1.0, 2.0));
+  SolverParams pt = paramsFor(*thrown, 1.0, 2.0);
+  pt.gravity.setZero();  // it waits beside the stack, weightless, until thrown
+  Solver& C = world.addObject("thrown", thrown, pt);
+  for (int i = 0; i < stepsFor(4.0) || (sleeping && world.sleepingCount() < 4 && i < stepsFor(20.0)); ++i) world.step();
+  if (sleeping) {
+    EXPECT_EQ(world.sleepingCount(), 4u) << "the stack and the waiting block rest";
+    const auto before = T.positions();
+    const int last = stepsFor(1.0);
+    ContactWrench bm, mt, g;
+    for (int i = 0; i < last; ++i) {
+      world.step();
+      bm.force += world.objectWrench("bottom", "middle").force / last;
+      mt.force += world.objectWrench("middle", "top").force / last;
+      g.force += world.contactWrench("ground").force / last;
+    }
+    EXPECT_EQ(T.positions(), before) << "a sleeping object is not stepped";
+    const double Wt = top->totalMass() * kG, Wm = middle->totalMass() * kG, Wb = bottom->totalMass() * kG;
+    std::printf("sleeping stack: middle->top %.4f N (weight %.4f), bottom->middle %.4f N (weight above %.4f), ground "
+                "%.4f N (all %.4f)\n",
+                mt.force.z(), Wt, bm.force.z(), Wt + Wm, -g.force.z(), Wt + Wm + Wb);
+    EXPECT_NEAR(mt.force.z(), Wt, 0.02 * Wt);
+    EXPECT_NEAR(bm.force.z(), Wt + Wm, 0.02 * (Wt + Wm));
+    EXPECT_NEAR(-g.force.z(), Wt + Wm + Wb, 0.02 * (Wt + Wm + Wb));
+  } else {
+    for (int i = 0; i < stepsFor(1.0); ++i) world.step();
+  }
+  // thrown at the top block at 1 m/s: it wakes when its velocities are set
+  const double t0 = centreOfMass(T).x();
+  C.setVelocities(std::vector<Eigen::Vector3d>(thrown->size(), Eigen::Vector3d(-1.0, 0.0, 0.0)));
+  double overlap = 0.0;
+  bool topWoke = false;
+  for (int i = 0; i < stepsFor(0.5); ++i) {
+    world.step();
+    overlap = std::max(overlap, deepestOverlap(world));
+    topWoke = topWoke || !world.asleep("top");
+  }
+  const double pushed = t0 - centreOfMass(T).x();
+  std::printf("block thrown at 1 m/s at the top of the stack (%s): top pushed %.4g m, deepest overlap %.3g r\n",
+              sleeping ? "sleeping" : "never sleeping", pushed, overlap);
+  EXPECT_TRUE(allFinite(world));
+  EXPECT_LT(overlap, 0.1) << "the thrown block does not pass into the top one";
+  if (sleeping) EXPECT_TRUE(topWoke) << "the struck block woke";
+  return pushed;
+}
+
+TEST(WorldSleep, ASleepingStackCarriesItsWeightAndWakesWhenStruck) {
+  const double awake = strikeTheStack(false), sleeping = strikeTheStack(true);
+  EXPECT_GT(awake, 0.005) << "the top block is pushed";
+  EXPECT_NEAR(sleeping, awake, 0.1 * awake) << "woken, it is pushed as far as one that never slept";
+}
+
+// Until an object rests, sleeping changes nothing: two blocks thrown at each other over a block
+// on the ground step to the bit as without it.
+TEST(WorldSleep, ObjectsThatDoNotRestStepExactlyAsWithoutSleeping) {
+  std::vector<std::vector<Eigen::Vector3d>> runs[2];
+  for (int sleeping = 0; sleeping < 2; ++sleeping) {
+    World world(kStep, kSubsteps);
+    if (sleeping) world.setSleepParams(sleepAfter(1.0));
+    world.setCollider("ground", ground(0.0));
+    auto a = boxAt(3, 3, 3, 0.01, Eigen::Vector3d(0, 0, 0.05));
+    auto b = boxAt(3, 3, 3, 0.01, Eigen::Vector3d(0.06, 0.005, 0.05));
+    Solver& A = world.addObject("a", a, paramsFor(*a));
+    Solver& B = world.addObject("b", b, paramsFor(*b));
+    A.setVelocities(std::vector<Eigen::Vector3d>(a->size(), Eigen::Vector3d(0.5, 0.0, 0.0)));
+    B.setVelocities(std::vector<Eigen::Vector3d>(b->size(), Eigen::Vector3d(-0.5, 0.0, 0.0)));
+    for (int i = 0; i < stepsFor(0.8); ++i) world.step();
+    runs[sleeping] = {A.positions(), B.positions()};
+    EXPECT_EQ(world.sleepingCount(), 0u);
+  }
+  EXPECT_EQ(runs[0], runs[1]);
+}
+
+// What wakes a sleeping block resting on the ground, and what does not.
+TEST(WorldSleep, ASleepingObjectWakesForACommandAChangeOrACollider) {
+  World world(kStep, kSubsteps);
+  world.setSleepParams(sleepAfter(0.5));
+  world.setCollider("ground", ground(0.0));
+  world.setCollider("far", box(Eigen::Vector3d(2, 0, 0.1), Eigen::Vector3d(0.05, 0.05, 0.05)));
+  auto a = boxAt(3, 3, 3, 0.01, Eigen::Vector3d(0, 0, 0));
+  Solver& A = world.addObject("a", a, paramsFor(*a, 1.0, 2.0));
+  const auto settle = [&]() {
+    int i = 0;
+    for (; i < stepsFor(20.0) && !world.asleep("a"); ++i) world.step();
+    return world.asleep("a");
+  };
+  ASSERT_TRUE(settle());
+  const ContactWrench held = world.contactWrench("ground");
+  EXPECT_NEAR(-held.force.z(), a->totalMass() * kG, 0.02 * a->totalMass() * kG) << "asleep, it still weighs on the ground";
+  // a collider moved and moving far away: still asleep
+  world.moveCollider("far", Eigen::Isometry3d(Eigen::Translation3d(2, 0.5, 0.1)), Eigen::Vector3d(0, 0.1, 0),
+                     Eigen::Vector3d::Zero());
+  world.step();
+  EXPECT_TRUE(world.asleep("a")) << "a collider far away";
+  world.moveCollider("far", Eigen::Isometry3d(Eigen::Translation3d(2, 0.5, 0.1)), Eigen::Vector3d::Zero(),
+                     Eigen::Vector3d::Zero());
+  // a drag: awake while it holds
+  A.grab("hand", {0}, A.positions()[0], 0.0);
+  world.step();
+  EXPECT_FALSE(world.asleep("a")) << "a drag";
+  A.release("hand");
+  ASSERT_TRUE(settle());
+  // a parameter: gravity turned sideways
+  SolverParams p = A.params();
+  p.gravity = Eigen::Vector3d(3.0, 0.0, -9.81);
+  A.setParams(p);
+  world.step();
+  EXPECT_FALSE(world.asleep("a")) << "a parameter changed";
+  p.gravity = Eigen::Vector3d(0.0, 0.0, -9.81);
+  A.setParams(p);
+  ASSERT_TRUE(settle());
+  // a collider put beside it, and one moving towards it
+  world.moveCollider("far", Eigen::Isometry3d(Eigen::Translation3d(0.015, 0.015, 0.045)), Eigen::Vector3d::Zero(),
+                     Eigen::Vector3d::Zero());
+  world.step();
+  EXPECT_FALSE(world.asleep("a")) << "a collider set down on it";
+  world.moveCollider("far", Eigen::Isometry3d(Eigen::Translation3d(2, 0, 0.1)), Eigen::Vector3d::Zero(),
+                     Eigen::Vector3d::Zero());
+  ASSERT_TRUE(settle());
+  // 5 cm a step, its face 5 cm away: it arrives at the end of the step, and wakes it before
+  world.moveCollider("far", Eigen::Isometry3d(Eigen::Translation3d(0.13, 0.015, 0.015)),
+                     Eigen::Vector3d(-3.0, 0, 0), Eigen::Vector3d::Zero());
+  EXPECT_TRUE(world.asleep("a"));
+  world.step();
+  world.moveCollider("far", world.object("a")->colliders().at("far").pose, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  EXPECT_FALSE(world.asleep("a")) << "a collider moving at it";
+  world.moveCollider("far", Eigen::Isometry3d(Eigen::Translation3d(2, 0, 0.1)), Eigen::Vector3d::Zero(),
+                     Eigen::Vector3d::Zero());
+  ASSERT_TRUE(settle());
+  // the ground taken away: it falls
+  const double z0 = centreOfMass(A).z();
+  EXPECT_TRUE(world.removeCollider("ground"));
+  for (int i = 0; i < 10; ++i) world.step();
+  EXPECT_FALSE(world.asleep("a"));
+  EXPECT_LT(centreOfMass(A).z(), z0 - 0.01) << "without the ground it falls";
+  // sleeping switched off wakes it
+  world.setCollider("ground", ground(-0.1));
+  ASSERT_TRUE(settle());
+  world.setSleepParams(SleepParams());
+  EXPECT_FALSE(world.asleep("a"));
+  EXPECT_THROW(world.setSleepParams(SleepParams{-1.0, 1.0}), std::invalid_argument);
+  EXPECT_THROW(world.setSleepParams(SleepParams{1e-5, 0.0}), std::invalid_argument);
+}
+
+// The node's bin of twenty soft objects: at rest it sleeps, and its box still carries the whole
+// weight (statics); a finger pressed 3 cm into one corner of the pile wakes what it stirs, meets
+// the resistance it meets in a pile that never sleeps (a pile of immovable sleepers would be
+// stiffer), nothing interpenetrates, and once it is withdrawn the pile sleeps again.
+static double pressTheBin(bool sleeping) {
+  const double dt = 1.0 / 60.0;
+  World world(dt, 11);
+  if (sleeping) world.setSleepParams(sleepAfter(1.0));
+  double r = 1.0;
+  const auto colliders = fillSoftBin(world, Integrator::Explicit, r);
+  double weight = 0.0;
+  for (const std::string& name : world.objectNames()) weight += world.object(name)->lattice().totalMass() * kG;
+  int steps = 0;
+  for (; steps < std::lround(15.0 / dt) || (sleeping && world.sleepingCount() < world.objectCount() &&
+                                            steps < std::lround(25.0 / dt));
+       ++steps)
+    world.step();
+  const std::size_t asleep = world.sleepingCount();
+  if (sleeping) {
+    double carried = 0.0;
+    for (const auto& c : colliders) carried -= world.contactWrench(c.first).force.z();
+    std::printf("bin of 20 with sleeping: %zu asleep after %.1f s, the box carries %.4f of the weight\n", asleep, steps * dt,
+                carried / weight);
+    EXPECT_GE(asleep, 18u) << "the pile rests";
+    EXPECT_NEAR(carried, weight, 0.02 * weight) << "asleep, the pile still weighs on its box";
+  }
+  // a 2 cm finger pushed down at 10 cm/s onto the pile in the corner of x, y < 0, from 5 cm
+  // above its top there until its lowest point is 3 cm below it
+  const Eigen::Vector2d at(-0.12, -0.12);
+  double topZ = 0.0;
+  for (const std::string& name : world.objectNames())
+    for (const Eigen::Vector3d& x : world.object(name)->positions())
+      if ((x.head<2>() - at).norm() < 0.03) topZ = std::max(topZ, x.z());
+  Collider finger;
+  finger.shape.type = ColliderType::Sphere;
+  finger.shape.radius = 0.02;
+  finger.pose.translation() = Eigen::Vector3d(at.x(), at.y(), topZ + 0.07);
+  world.setCollider("finger", finger);
+  std::set<std::string> woke;
+  double overlap = 0.0, push = 0.0;
+  const int down = static_cast<int>(std::lround(0.08 / 0.1 / dt));
+  for (int i = 0; i < down; ++i) {
+    world.moveCollider("finger", world.object("o0")->colliders().at("finger").pose, Eigen::Vector3d(0, 0, -0.1),
+                       Eigen::Vector3d::Zero());
+    world.step();
+    push = std::max(push, world.contactWrench("finger").force.norm());
+    for (const std::string& name : world.objectNames())
+      if (!world.asleep(name)) woke.insert(name);
+    overlap = std::max(overlap, deepestOverlap(world));
+  }
+  world.removeCollider("finger");
+  std::printf("finger pressed into the pile (%s): up to %.3g N (the pile weighs %.3g N), %zu objects awake in the push; "
+              "deepest overlap %.3g r\n",
+              sleeping ? "sleeping" : "never sleeping", push, weight, woke.size(), overlap);
+  EXPECT_GT(push, 0.02 * weight) << "the finger pressed into the pile";
+  EXPECT_LT(overlap, 0.1) << "nothing interpenetrates, asleep or awake";
+  EXPECT_TRUE(allFinite(world));
+  if (sleeping) {
+    EXPECT_GE(woke.size(), 2u) << "the finger wakes what it stirs";
+    for (steps = 0; steps < std::lround(20.0 / dt) && world.sleepingCount() < asleep; ++steps) world.step();
+    std::printf("the pile sleeps again after %.1f s: %zu asleep\n", steps * dt, world.sleepingCount());
+    EXPECT_GE(world.sleepingCount(), asleep);
+  }
+  return push;
+}
+
+TEST(WorldSleep, ABinAtRestSleepsAndWakesWhereAFingerPressesIt) {
+  const double awake = pressTheBin(false), sleeping = pressTheBin(true);
+  EXPECT_NEAR(sleeping, awake, 0.15 * awake) << "the sleeping pile resists the finger as the awake one does";
 }

@@ -80,6 +80,11 @@ class ObjectContactSolver {
   /// for the next substep(): they bound the friction of their pairs as the pass's own normal
   /// impulses do, and count into the pair wrenches. The list must live until then.
   void setCouplingImpulses(const std::vector<CouplingImpulse>* impulses) { coupling_ = impulses; }
+  /// Per object, whether it is held still in this step (a World's sleeping object): its
+  /// particles take part as immovable (infinite mass), so the others rest on it or bounce off
+  /// it and nothing of it moves. nullptr (or a shorter list): none. The list must live until
+  /// the next substep().
+  void setFrozen(const std::vector<char>* frozen) { frozen_ = frozen; }
 
   /// The contact pass after every object's sub-step of length h:
   ///  1. a candidate list of particle pairs (a Verlet list: Verlet 1967), kept over sub-steps
@@ -168,6 +173,13 @@ class ObjectContactSolver {
   void takeCoupling(const std::vector<Solver*>& objects, bool rebuilt, bool last);
 
   const std::vector<CouplingImpulse>* coupling_ = nullptr;
+  const std::vector<char>* frozen_ = nullptr;
+  bool frozen(std::uint32_t object) const {
+    return frozen_ != nullptr && object < frozen_->size() && (*frozen_)[object] != 0;
+  }
+  /// keptCollider_ without the entries of objects that are not frozen (scratch: keptScratch_)
+  void keepFrozenColliderImpulses();
+  std::vector<KeptImpulse> keptScratch_;
   std::vector<double> springLambda_;  // per candidate slot, this sub-step's spring impulse
   /// the particle pairs (global, lower first) whose spring pushed in the step's last sub-step,
   /// sorted: a pair contact of the passes among them is not counted again (accumulate())

@@ -245,6 +245,10 @@ class Solver : private RegionKernel {
   double shapeError() const;
   /// true while a drag, a timed force or an impulse is active: the object is being acted on.
   bool hasPendingCommands() const;
+  /// Counts the calls that changed its state or what holds it from outside a step: setParams(),
+  /// reset(), setPositions(), setVelocities(), a pin set or freed (not step(), commands or
+  /// colliders). A World wakes a sleeping object whose count moved.
+  std::uint64_t stateVersion() const { return stateVersion_; }
 
   // --- the phases of a step, for a coordinator of several objects (World) ----------------
   /// step() is beginStep(), advanceSubstep(s) for s = 0 .. params().substeps - 1, then
@@ -256,6 +260,10 @@ class Solver : private RegionKernel {
   void advanceSubstep(int s);
   /// Closes the step: collider wrenches averaged over it, drag frames reached.
   void endStep();
+  /// The step of an object that is not moved (a World's sleeping object, at rest): its clock
+  /// and its colliders' poses advance by one step, its particles stay where they are with zero
+  /// velocity, and its collider wrenches keep the last step's (its weight on what holds it).
+  void idleStep();
   /// #P positions and velocities between sub-steps, for a contact solver that corrects them
   /// (a correction dv moves x by h dv: x = x_start + h v holds, as in the collider pass).
   std::vector<Eigen::Vector3d>& substepPositions() { return x_; }
@@ -428,6 +436,7 @@ class Solver : private RegionKernel {
   double alpha_ = 1.0;
   double time_ = 0.0;
   std::uint64_t substeps_ = 0;
+  std::uint64_t stateVersion_ = 0;
 
  public:
   // --- implicit integrator (solver_implicit.cpp) ------------------------------------------

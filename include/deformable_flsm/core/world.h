@@ -45,6 +45,26 @@ struct ObjectContactParams {
   bool couples(std::size_t objects) const { return (objects >= 2 && enabled) || selfContact; }
 };
 
+/// When the objects of a World sleep: an object at rest is not stepped (its particles stay, its
+/// wrenches on the colliders and on the other sleeping objects it touches keep the last step's)
+/// until something moves near it. Rest as the node's loop means it (LoopSettings): equilibrium,
+/// not slowness. An object falls asleep once none of its particles moved farther than
+/// `fraction` of its size (Lattice::objectSize()) from where it was `hold` seconds of simulated
+/// time earlier, with no drag, force or impulse on it and no collider moving near it. It wakes
+/// when a command or a state change reaches it (Solver::hasPendingCommands(),
+/// Solver::stateVersion()), when a collider is set, moved or removed near it (or moves near it
+/// within a step), when an object touching it moved farther than that in the last step, and
+/// when an object is added or removed. A sleeping object is immovable to the others: they rest
+/// on it as on a collider, and one that moves pushes it awake for the next step.
+struct SleepParams {
+  /// 0: never sleep
+  double fraction = 0.0;
+  /// s of simulated time (> 0)
+  double hold = 1.0;
+  /// @throws std::invalid_argument saying which field is wrong
+  void validate() const;
+};
+
 /// What one object exerted on another over the last step.
 struct ObjectPairWrench {
   std::string from;  ///< the object that pushed
@@ -119,6 +139,19 @@ class World {
   };
   ContactPasses contactPasses() const;
 
+  // --- sleeping objects (SleepParams) ---------------------------------------------------
+  const SleepParams& sleepParams() const { return sleep_; }
+  /// @throws std::invalid_argument when sleep.validate() fails (the old parameters stay); a
+  ///         fraction of 0 wakes every object
+  void setSleepParams(const SleepParams& sleep);
+  /// whether object `name` slept through the last step (false for an unknown name)
+  bool asleep(const std::string& name) const;
+  /// how many objects slept through the last step
+  std::size_t sleepingCount() const;
+  /// Wakes object `name` (false when there is none) or every object.
+  bool wake(const std::string& name);
+  void wakeAll();
+
   // --- the step -----------------------------------------------------------------------
   /// Advances every object by one time step: per sub-step each object's dynamics and collider
   /// contact, then object-object and self-contact. Allocates nothing once the contacts' buffers
@@ -132,9 +165,14 @@ class World {
 
  private:
   struct Impl;
+  /// sleeping (SleepParams): before a step, which objects wake and which sleep through it
+  void wakeOrKeep();
+  /// after a step: which objects moved, which woke a sleeping one, which fall asleep
+  void settle();
   std::unique_ptr<Impl> impl_;
   std::vector<std::string> names_;
   ObjectContactParams contact_;
+  SleepParams sleep_;
   double timeStep_ = 0.0;
   int substeps_ = 1;
   double time_ = 0.0;

@@ -125,6 +125,9 @@ struct NodeParams {
   /// ~object_contact, ~self_contact, ~object_static_friction, ~object_kinetic_friction: how the
   /// objects of ~objects touch each other and themselves
   ObjectContactParams objectContact;
+  /// ~object_sleep: an object of ~objects at rest (LoopSettings' rest: restFraction of its size
+  /// over idleHold) is not stepped until something moves near it (SleepParams)
+  bool objectSleep = true;
 
   static constexpr double kMaxPublishRate = 1000.0;
   static constexpr double kMaxRealTimeFactor = 100.0;
