@@ -40,6 +40,12 @@ namespace {
 /// placing them cannot reach.
 constexpr double kStartOverlapTolerance = 1e-6;
 
+/// Sleeping: a touching object that moved farther than this fraction of its contact radius in a
+/// step (the contact's penetration slop) wakes a sleeping one; so does a change of the other
+/// objects' force on it by this fraction of its weight.
+constexpr double kWakeSlop = 0.01;
+constexpr double kWakeLoad = 0.1;
+
 std::string num(double v) {
   std::ostringstream s;
   s << v;
@@ -95,10 +101,12 @@ struct World::Impl {
     std::vector<Eigen::Vector3d> anchor;  // where that time began
     std::uint64_t version = 0;            // Solver::stateVersion() when it fell asleep
     Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();  // its particles' bounds
-    bool moved = false;                   // it left its limit in the last step
+    double step = 0.0;                    // how far it moved in the last step (RMS of |v| T)
+    Eigen::Vector3d load = Eigen::Vector3d::Zero();  // the other objects' force on it when it fell asleep
   };
   std::vector<Rest> rest;
   std::vector<char> frozen;  // per object, asleep through this step
+  std::vector<Eigen::Vector3d> load;  // per object, the other objects' force on it in the last step
   /// A collider set, moved or removed since the last step, or moving in this one: objects
   /// within `margin` (plus two contact radii) of it at this pose wake.
   struct Disturbance {
@@ -111,7 +119,7 @@ struct World::Impl {
     Rest& r = rest[o];
     r.asleep = false;
     r.quiet = 0.0;
-    r.moved = false;
+    r.step = 0.0;
     r.anchor = objects[o]->positions();
   }
   void bound(std::size_t o) {
@@ -507,8 +515,10 @@ void World::wakeOrKeep() {
   im.disturbances.clear();
 }
 
-// After the step: how far each stepped object moved; an object touching a sleeping one that
-// moved wakes it for the next step; an object still for `hold` falls asleep.
+// After the step: how far each stepped object moved; a sleeping object is woken for the next
+// step by an object touching it that moved farther than the contact's slop in the step, or when
+// the other objects' force on it changed by a tenth of its weight since it fell asleep (a slow
+// push, an object lifted off it); an object still for `hold` falls asleep.
 void World::settle() {
   Impl& im = *impl_;
   const std::size_t N = im.objects.size();
@@ -518,27 +528,40 @@ void World::settle() {
     Impl::Rest& r = im.rest[o];
     const Solver& s = *im.objects[o];
     const auto& x = s.positions();
+    const auto& v = s.velocities();
     const double limit = sleep_.fraction * s.lattice().objectSize();
-    // the mass-weighted RMS displacement: a particle's chatter in a contact is not the object's motion
+    // mass-weighted RMS: a particle's chatter in a contact is not the object's motion
     const auto& m = s.lattice().masses();
-    double sum = 0.0, mass = 0.0;
+    double moved = 0.0, speed = 0.0, mass = 0.0;
     for (std::size_t i = 0; i < x.size(); ++i) {
-      sum += m[i] * (x[i] - r.anchor[i]).squaredNorm();
+      moved += m[i] * (x[i] - r.anchor[i]).squaredNorm();
+      speed += m[i] * v[i].squaredNorm();
       mass += m[i];
     }
     im.bound(o);
-    r.moved = sum > limit * limit * mass || s.hasPendingCommands();
-    if (r.moved) {
+    r.step = timeStep_ * std::sqrt(speed / mass);
+    if (moved > limit * limit * mass || s.hasPendingCommands()) {
       r.anchor = x;
       r.quiet = 0.0;
     } else {
       r.quiet += timeStep_;
     }
   }
+  im.load.assign(N, Eigen::Vector3d::Zero());
+  for (std::size_t i = 0; i < im.wrenches.size(); ++i) im.load[im.wrenchObjects[i].second] += im.wrenches[i].wrench.force;
   for (const PairImpulse& p : im.contact.pairImpulses()) {
     if (p.contacts == 0 && p.impulse.isZero(0.0)) continue;
-    if (im.frozen[p.a] && !im.frozen[p.b] && im.rest[p.b].moved) im.wake(p.a);
-    if (im.frozen[p.b] && !im.frozen[p.a] && im.rest[p.a].moved) im.wake(p.b);
+    const std::uint32_t ends[2][2] = {{p.a, p.b}, {p.b, p.a}};
+    for (const auto& e : ends)
+      if (im.frozen[e[0]] && !im.frozen[e[1]] && im.rest[e[1]].step > kWakeSlop * im.objects[e[1]]->contactRadius())
+        im.wake(e[0]);
+  }
+  for (std::size_t o = 0; o < N; ++o) {
+    Impl::Rest& r = im.rest[o];
+    if (!im.frozen[o] || !r.asleep) continue;
+    const Solver& s = *im.objects[o];
+    const double weight = s.lattice().totalMass() * s.params().gravity.norm();
+    if ((im.load[o] - r.load).norm() > kWakeLoad * weight) im.wake(o);
   }
   for (std::size_t o = 0; o < N; ++o) {
     Impl::Rest& r = im.rest[o];
@@ -547,6 +570,7 @@ void World::settle() {
     Solver& s = *im.objects[o];
     std::fill(s.substepVelocities().begin(), s.substepVelocities().end(), Eigen::Vector3d::Zero());
     r.version = s.stateVersion();
+    r.load = im.load[o];
   }
 }
 

@@ -13,6 +13,7 @@ import tf2_ros
 import yaml
 import rospkg
 
+from deformable_flsm.msg import DragCommand
 from flsm_testing import ObjectsClient, half_spacing
 
 PKG = 'deformable_flsm'
@@ -115,6 +116,42 @@ class BinTest(unittest.TestCase):
                              'time (fastest particle %.3g m/s)' % (
                                  IDLE_BY_S, self.client.state().max_speed))
         rospy.loginfo('the pile went idle at %.1f s', idle_at)
+
+    def test_z_a_drag_wakes_its_object_while_others_sleep_on(self):
+        # ~object_sleep: an object at rest is not stepped, its ~objects/<name>/state idle; a
+        # drag wakes the object it holds, and objects that nothing reaches sleep on.
+        end = time.time() + 300.0
+        while time.time() < end and not rospy.is_shutdown():
+            states = [self.client.object_state(n) for n in self.names]
+            if all(s is not None and s.idle for s in states):
+                break
+            time.sleep(0.1)
+        asleep = [n for n in self.names if self.client.object_state(n).idle]
+        self.assertEqual(len(asleep), len(self.names), 'not every object sleeps at rest: awake %s' %
+                         [n for n in self.names if n not in asleep])
+        frames = self.frames()
+        name = 'bunny18'  # the top layer's, in the corner of x, y < 0
+        start = frames[name]
+        t0 = self.client.state().sim_time
+        # held where it is, then lifted 5 cm at 5 cm/s, as a hand would
+        self.client.drag(name, DragCommand.GRAB, drag_id='lift', point=tuple(start), count=7,
+                         target=tuple(start))
+        slept_on = set(self.names) - {name}
+        woke = False
+        while self.client.state().sim_time < t0 + 1.5 and time.time() < end:
+            rise = min(0.05, 0.05 * max(0.0, self.client.state().sim_time - t0))
+            self.client.drag(name, DragCommand.MOVE, drag_id='lift',
+                             target=tuple(start + np.array([0.0, 0.0, rise])))
+            woke = woke or not self.client.object_state(name).idle
+            slept_on = {n for n in slept_on if self.client.object_state(n).idle}
+            time.sleep(0.02)
+        lifted = self.frames()[name][2] - start[2]
+        self.client.drag(name, DragCommand.RELEASE, drag_id='lift')
+        rospy.loginfo('the lifted object rose %.4f m; %d of %d others slept on: %s', lifted,
+                      len(slept_on), len(self.names) - 1, sorted(slept_on))
+        self.assertTrue(woke, 'the dragged object woke')
+        self.assertGreater(lifted, 0.02, 'the dragged object was lifted')
+        self.assertGreater(len(slept_on), 0, 'objects the drag did not reach sleep on')
 
 
 if __name__ == '__main__':
