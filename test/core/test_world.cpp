@@ -1281,3 +1281,40 @@ TEST(WorldSleep, ABinAtRestSleepsAndWakesWhereAFingerPressesIt) {
   const double awake = pressTheBin(false), sleeping = pressTheBin(true);
   EXPECT_NEAR(sleeping, awake, 0.15 * awake) << "the sleeping pile resists the finger as the awake one does";
 }
+
+// A block lifted slowly off a sleeping one (33 um a step, below the contact's slop, so its
+// motion alone wakes nothing): the force on the sleeping block changes by the lifted one's
+// weight, which wakes it, and the ground then carries its weight alone (a block left asleep
+// would hold the wrench of both).
+TEST(WorldSleep, ABlockLiftedSlowlyOffASleepingOneWakesIt) {
+  World world(kStep, kSubsteps);
+  world.setSleepParams(sleepAfter(0.5));
+  world.setCollider("ground", ground(0.0));
+  auto bottom = boxAt(4, 4, 2, 0.01, Eigen::Vector3d(0, 0, 0));
+  auto top = boxAt(2, 2, 2, 0.01, Eigen::Vector3d(0.01, 0.01, 0.02));
+  world.addObject("bottom", bottom, paramsFor(*bottom, 1.0, 2.0));
+  Solver& T = world.addObject("top", top, paramsFor(*top, 1.0, 2.0));
+  for (int i = 0; i < stepsFor(10.0) && world.sleepingCount() < 2; ++i) world.step();
+  ASSERT_EQ(world.sleepingCount(), 2u);
+  const double Wb = bottom->totalMass() * kG, Wt = top->totalMass() * kG;
+  EXPECT_NEAR(-world.contactWrench("ground").force.z(), Wb + Wt, 0.02 * (Wb + Wt));
+  std::vector<std::uint32_t> all(top->size());
+  for (std::uint32_t i = 0; i < all.size(); ++i) all[i] = i;
+  Eigen::Vector3d target = Eigen::Vector3d::Zero();
+  for (const auto& x : T.positions()) target += x / static_cast<double>(all.size());
+  T.grab("lift", all, target, 0.0);
+  bool woke = false;
+  for (int i = 0; i < stepsFor(6.0); ++i) {
+    if (i < stepsFor(5.0)) target.z() += 0.002 * kStep;  // 2 mm/s for 5 s
+    T.moveDrag("lift", target);
+    world.step();
+    woke = woke || !world.asleep("bottom");
+  }
+  const double ground = -world.contactWrench("ground").force.z();
+  std::printf("block lifted 1 cm off a sleeping one at 2 mm/s: the lower one woke: %s; the ground carries %.4f N (its "
+              "weight %.4f, both %.4f)\n",
+              woke ? "yes" : "no", ground, Wb, Wb + Wt);
+  EXPECT_TRUE(woke);
+  EXPECT_NEAR(ground, Wb, 0.02 * Wb) << "the ground carries the lower block alone";
+  EXPECT_NEAR(world.objectWrench("bottom", "top").force.norm(), 0.0, 0.02 * Wt);
+}
