@@ -91,8 +91,6 @@ struct World::Impl {
   std::vector<char> coupled;  // per object, whether its implicit sub-step is in the coupled solve
   std::vector<ObjectPairWrench> wrenches;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> wrenchObjects;  // per wrench: from, on
-  std::vector<ObjectPairWrench> heldWrenches;  // of two sleeping objects, kept over a step
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> heldObjects;
 
   /// Per object, what sleeping (SleepParams) needs.
   struct Rest {
@@ -443,28 +441,26 @@ void World::step() {
       col.pose = advancePose(im.colliderStart[c++], col.linearVelocity, col.angularVelocity, timeStep_);
     }
   }
-  // the pair impulses as wrenches, both ways; two sleeping objects keep what they exerted
-  im.heldWrenches.clear();
-  im.heldObjects.clear();
+  // the pair impulses as wrenches, both ways; two sleeping objects keep what they exerted (moved
+  // to the front in place: swaps, no copies of the names)
+  std::size_t held = 0;
   for (std::size_t i = 0; i < im.wrenches.size(); ++i)
     if (im.frozen[im.wrenchObjects[i].first] && im.frozen[im.wrenchObjects[i].second]) {
-      im.heldWrenches.push_back(im.wrenches[i]);
-      im.heldObjects.push_back(im.wrenchObjects[i]);
+      if (i != held) {
+        std::swap(im.wrenches[held], im.wrenches[i]);
+        std::swap(im.wrenchObjects[held], im.wrenchObjects[i]);
+      }
+      ++held;
     }
-  const std::size_t held = im.heldWrenches.size();
   const auto& pairs = im.contact.pairImpulses();
-  im.wrenches.resize(2 * pairs.size() + held);
+  im.wrenches.resize(held + 2 * pairs.size());
   im.wrenchObjects.resize(im.wrenches.size());
-  for (std::size_t i = 0; i < held; ++i) {
-    im.wrenches[2 * pairs.size() + i] = im.heldWrenches[i];
-    im.wrenchObjects[2 * pairs.size() + i] = im.heldObjects[i];
-  }
   for (std::size_t i = 0; i < pairs.size(); ++i) {
     const PairImpulse& p = pairs[i];
-    im.wrenchObjects[2 * i] = {p.a, p.b};
-    im.wrenchObjects[2 * i + 1] = {p.b, p.a};
-    ObjectPairWrench& onB = im.wrenches[2 * i];
-    ObjectPairWrench& onA = im.wrenches[2 * i + 1];
+    im.wrenchObjects[held + 2 * i] = {p.a, p.b};
+    im.wrenchObjects[held + 2 * i + 1] = {p.b, p.a};
+    ObjectPairWrench& onB = im.wrenches[held + 2 * i];
+    ObjectPairWrench& onA = im.wrenches[held + 2 * i + 1];
     onB.from = names_[p.a];
     onB.on = names_[p.b];
     onB.wrench.force = p.impulse / timeStep_;

@@ -890,6 +890,41 @@ TEST(World, StepDoesNotAllocateOnceItsBuffersHaveGrown) { stepWithoutAllocating(
 
 TEST(World, ImplicitStepDoesNotAllocateOnceItsBuffersHaveGrown) { stepWithoutAllocating(Integrator::Implicit); }
 
+// With sleeping objects: falling asleep, sleeping beside a moving collider, held wrenches and
+// waking allocate nothing either, once a first such cycle has grown the buffers.
+TEST(World, StepWithSleepingObjectsDoesNotAllocate) {
+  World world(kStep, kSubsteps);
+  SleepParams sleep;
+  sleep.fraction = 2e-5;
+  sleep.hold = 0.25;
+  world.setSleepParams(sleep);
+  world.setCollider("ground", ground(0.0));
+  auto a = boxAt(4, 4, 2, 0.01, Eigen::Vector3d(0, 0, 0));
+  auto b = boxAt(2, 2, 2, 0.01, Eigen::Vector3d(0.01, 0.01, 0.02));
+  world.addObject("a", a, paramsFor(*a, 1.0, 2.0));
+  world.addObject("b", b, paramsFor(*b, 1.0, 2.0));
+  const Collider pusher = box(Eigen::Vector3d(0.3, 0.02, 0.02), Eigen::Vector3d(0.02, 0.05, 0.05));
+  world.setCollider("pusher", pusher);
+  // a cycle: asleep, the pusher passing by far away, then brought against the stack and back
+  const auto cycle = [&]() {
+    std::size_t most = 0;
+    for (int i = 0; i < stepsFor(20.0) && world.sleepingCount() < 2; ++i) world.step();
+    most = world.sleepingCount();
+    world.moveCollider("pusher", pusher.pose, Eigen::Vector3d(0, 0.1, 0), Eigen::Vector3d::Zero());
+    for (int i = 0; i < 10; ++i) world.step();
+    world.moveCollider("pusher", Eigen::Isometry3d(Eigen::Translation3d(0.055, 0.02, 0.02)), Eigen::Vector3d::Zero(),
+                       Eigen::Vector3d::Zero());
+    for (int i = 0; i < 10; ++i) world.step();
+    world.moveCollider("pusher", pusher.pose, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+    return most;
+  };
+  ASSERT_EQ(cycle(), 2u);
+  const long before = gAllocations.load();
+  const std::size_t asleep = cycle();
+  EXPECT_EQ(gAllocations.load() - before, 0);
+  EXPECT_EQ(asleep, 2u);
+}
+
 // --- a pile at rest ---------------------------------------------------------------------------
 
 namespace {
