@@ -48,14 +48,16 @@ struct ObjectContactParams {
 /// When the objects of a World sleep: an object at rest is not stepped (its particles stay, its
 /// wrenches on the colliders and on the other sleeping objects it touches keep the last step's)
 /// until something moves near it. Rest as the node's loop means it (LoopSettings): equilibrium,
-/// not slowness. An object falls asleep once none of its particles moved farther than
-/// `fraction` of its size (Lattice::objectSize()) from where it was `hold` seconds of simulated
-/// time earlier, with no drag, force or impulse on it and no collider moving near it. It wakes
-/// when a command or a state change reaches it (Solver::hasPendingCommands(),
+/// not slowness. An object falls asleep once its particles' mass-weighted RMS displacement from
+/// where they were `hold` seconds of simulated time earlier stays below `fraction` of its size
+/// (Lattice::objectSize()), with no drag, force or impulse on it and no collider moving near it.
+/// It wakes when a command or a state change reaches it (Solver::hasPendingCommands(),
 /// Solver::stateVersion()), when a collider is set, moved or removed near it (or moves near it
-/// within a step), when an object touching it moved farther than that in the last step, and
-/// when an object is added or removed. A sleeping object is immovable to the others: they rest
-/// on it as on a collider, and one that moves pushes it awake for the next step.
+/// within a step), when an object is added or removed, when a touching object moved farther
+/// than a hundredth of its contact radius in the last step, and when the other objects' force
+/// on it changed by a tenth of its weight since it fell asleep. A sleeping object is immovable
+/// to the others: they rest on it as on a collider, and one that moves or pushes wakes it for
+/// the next step.
 struct SleepParams {
   /// 0: never sleep
   double fraction = 0.0;
