@@ -78,6 +78,11 @@ void ImplicitCoupling::gather(const std::vector<Solver*>& objects) {
     springDiagonal_[sp.g1] += d;
     springDiagonal_[sp.g2] += d;
   }
+  for (const Spring& sp : held_) {
+    if (!sp.active) continue;
+    rhs_[sp.g1] += (-sp.k * sp.gap / h_) * sp.n;
+    springDiagonal_[sp.g1] += sp.k * sp.n.cwiseAbs2();
+  }
   for (std::size_t m = 0; m < members_.size(); ++m) {
     const Solver& s = *objects[members_[m]];
     const std::size_t b = start_[m], n = s.x_.size();
@@ -106,11 +111,48 @@ void ImplicitCoupling::product(const std::vector<Solver*>& objects, const std::v
     y[sp.g1] += f;
     y[sp.g2] -= f;
   }
+  for (const Spring& sp : held_)
+    if (sp.active) y[sp.g1] += (sp.k * sp.n.dot(p[sp.g1])) * sp.n;
 }
 
 void ImplicitCoupling::precondition(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& r,
                                     std::vector<Eigen::Vector3d>& z) {
   perMember(objects, r, z, [this](Solver& s, std::size_t m) { s.coarse_->apply(inv_[m], in_[m], out_[m]); });
+}
+
+// A candidate pair of a coupled object's particle and a sleeping object's: a spring as while both
+// were awake (the sleeping particle's diagonal from its last sub-step, so that the equilibrium
+// the pile fell asleep in stays one), the sleeping particle held still.
+void ImplicitCoupling::holdSpring(const std::vector<Solver*>& objects, const std::vector<char>& still, Spring sp,
+                                  std::size_t slot, double h) {
+  const auto isStill = [&](std::uint32_t o) { return o < still.size() && still[o] != 0; };
+  if (place_[sp.o1] < 0 && place_[sp.o2] >= 0 && isStill(sp.o1)) {  // the coupled particle first
+    std::swap(sp.o1, sp.o2);
+    std::swap(sp.i1, sp.i2);
+  }
+  if (place_[sp.o1] < 0 || !isStill(sp.o2)) return;
+  const Solver& a = *objects[sp.o1];
+  const Solver& b = *objects[sp.o2];
+  if (a.isPrescribed(sp.i1)) return;
+  const Eigen::Vector3d d = a.x_[sp.i1] - b.x_[sp.i2];
+  const double len = d.norm();
+  const double R = a.contactRadius() + b.contactRadius();
+  if (!(len > 1e-9 * R)) return;  // centres met: the contact pass sorts it out
+  sp.n = d / len;
+  sp.gap = len - R * (1.0 + kSpringSkin);
+  const double predicted = sp.gap + h * sp.n.dot(a.v_[sp.i1]);
+  const double d1 = 3.0 / a.implicitInvPrecond_[sp.i1].sum();
+  const double d2 = sp.i2 < b.implicitInvPrecond_.size() ? 3.0 / b.implicitInvPrecond_[sp.i2].sum() : d1;
+  const double m1 = a.lattice_->masses()[sp.i1], m2 = b.lattice_->masses()[sp.i2];
+  const bool fixed2 = b.isPrescribed(sp.i2);
+  const double reducedD = fixed2 ? d1 : d1 * d2 / (d1 + d2);
+  const double reducedM = fixed2 ? m1 : m1 * m2 / (m1 + m2);
+  sp.k = std::min(kSpringStiffness * reducedD, kSpringMassCap * reducedM);
+  sp.g1 = static_cast<std::uint32_t>(start_[static_cast<std::size_t>(place_[sp.o1])] + sp.i1);
+  sp.g2 = 0;
+  sp.slot = static_cast<std::uint32_t>(slot);
+  sp.active = predicted < 0.0;
+  held_.push_back(sp);
 }
 
 bool ImplicitCoupling::updateSprings(double h) {
@@ -126,12 +168,19 @@ bool ImplicitCoupling::updateSprings(double h) {
       changed = true;
     }
   }
+  for (Spring& sp : held_) {
+    const double gap = sp.gap + h * sp.n.dot(velocity_[sp.g1]);
+    if ((sp.active && gap > 0.0) || (!sp.active && gap < 0.0)) {
+      sp.active = !sp.active;
+      changed = true;
+    }
+  }
   return changed;
 }
 
 void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::vector<char>& coupled,
                                const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairCandidates, int s,
-                               double h) {
+                               double h, const std::vector<char>* still) {
   h_ = h;
   // the coupled objects and their places in the solve's vectors
   members_.clear();
@@ -181,8 +230,10 @@ void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::v
   const double floor = kCouplingCgFloor * std::max({std::sqrt(rhsNorm2), std::sqrt(gravityNorm2), 1e-300}) /
                        std::sqrt(static_cast<double>(std::max<std::size_t>(free, 1)));
 
-  // a spring per candidate pair of coupled objects, active where predicted within the skin
+  // a spring per candidate pair of coupled objects, active where predicted within the skin (and
+  // one per pair of a coupled and a still object: holdSpring())
   springs_.clear();
+  held_.clear();
   const auto locate = [&](std::uint32_t g, std::uint32_t& o, std::uint32_t& i) {
     o = static_cast<std::uint32_t>(std::upper_bound(globalStart_.begin(), globalStart_.end(), g) - globalStart_.begin() - 1);
     i = static_cast<std::uint32_t>(g - globalStart_[o]);
@@ -191,7 +242,10 @@ void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::v
     Spring sp;
     locate(pairCandidates[c].first, sp.o1, sp.i1);
     locate(pairCandidates[c].second, sp.o2, sp.i2);
-    if (place[sp.o1] < 0 || place[sp.o2] < 0) continue;
+    if (place[sp.o1] < 0 || place[sp.o2] < 0) {
+      if (still != nullptr) holdSpring(objects, *still, sp, c, h);
+      continue;
+    }
     const Solver& a = *objects[sp.o1];
     const Solver& b = *objects[sp.o2];
     const bool fixed1 = a.isPrescribed(sp.i1), fixed2 = b.isPrescribed(sp.i2);
@@ -272,6 +326,19 @@ void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::v
     const Eigen::Vector3d J = lambda * sp.n;
     objects[sp.o1]->implicitCouplingImpulse_[sp.i1] += J;
     objects[sp.o2]->implicitCouplingImpulse_[sp.i2] -= J;
+    CouplingImpulse ci;
+    ci.g1 = static_cast<std::uint32_t>(globalStart_[sp.o1] + sp.i1);
+    ci.g2 = static_cast<std::uint32_t>(globalStart_[sp.o2] + sp.i2);
+    ci.slot = sp.slot;
+    ci.n = sp.n;
+    ci.lambda = lambda;
+    impulses_.push_back(ci);
+  }
+  for (const Spring& sp : held_) {
+    if (!sp.active) continue;
+    const double lambda = -sp.k * (sp.gap + h * sp.n.dot(velocity_[sp.g1])) / h;
+    if (lambda == 0.0) continue;
+    objects[sp.o1]->implicitCouplingImpulse_[sp.i1] += lambda * sp.n;  // the sleeping object takes none
     CouplingImpulse ci;
     ci.g1 = static_cast<std::uint32_t>(globalStart_[sp.o1] + sp.i1);
     ci.g2 = static_cast<std::uint32_t>(globalStart_[sp.o2] + sp.i2);

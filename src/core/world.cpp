@@ -104,6 +104,7 @@ struct World::Impl {
   };
   std::vector<Rest> rest;
   std::vector<char> frozen;  // per object, asleep through this step
+  std::vector<char> still;   // per object, asleep and implicit: held in the coupled solve
   std::vector<Eigen::Vector3d> load;  // per object, the other objects' force on it in the last step
   /// A collider set, moved or removed since the last step, or moving in this one: objects
   /// within `margin` (plus two contact radii) of it at this pose wake.
@@ -397,14 +398,24 @@ void World::step() {
       im.coupled[o] = 1;
       ++implicitCount;
     }
-  const bool couple = implicitCount >= 2 || (implicitCount == 1 && contact_.selfContact);
+  // the sleeping implicit objects keep their springs to the awake ones, held still: what rests
+  // on them is carried within the solve as while they were awake (one awake object with them
+  // is solved with its springs too)
+  im.still.assign(N, 0);
+  bool anyStill = false;
+  for (std::size_t o = 0; o < N; ++o)
+    if (touching && im.frozen[o] && im.objects[o]->params().integrator == Integrator::Implicit) {
+      im.still[o] = 1;
+      anyStill = true;
+    }
+  const bool couple = implicitCount >= 2 || (implicitCount == 1 && (contact_.selfContact || anyStill));
   for (int s = 0; s < substeps_; ++s) {
     if (couple) {
       for (std::size_t o = 0; o < N; ++o)
         if (!im.coupled[o] && !im.frozen[o]) im.pointers[o]->advanceSubstep(s);
       static const std::vector<std::pair<std::uint32_t, std::uint32_t>> kNone;
       const auto* candidates = im.contact.currentCandidates(im.pointers, contact_);
-      im.coupling.substep(im.pointers, im.coupled, candidates != nullptr ? *candidates : kNone, s, h);
+      im.coupling.substep(im.pointers, im.coupled, candidates != nullptr ? *candidates : kNone, s, h, &im.still);
       im.contact.setCouplingImpulses(&im.coupling.impulses());
     } else {
       for (std::size_t o = 0; o < N; ++o)

@@ -1353,3 +1353,53 @@ TEST(WorldSleep, ABlockLiftedSlowlyOffASleepingOneWakesIt) {
   EXPECT_NEAR(ground, Wb, 0.02 * Wb) << "the ground carries the lower block alone";
   EXPECT_NEAR(world.objectWrench("bottom", "top").force.norm(), 0.0, 0.02 * Wt);
 }
+
+// Three soft cubes (30 kPa) stacked at one implicit sub-step fall asleep one by one and stay
+// asleep, each contact carrying the weight above it. An implicit object resting on a sleeping
+// one keeps its contact springs to it in its solve (the sleeping particles held still): without
+// them it fell onto the sleeper for a step (the contact under it carried a sixth of the weight
+// above), was caught by the contact pass, bounced and woke the stack, over and over.
+TEST(WorldSleep, AnImplicitStackFallsAsleepAndStaysAsleepCarryingItsWeight) {
+  World world(kStep, 1);
+  world.setSleepParams(sleepAfter(1.0));
+  world.setCollider("ground", ground(0.0));
+  const char* names[3] = {"bottom", "middle", "top"};
+  double weight[3];
+  for (int k = 0; k < 3; ++k) {
+    auto lattice = boxAt(5, 5, 5, 0.016, Eigen::Vector3d(0, 0, 0.09 * k + 0.01));
+    SolverParams p;
+    p.regionHalfWidth = 1;
+    p.youngsModulus = 30e3;
+    p.ambientDamping = 1.0;
+    p.timeStep = kStep;
+    p.substeps = 1;
+    p.integrator = Integrator::Implicit;
+    world.addObject(names[k], lattice, p);
+    weight[k] = lattice->totalMass() * kG;
+  }
+  int allAsleep = -1, woke = 0;
+  double least[2] = {1e9, 1e9};  // the least force on the lower two cubes from above, in any step
+  for (int i = 0; i < stepsFor(15.0); ++i) {
+    world.step();
+    least[0] = std::min(least[0], world.objectWrench("middle", "bottom").force.z() * -1.0);
+    least[1] = std::min(least[1], world.objectWrench("top", "middle").force.z() * -1.0);
+    if (i < stepsFor(1.5)) least[0] = least[1] = 1e9;  // the drop and its bounce
+    if (allAsleep < 0 && world.sleepingCount() == 3) allAsleep = i;
+    if (allAsleep >= 0 && world.sleepingCount() < 3) ++woke;
+  }
+  const double mt = world.objectWrench("middle", "top").force.z(), bm = world.objectWrench("bottom", "middle").force.z();
+  const double g = -world.contactWrench("ground").force.z();
+  std::printf("implicit stack of three 30 kPa cubes: all asleep at %.2f s, steps awake after: %d; middle->top %.4f N "
+              "(weight %.4f), bottom->middle %.4f N (%.4f), ground %.4f N (%.4f); least force from above after 1.5 s: "
+              "%.4f N on the middle, %.4f N on the bottom\n",
+              allAsleep < 0 ? -1.0 : (allAsleep + 1) * kStep, woke, mt, weight[2], bm, weight[1] + weight[2], g,
+              weight[0] + weight[1] + weight[2], least[1], least[0]);
+  ASSERT_GE(allAsleep, 0) << "the stack never sleeps";
+  EXPECT_LT(allAsleep, stepsFor(10.0));
+  EXPECT_EQ(woke, 0) << "asleep, it stays asleep";
+  EXPECT_NEAR(mt, weight[2], 0.005 * weight[2]);
+  EXPECT_NEAR(bm, weight[1] + weight[2], 0.005 * (weight[1] + weight[2]));
+  EXPECT_NEAR(g, weight[0] + weight[1] + weight[2], 0.005 * (weight[0] + weight[1] + weight[2]));
+  EXPECT_GT(least[1], 0.9 * weight[2]) << "the top never falls onto the middle as it sleeps";
+  EXPECT_GT(least[0], 0.9 * (weight[1] + weight[2])) << "nor the middle onto the bottom";
+}

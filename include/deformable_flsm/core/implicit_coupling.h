@@ -43,10 +43,17 @@ class ImplicitCoupling {
   /// direction between the particles at the start of the sub-step. One-sided, by an active set
   /// shared with each object's collider contacts: a spring whose solution gap ends above the
   /// skin (it pulls) is let go of, a pair the solution carries into each other joins.
+  /// A pair of a coupled object and a sleeping one (`still`, World's frozen objects: not
+  /// stepped) has its spring too, the sleeping particle held where it is (velocity 0), as a
+  /// collider contact holds a particle: the sleeping object carries what rests on it within the
+  /// solve.
   /// @param pairCandidates  of the object contact pass's list (ObjectContactSolver), valid for
-  ///                        the objects' positions now; both particles' objects coupled
+  ///                        the objects' positions now; pairs of two objects that are neither
+  ///                        coupled nor still, or both still, have no spring
+  /// @param still  per object, 1 for a sleeping one (may be null: none)
   void substep(const std::vector<Solver*>& objects, const std::vector<char>& coupled,
-               const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairCandidates, int s, double h);
+               const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairCandidates, int s, double h,
+               const std::vector<char>* still = nullptr);
 
   /// The springs that carried an impulse in the last substep().
   const std::vector<CouplingImpulse>& impulses() const { return impulses_; }
@@ -72,6 +79,10 @@ class ImplicitCoupling {
   template <class Apply>
   void perMember(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& in,
                  std::vector<Eigen::Vector3d>& out, Apply&& apply);
+  /// A spring for candidate `slot` (sp: its objects and particles) when one of its objects is
+  /// coupled and the other still, into held_.
+  void holdSpring(const std::vector<Solver*>& objects, const std::vector<char>& still, Spring sp, std::size_t slot,
+                  double h);
   /// The springs' active set after a solve; returns whether it changed.
   bool updateSprings(double h);
 
@@ -83,6 +94,8 @@ class ImplicitCoupling {
   std::vector<PcgConstraint> constraint_;
   std::vector<std::vector<Eigen::Vector3d>> in_, out_, inv_;  // per member: its segments
   std::vector<Spring> springs_;
+  /// the springs to sleeping objects: particle 2 (o2, i2) held still, g2 unused
+  std::vector<Spring> held_;
   std::vector<CouplingImpulse> impulses_;
   std::vector<std::size_t> globalStart_;  // per object, its first global number
   std::vector<std::int64_t> place_;       // per object, its place among the members or -1
