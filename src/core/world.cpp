@@ -314,6 +314,7 @@ void World::setContactParams(const ObjectContactParams& contact) {
   for (const auto& o : impl_->objects) all.push_back(&o->params());
   if (const char* why = bdf2Refusal(all, contact)) throw std::invalid_argument(std::string("world: ") + why);
   contact_ = contact;
+  wakeAll();  // friction, margins, self-contact: the rest the objects fell asleep in may be no more
 }
 
 const std::vector<ObjectPairWrench>& World::objectWrenches() const { return impl_->wrenches; }
@@ -547,7 +548,7 @@ void World::settle() {
     }
     im.bound(o);
     r.step = timeStep_ * std::sqrt(speed / mass);
-    if (moved > limit * limit * mass || s.hasPendingCommands()) {
+    if (!(moved <= limit * limit * mass) || s.hasPendingCommands()) {  // a non-finite state never rests
       r.anchor = x;
       r.quiet = 0.0;
     } else {

@@ -180,6 +180,14 @@ class ObjectContactSolver {
   /// keptCollider_ without the entries of objects that are not frozen (scratch: keptScratch_)
   void keepFrozenColliderImpulses();
   std::vector<KeptImpulse> keptScratch_;
+  /// a sleeping object's pair impulses over a build (buildList()), sorted by pair
+  struct Carried {
+    std::pair<std::uint32_t, std::uint32_t> key;
+    double lambda = 0.0;
+    Eigen::Vector3d friction = Eigen::Vector3d::Zero();
+    std::uint8_t sliding = 0;
+  };
+  std::vector<Carried> carried_;
   std::vector<double> springLambda_;  // per candidate slot, this sub-step's spring impulse
   /// the particle pairs (global, lower first) whose spring pushed in the step's last sub-step,
   /// sorted: a pair contact of the passes among them is not counted again (accumulate())

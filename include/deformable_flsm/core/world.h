@@ -47,17 +47,20 @@ struct ObjectContactParams {
 
 /// When the objects of a World sleep: an object at rest is not stepped (its particles stay, its
 /// wrenches on the colliders and on the other sleeping objects it touches keep the last step's)
-/// until something moves near it. Rest as the node's loop means it (LoopSettings): equilibrium,
-/// not slowness. An object falls asleep once its particles' mass-weighted RMS displacement from
+/// until something moves near it. Rest in the node's loop's sense (LoopSettings: equilibrium,
+/// not slowness), over the object's particles as an RMS where the loop takes the largest
+/// particle's. An object falls asleep once its particles' mass-weighted RMS displacement from
 /// where they were `hold` seconds of simulated time earlier stays below `fraction` of its size
 /// (Lattice::objectSize()), with no drag, force or impulse on it and no collider moving near it.
 /// It wakes when a command or a state change reaches it (Solver::hasPendingCommands(),
-/// Solver::stateVersion()), when a collider is set, moved or removed near it (or moves near it
-/// within a step), when an object is added or removed, when a touching object moved farther
-/// than a hundredth of its contact radius in the last step, and when the other objects' force
-/// on it changed by a tenth of its weight since it fell asleep. A sleeping object is immovable
-/// to the others: they rest on it as on a collider, and one that moves or pushes wakes it for
-/// the next step.
+/// Solver::stateVersion()), when a collider of the World is set, moved or removed near it (or
+/// moves near it within a step; a collider set on its Solver directly is not watched), when
+/// an object is added or removed or the contact parameters change, when a touching object
+/// moved farther than a hundredth of its contact radius in the last step, and when the other
+/// objects' force on it changed by a tenth of its weight since it fell asleep. A sleeping object
+/// is immovable to the others: they rest on it as on a collider (an implicit object keeps its
+/// contact springs to a sleeping implicit one in its solve, the sleeping particles held still),
+/// and one that moves or pushes wakes it for the next step. A non-finite state never rests.
 struct SleepParams {
   /// 0: never sleep
   double fraction = 0.0;
@@ -118,6 +121,7 @@ class World {
 
   // --- object-object contact ----------------------------------------------------------
   const ObjectContactParams& contactParams() const { return contact_; }
+  /// Wakes every sleeping object.
   /// @throws std::invalid_argument when contact.validate() fails (the old parameters stay)
   void setContactParams(const ObjectContactParams& contact);
   /// Every ordered pair (from, on) of different objects that touched in the last step, with
@@ -146,7 +150,8 @@ class World {
   /// @throws std::invalid_argument when sleep.validate() fails (the old parameters stay); a
   ///         fraction of 0 wakes every object
   void setSleepParams(const SleepParams& sleep);
-  /// whether object `name` slept through the last step (false for an unknown name)
+  /// whether object `name` is asleep: it sleeps through the next step unless something wakes it
+  /// (false for an unknown name)
   bool asleep(const std::string& name) const;
   /// how many objects slept through the last step
   std::size_t sleepingCount() const;
