@@ -27,6 +27,7 @@ import sys
 import threading
 import time
 import xmlrpc.client
+import yaml
 
 import numpy as np
 import roslib.packages
@@ -119,6 +120,11 @@ def main():
     parser.add_argument('--params', default='', help='YAML parameters (default config)')
     parser.add_argument('--scene', default='', help='YAML parameters loaded over --params')
     args = parser.parse_args()
+    for path in (args.params, args.scene):
+        if path and 'objects' in (yaml.safe_load(open(path)) or {}):
+            sys.exit('measure: %s is a scene of several objects (~objects): measure runs the '
+                     'drag latency on ~particles, which such a scene does not publish; its cost is '
+                     'in bench_world (--only bin) and its topics are under ~objects/<name>/' % path)
 
     env = dict(os.environ)
     env['ROS_MASTER_URI'] = 'http://localhost:%d' % PORT
