@@ -55,6 +55,19 @@ constexpr double kSpringSkin = 0.05;
 constexpr double kCouplingCgTolerance = 1e-4;
 constexpr double kCouplingCgFloor = 3e-5;
 
+/// The spring's normal (from particle 2 to 1) and its gap less the skin at the start of the
+/// sub-step; false when the centres met (the contact pass sorts that out).
+bool springGeometry(const Eigen::Vector3d& x1, double r1, const Eigen::Vector3d& x2, double r2, Eigen::Vector3d& n,
+                    double& gap) {
+  const Eigen::Vector3d d = x1 - x2;
+  const double len = d.norm();
+  const double R = r1 + r2;
+  if (!(len > 1e-9 * R)) return false;
+  n = d / len;
+  gap = len - R * (1.0 + kSpringSkin);
+  return true;
+}
+
 }  // namespace
 
 void ImplicitCoupling::gather(const std::vector<Solver*>& objects) {
@@ -134,12 +147,7 @@ void ImplicitCoupling::holdSpring(const std::vector<Solver*>& objects, const std
   const Solver& a = *objects[sp.o1];
   const Solver& b = *objects[sp.o2];
   if (a.isPrescribed(sp.i1)) return;
-  const Eigen::Vector3d d = a.x_[sp.i1] - b.x_[sp.i2];
-  const double len = d.norm();
-  const double R = a.contactRadius() + b.contactRadius();
-  if (!(len > 1e-9 * R)) return;  // centres met: the contact pass sorts it out
-  sp.n = d / len;
-  sp.gap = len - R * (1.0 + kSpringSkin);
+  if (!springGeometry(a.x_[sp.i1], a.contactRadius(), b.x_[sp.i2], b.contactRadius(), sp.n, sp.gap)) return;
   const double predicted = sp.gap + h * sp.n.dot(a.v_[sp.i1]);
   const double d1 = 3.0 / a.implicitInvPrecond_[sp.i1].sum();
   const double d2 = sp.i2 < b.implicitInvPrecond_.size() ? 3.0 / b.implicitInvPrecond_[sp.i2].sum() : d1;
@@ -153,6 +161,16 @@ void ImplicitCoupling::holdSpring(const std::vector<Solver*>& objects, const std
   sp.slot = static_cast<std::uint32_t>(slot);
   sp.active = predicted < 0.0;
   held_.push_back(sp);
+}
+
+void ImplicitCoupling::recordImpulse(const Spring& sp, double lambda) {
+  CouplingImpulse ci;
+  ci.g1 = static_cast<std::uint32_t>(globalStart_[sp.o1] + sp.i1);
+  ci.g2 = static_cast<std::uint32_t>(globalStart_[sp.o2] + sp.i2);
+  ci.slot = sp.slot;
+  ci.n = sp.n;
+  ci.lambda = lambda;
+  impulses_.push_back(ci);
 }
 
 bool ImplicitCoupling::updateSprings(double h) {
@@ -250,12 +268,7 @@ void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::v
     const Solver& b = *objects[sp.o2];
     const bool fixed1 = a.isPrescribed(sp.i1), fixed2 = b.isPrescribed(sp.i2);
     if (fixed1 && fixed2) continue;
-    const Eigen::Vector3d d = a.x_[sp.i1] - b.x_[sp.i2];
-    const double len = d.norm();
-    const double R = a.contactRadius() + b.contactRadius();
-    if (!(len > 1e-9 * R)) continue;  // centres met: the contact pass sorts it out
-    sp.n = d / len;
-    sp.gap = len - R * (1.0 + kSpringSkin);
+    if (!springGeometry(a.x_[sp.i1], a.contactRadius(), b.x_[sp.i2], b.contactRadius(), sp.n, sp.gap)) continue;
     const double predicted = sp.gap + h * sp.n.dot(a.v_[sp.i1] - b.v_[sp.i2]);
     // the particles' own diagonals (mass, damping, the material's stiffness bound)
     const double d1 = 3.0 / a.implicitInvPrecond_[sp.i1].sum(), d2 = 3.0 / b.implicitInvPrecond_[sp.i2].sum();
@@ -326,26 +339,14 @@ void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::v
     const Eigen::Vector3d J = lambda * sp.n;
     objects[sp.o1]->implicitCouplingImpulse_[sp.i1] += J;
     objects[sp.o2]->implicitCouplingImpulse_[sp.i2] -= J;
-    CouplingImpulse ci;
-    ci.g1 = static_cast<std::uint32_t>(globalStart_[sp.o1] + sp.i1);
-    ci.g2 = static_cast<std::uint32_t>(globalStart_[sp.o2] + sp.i2);
-    ci.slot = sp.slot;
-    ci.n = sp.n;
-    ci.lambda = lambda;
-    impulses_.push_back(ci);
+    recordImpulse(sp, lambda);
   }
   for (const Spring& sp : held_) {
     if (!sp.active) continue;
     const double lambda = -sp.k * (sp.gap + h * sp.n.dot(velocity_[sp.g1])) / h;
     if (lambda == 0.0) continue;
     objects[sp.o1]->implicitCouplingImpulse_[sp.i1] += lambda * sp.n;  // the sleeping object takes none
-    CouplingImpulse ci;
-    ci.g1 = static_cast<std::uint32_t>(globalStart_[sp.o1] + sp.i1);
-    ci.g2 = static_cast<std::uint32_t>(globalStart_[sp.o2] + sp.i2);
-    ci.slot = sp.slot;
-    ci.n = sp.n;
-    ci.lambda = lambda;
-    impulses_.push_back(ci);
+    recordImpulse(sp, lambda);
   }
   for (std::size_t m = 0; m < members_.size(); ++m) {
     Solver& sv = *objects[members_[m]];

@@ -399,6 +399,19 @@ TEST(WorldScene, AStackOfThreeCarriesTheWeightAboveEachContactWithTheImplicitSte
 // stack crushed to half its height and toppled within 1.4 s (docs/method.md).
 class SoftStack : public ::testing::TestWithParam<double> {};
 
+/// A cube of a physical material of Young's modulus E (regions of half-width 1), one implicit
+/// sub-step of 1/60 s, ambient damping 1/s.
+SolverParams implicitCube(double E) {
+  SolverParams p;
+  p.regionHalfWidth = 1;
+  p.youngsModulus = E;
+  p.ambientDamping = 1.0;
+  p.timeStep = kStep;
+  p.substeps = 1;
+  p.integrator = Integrator::Implicit;
+  return p;
+}
+
 TEST_P(SoftStack, StandsAndCarriesTheWeightAtOneImplicitSubstep) {
   const double E = GetParam();
   World world(kStep, 1);
@@ -408,14 +421,7 @@ TEST_P(SoftStack, StandsAndCarriesTheWeightAtOneImplicitSubstep) {
   double weight[3];
   for (int k = 0; k < 3; ++k) {
     auto lattice = boxAt(5, 5, 5, s, Eigen::Vector3d(0, 0, 0.082 * k + 0.002));
-    SolverParams p;
-    p.regionHalfWidth = 1;
-    p.youngsModulus = E;
-    p.ambientDamping = 1.0;
-    p.timeStep = kStep;
-    p.substeps = 1;
-    p.integrator = Integrator::Implicit;
-    world.addObject(names[k], lattice, p);
+    world.addObject(names[k], lattice, implicitCube(E));
     weight[k] = lattice->totalMass() * kG;
   }
   const int steps = stepsFor(3.0), last = stepsFor(1.0);
@@ -1093,21 +1099,34 @@ SleepParams sleepAfter(double hold) {
 // contacts keep carrying the weight above each within 2 %, the statics a stepped stack
 // converges to. A block thrown at the top one wakes it (an object that moved struck it), the top
 // block is pushed as far as without sleeping, and nothing interpenetrates.
+/// Three firm blocks stacked face to face on the ground (at z = 0) of `world`, as the stack of
+/// WorldScene, and a fourth block, `name`, of 2 x 2 x 2 cells with its lower corner at `other`.
+struct BlockStack {
+  std::shared_ptr<const Lattice> bottom, middle, top, other;
+};
+static BlockStack stackWithABlock(World& world, const std::string& name, const Eigen::Vector3d& other,
+                                  bool weightlessOther = false) {
+  world.setCollider("ground", ground(0.0));
+  const double s = 0.01;
+  BlockStack b{boxAt(6, 6, 2, s, Eigen::Vector3d(0, 0, 0)), boxAt(4, 4, 2, s, Eigen::Vector3d(0.01, 0.01, 0.02)),
+               boxAt(4, 2, 2, s, Eigen::Vector3d(0.01, 0.02, 0.04)), boxAt(2, 2, 2, s, other)};
+  world.addObject("bottom", b.bottom, paramsFor(*b.bottom, 1.0, 2.0));
+  world.addObject("middle", b.middle, paramsFor(*b.middle, 1.0, 2.0));
+  world.addObject("top", b.top, paramsFor(*b.top, 1.0, 2.0));
+  SolverParams po = paramsFor(*b.other, 1.0, 2.0);
+  if (weightlessOther) po.gravity.setZero();
+  world.addObject(name, b.other, po);
+  return b;
+}
+
 static double strikeTheStack(bool sleeping) {
   World world(kStep, kSubsteps);
   if (sleeping) world.setSleepParams(sleepAfter(0.5));
-  world.setCollider("ground", ground(0.0));
-  const double s = 0.01;
-  auto bottom = boxAt(6, 6, 2, s, Eigen::Vector3d(0, 0, 0));
-  auto middle = boxAt(4, 4, 2, s, Eigen::Vector3d(0.01, 0.01, 0.02));
-  auto top = boxAt(4, 2, 2, s, Eigen::Vector3d(0.01, 0.02, 0.04));
-  auto thrown = boxAt(2, 2, 2, s, Eigen::Vector3d(0.15, 0.02, 0.04));
-  world.addObject("bottom", bottom, paramsFor(*bottom, 1.0, 2.0));
-  world.addObject("middle", middle, paramsFor(*middle, 1.0, 2.0));
-  const Solver& T = world.addObject("top", top, paramsFor(*top, 1.0, 2.0));
-  SolverParams pt = paramsFor(*thrown, 1.0, 2.0);
-  pt.gravity.setZero();  // it waits beside the stack, weightless, until thrown
-  Solver& C = world.addObject("thrown", thrown, pt);
+  // the thrown block waits beside the stack, weightless, until thrown
+  const BlockStack b = stackWithABlock(world, "thrown", Eigen::Vector3d(0.15, 0.02, 0.04), true);
+  const auto &bottom = b.bottom, &middle = b.middle, &top = b.top, &thrown = b.other;
+  const Solver& T = *world.object("top");
+  Solver& C = *world.object("thrown");
   for (int i = 0; i < stepsFor(4.0) || (sleeping && world.sleepingCount() < 4 && i < stepsFor(20.0)); ++i) world.step();
   if (sleeping) {
     EXPECT_EQ(world.sleepingCount(), 4u) << "the stack and the waiting block rest";
@@ -1399,14 +1418,7 @@ TEST(WorldSleep, AnImplicitStackFallsAsleepAndStaysAsleepCarryingItsWeight) {
   double weight[3];
   for (int k = 0; k < 3; ++k) {
     auto lattice = boxAt(5, 5, 5, 0.016, Eigen::Vector3d(0, 0, 0.09 * k + 0.01));
-    SolverParams p;
-    p.regionHalfWidth = 1;
-    p.youngsModulus = 30e3;
-    p.ambientDamping = 1.0;
-    p.timeStep = kStep;
-    p.substeps = 1;
-    p.integrator = Integrator::Implicit;
-    world.addObject(names[k], lattice, p);
+    world.addObject(names[k], lattice, implicitCube(30e3));
     weight[k] = lattice->totalMass() * kG;
   }
   int allAsleep = -1, woke = 0;
@@ -1445,16 +1457,9 @@ TEST(WorldSleep, AnImplicitStackFallsAsleepAndStaysAsleepCarryingItsWeight) {
 static void wakeTheStack(bool moving, double& passes, double& least, double& above, std::size_t& built) {
   World world(kStep, kSubsteps);
   world.setSleepParams(sleepAfter(0.5));
-  world.setCollider("ground", ground(0.0));
-  const double s = 0.01;
-  auto bottom = boxAt(6, 6, 2, s, Eigen::Vector3d(0, 0, 0));
-  auto middle = boxAt(4, 4, 2, s, Eigen::Vector3d(0.01, 0.01, 0.02));
-  auto top = boxAt(4, 2, 2, s, Eigen::Vector3d(0.01, 0.02, 0.04));
-  auto mover = boxAt(2, 2, 2, s, Eigen::Vector3d(0.3, 0.0, 0.0));
-  world.addObject("bottom", bottom, paramsFor(*bottom, 1.0, 2.0));
-  world.addObject("middle", middle, paramsFor(*middle, 1.0, 2.0));
-  world.addObject("top", top, paramsFor(*top, 1.0, 2.0));
-  Solver& M = world.addObject("mover", mover, paramsFor(*mover, 1.0, 2.0));
+  const BlockStack b = stackWithABlock(world, "mover", Eigen::Vector3d(0.3, 0.0, 0.0));
+  const auto &middle = b.middle, &top = b.top, &mover = b.other;
+  Solver& M = *world.object("mover");
   for (int i = 0; i < stepsFor(20.0) && world.sleepingCount() < 4; ++i) world.step();
   ASSERT_EQ(world.sleepingCount(), 4u);
   // the mover dragged 5 cm back and forth, 30 cm from the stack, for 2 s (or held where it is)

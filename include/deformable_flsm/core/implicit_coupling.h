@@ -83,6 +83,8 @@ class ImplicitCoupling {
   /// coupled and the other still, into held_.
   void holdSpring(const std::vector<Solver*>& objects, const std::vector<char>& still, Spring sp, std::size_t slot,
                   double h);
+  /// The spring's impulse lambda n on particle 1 into impulses_ (global numbers).
+  void recordImpulse(const Spring& sp, double lambda);
   /// The springs' active set after a solve; returns whether it changed.
   bool updateSprings(double h);
 
