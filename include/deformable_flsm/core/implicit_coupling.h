@@ -48,8 +48,9 @@ class ImplicitCoupling {
   /// collider contact holds a particle: the sleeping object carries what rests on it within the
   /// solve.
   /// @param pairCandidates  of the object contact pass's list (ObjectContactSolver), valid for
-  ///                        the objects' positions now; pairs of two objects that are neither
-  ///                        coupled nor still, or both still, have no spring
+  ///                        the objects' positions now; a pair has a spring when both its
+  ///                        objects are coupled or one is coupled and the other still (none
+  ///                        with an awake object that is not coupled, or two still ones)
   /// @param still  per object, 1 for a sleeping one (may be null: none)
   void substep(const std::vector<Solver*>& objects, const std::vector<char>& coupled,
                const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairCandidates, int s, double h,
