@@ -48,6 +48,10 @@ constexpr double kStep = 1.0 / 60.0;  // s per step
 constexpr double kBig = 1e3;          // a box bound beyond the objects (m)
 /// Simulated time to settle, in units of the case's 1 / omega_1 (--settle)
 double gSettle = 10.0;
+/// ... and at least this many steps: a stiff case's 10 / omega_1 is a step or two, too few for
+/// the implicit step's conjugate gradients (stopped at a relative tolerance) to reach the static
+/// answer, or for the explicit step's capped damping to remove the motion.
+constexpr int kMinSettleSteps = 300;
 /// --from-section: regions narrowed to the case's thinnest section
 bool gFromSection = false;
 /// --modulus: every case's Young's modulus (Pa); 0 for modulusFor()
@@ -109,11 +113,11 @@ SolverParams paramsFor(const Setting& s, int w, double E, const Eigen::Vector3d&
 double gMeanIterations = 0.0;
 int gMaxIterations = 0;
 
-/// Runs the solver for `seconds` of simulated time; returns the largest particle speed at the end.
+/// Runs the solver for `seconds` of simulated time (at least kMinSettleSteps steps); returns the largest particle speed at the end.
 double settle(Solver& s, double seconds) {
   long total = 0;
   gMaxIterations = 0;
-  const int steps = static_cast<int>(std::ceil(seconds / kStep));
+  const int steps = std::max(kMinSettleSteps, static_cast<int>(std::ceil(seconds / kStep)));
   for (int i = 0; i < steps; ++i) {
     s.step();
     total += s.lastImplicitSolve().iterations;
