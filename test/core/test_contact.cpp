@@ -954,19 +954,14 @@ TEST(ContactScene, SpherePressedIntoTheBunnyMeetsAGrowingReaction) {
   }
 }
 
-TEST(ContactScene, IndenterMovedIntoTheBunnyInOneCommandPushesItOutAndItRests) {
-  // The node's default object and material (config/flsm.yaml at contact.test's particle budget)
-  // on the ground, free or with its bottom 3 cm pinned; a sphere set touching its back is then
-  // moved down in one command (a pose, no velocity) by 1 cm, then by 2 cm more, each time
-  // farther than the contact radius r: particle centres start the next sub-step inside the
-  // sphere (their spheres deeper than r). They must be pushed out: at r per sub-step a few
-  // sub-steps suffice, so after 3 steps (33 sub-steps) no particle centre is inside the sphere.
-  // And the object must settle under the indenter: within 30 s every particle slower than r per
-  // second for a whole second (the indentation moved centimetres in a fraction of a second;
-  // what is left is far below a particle's size per second), and the object pushes the sphere
-  // up. A buried particle that got no velocity response was pulled back in by shape matching as
-  // fast as the push-out moved it out; one of a pinned object pushed no farther than r beyond
-  // its goal stayed inside: the pins do not keep this object in the sphere, most of it is out.
+namespace {
+
+/// The indenter scene below, with the explicit step (11 sub-steps, as the node's default) or the
+/// implicit one (one sub-step of 1/60 s: 3 steps are 3 sub-steps, not 33). Returns the sphere's
+/// reaction at rest (N) for the free and the pinned bunny at each depth, in that order, in
+/// `reactions` (an out-parameter: gtest's ASSERT returns void).
+void indenterMovedInOneCommand(bool implicit, std::vector<double>& reactions) {
+  reactions.clear();
   ASSERT_TRUE(std::filesystem::exists(kBunnyPath)) << kBunnyPath << " missing: install glmark2-data (a test dependency)";
   const ResolutionChoice choice = finestResolutionWithin(zUpBunny(), 2000);
   const int w = regionHalfWidthForSection(measureSectionThickness(choice.voxels).thinnest, 5);
@@ -976,6 +971,10 @@ TEST(ContactScene, IndenterMovedIntoTheBunnyInOneCommandPushesItOutAndItRests) {
   p.youngsModulus = 3e4;
   p.timeStep = 1.0 / 60.0;
   p.substeps = 11;
+  if (implicit) {
+    p.integrator = Integrator::Implicit;
+    p.substeps = 1;
+  }
   for (bool pinned : {false, true}) {
     Solver s(lattice, p);
     s.setCollider("ground", groundBelow(s, 0.02));
@@ -1020,16 +1019,44 @@ TEST(ContactScene, IndenterMovedIntoTheBunnyInOneCommandPushesItOutAndItRests) {
         still = maxSpeed(s) < r / 1.0 ? still + 1 : 0;
         if (still >= second) rest = i + 1;
       }
-      std::printf("[ indent  ] %s bunny, sphere r %.0f mm moved to %.0f mm into it in one command (contact radius "
+      std::printf("[ indent  ] %s %s bunny, sphere r %.0f mm moved to %.0f mm into it in one command (contact radius "
                   "%.1f mm): deepest particle centre %.1f mm inside it, %.2g mm after 3 steps; at rest after %.2f s, "
-                  "reaction %.3f N\n", pinned ? "pinned" : "free", 1e3 * R, 1e3 * depth, 1e3 * r, 1e3 * buried,
+                  "reaction %.3f N\n", implicit ? "implicit," : "explicit,", pinned ? "pinned" : "free", 1e3 * R, 1e3 * depth, 1e3 * r, 1e3 * buried,
                   1e3 * left, rest * p.timeStep, s.contactWrench("ball").force.z());
       EXPECT_GT(buried, 0.0) << "the move buried particle spheres deeper than r";
-      EXPECT_LE(left, 0.0) << "pushed out within 3 steps" << (pinned ? " (pinned)" : "");
-      EXPECT_GT(rest, 0) << "the bunny comes to rest under the indenter" << (pinned ? " (pinned)" : "");
+      EXPECT_LE(left, 0.0) << "pushed out within 3 steps" << (pinned ? " (pinned)" : "") << (implicit ? " (implicit)" : "");
+      EXPECT_GT(rest, 0) << "the bunny comes to rest under the indenter" << (pinned ? " (pinned)" : "") << (implicit ? " (implicit)" : "");
       EXPECT_GT(s.contactWrench("ball").force.z(), 0.0) << "and pushes it up";
+      reactions.push_back(s.contactWrench("ball").force.z());
     }
   }
+}
+
+}  // namespace
+
+TEST(ContactScene, IndenterMovedIntoTheBunnyInOneCommandPushesItOutAndItRests) {
+  // The node's default object and material (config/flsm.yaml at contact.test's particle budget)
+  // on the ground, free or with its bottom 3 cm pinned; a sphere set touching its back is then
+  // moved down in one command (a pose, no velocity) by 1 cm, then by 2 cm more, each time
+  // farther than the contact radius r: particle centres start the next sub-step inside the
+  // sphere (their spheres deeper than r). They must be pushed out: at r per sub-step a few
+  // sub-steps suffice, so after 3 steps (33 sub-steps) no particle centre is inside the sphere.
+  // And the object must settle under the indenter: within 30 s every particle slower than r per
+  // second for a whole second (the indentation moved centimetres in a fraction of a second;
+  // what is left is far below a particle's size per second), and the object pushes the sphere
+  // up. A buried particle that got no velocity response was pulled back in by shape matching as
+  // fast as the push-out moved it out; one of a pinned object pushed no farther than r beyond
+  // its goal stayed inside: the pins do not keep this object in the sphere, most of it is out.
+  // The same at one implicit sub-step of 1/60 s: contact is inside the solve, and a buried
+  // particle is pushed out by position there (3 steps are 3 sub-steps instead of 33). At rest
+  // the same material under the same indenter carries the same reaction: within 10 % of the
+  // explicit step's, whose alpha is uncapped at 11 sub-steps (both are the modulus asked).
+  std::vector<double> explicitReactions, implicitReactions;
+  indenterMovedInOneCommand(false, explicitReactions);
+  indenterMovedInOneCommand(true, implicitReactions);
+  ASSERT_EQ(implicitReactions.size(), explicitReactions.size());
+  for (std::size_t i = 0; i < explicitReactions.size(); ++i)
+    EXPECT_NEAR(implicitReactions[i] / explicitReactions[i], 1.0, 0.10) << "case " << i;
 }
 
 namespace {
