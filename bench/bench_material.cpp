@@ -113,7 +113,8 @@ SolverParams paramsFor(const Setting& s, int w, double E, const Eigen::Vector3d&
 double gMeanIterations = 0.0;
 int gMaxIterations = 0;
 
-/// Runs the solver for `seconds` of simulated time (at least kMinSettleSteps steps); returns the largest particle speed at the end.
+/// Runs the solver for `seconds` of simulated time (at least kMinSettleSteps steps); returns the
+/// largest particle speed at the end.
 double settle(Solver& s, double seconds) {
   long total = 0;
   gMaxIterations = 0;
@@ -144,9 +145,9 @@ void print(const char* name, int across, const Setting& s, const Row& r, const c
     std::snprintf(iterations, sizeof iterations, "  implicit, CG %.1f / %d", r.meanIterations, r.maxIterations);
   std::printf("%-12s %3d %2d %3d %5.2f %7.3f %12.4f %12.4f %8.3f%s%s%s\n", name, across, r.w, s.substeps, s.nu, r.alpha,
               scale * r.lattice, scale * r.oracle, r.lattice / r.oracle, iterations,
-              r.saturated ? "  (alpha capped)" : "", std::abs(r.residualSpeed / (r.settledScale != 0.0 ? r.settledScale : r.lattice)) > 0.01
-                  ? "  (not settled)"
-                  : "");
+              r.saturated ? "  (alpha capped)" : "",
+              std::abs(r.residualSpeed / (r.settledScale != 0.0 ? r.settledScale : r.lattice)) > 0.01 ? "  (not settled)"
+                                                                                                       : "");
   if (std::getenv("FLSM_BENCH_RESIDUAL")) std::printf("   residual %.3g\n", r.residualSpeed / r.lattice);
 }
 

@@ -273,7 +273,7 @@ TEST(PhysicalMaterial, UniaxialStretchHasTheModulusAndPoissonsRatioAskedFor) {
 // bar settles to sigma / E and -nu within the explicit step's bounds above, where the explicit
 // step at one sub-step is capped (at 10 MPa it does not stretch at all, bench_material). A stiff
 // bar needs steps, not time, to settle: its conjugate gradients stop at a relative tolerance, and
-// 10 / omega_1 is under one step (bench_material ran that long and read 0.85 of sigma / E).
+// 10 / omega_1 is a step or two (bench_material ran that long and read 0.85 of sigma / E).
 TEST(PhysicalMaterial, ImplicitStepStretchesAsAskedFromSoftToStiffAtOneSubstep) {
   for (double E : {30e3, 1e6, 10e6})
     for (double nu : {0.0, 0.3}) {
