@@ -271,7 +271,7 @@ TEST(PhysicalMaterial, UniaxialStretchHasTheModulusAndPoissonsRatioAskedFor) {
 
 // The implicit step at ONE sub-step of 1/60 s, from a soft to a stiff material: the stretched
 // bar settles to sigma / E and -nu within the explicit step's bounds above, where the explicit
-// step at one sub-step is capped (at 10 MPa it does not stretch at all, bench_material). A stiff
+// step at one sub-step is capped (the bar is pulled apart, bench_material). A stiff
 // bar needs steps, not time, to settle: its conjugate gradients stop at a relative tolerance, and
 // 10 / omega_1 is a step or two (bench_material ran that long and read 0.85 of sigma / E).
 TEST(PhysicalMaterial, ImplicitStepStretchesAsAskedFromSoftToStiffAtOneSubstep) {
