@@ -16,11 +16,15 @@ namespace {
 /// region clipped by the surface; a region resolved along one axis only (a rod or sheet a cell
 /// thick) would get a weight that stiffens what the lattice cannot represent anyway.
 constexpr double kMaxRegionWeight = 4.0;
-/// Symplectic Euler on u'' = -omega^2 u is stable for (omega h)^2 < 4.
-constexpr double kSymplecticEulerLimit = 4.0;
-/// Fraction of the stability limit the cap on alpha allows (physical mode): (omega h)^2 <= 2 for the
-/// stiffest mode of the linearised update. Half, for what the linearisation does not see (large
-/// rotations, drags, contact) and because the bound is on the linearised stiffness at rest.
+/// Symplectic Euler on u'' = -omega^2 u whose velocity keeps `keep` = exp(-c h) of ambient
+/// damping each sub-step (v' = keep v - omega^2 h x, x' = x + h v') is stable for
+/// (omega h)^2 < 2 (1 + keep): 4 undamped, down to 2 where the damping takes all the velocity (the
+/// characteristic polynomial z^2 - (1 + keep - (omega h)^2) z + keep; Jury's conditions).
+double symplecticEulerLimit(double keep) { return 2.0 * (1.0 + keep); }
+/// Fraction of the stability limit the cap on alpha allows (physical mode): (omega h)^2 <= 1 + keep
+/// (2 undamped) for the stiffest mode of the linearised update. Half, for what the linearisation
+/// does not see (large rotations, drags, contact) and because the bound is on the linearised
+/// stiffness at rest.
 constexpr double kStabilityMargin = 0.5;
 /// Largest volumetric strain |e_i| the Poisson term acts on: the linear law is meant for small
 /// strain; beyond, its force stays bounded (a region crushed to a point or stretched tenfold is
@@ -61,7 +65,8 @@ constexpr double kMaxVolumetricStrain = 0.5;
 // update is symplectic Euler on M u'' = -K u with (omega h)^2 <= alpha s_i for the modes a particle
 // takes part in (Gershgorin on M^-1 K h^2 = alpha (I - goal operator) scaled by s_i), and the
 // Poisson term adds (omega h)^2 <= alpha Lambda_i (its own Gershgorin row sum, see below).
-// Symplectic Euler is stable for omega h < 2: alpha (s_i + Lambda_i) < 4 for every particle.
+// Symplectic Euler is stable for omega h < 2: alpha (s_i + Lambda_i) < 4 for every particle;
+// with ambient damping keeping keep = exp(-c h) of the velocity, alpha (s_i + Lambda_i) < 2 (1 + keep).
 // kStabilityMargin keeps a factor from that edge for what linearisation does not see (large
 // rotations, contact, drags).
 void Solver::computeRegionWeights() {
@@ -180,8 +185,12 @@ void Solver::computeRegionWeights() {
     for (int a = 0; a < 3; ++a) row = std::max(row, lambdaScale * lambdaRow[3 * i + a] + deficitRow[3 * i + a]);
     maxBound = std::max(maxBound, stiffnessFactor_[i] + row / L.masses()[i]);
   }
-  // alpha (s_i + Lambda_i) <= stiffness * margin * 4 for every particle
-  alphaCap_ = params_.stiffness * kStabilityMargin * kSymplecticEulerLimit / maxBound;
+  // alpha (s_i + Lambda_i) <= stiffness * margin * 2 (1 + keep) for every particle (4 undamped).
+  // Ambient damping counts, region damping does not: it damps towards the region's own motion,
+  // and took a stretched bar to rest at 1000 /s, where ambient damping of 200 /s at one sub-step
+  // of 1/60 s (keep 0.036) made it grow without bound under the undamped cap.
+  const double keep = std::exp(-params_.ambientDamping * h);
+  alphaCap_ = params_.stiffness * kStabilityMargin * symplecticEulerLimit(keep) / maxBound;
   alpha_ = std::min(alphaCap_, requested);
   if (volumetric_) {
     const double lambdaEff = params_.lameLambda() * alpha_ / requested;

@@ -117,9 +117,10 @@ class Solver : private RegionKernel {
 
   /// alpha used per sub-step: params().requestedAlpha(spacing), capped. Classic mode: the cap is
   /// params().stiffness. Physical mode: the cap follows the stability of the sub-step, symplectic
-  /// Euler on the linearised dynamics, (omega h)^2 < 4: alpha (s_i + Lambda_i) <= 4 * 1/2 *
-  /// params().stiffness for every particle, s_i the region weight factor and Lambda_i the Poisson
-  /// term's bound (see computeRegionWeights()); the stiffest mode then has (omega h)^2 <= 2.
+  /// Euler on the linearised dynamics, (omega h)^2 < 2 (1 + keep), keep = exp(-ambientDamping h)
+  /// (4 undamped): alpha (s_i + Lambda_i) <= 2 (1 + keep) * 1/2 * params().stiffness for every
+  /// particle, s_i the region weight factor and Lambda_i the Poisson term's bound (see
+  /// computeRegionWeights()); the stiffest mode then has half its limit.
   double alpha() const { return alpha_; }
   /// true when youngsModulus asks for more than the cap: the material is softer than asked,
   /// by the factor alpha() / params().requestedAlpha(); more sub-steps fix it.
