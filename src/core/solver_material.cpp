@@ -16,10 +16,11 @@ namespace {
 /// region clipped by the surface; a region resolved along one axis only (a rod or sheet a cell
 /// thick) would get a weight that stiffens what the lattice cannot represent anyway.
 constexpr double kMaxRegionWeight = 4.0;
-/// Symplectic Euler on u'' = -omega^2 u whose velocity keeps `keep` = exp(-c h) of ambient
-/// damping each sub-step (v' = keep v - omega^2 h x, x' = x + h v') is stable for
-/// (omega h)^2 < 2 (1 + keep): 4 undamped, down to 2 where the damping takes all the velocity (the
-/// characteristic polynomial z^2 - (1 + keep - (omega h)^2) z + keep; Jury's conditions).
+/// Symplectic Euler on u'' = -omega^2 u whose velocity keeps the factor `keep` each sub-step
+/// (v' = keep v - omega^2 h x, x' = x + h v') is stable for (omega h)^2 < 2 (1 + keep), keep in
+/// (-1, 1]: 4 undamped, 2 where the damping takes all the velocity, less where two dampings
+/// together take more than all of it (the characteristic polynomial
+/// z^2 - (1 + keep - (omega h)^2) z + keep; Jury's conditions).
 double symplecticEulerLimit(double keep) { return 2.0 * (1.0 + keep); }
 /// Fraction of the stability limit the cap on alpha allows (physical mode): (omega h)^2 <= 1 + keep
 /// (2 undamped) for the stiffest mode of the linearised update. Half, for what the linearisation
@@ -66,7 +67,7 @@ constexpr double kMaxVolumetricStrain = 0.5;
 // takes part in (Gershgorin on M^-1 K h^2 = alpha (I - goal operator) scaled by s_i), and the
 // Poisson term adds (omega h)^2 <= alpha Lambda_i (its own Gershgorin row sum, see below).
 // Symplectic Euler is stable for omega h < 2: alpha (s_i + Lambda_i) < 4 for every particle;
-// with ambient damping keeping keep = exp(-c h) of the velocity, alpha (s_i + Lambda_i) < 2 (1 + keep).
+// with damping keeping the factor keep of the velocity, alpha (s_i + Lambda_i) < 2 (1 + keep).
 // kStabilityMargin keeps a factor from that edge for what linearisation does not see (large
 // rotations, contact, drags).
 void Solver::computeRegionWeights() {
@@ -186,10 +187,15 @@ void Solver::computeRegionWeights() {
     maxBound = std::max(maxBound, stiffnessFactor_[i] + row / L.masses()[i]);
   }
   // alpha (s_i + Lambda_i) <= stiffness * margin * 2 (1 + keep) for every particle (4 undamped).
-  // Ambient damping counts, region damping does not: it damps towards the region's own motion,
-  // and took a stretched bar to rest at 1000 /s, where ambient damping of 200 /s at one sub-step
-  // of 1/60 s (keep 0.036) made it grow without bound under the undamped cap.
-  const double keep = std::exp(-params_.ambientDamping * h);
+  // A free object's sub-step keeps keep = exp(-c h) - kd of the velocity of its stiffest modes:
+  // ambient damping c keeps exp(-c h) of the motion relative to the object's rigid motion, and
+  // region damping removes kd = 1 - exp(-damping h) of it on top (those modes have no part in
+  // their regions' rigid motions, towards which it damps; solver.cpp). A held object's,
+  // exp(-c h) (1 - kd), is never lower. Under the undamped cap a 1 MPa bar at one sub-step of
+  // 1/60 s grew without bound with c = 200 /s (keep 0.036 - 0.15), and with c = 200 /s and
+  // damping 100 /s (keep -0.78).
+  const double kd = params_.damping > 0.0 ? 1.0 - std::exp(-params_.damping * h) : 0.0;
+  const double keep = std::exp(-params_.ambientDamping * h) - kd;
   alphaCap_ = params_.stiffness * kStabilityMargin * symplecticEulerLimit(keep) / maxBound;
   alpha_ = std::min(alphaCap_, requested);
   if (volumetric_) {

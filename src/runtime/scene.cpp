@@ -56,7 +56,9 @@ Voxelization chooseLattice(const NodeParams& params, const TriMesh& mesh, SceneI
 }
 
 /// Sub-steps at which the solver would give the asked alpha: the asked alpha grows like h^2,
-/// i.e. like 1 / substeps^2, and the solver caps it at alpha(); 0 when not saturated.
+/// i.e. like 1 / substeps^2, and the solver caps it at alpha(); 0 when not saturated. With strong
+/// damping the cap also rises with the sub-steps (the damping keeps more of the velocity in a
+/// shorter one), so this is an upper bound there: enough, perhaps more than needed.
 int substepsForModulus(const Solver& solver) {
   if (!solver.stiffnessSaturated()) return 0;
   const SolverParams& p = solver.params();

@@ -381,47 +381,58 @@ TEST(PhysicalMaterial, AlphaCapSitsBelowTheStabilityLimitWithItsMargin) {
       }
 }
 
-// Ambient damping narrows symplectic Euler's stability limit: with keep = exp(-c h) of the
-// velocity kept each sub-step the linearised step is stable for (omega h)^2 < 2 (1 + keep), 4
-// undamped, 2 when the damping takes it all; the cap keeps the stiffest mode at half of that.
-// A 1 MPa bar at one sub-step of 1/60 s (capped) with c = 200 /s (keep 0.036), pulled apart by
-// end forces for 0.5 s and released: it comes to rest in its rest shape. With the undamped
-// limit in the cap ((omega h)^2 = 2 at nu = 0, on the damped edge) it grew without bound, its
-// farthest particle 1e18 m away after 6 s.
-TEST(PhysicalMaterial, StrongAmbientDampingLowersTheCapAndTheBarStaysStable) {
+// Damping narrows symplectic Euler's stability limit: with the factor keep of the velocity kept
+// each sub-step the linearised step is stable for (omega h)^2 < 2 (1 + keep), 4 undamped, 2 when
+// the damping takes it all, less when two dampings together take more than all of it. A free
+// object's stiffest modes keep exp(-c h) - kd (ambient damping c; region damping kd = 1 -
+// exp(-damping h) on top); the cap keeps them at half of that limit. A 1 MPa bar at one sub-step
+// of 1/60 s (capped), pulled apart by end forces for 0.5 s and released, with c = 200 /s and
+// region damping 10 /s (keep 0.036 - 0.15) comes to rest in its rest shape; with region damping
+// 100 /s as well (keep -0.78, a cap a tenth as high: a far softer bar) it stays bounded and is
+// on its way back. With the undamped limit in the cap ((omega h)^2 = 2 at nu = 0) both grew
+// without bound: the first 1e18 m away after 6 s, the second 1e42.
+TEST(PhysicalMaterial, StrongDampingLowersTheCapAndTheBarStaysStable) {
   const int along = 16, across = 4;
   const double h = 0.025, t = across * h, c = 200.0;
-  SolverParams p = physical(1e6, 0.0, 1, 1);
-  p.gravity.setZero();
-  p.ambientDamping = c;
-  auto lattice = std::make_shared<const Lattice>(box(along, across, across, h, Eigen::Vector3d::Zero()), kDensity, 1);
-  Solver s(lattice, p);
-  ASSERT_TRUE(s.stiffnessSaturated());
-  const double keep = std::exp(-c * kStep);
-  const double omegaH2 = stiffestOmegaH2(s, 400);
-  EXPECT_LE(omegaH2, (1.0 + keep) * (1.0 + 1e-6)) << "half the damped limit 2 (1 + keep)";
-  s.reset();
-  std::vector<std::uint32_t> left, right;
-  for (std::uint32_t i = 0; i < lattice->size(); ++i) {
-    if (lattice->cells()[i].x() == 0) left.push_back(i);
-    if (lattice->cells()[i].x() == along - 1) right.push_back(i);
+  for (double damping : {10.0, 100.0}) {
+    SolverParams p = physical(1e6, 0.0, 1, 1);
+    p.gravity.setZero();
+    p.ambientDamping = c;
+    p.damping = damping;
+    auto lattice =
+        std::make_shared<const Lattice>(box(along, across, across, h, Eigen::Vector3d::Zero()), kDensity, 1);
+    Solver s(lattice, p);
+    ASSERT_TRUE(s.stiffnessSaturated());
+    const double keep = std::exp(-c * kStep) - (1.0 - std::exp(-damping * kStep));
+    const double omegaH2 = stiffestOmegaH2(s, 400);
+    EXPECT_LE(omegaH2, (1.0 + keep) * (1.0 + 1e-6)) << "half the damped limit 2 (1 + keep), damping " << damping;
+    s.reset();
+    std::vector<std::uint32_t> left, right;
+    for (std::uint32_t i = 0; i < lattice->size(); ++i) {
+      if (lattice->cells()[i].x() == 0) left.push_back(i);
+      if (lattice->cells()[i].x() == along - 1) right.push_back(i);
+    }
+    const double F = 0.002 * p.youngsModulus * t * t;  // 20 N: more than the capped bar holds
+    s.applyForce(left, Eigen::Vector3d(-F, 0, 0), 0.5);
+    s.applyForce(right, Eigen::Vector3d(F, 0, 0), 0.5);
+    for (int i = 0; i < static_cast<int>(std::lround(6.0 / kStep)); ++i) s.step();
+    double speed = 0.0;
+    for (std::size_t i = 0; i < lattice->size(); ++i) {
+      ASSERT_TRUE(s.positions()[i].allFinite());
+      speed = std::max(speed, s.velocities()[i].norm());
+    }
+    const double error = s.shapeError();
+    std::printf("  damped cap, damping %.0f /s: alpha %.3f, (omega h)^2 %.3f (damped limit %.3f); after 6 s shape "
+                "error %.3g m, fastest particle %.3g m/s\n", damping, s.alpha(), omegaH2, 2.0 * (1.0 + keep), error,
+                speed);
+    if (damping < 50.0) {
+      EXPECT_LT(error, 2.5e-3 * along * h) << "back to its rest shape";
+      EXPECT_LT(speed, 1e-2) << "at rest";
+    } else {
+      EXPECT_LT(error, 0.15 * along * h) << "bounded, on its way back";
+      EXPECT_LT(speed, 0.1) << "slow";
+    }
   }
-  const double F = 0.002 * p.youngsModulus * t * t;  // 20 N: more than the capped bar holds
-  s.applyForce(left, Eigen::Vector3d(-F, 0, 0), 0.5);
-  s.applyForce(right, Eigen::Vector3d(F, 0, 0), 0.5);
-  for (int i = 0; i < static_cast<int>(std::lround(6.0 / kStep)); ++i) s.step();
-  double speed = 0.0;
-  const Eigen::Vector3d shift = s.positions()[0] - lattice->restPositions()[0];
-  for (std::size_t i = 0; i < lattice->size(); ++i) {
-    ASSERT_TRUE(s.positions()[i].allFinite());
-    speed = std::max(speed, s.velocities()[i].norm());
-  }
-  const double error = s.shapeError();
-  std::printf("  damped cap: alpha %.3f, (omega h)^2 %.3f (damped limit %.3f); after 6 s shape error %.3g m, "
-              "fastest particle %.3g m/s, moved %.3g m\n", s.alpha(), omegaH2, 2.0 * (1.0 + keep), error, speed,
-              shift.norm());
-  EXPECT_LT(error, 1e-3 * along * h) << "back to its rest shape";
-  EXPECT_LT(speed, 1e-2) << "at rest";
 }
 
 // The physical mode at its cap (alpha s up to 2, and the Poisson term) keeps classic FastLSM's
