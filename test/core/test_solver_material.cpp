@@ -134,6 +134,18 @@ struct Strain {
   bool saturated = false;
 };
 
+/// Pulls a bar of `along` cells along x apart: -F on its first cell layer, +F on its last, for
+/// `duration` s.
+void pullEnds(Solver& s, int along, double F, double duration) {
+  std::vector<std::uint32_t> left, right;
+  for (std::uint32_t i = 0; i < s.lattice().size(); ++i) {
+    if (s.lattice().cells()[i].x() == 0) left.push_back(i);
+    if (s.lattice().cells()[i].x() == along - 1) right.push_back(i);
+  }
+  s.applyForce(left, Eigen::Vector3d(-F, 0, 0), duration);
+  s.applyForce(right, Eigen::Vector3d(F, 0, 0), duration);
+}
+
 /// A free bar of 16 x 4 x 4 cells (0.4 x 0.1 x 0.1 m) pulled by opposite forces on its end layers
 /// (uniaxial stress sigma = eps E): the strains of its middle half.
 /// `modulus` 0: E with alpha 0.3 at w 1 and 4 explicit sub-steps. The run lasts 12 / omega_1 and
@@ -152,13 +164,7 @@ Strain stretch(int w, double nu, int substeps, Integrator integrator = Integrato
   p.ambientDamping = 2.0 * omega;
   auto lattice = std::make_shared<const Lattice>(vox, kDensity, w);
   Solver s(lattice, p);
-  std::vector<std::uint32_t> left, right;
-  for (std::uint32_t i = 0; i < lattice->size(); ++i) {
-    if (lattice->cells()[i].x() == 0) left.push_back(i);
-    if (lattice->cells()[i].x() == along - 1) right.push_back(i);
-  }
-  s.applyForce(left, Eigen::Vector3d(-F, 0, 0), 1e9);
-  s.applyForce(right, Eigen::Vector3d(F, 0, 0), 1e9);
+  pullEnds(s, along, F, 1e9);
   settle(s, std::max(12.0 / omega, minSteps * kStep));
   const int i1 = along / 4, i2 = 3 * along / 4;
   double a1 = 0, a2 = 0, lo = 0, hi = 0;
@@ -407,14 +413,7 @@ TEST(PhysicalMaterial, StrongDampingLowersTheCapAndTheBarStaysStable) {
     const double omegaH2 = stiffestOmegaH2(s, 400);
     EXPECT_LE(omegaH2, (1.0 + keep) * (1.0 + 1e-6)) << "half the damped limit 2 (1 + keep), damping " << damping;
     s.reset();
-    std::vector<std::uint32_t> left, right;
-    for (std::uint32_t i = 0; i < lattice->size(); ++i) {
-      if (lattice->cells()[i].x() == 0) left.push_back(i);
-      if (lattice->cells()[i].x() == along - 1) right.push_back(i);
-    }
-    const double F = 0.002 * p.youngsModulus * t * t;  // 20 N: more than the capped bar holds
-    s.applyForce(left, Eigen::Vector3d(-F, 0, 0), 0.5);
-    s.applyForce(right, Eigen::Vector3d(F, 0, 0), 0.5);
+    pullEnds(s, along, 0.002 * p.youngsModulus * t * t, 0.5);  // 20 N: more than the capped bar holds
     for (int i = 0; i < static_cast<int>(std::lround(6.0 / kStep)); ++i) s.step();
     double speed = 0.0;
     for (std::size_t i = 0; i < lattice->size(); ++i) {

@@ -118,6 +118,7 @@ class Solver : private RegionKernel {
   /// alpha used per sub-step: params().requestedAlpha(spacing), capped. Classic mode: the cap is
   /// params().stiffness. Physical mode: the cap follows the stability of the sub-step, symplectic
   /// Euler on the linearised dynamics, (omega h)^2 < 2 (1 + keep), keep = exp(-ambientDamping h)
+  /// - (1 - exp(-damping h)), the velocity a free object's stiffest mode keeps per sub-step
   /// (4 undamped): alpha (s_i + Lambda_i) <= 2 (1 + keep) * 1/2 * params().stiffness for every
   /// particle, s_i the region weight factor and Lambda_i the Poisson term's bound (see
   /// computeRegionWeights()); the stiffest mode then has half its limit.
