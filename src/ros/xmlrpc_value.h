@@ -24,7 +24,8 @@ inline bool toNumber(XmlRpc::XmlRpcValue& v, double& out) {
   return false;
 }
 
-/// What was found on the parameter server, for error messages: "'fast' (a string)".
+/// What was found on the parameter server, for error messages: "'fast' (a string)"; a short list
+/// by its elements, "[1, 2, nan]", so that the one at fault shows.
 inline std::string describe(XmlRpc::XmlRpcValue value) {
   std::ostringstream out;
   switch (value.getType()) {
@@ -35,7 +36,22 @@ inline std::string describe(XmlRpc::XmlRpcValue value) {
       out << (static_cast<bool&>(value) ? "true" : "false") << " (a boolean)";
       break;
     case XmlRpc::XmlRpcValue::TypeArray:
-      out << "a list of " << value.size();
+      if (value.size() > 12) {
+        out << "a list of " << value.size();
+        break;
+      }
+      out << "[";
+      for (int k = 0; k < value.size(); ++k) {
+        double number = 0.0;
+        out << (k > 0 ? ", " : "");
+        if (toNumber(value[k], number))
+          out << number;
+        else if (value[k].getType() == XmlRpc::XmlRpcValue::TypeString)
+          out << "'" << static_cast<std::string&>(value[k]) << "'";
+        else
+          out << describe(value[k]);
+      }
+      out << "]";
       break;
     case XmlRpc::XmlRpcValue::TypeStruct:
       out << "a dictionary";

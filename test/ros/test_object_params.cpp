@@ -141,10 +141,10 @@ TEST(ObjectParams, BadEntriesAreRefusedNamingTheEntryAndTheKey) {
   EXPECT_TRUE(mentions(parseError(list({wrongType})), "resolution is 8.5"));
   XmlRpc::XmlRpcValue badPose = entry("cube");
   badPose["pose"] = numbers({1.0, 2.0});
-  EXPECT_TRUE(mentions(parseError(list({badPose})), "pose is a list of 2"));
+  EXPECT_TRUE(mentions(parseError(list({badPose})), "pose is [1, 2]: it must be"));
   XmlRpc::XmlRpcValue nanPose = entry("cube");
   nanPose["pose"] = numbers({1.0, 2.0, std::nan("")});
-  EXPECT_TRUE(mentions(parseError(list({nanPose})), "entry 0 ('cube'): pose"));
+  EXPECT_TRUE(mentions(parseError(list({nanPose})), "entry 0 ('cube'): pose is [1, 2, nan]"));
   // out of range, said with the entry's key (no "~": it is not the node's parameter)
   XmlRpc::XmlRpcValue soft = entry("cube");
   soft["youngs_modulus"] = -5.0;
