@@ -89,8 +89,8 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
   for (PairImpulse& p : pairs_) p.contacts = 0;
   for (ColliderImpulse& c : colliderImpulses_) c.contacts = 0;
   if (!params.enabled && !params.selfContact) return;
-  const Staleness stale = findStale(objects, params, h);
-  if (stale != Staleness::kNone) buildList(objects, params, h, stale == Staleness::kAll);
+  const Staleness stale = findStale(objects, params, h, 0.0);
+  if (stale != Staleness::kNone) buildList(objects, params, h, stale == Staleness::kAll, 0.0);
   takeCoupling(objects, stale != Staleness::kNone, last);
   if (candidates_.empty()) return;
   gather(objects, h);
@@ -109,6 +109,17 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
   accumulate(objects, colliders, last);
 }
 
+// Before a coupled implicit sub-step: the list built again for the objects whose particles would
+// leave their allowances moving on at their velocities over the sub-step (anchors at the middle
+// of that motion), so that the springs made from it keep their slots through the pass after
+// the solve unless the solve itself carries a particle out of its allowance.
+void ObjectContactSolver::refreshList(const std::vector<Solver*>& objects, const ObjectContactParams& params,
+                                      double h) {
+  if (!params.enabled && !params.selfContact) return;
+  const Staleness stale = findStale(objects, params, h, h);
+  if (stale != Staleness::kNone) buildList(objects, params, h, stale == Staleness::kAll, h);
+}
+
 // The list holds every pair that can come within reach while each particle's end and start
 // positions stay within its allowance e of its anchor a (the middle of its motion over the
 // sub-step of its object's last build): two particles whose anchors are farther apart than
@@ -117,7 +128,8 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
 // its ball, and then only its own anchors and pairs are built again; the whole list when the
 // objects or parameters changed.
 ObjectContactSolver::Staleness ObjectContactSolver::findStale(const std::vector<Solver*>& objects,
-                                                              const ObjectContactParams& params, double h) {
+                                                              const ObjectContactParams& params, double h,
+                                                              double ahead) {
   if (!built_ || params.enabled != builtEnabled_ || params.selfContact != builtSelf_ ||
       params.selfExclusion != builtExclusion_ || objects.size() != builtObjects_.size())
     return Staleness::kAll;
@@ -132,7 +144,7 @@ ObjectContactSolver::Staleness ObjectContactSolver::findStale(const std::vector<
     const double* e = allowance_.data() + offset_[o];
     stale_[o] = 0;
     for (std::size_t i = 0; i < x.size(); ++i) {
-      const Eigen::Vector3d d = x[i] - a[i];
+      const Eigen::Vector3d d = x[i] + ahead * v[i] - a[i];
       const double e2 = e[i] * e[i];
       if (d.squaredNorm() >= e2 || (d - h * v[i]).squaredNorm() >= e2) {
         stale_[o] = 1;
@@ -156,7 +168,7 @@ ObjectContactSolver::Staleness ObjectContactSolver::findStale(const std::vector<
 // the order of their objects and indices; the pairs kept in their order, then the new ones in
 // the order of their first particle and of the hash's buckets: deterministic.
 void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h,
-                                    bool all) {
+                                    bool all, double ahead) {
   const std::size_t N = objects.size();
   ++listBuilds_;
   // a sleeping object's pairs keep their impulses over a build of the others, for when it wakes
@@ -220,7 +232,7 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
     double most = 0.0;
     const double rest = kSkin * radius_[o], motion = kSkinMotion * radius_[o];
     for (std::size_t i = 0; i < x.size(); ++i) {
-      a[i] = x[i] - 0.5 * h * v[i];
+      a[i] = x[i] + (ahead - 0.5 * h) * v[i];
       // beyond its h |v| / 2 at the build, room for kSkinSubsteps more sub-steps at its speed
       // up to kSkinMotion r: a faster particle has the list built again soon
       const double step = h * v[i].norm();

@@ -412,6 +412,7 @@ void World::step() {
   const bool couple = implicitCount >= 2 || (implicitCount == 1 && (contact_.selfContact || anyStill));
   for (int s = 0; s < substeps_; ++s) {
     if (couple) {
+      im.contact.refreshList(im.pointers, contact_, h);  // before any object moves
       for (std::size_t o = 0; o < N; ++o)
         if (!im.coupled[o] && !im.frozen[o]) im.pointers[o]->advanceSubstep(s);
       static const std::vector<std::pair<std::uint32_t, std::uint32_t>> kNone;

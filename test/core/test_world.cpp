@@ -452,6 +452,9 @@ TEST_P(SoftStack, StandsAndCarriesTheWeightAtOneImplicitSubstep) {
   EXPECT_EQ(world.objectWrench("bottom", "middle").contacts, 25u);
   EXPECT_EQ(world.contactWrench("ground").contacts, 25u) << "the solve's contacts are counted";
   EXPECT_LT(drift, 0.1 * s) << "the stack stands";
+  // and friction holds it in every sub-step, those that build the candidate list again too:
+  // with the springs' impulses lost there the 30 kPa stack drifted 0.088 mm (0.0078 with them)
+  EXPECT_LT(drift, 2e-5) << "no cube slides on another";
   EXPECT_LT(overlap, 0.1) << "no two spheres of different objects overlap by a tenth of a radius";
   EXPECT_LT(maxSpeed(world), 1e-3) << "the stack is at rest";
 }
@@ -1008,11 +1011,14 @@ static void softBin(Integrator integrator) {
     fastest = std::max(fastest, maxSpeed(world));
   }
   const double overlap = deepestOverlap(world);
-  // each pair's contacts are particle pairs that touch, each counted once
+  // each pair's contacts are particle pairs that touch, each counted once: within 1.2 (r1 + r2),
+  // for a contact that ends the passes pushing while its particles part (a light particle a
+  // cube's corner, moved on by its other contacts after its own last update: one at 1.16 in the
+  // implicit bin)
   std::size_t counted = 0, touching = 0, worst = 0;
   for (const ObjectPairWrench& w : world.objectWrenches()) {
     if (w.from > w.on) continue;  // each pair once
-    const std::size_t near = pairsWithin(world, w.from, w.on, 1.1);
+    const std::size_t near = pairsWithin(world, w.from, w.on, 1.2);
     counted += w.wrench.contacts;
     touching += near;
     if (w.wrench.contacts > near) worst = std::max(worst, w.wrench.contacts - near);
@@ -1033,7 +1039,7 @@ static void softBin(Integrator integrator) {
     if (counted > near) worstCollider = std::max(worstCollider, counted - near);
   }
   std::printf("bin of 20 soft objects (%s, %d sub-steps): from 10 to 12 s the fastest particle %.3g m/s (bound %.3g m/s), deepest "
-              "overlap %.3g r, contact list built %zu times; %zu contacts between objects (%zu particle pairs within 1.1 (r1 + r2)), %zu "
+              "overlap %.3g r, contact list built %zu times; %zu contacts between objects (%zu particle pairs within 1.2 (r1 + r2)), %zu "
               "with the box (%zu particles within 1.1 r)\n",
               integrator == Integrator::Implicit ? "implicit" : "explicit", substeps, fastest, bound, overlap,
               world.contactListBuilds() - builds, counted, touching, onColliders, nearColliders);

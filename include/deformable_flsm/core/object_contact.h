@@ -76,6 +76,11 @@ class ObjectContactSolver {
   /// springs then miss for one sub-step the pairs the contact pass after the solve still finds.)
   const std::vector<std::pair<std::uint32_t, std::uint32_t>>* currentCandidates(
       const std::vector<Solver*>& objects, const ObjectContactParams& params) const;
+  /// Before ImplicitCoupling's sub-step of length h: builds the list again for the objects whose
+  /// particles would leave their allowances moving on at their velocities, so that
+  /// currentCandidates() stays the list of the pass after the solve unless the solve carries a
+  /// particle farther (the springs' impulses then bound their pairs' friction in that pass).
+  void refreshList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h);
   /// The impulses the implicit step's contact springs carried in this sub-step (nullptr: none),
   /// for the next substep(): they bound the friction of their pairs as the pass's own normal
   /// impulses do, and count into the pair wrenches. The list must live until then.
@@ -152,9 +157,13 @@ class ObjectContactSolver {
   enum class Staleness { kNone, kSome, kAll };
   /// Marks in stale_ the objects whose particles left their allowances; kAll when the objects
   /// or the parameters changed since the build.
-  Staleness findStale(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h);
-  /// Builds the list again for the stale objects (all of them with `all`).
-  void buildList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h, bool all);
+  /// `ahead`: 0 after the objects' sub-step (positions x, the sub-step began at x - h v); h
+  /// before it, for the motion to come (x + h v, x).
+  Staleness findStale(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h, double ahead);
+  /// Builds the list again for the stale objects (all of them with `all`), anchors at the middle
+  /// of the motion findStale() checked with the same `ahead`.
+  void buildList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h, bool all,
+                 double ahead);
   void gather(const std::vector<Solver*>& objects, double h);
   void findPairs(const ObjectContactParams& params);
   void findColliderContacts(const std::vector<SubstepCollider>& colliders, double h);
@@ -168,8 +177,8 @@ class ObjectContactSolver {
   void accumulate(const std::vector<Solver*>& objects, const std::vector<SubstepCollider>& colliders, bool last);
   PairImpulse& pairSlot(std::uint32_t a, std::uint32_t b);
   /// The coupling impulses into springLambda_ (by candidate slot, when the list was not built
-  /// again since they were found: in a sub-step with a build the springs bound no friction) and
-  /// into the pair sums.
+  /// again since they were found; refreshList() makes that rare: in a sub-step with a build the
+  /// springs bound no friction) and into the pair sums.
   void takeCoupling(const std::vector<Solver*>& objects, bool rebuilt, bool last);
 
   const std::vector<CouplingImpulse>* coupling_ = nullptr;
