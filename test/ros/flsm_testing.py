@@ -251,12 +251,15 @@ class ObjectsClient(object):
         with self._lock:
             return self._wrenches
 
-    def wait_sim_time(self, t, timeout):
-        """Waits until the simulation has run `t` s; True when it did within `timeout` s."""
+    def wait_sim_time(self, t, timeout, or_idle_after=None):
+        """Waits until the simulation has run `t` s; True when it did within `timeout` s. With
+        `or_idle_after`, also when it came to rest after that much simulated time (the node no
+        longer steps at rest, and its clock stops)."""
         end = time.time() + timeout
         while time.time() < end and not rospy.is_shutdown():
             s = self.state()
-            if s is not None and s.sim_time >= t:
+            if s is not None and (s.sim_time >= t or (or_idle_after is not None and s.idle and
+                                                      s.sim_time > or_idle_after)):
                 return True
             time.sleep(0.05)
         return False

@@ -38,16 +38,8 @@ class StackTest(unittest.TestCase):
         cls.client = ObjectsClient(NAMES)
 
     def rested(self):
-        # 4 s of simulated time, or less when the stack came to rest before (the node then no
-        # longer steps, and its clock stops)
-        end = time.time() + 180.0
-        while time.time() < end:
-            s = self.client.state()
-            if s is not None and (s.sim_time >= 4.0 or (s.idle and s.sim_time > 1.0)):
-                break
-            time.sleep(0.05)
-        else:
-            self.fail('the simulation does not run')
+        # 4 s of simulated time, or less when the stack came to rest before
+        self.assertTrue(self.client.wait_sim_time(4.0, 180.0, or_idle_after=1.0), 'the simulation does not run')
         end = time.time() + 180.0
         while time.time() < end:
             speeds = [self.client.object_state(n).max_speed for n in NAMES]
