@@ -89,8 +89,7 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
   for (PairImpulse& p : pairs_) p.contacts = 0;
   for (ColliderImpulse& c : colliderImpulses_) c.contacts = 0;
   if (!params.enabled && !params.selfContact) return;
-  const Staleness stale = findStale(objects, params, h, 0.0);
-  if (stale != Staleness::kNone) buildList(objects, params, h, stale == Staleness::kAll, 0.0);
+  const Staleness stale = updateList(objects, params, h, 0.0);
   takeCoupling(objects, stale != Staleness::kNone, last);
   if (candidates_.empty()) return;
   gather(objects, h);
@@ -115,9 +114,15 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
 // the solve unless the solve itself carries a particle out of its allowance.
 void ObjectContactSolver::refreshList(const std::vector<Solver*>& objects, const ObjectContactParams& params,
                                       double h) {
-  if (!params.enabled && !params.selfContact) return;
-  const Staleness stale = findStale(objects, params, h, h);
-  if (stale != Staleness::kNone) buildList(objects, params, h, stale == Staleness::kAll, h);
+  if (params.enabled || params.selfContact) updateList(objects, params, h, h);
+}
+
+ObjectContactSolver::Staleness ObjectContactSolver::updateList(const std::vector<Solver*>& objects,
+                                                               const ObjectContactParams& params, double h,
+                                                               double ahead) {
+  const Staleness stale = findStale(objects, params, h, ahead);
+  if (stale != Staleness::kNone) buildList(objects, params, h, stale == Staleness::kAll, ahead);
+  return stale;
 }
 
 // The list holds every pair that can come within reach while each particle's end and start

@@ -164,6 +164,8 @@ class ObjectContactSolver {
   /// of the motion findStale() checked with the same `ahead`.
   void buildList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h, bool all,
                  double ahead);
+  /// findStale(), then buildList() for what it found, with the same `ahead`; returns what it found.
+  Staleness updateList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h, double ahead);
   void gather(const std::vector<Solver*>& objects, double h);
   void findPairs(const ObjectContactParams& params);
   void findColliderContacts(const std::vector<SubstepCollider>& colliders, double h);
