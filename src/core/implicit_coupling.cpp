@@ -223,14 +223,21 @@ void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::v
     springDiagonal_.resize(size_);
     constraint_.resize(size_);
   }
-  in_.resize(members_.size());
-  out_.resize(members_.size());
-  inv_.resize(members_.size());
+  // the members' segments: never fewer slots, each with room for the largest object, so that
+  // a slot that holds another object after one fell asleep or woke allocates nothing
+  if (in_.size() < members_.size()) {
+    in_.resize(members_.size());
+    out_.resize(members_.size());
+    inv_.resize(members_.size());
+  }
+  std::size_t largest = 0;
+  for (const Solver* object : objects) largest = std::max(largest, object->x_.size());
   for (std::size_t m = 0; m < members_.size(); ++m) {
     const std::size_t n = objects[members_[m]]->x_.size();
-    in_[m].resize(n);
-    out_[m].resize(n);
-    inv_[m].resize(n);
+    for (auto* segment : {&in_[m], &out_[m], &inv_[m]}) {
+      if (segment->capacity() < largest) segment->reserve(largest);
+      segment->resize(n);
+    }
   }
 
   const auto t0 = std::chrono::steady_clock::now();

@@ -902,9 +902,10 @@ TEST(World, StepDoesNotAllocateOnceItsBuffersHaveGrown) { stepWithoutAllocating(
 TEST(World, ImplicitStepDoesNotAllocateOnceItsBuffersHaveGrown) { stepWithoutAllocating(Integrator::Implicit); }
 
 // With sleeping objects: falling asleep, sleeping beside a moving collider, held wrenches and
-// waking allocate nothing either, once a first such cycle has grown the buffers.
-TEST(World, StepWithSleepingObjectsDoesNotAllocate) {
-  World world(kStep, kSubsteps);
+// waking allocate nothing either, once a first such cycle has grown the buffers (with the
+// implicit step, the sleeping objects' springs held in the coupled solve too).
+static void sleepWithoutAllocating(Integrator integrator) {
+  World world(kStep, substepsOf(integrator));
   SleepParams sleep;
   sleep.fraction = 2e-5;
   sleep.hold = 0.25;
@@ -912,8 +913,8 @@ TEST(World, StepWithSleepingObjectsDoesNotAllocate) {
   world.setCollider("ground", ground(0.0));
   auto a = boxAt(4, 4, 2, 0.01, Eigen::Vector3d(0, 0, 0));
   auto b = boxAt(2, 2, 2, 0.01, Eigen::Vector3d(0.01, 0.01, 0.02));
-  world.addObject("a", a, paramsFor(*a, 1.0, 2.0));
-  world.addObject("b", b, paramsFor(*b, 1.0, 2.0));
+  world.addObject("a", a, paramsFor(*a, 1.0, 2.0, integrator));
+  world.addObject("b", b, paramsFor(*b, 1.0, 2.0, integrator));
   const Collider pusher = box(Eigen::Vector3d(0.3, 0.02, 0.02), Eigen::Vector3d(0.02, 0.05, 0.05));
   world.setCollider("pusher", pusher);
   // a cycle: asleep, the pusher passing by far away, then brought against the stack and back
@@ -935,6 +936,10 @@ TEST(World, StepWithSleepingObjectsDoesNotAllocate) {
   EXPECT_EQ(gAllocations.load() - before, 0);
   EXPECT_EQ(asleep, 2u);
 }
+
+TEST(World, StepWithSleepingObjectsDoesNotAllocate) { sleepWithoutAllocating(Integrator::Explicit); }
+
+TEST(World, ImplicitStepWithSleepingObjectsDoesNotAllocate) { sleepWithoutAllocating(Integrator::Implicit); }
 
 // --- a pile at rest ---------------------------------------------------------------------------
 
