@@ -41,9 +41,11 @@ namespace {
 constexpr double kStartOverlapTolerance = 1e-6;
 
 /// Sleeping: a touching object that moved farther than this fraction of its contact radius in a
-/// step (the contact's penetration slop) wakes a sleeping one; so does a change of the other
-/// objects' force on it by this fraction of its weight.
-constexpr double kWakeSlop = 0.01;
+/// step (the RMS of |v| T) wakes a sleeping one; so does a change of the other objects' force on
+/// it by this fraction of its weight. A push slower than the motion's bound is the force's. The
+/// bound is above the jiggle of objects woken in a soft pile (1-2 mm/s), which would otherwise
+/// wake their neighbours in turn, most of a pile for one finger (docs/method.md).
+constexpr double kWakeMotion = 0.05;
 constexpr double kWakeLoad = 0.1;
 
 std::string num(double v) {
@@ -562,7 +564,7 @@ void World::settle() {
     if (p.contacts == 0 && p.impulse.isZero(0.0)) continue;
     const std::uint32_t ends[2][2] = {{p.a, p.b}, {p.b, p.a}};
     for (const auto& e : ends)
-      if (im.frozen[e[0]] && !im.frozen[e[1]] && im.rest[e[1]].step > kWakeSlop * im.objects[e[1]]->contactRadius())
+      if (im.frozen[e[0]] && !im.frozen[e[1]] && im.rest[e[1]].step > kWakeMotion * im.objects[e[1]]->contactRadius())
         im.wake(e[0]);
   }
   for (std::size_t o = 0; o < N; ++o) {

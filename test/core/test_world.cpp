@@ -1383,6 +1383,108 @@ TEST(WorldSleep, ABinAtRestSleepsAndWakesWhereAFingerPressesIt) {
   EXPECT_NEAR(sleeping, awake, 0.15 * awake) << "the sleeping pile resists the finger as the awake one does";
 }
 
+// Forty 5 cm bunnies of the classic material (alpha 1, 142 particles), dropped spinning into a
+// bin and left to sleep, then a 2 cm finger pressed 3 cm into one corner at 2 cm/s (the scene
+// of bench_world's bin, smaller). A sleeping object is woken by the objects that move against
+// it, not by the jiggle of those woken around it: the press wakes about as many objects as it
+// moves by more than 0.03 r in the same pile never put to sleep, and meets the same force.
+struct BunnyPress {
+  double push = 0.0;
+  std::size_t woke = 0, moved = 0;
+};
+static BunnyPress pressTheBunnies(bool sleeping) {
+  const double dt = 1.0 / 30.0, size = 0.05;
+  World world(dt, 8);
+  if (sleeping) world.setSleepParams(sleepAfter(1.0));
+  const int n = 40, side = 4;
+  const auto shape = meshAt(kBunnyMeshPath, true, 0.0, size, 7, Eigen::Vector3d::Zero());
+  Eigen::Vector3d extent = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& x : shape->restPositions()) extent = extent.cwiseMax(x);
+  const double pitch = 1.15 * size, inner = 0.5 * side * pitch + 0.01;
+  for (const auto& c : binColliders(inner, 0.3, 0.05)) world.setCollider(c.first, c.second);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int i = 0; i < n; ++i) {
+    const int layer = i / (side * side), k = i % (side * side);
+    const double shift = layer % 2 == 0 ? 0.0 : 0.3 * pitch;
+    const Eigen::Vector3d lo(-inner + 0.01 + pitch * (k % side) + 0.5 * shift, -inner + 0.01 + pitch * (k / side) + shift,
+                             0.005 + 1.2 * size * layer);
+    auto lattice = meshAt(kBunnyMeshPath, true, 0.0, size, 7, lo);
+    SolverParams p;
+    p.regionHalfWidth = lattice->regionHalfWidth();
+    p.stiffness = 1.0;
+    p.timeStep = dt;
+    p.substeps = 8;
+    p.ambientDamping = 2.0;
+    Solver& s = world.addObject("o" + std::to_string(i), lattice, p);
+    const Eigen::Vector3d centre = lo + 0.5 * extent, spin = 4.0 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    std::vector<Eigen::Vector3d> v(lattice->size());
+    for (std::size_t j = 0; j < v.size(); ++j) v[j] = spin.cross(s.positions()[j] - centre);
+    s.setVelocities(v);
+  }
+  for (int i = 0; i < 300; ++i) world.step();
+  if (sleeping) {
+    std::printf("bin of 40 bunnies with sleeping: %zu asleep after 10 s\n", world.sleepingCount());
+    EXPECT_GE(world.sleepingCount(), 36u) << "the pile rests";
+  }
+  const auto names = world.objectNames();
+  std::vector<std::vector<Eigen::Vector3d>> start;
+  Eigen::Vector3d lo = world.object(names[0])->positions()[0], hi = lo;
+  for (const std::string& name : names) {
+    start.push_back(world.object(name)->positions());
+    for (const Eigen::Vector3d& x : start.back()) {
+      lo = lo.cwiseMin(x);
+      hi = hi.cwiseMax(x);
+    }
+  }
+  const Eigen::Vector2d at = lo.head<2>() + 0.25 * (hi - lo).head<2>();
+  double top = lo.z();
+  for (const auto& xs : start)
+    for (const Eigen::Vector3d& x : xs)
+      if ((x.head<2>() - at).norm() < 0.01) top = std::max(top, x.z());
+  Collider finger;
+  finger.shape.type = ColliderType::Sphere;
+  finger.shape.radius = 0.02;
+  finger.pose.translation() = Eigen::Vector3d(at.x(), at.y(), top + finger.shape.radius);
+  world.setCollider("finger", finger);
+  BunnyPress press;
+  std::set<std::string> woke;
+  double overlap = 0.0;
+  for (int i = 0; i < 45; ++i) {
+    world.moveCollider("finger", world.object(names[0])->colliders().at("finger").pose, Eigen::Vector3d(0, 0, -0.02),
+                       Eigen::Vector3d::Zero());
+    world.step();
+    press.push = std::max(press.push, world.contactWrench("finger").force.norm());
+    for (const std::string& name : names)
+      if (!world.asleep(name)) woke.insert(name);
+    overlap = std::max(overlap, deepestOverlap(world));
+  }
+  press.woke = woke.size();
+  for (std::size_t o = 0; o < names.size(); ++o) {
+    const Solver& s = *world.object(names[o]);
+    const auto& m = s.lattice().masses();
+    double d = 0.0, mass = 0.0;
+    for (std::size_t i = 0; i < m.size(); ++i) {
+      d += m[i] * (s.positions()[i] - start[o][i]).squaredNorm();
+      mass += m[i];
+    }
+    if (std::sqrt(d / mass) > 0.03 * s.contactRadius()) ++press.moved;
+  }
+  std::printf("finger pressed into 40 bunnies (%s): up to %.3g N, %zu objects awake in the push, %zu moved farther than "
+              "0.03 r; deepest overlap %.3g r\n",
+              sleeping ? "sleeping" : "never sleeping", press.push, press.woke, press.moved, overlap);
+  EXPECT_LT(overlap, 0.3) << "nothing interpenetrates";
+  EXPECT_TRUE(allFinite(world));
+  return press;
+}
+
+TEST(WorldSleep, AFingerPressedIntoAPileOfBunniesWakesWhatItMoves) {
+  const BunnyPress awake = pressTheBunnies(false), sleeping = pressTheBunnies(true);
+  EXPECT_NEAR(sleeping.push, awake.push, 0.15 * awake.push) << "the sleeping pile resists the finger as the awake one does";
+  EXPECT_GE(sleeping.woke, 2u) << "the finger wakes what it stirs";
+  EXPECT_LE(sleeping.woke, awake.moved + awake.moved / 4) << "it wakes what the press moves, not the whole pile";
+}
+
 // A block lifted slowly off a sleeping one (33 um a step, below the contact's slop, so its
 // motion alone wakes nothing): the force on the sleeping block changes by the lifted one's
 // weight, which wakes it, and the ground then carries its weight alone (a block left asleep

@@ -56,7 +56,8 @@ struct ObjectContactParams {
 /// Solver::stateVersion()), when a collider of the World is set, moved or removed near it (or
 /// moves near it within a step; a collider set on its Solver directly is not watched), when
 /// an object is added or removed or the contact parameters change, when a touching object
-/// moved farther than a hundredth of its contact radius in the last step, and when the other
+/// moved farther than five hundredths of its contact radius in the last step (the RMS of its
+/// particles' |v| T: a push, not the jiggle of a soft pile), and when the other
 /// objects' force on it changed by a tenth of its weight since it fell asleep. A sleeping object
 /// is immovable to the others: they rest on it as on a collider (an implicit object keeps its
 /// contact springs to a sleeping implicit one in its solve, the sleeping particles held still),
