@@ -357,21 +357,41 @@ int main(int argc, char** argv) {
   const std::size_t most = (9 * placed.size()) / 10;
   for (; settle < 240 || (world->sleepingCount() < most && settle < 600); ++settle) world->step();
   std::printf("\nthe bin with sleeping objects (rest: 2e-5 of an object's size over 1 s):\n");
+  // also: the objects awake at some step of the phase, and how many of them moved less than
+  // 0.03 r (mass-weighted RMS) over it
   auto timed = [&](const char* phase, const std::function<void()>& before) {
     std::vector<double> step, render;
     std::size_t awake = 0;
     const int frames = 45;
+    const std::vector<std::string> names = world->objectNames();
+    std::vector<std::vector<Eigen::Vector3d>> start;
+    for (const std::string& name : names) start.push_back(world->object(name)->positions());
+    std::vector<char> woke(names.size(), 0);
     for (int f = 0; f < frames; ++f) {
       before();
       const auto t = frame();
       step.push_back(t.first);
       render.push_back(t.second);
       awake = std::max(awake, placed.size() - world->sleepingCount());
+      for (std::size_t o = 0; o < names.size(); ++o) woke[o] |= !world->asleep(names[o]);
+    }
+    std::size_t woken = 0, still = 0;
+    for (std::size_t o = 0; o < names.size(); ++o) {
+      if (!woke[o]) continue;
+      const Solver& s = *world->object(names[o]);
+      const auto& m = s.lattice().masses();
+      double d = 0.0, mass = 0.0;
+      for (std::size_t i = 0; i < m.size(); ++i) {
+        d += m[i] * (s.positions()[i] - start[o][i]).squaredNorm();
+        mass += m[i];
+      }
+      ++woken;
+      if (std::sqrt(d / mass) < 0.03 * s.contactRadius()) ++still;
     }
     const double ms = 1e3 * median(step), msr = 1e3 * median(render);
     std::printf("  %-30s step %.2f ms, render meshes %.2f ms, frame %.2f ms (%s 33.3 ms at 30 Hz), at most %zu of %zu "
-                "objects awake, deepest overlap %.3f r\n",
-                phase, ms, msr, ms + msr, ms + msr <= 1e3 / 30.0 ? "within" : "over", awake, placed.size(),
+                "objects awake (%zu at some step, %zu of them moved less than 0.03 r), deepest overlap %.3f r\n",
+                phase, ms, msr, ms + msr, ms + msr <= 1e3 / 30.0 ? "within" : "over", awake, placed.size(), woken, still,
                 deepestOverlap(*world));
   };
   char settled[64];
