@@ -20,7 +20,10 @@
 // A benchmark, not a test: it prints figures and never fails because the machine is slow.
 // Entries run in turns, one run each per round; figures are medians over the rounds.
 //
-//   bench_world [--resolution R] [--objects N] [--triangles T] [--substeps S] [--rounds K] [--only sizes|bin]
+//   bench_world [--resolution R] [--objects N] [--triangles T] [--substeps S] [--passes P] [--rounds K]
+//               [--only sizes|bin]
+//
+// --passes: the object contact's Gauss-Seidel passes per sub-step at most (ObjectContactParams::iterations).
 
 #include "deformable_flsm/core/embedding.h"
 #include "deformable_flsm/core/lattice.h"
@@ -54,8 +57,10 @@ struct Args {
   std::string only;  // "sizes" or "bin": that part alone
 };
 
-// sub-steps per step: set once from --substeps, before anything is built
+// sub-steps per step and contact passes per sub-step at most: set once from --substeps and
+// --passes, before anything is built
 int substepsPerStep = 8;
+int passesPerSubstep = ObjectContactParams().iterations;
 
 Args parse(int argc, char** argv) {
   Args a;
@@ -66,6 +71,7 @@ Args parse(int argc, char** argv) {
     else if (k == "--objects") a.objects = std::max(1, std::atoi(v));
     else if (k == "--triangles") a.triangles = std::max<std::size_t>(4, std::strtoul(v, nullptr, 10));
     else if (k == "--substeps") substepsPerStep = std::max(1, std::atoi(v));
+    else if (k == "--passes") passesPerSubstep = std::max(1, std::atoi(v));
     else if (k == "--rounds") a.rounds = std::max(1, std::atoi(v));
     else if (k == "--only" && (std::string(v) == "sizes" || std::string(v) == "bin")) a.only = v;
     else {
@@ -83,6 +89,16 @@ double median(std::vector<double> x) {
 
 constexpr double kStep = 1.0 / 30.0;
 constexpr double kSize = 0.05;  // the bunny's longest extent (m)
+
+/// A World of kStep in substepsPerStep sub-steps, its object contact's passes at most
+/// passesPerSubstep, its contact's parts timed (World::contactTimes()).
+std::unique_ptr<World> makeWorld() {
+  ObjectContactParams contact;
+  contact.iterations = passesPerSubstep;
+  auto world = std::make_unique<World>(kStep, substepsPerStep, contact);
+  world->setContactTiming(true);
+  return world;
+}
 
 /// The object: the bunny at kSize, Z up, its lower corner at the origin, voxelized; its render
 /// mesh simplified.
@@ -162,7 +178,7 @@ Collider boxCollider(const Eigen::Vector3d& centre, const Eigen::Vector3d& half)
 
 /// N objects on the ground in a square grid, two sizes apart.
 std::unique_ptr<World> apart(const Shape& shape, int n) {
-  auto world = std::make_unique<World>(kStep, substepsPerStep);
+  auto world = makeWorld();
   world->setCollider("ground", groundCollider());
   const int side = static_cast<int>(std::ceil(std::sqrt(double(n))));
   for (int i = 0; i < n; ++i) {
@@ -175,7 +191,7 @@ std::unique_ptr<World> apart(const Shape& shape, int n) {
 /// A bin of floor and four walls sized for n objects in about three layers, the objects in a grid of layers above
 /// its floor, each spinning; `vertices` receives each object's render vertices.
 std::unique_ptr<World> bin(const Shape& shape, int n, std::vector<Placed>* placed) {
-  auto world = std::make_unique<World>(kStep, substepsPerStep);
+  auto world = makeWorld();
   const int side = std::max(1, static_cast<int>(std::lround(std::sqrt(n / 3.0))));
   const double pitch = 1.15 * shape.extent.head<2>().maxCoeff();
   const double inner = 0.5 * side * pitch + 0.01, wall = 0.05, height = 0.3;
@@ -243,6 +259,23 @@ double deepestOverlap(const World& world) {
         for (const auto& y : B.positions()) deepest = std::max(deepest, (R - (x - y).norm()) / A.contactRadius());
     }
   return deepest;
+}
+
+/// Means per sub-step over a phase of `frames` steps that took `stepSeconds` in all: the object
+/// contact's parts, and the rest of the step (the objects' own sub-steps, mostly).
+void printParts(const World& world, const World::ContactTimes& before, double stepSeconds, int frames) {
+  const World::ContactTimes t = world.contactTimes().since(before);
+  const double n = double(frames) * substepsPerStep, contact = t.list + t.pairs + t.passes + t.rest;
+  std::printf("    per sub-step (means): objects and the rest of the step %.2f ms; object contact %.2f ms: candidate list "
+              "%.2f ms, contacts found %.2f ms, passes %.2f ms, the rest %.2f ms\n",
+              1e3 * (stepSeconds - contact) / n, 1e3 * contact / n, 1e3 * t.list / n, 1e3 * t.pairs / n, 1e3 * t.passes / n,
+              1e3 * t.rest / n);
+}
+
+double sum(const std::vector<double>& x) {
+  double s = 0.0;
+  for (double v : x) s += v;
+  return s;
 }
 
 std::size_t pairContacts(const World& world) {
@@ -326,6 +359,7 @@ int main(int argc, char** argv) {
     const int frames = 45;
     const std::size_t builds0 = world->contactListBuilds();
     const World::ContactPasses passes0 = world->contactPasses();
+    const World::ContactTimes times0 = world->contactTimes();
     for (int f = 0; f < frames; ++f) {
       const auto t = frame();
       step.push_back(t.first);
@@ -340,6 +374,7 @@ int main(int argc, char** argv) {
                 "per sub-step %.2f\n",
                 phase, ms, msr, ms + msr, ms + msr <= 1e3 / 30.0 ? "within" : "over", (ms + msr) / args.objects,
                 pairContacts(*world), deepestOverlap(*world), builds, passes);
+    printParts(*world, times0, sum(step), frames);
     if (phase[0] == 'f')
       for (int f = 0; f < 75; ++f) world->step();  // on to 4 s
   }
@@ -367,6 +402,7 @@ int main(int argc, char** argv) {
     std::vector<std::vector<Eigen::Vector3d>> start;
     for (const std::string& name : names) start.push_back(world->object(name)->positions());
     std::vector<char> woke(names.size(), 0);
+    const World::ContactTimes times0 = world->contactTimes();
     for (int f = 0; f < frames; ++f) {
       before();
       const auto t = frame();
@@ -393,6 +429,7 @@ int main(int argc, char** argv) {
                 "objects awake (%zu at some step, %zu of them moved less than 0.03 r), deepest overlap %.3f r\n",
                 phase, ms, msr, ms + msr, ms + msr <= 1e3 / 30.0 ? "within" : "over", awake, placed.size(), woken, still,
                 deepestOverlap(*world));
+    printParts(*world, times0, sum(step), frames);
   };
   char settled[64];
   std::snprintf(settled, sizeof settled, "settled (after %.1f s)", settle * kStep);

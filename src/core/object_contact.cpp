@@ -32,6 +32,7 @@
 #include "deformable_flsm/core/world.h"
 
 #include <algorithm>
+#include <ctime>
 #include <limits>
 #include <cmath>
 #include <initializer_list>
@@ -65,6 +66,34 @@ constexpr double kSolveTolerance = 1e-3;
 
 /// Grows a buffer's capacity to twice n when n exceeds it: a list whose size grows slowly (the
 /// pairs of objects pressed together) allocates a few times only.
+/// The calling thread's CPU time (s): on a machine shared with other jobs, what the work took
+/// rather than how long it waited for a core.
+double threadSeconds() {
+  timespec t;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+
+/// Adds the time since the last lap to one of the parts (nothing when `seconds` is null); the
+/// time after the last lap goes to the rest.
+class Laps {
+ public:
+  explicit Laps(std::array<double, 4>* seconds) : seconds_(seconds), last_(seconds ? threadSeconds() : 0.0) {}
+  ~Laps() { lap(ObjectContactSolver::kRestSeconds); }
+  Laps(const Laps&) = delete;
+  Laps& operator=(const Laps&) = delete;
+  void lap(int part) {
+    if (seconds_ == nullptr) return;
+    const double now = threadSeconds();
+    (*seconds_)[static_cast<std::size_t>(part)] += now - last_;
+    last_ = now;
+  }
+
+ private:
+  std::array<double, 4>* seconds_;
+  double last_;
+};
+
 template <class V>
 void reserveDoubling(V& v, std::size_t n) {
   if (n > v.capacity()) v.reserve(2 * n);
@@ -89,19 +118,25 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
   for (PairImpulse& p : pairs_) p.contacts = 0;
   for (ColliderImpulse& c : colliderImpulses_) c.contacts = 0;
   if (!params.enabled && !params.selfContact) return;
+  Laps laps(timing_ ? &seconds_ : nullptr);
   const Staleness stale = updateList(objects, params, h, 0.0);
+  laps.lap(kListSeconds);
   takeCoupling(objects, stale != Staleness::kNone, last);
   if (candidates_.empty()) return;
   gather(objects, h);
+  laps.lap(kRestSeconds);
   findPairs(params);
+  laps.lap(kPairSeconds);
   if (contacts_.empty()) {
     keepFrozenColliderImpulses();  // nothing else to warm-start the next sub-step's collider contacts from
     return;
   }
   findColliderContacts(colliders, h);
   warmStart(h);
+  laps.lap(kRestSeconds);
   passes_ += static_cast<std::size_t>(solve(h, params.iterations));
   ++solves_;
+  laps.lap(kPassSeconds);
   keep();
   pushOut();
   scatter(objects);
@@ -114,7 +149,10 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
 // the solve unless the solve itself carries a particle out of its allowance.
 void ObjectContactSolver::refreshList(const std::vector<Solver*>& objects, const ObjectContactParams& params,
                                       double h) {
-  if (params.enabled || params.selfContact) updateList(objects, params, h, h);
+  if (!params.enabled && !params.selfContact) return;
+  Laps laps(timing_ ? &seconds_ : nullptr);
+  updateList(objects, params, h, h);
+  laps.lap(kListSeconds);
 }
 
 ObjectContactSolver::Staleness ObjectContactSolver::updateList(const std::vector<Solver*>& objects,

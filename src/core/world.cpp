@@ -327,6 +327,14 @@ World::ContactPasses World::contactPasses() const {
   return {impl_->contact.solvePasses(), impl_->contact.solvedSubsteps()};
 }
 
+void World::setContactTiming(bool on) { impl_->contact.setTiming(on); }
+
+World::ContactTimes World::contactTimes() const {
+  const auto& s = impl_->contact.seconds();
+  return {s[ObjectContactSolver::kListSeconds], s[ObjectContactSolver::kPairSeconds],
+          s[ObjectContactSolver::kPassSeconds], s[ObjectContactSolver::kRestSeconds]};
+}
+
 void World::setSleepParams(const SleepParams& sleep) {
   sleep.validate();
   sleep_ = sleep;
