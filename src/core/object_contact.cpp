@@ -215,11 +215,19 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
   const std::size_t N = objects.size();
   ++listBuilds_;
   // a sleeping object's pairs keep their impulses over a build of the others, for when it wakes
-  // (with a sleeping partner they have no contact meanwhile): by their particles' pair
+  // (with a sleeping partner they have no contact meanwhile): a pair of two objects not built
+  // again keeps its place in the list and its impulses with it (below); the others, which the
+  // search may find again, by their particles' pair
   carried_.clear();
+  if (keptLambda_.size() != keys_.size()) {  // not built yet: nothing kept
+    keptLambda_.assign(keys_.size(), 0.0);
+    keptFriction_.assign(keys_.size(), Eigen::Vector3d::Zero());
+    keptSliding_.assign(keys_.size(), 0);
+  }
   if (!all && frozen_ != nullptr) {
-    for (std::size_t i = 0; i < keys_.size() && i < keptLambda_.size(); ++i) {
-      if (!frozen(owner_[keys_[i].first]) && !frozen(owner_[keys_[i].second])) continue;
+    for (std::size_t i = 0; i < keys_.size(); ++i) {
+      const std::uint32_t o1 = owner_[keys_[i].first], o2 = owner_[keys_[i].second];
+      if ((!stale_[o1] && !stale_[o2]) || (!frozen(o1) && !frozen(o2))) continue;
       if (keptLambda_[i] == 0.0 && keptFriction_[i].isZero(0.0)) continue;
       reserveDoubling(carried_, carried_.size() + 1);
       carried_.push_back({keys_[i], keptLambda_[i], keptFriction_[i], keptSliding_[i]});
@@ -359,10 +367,17 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
       ++n;
     }
   }
-  // the pairs of two objects that are not stale
+  // the pairs of two objects that are not stale, with their impulses if one of them sleeps
   std::size_t kept = 0;
-  for (std::size_t i = 0; i < keys_.size(); ++i)
-    if (!stale_[owner_[keys_[i].first]] && !stale_[owner_[keys_[i].second]]) keys_[kept++] = keys_[i];
+  for (std::size_t i = 0; i < keys_.size(); ++i) {
+    const std::uint32_t o1 = owner_[keys_[i].first], o2 = owner_[keys_[i].second];
+    if (stale_[o1] || stale_[o2]) continue;
+    const bool carry = frozen_ != nullptr && (frozen(o1) || frozen(o2));
+    keptLambda_[kept] = carry ? keptLambda_[i] : 0.0;
+    keptFriction_[kept] = carry ? keptFriction_[i] : Eigen::Vector3d::Zero();
+    keptSliding_[kept] = carry ? keptSliding_[i] : 0;
+    keys_[kept++] = keys_[i];
+  }
   keys_.resize(kept);
   // a slow particle's partners within ball + baseReach lie in the 27 cells around it; a fast
   // one (ball > baseReach) searches ball + widest. A pair is taken from the search of its fast
@@ -407,10 +422,13 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
   reserveDoubling(keptLambda_, keys_.size());
   reserveDoubling(keptFriction_, keys_.size());
   reserveDoubling(keptSliding_, keys_.size());
-  keptLambda_.assign(keys_.size(), 0.0);
-  keptFriction_.assign(keys_.size(), Eigen::Vector3d::Zero());
-  keptSliding_.assign(keys_.size(), 0);
-  for (std::size_t i = 0; i < keys_.size() && !carried_.empty(); ++i) {
+  keptLambda_.resize(kept);
+  keptFriction_.resize(kept);
+  keptSliding_.resize(kept);
+  keptLambda_.resize(keys_.size(), 0.0);
+  keptFriction_.resize(keys_.size(), Eigen::Vector3d::Zero());
+  keptSliding_.resize(keys_.size(), 0);
+  for (std::size_t i = kept; i < keys_.size() && !carried_.empty(); ++i) {
     const auto it = std::lower_bound(carried_.begin(), carried_.end(), keys_[i],
                                      [](const Carried& c, const std::pair<std::uint32_t, std::uint32_t>& k) { return c.key < k; });
     if (it == carried_.end() || it->key != keys_[i]) continue;
