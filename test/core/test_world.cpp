@@ -17,6 +17,7 @@
 #include <cstdlib>
 #include <new>
 #include <cstdio>
+#include <ctime>
 #include <functional>
 #include <limits>
 #include <map>
@@ -338,6 +339,40 @@ TEST(World, ContactPassesAreCountedInTheSubstepsWithContacts) {
     EXPECT_GE(during.passes, during.substeps);
     EXPECT_LE(during.passes, during.substeps * static_cast<std::size_t>(iterations));
     if (iterations == 1) EXPECT_EQ(during.perSubstep(), 1.0);
+  }
+}
+
+TEST(World, ContactTimesSplitTheContactPassWhenTimed) {
+  const auto cpu = [] {
+    timespec t;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+  };
+  for (bool timed : {false, true}) {
+    World world(kStep, kSubsteps);
+    world.setContactTiming(timed);
+    throwTwoBlocks(world);
+    const double t0 = cpu();
+    std::size_t touching = 0;
+    for (int i = 0; i < 30; ++i) {
+      world.step();
+      touching += world.objectWrenches().empty() ? 0 : 1;
+    }
+    const double stepped = cpu() - t0;
+    ASSERT_GT(touching, 0u) << "the blocks collide";
+    const World::ContactTimes t = world.contactTimes();
+    if (!timed) {
+      EXPECT_EQ(t.list + t.pairs + t.passes + t.rest, 0.0) << "nothing timed unless asked";
+      continue;
+    }
+    // each part was spent (the blocks fly, touch and part), and all of them within the steps
+    EXPECT_GT(t.list, 0.0);
+    EXPECT_GT(t.pairs, 0.0);
+    EXPECT_GT(t.passes, 0.0);
+    EXPECT_GT(t.rest, 0.0);
+    EXPECT_LE(t.list + t.pairs + t.passes + t.rest, stepped);
+    const World::ContactTimes none = world.contactTimes().since(t);
+    EXPECT_EQ(none.list + none.pairs + none.passes + none.rest, 0.0);
   }
 }
 
