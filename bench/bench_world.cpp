@@ -222,7 +222,7 @@ std::unique_ptr<World> bin(const Shape& shape, int n, std::vector<Placed>* place
 /// CPU time of this thread (s): on a machine shared with other jobs, the time the work took
 /// rather than the time it waited for a core.
 double threadSeconds() {
-  timespec t;
+  timespec t{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
   return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
 }

@@ -64,12 +64,10 @@ constexpr double kSkinMotion = 0.5;
 /// fraction of the smallest radius per sub-step (see solve()).
 constexpr double kSolveTolerance = 1e-3;
 
-/// Grows a buffer's capacity to twice n when n exceeds it: a list whose size grows slowly (the
-/// pairs of objects pressed together) allocates a few times only.
 /// The calling thread's CPU time (s): on a machine shared with other jobs, what the work took
 /// rather than how long it waited for a core.
 double threadSeconds() {
-  timespec t;
+  timespec t{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
   return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
 }
@@ -94,6 +92,8 @@ class Laps {
   double last_;
 };
 
+/// Grows a buffer's capacity to twice n when n exceeds it: a list whose size grows slowly (the
+/// pairs of objects pressed together) allocates a few times only.
 template <class V>
 void reserveDoubling(V& v, std::size_t n) {
   if (n > v.capacity()) v.reserve(2 * n);
@@ -219,7 +219,7 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
   // again keeps its place in the list and its impulses with it (below); the others, which the
   // search may find again, by their particles' pair
   carried_.clear();
-  if (keptLambda_.size() != keys_.size()) {  // not built yet: nothing kept
+  if (keptLambda_.size() != keys_.size()) {  // defensive: they are sized together below
     keptLambda_.assign(keys_.size(), 0.0);
     keptFriction_.assign(keys_.size(), Eigen::Vector3d::Zero());
     keptSliding_.assign(keys_.size(), 0);
@@ -372,7 +372,8 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
   for (std::size_t i = 0; i < keys_.size(); ++i) {
     const std::uint32_t o1 = owner_[keys_[i].first], o2 = owner_[keys_[i].second];
     if (stale_[o1] || stale_[o2]) continue;
-    const bool carry = frozen_ != nullptr && (frozen(o1) || frozen(o2));
+    const bool carry = frozen_ != nullptr && (frozen(o1) || frozen(o2)) &&
+                       !(keptLambda_[i] == 0.0 && keptFriction_[i].isZero(0.0));
     keptLambda_[kept] = carry ? keptLambda_[i] : 0.0;
     keptFriction_[kept] = carry ? keptFriction_[i] : Eigen::Vector3d::Zero();
     keptSliding_[kept] = carry ? keptSliding_[i] : 0;
@@ -417,7 +418,7 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
   // no warm start after a build for a pair of awake objects: with the kept pairs' impulses
   // carried over the builds, the 20-object bin of test_world still moved at 7.4 mm/s (fastest
   // particle, 10 to 12 s), against 1.2 mm/s with them dropped at every build; a sleeping
-  // object's are carried (carried_ above)
+  // object's are carried (in the compaction above, and from carried_ below)
   reserveDoubling(keys_, keys_.size());
   reserveDoubling(keptLambda_, keys_.size());
   reserveDoubling(keptFriction_, keys_.size());

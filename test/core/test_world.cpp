@@ -344,7 +344,7 @@ TEST(World, ContactPassesAreCountedInTheSubstepsWithContacts) {
 
 TEST(World, ContactTimesSplitTheContactPassWhenTimed) {
   const auto cpu = [] {
-    timespec t;
+    timespec t{};
     clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
     return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
   };

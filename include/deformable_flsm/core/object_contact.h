@@ -72,7 +72,8 @@ class ObjectContactSolver {
   /// reading that clock is a system call, a few of them per sub-step), in kListSeconds the
   /// candidate list's checks and builds, kPairSeconds finding the contacts among the
   /// candidates, kPassSeconds the Gauss-Seidel passes, kRestSeconds the rest (gathering, warm
-  /// start, collider contacts, push-out, scattering, the sums).
+  /// start, collider contacts, keeping the impulses, push-out, scattering, the sums, the
+  /// implicit step's spring impulses taken in).
   enum { kListSeconds, kPairSeconds, kPassSeconds, kRestSeconds };
   void setTiming(bool on) { timing_ = on; }
   const std::array<double, 4>& seconds() const { return seconds_; }
@@ -201,7 +202,8 @@ class ObjectContactSolver {
   /// keptCollider_ without the entries of objects that are not frozen (scratch: keptScratch_)
   void keepFrozenColliderImpulses();
   std::vector<KeptImpulse> keptScratch_;
-  /// a sleeping object's pair impulses over a build (buildList()), sorted by pair
+  /// over a build (buildList()), the impulses of the pairs of a stale object with a sleeping one,
+  /// which its search may find again (the kept pairs carry theirs in place), sorted by pair
   struct Carried {
     std::pair<std::uint32_t, std::uint32_t> key;
     double lambda = 0.0;
@@ -237,8 +239,8 @@ class ObjectContactSolver {
   std::vector<std::uint32_t> hashGlobal_, hashObject_;
   std::vector<Eigen::Vector3d> hashX_;
   std::vector<double> hashBall_;
-  // the last sub-step's impulses: per candidate pair (kept while both its objects' anchors
-  // are), and per collider contact in (global number, collider) order
+  // the last sub-step's impulses: per candidate pair (over a build, only those of a pair with a
+  // sleeping object), and per collider contact in (global number, collider) order
   std::vector<double> keptLambda_;
   std::vector<Eigen::Vector3d> keptFriction_;
   std::vector<char> keptSliding_;
