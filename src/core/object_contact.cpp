@@ -218,17 +218,14 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
   // (with a sleeping partner they have no contact meanwhile): a pair of two objects not built
   // again keeps its place in the list and its impulses with it (below); the others, which the
   // search may find again, by their particles' pair
+  // (keptLambda_ and its siblings are per key: sized with keys_ at the end of every build)
+  const auto impulse = [&](std::size_t i) { return keptLambda_[i] != 0.0 || !keptFriction_[i].isZero(0.0); };
   carried_.clear();
-  if (keptLambda_.size() != keys_.size()) {  // defensive: they are sized together below
-    keptLambda_.assign(keys_.size(), 0.0);
-    keptFriction_.assign(keys_.size(), Eigen::Vector3d::Zero());
-    keptSliding_.assign(keys_.size(), 0);
-  }
   if (!all && frozen_ != nullptr) {
     for (std::size_t i = 0; i < keys_.size(); ++i) {
       const std::uint32_t o1 = owner_[keys_[i].first], o2 = owner_[keys_[i].second];
       if ((!stale_[o1] && !stale_[o2]) || (!frozen(o1) && !frozen(o2))) continue;
-      if (keptLambda_[i] == 0.0 && keptFriction_[i].isZero(0.0)) continue;
+      if (!impulse(i)) continue;
       reserveDoubling(carried_, carried_.size() + 1);
       carried_.push_back({keys_[i], keptLambda_[i], keptFriction_[i], keptSliding_[i]});
     }
@@ -372,8 +369,7 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
   for (std::size_t i = 0; i < keys_.size(); ++i) {
     const std::uint32_t o1 = owner_[keys_[i].first], o2 = owner_[keys_[i].second];
     if (stale_[o1] || stale_[o2]) continue;
-    const bool carry = frozen_ != nullptr && (frozen(o1) || frozen(o2)) &&
-                       !(keptLambda_[i] == 0.0 && keptFriction_[i].isZero(0.0));
+    const bool carry = frozen_ != nullptr && (frozen(o1) || frozen(o2)) && impulse(i);
     keptLambda_[kept] = carry ? keptLambda_[i] : 0.0;
     keptFriction_[kept] = carry ? keptFriction_[i] : Eigen::Vector3d::Zero();
     keptSliding_[kept] = carry ? keptSliding_[i] : 0;
