@@ -254,6 +254,7 @@ std::vector<ColliderSpec> ParamLoader::getColliders(const std::string& name,
 
 std::vector<std::string> ParamLoader::getStrings(const std::string& name,
                                                  const std::vector<std::string>& fallback) const {
+  read_.push_back(name);
   if (!pnh_.hasParam(name)) {
     return fallback;
   }

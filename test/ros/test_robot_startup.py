@@ -116,6 +116,8 @@ class RobotStartupTest(unittest.TestCase):
         self.assertIn("~robot_links pattern 'gripper_finger_.*' matches no link", warnings[0])
         self.assertIn('probe_tip', warnings[0], 'the warning lists the links there are')
         self.assertNotIn("'probe_.*' matches no link", out)
+        # a list parameter that is read is not reported as unknown
+        self.assertNotIn('not a parameter of flsm_node', out)
 
 
 if __name__ == '__main__':
