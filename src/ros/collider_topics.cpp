@@ -62,10 +62,13 @@ ColliderTopics::ColliderTopics(ros::NodeHandle& pnh, ros::NodeHandle& stateNh,
   wrenchPub_ = pnh.advertise<ContactWrenches>("contact_wrenches", 1);
   commandSub_ = commandNh.subscribe("collider", kCommandQueue, &ColliderTopics::onCommand, this);
   // Followed frames are sampled once per simulation step; the timer runs from the first
-  // followed collider on (a node without any does not wake for it).
-  followTimer_ = stateNh.createTimer(
-      ros::Duration(params.solver.timeStep / params.realTimeFactor), &ColliderTopics::onFollowTimer,
-      this, false, !follower_.empty());
+  // followed collider on (a node without any does not wake for it). On simulated time (~clock
+  // sim or follow) a timer's period is simulated time already.
+  const double period = params.clock == NodeParams::Clock::Wall
+                            ? params.solver.timeStep / params.realTimeFactor
+                            : params.solver.timeStep;
+  followTimer_ = stateNh.createTimer(ros::Duration(period), &ColliderTopics::onFollowTimer, this,
+                                     false, !follower_.empty());
 }
 
 void ColliderTopics::addRobot(const RobotColliders& robot, const std::vector<RestObject>& objects) {
@@ -168,12 +171,12 @@ void ColliderTopics::onFollowTimer(const ros::TimerEvent&) {
   }
 }
 
-void ColliderTopics::publishFrames(const Snapshot& s, const ros::Time& stamp) {
+void ColliderTopics::publishFrames(const Snapshot& s, const ros::Time& stamp, bool withTf) {
   fillContactWrenches(s.colliders, s.wrenches, robotLinks_, stamp, wrenches_);
   appendObjectWrenches(s.objectWrenches, simFrame_, stamp, wrenches_);
   wrenches_.header.frame_id = simFrame_;
   wrenchPub_.publish(wrenches_);
-  if (!s.colliders.empty()) {
+  if (withTf && !s.colliders.empty()) {
     colliderTransforms(s.colliders, simFrame_, stamp, transforms_);
     tfBroadcaster_.sendTransform(transforms_);
   }

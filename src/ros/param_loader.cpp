@@ -100,6 +100,13 @@ NodeParams ParamLoader::loadNodeParams() const {
   p.publishRate = getDouble("publish_rate", p.publishRate);
   p.republishAtRest = getBool("republish_at_rest", p.republishAtRest);
   p.realTimeFactor = getDouble("real_time_factor", p.realTimeFactor);
+  const std::string clock = getString("clock", toString(p.clock));
+  if (!parseClock(clock, p.clock)) {
+    throw ParamError("~clock is '" + clock + "': it must be 'wall' (paced by the wall clock, "
+                     "stamped with it), 'sim' (this node serves /clock) or 'follow' (another node "
+                     "serves /clock, e.g. Gazebo or rosbag play --clock)");
+  }
+  p.startPaused = getBool("start_paused", p.startPaused);
   p.pinned = getBoxes("pinned");
   p.renderTriangleBudget = getInt("render_triangle_budget", p.renderTriangleBudget);
   p.ground = getBool("ground", p.ground);

@@ -1,11 +1,13 @@
 #include "deformable_flsm/ros/simulator_node.h"
 
+#include "deformable_flsm/ros/collider_messages.h"
 #include "deformable_flsm/ros/object_params.h"
 
 #include "to_eigen.h"
 
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/console.h>
+#include <ros/wall_timer.h>
 #include <tf2/exceptions.h>
 #include <tf2_eigen/tf2_eigen.h>
 
@@ -37,6 +39,26 @@ constexpr double kRejectPeriod = 1.0;  // s between two rejection warnings
 /// its drags hold still (as colliders that follow a frame do, ColliderFollower::kStaleAfter).
 constexpr double kAttachStaleAfter = 0.5;
 constexpr double kAttachWarnPeriod = 5.0;  // s between two warnings about attached frames
+/// /clock carries one tick each; a subscriber that falls behind needs only the newest.
+constexpr std::uint32_t kClockQueue = 10;
+/// How often the first lookup in a foreign frame looks again while it waits (s, wall time).
+constexpr double kFirstTransformPoll = 0.01;
+
+ros::Time rosTime(std::chrono::system_clock::time_point t) {
+  ros::Time out;
+  out.fromNSec(static_cast<std::uint64_t>(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count()));
+  return out;
+}
+
+LoopTime loopTime(NodeParams::Clock clock) {
+  switch (clock) {
+    case NodeParams::Clock::Sim: return LoopTime::Served;
+    case NodeParams::Clock::Follow: return LoopTime::Followed;
+    case NodeParams::Clock::Wall: break;
+  }
+  return LoopTime::Paced;
+}
 
 }  // namespace
 
@@ -52,10 +74,18 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
                       detail.c_str());
   });
 
+  checkClock();
   LoopSettings settings;
   settings.realTimeFactor = params_.realTimeFactor;
+  settings.time = loopTime(params_.clock);
+  settings.startPaused = params_.startPaused;
   // Rest (LoopSettings::restFraction, idleHold): the defaults, relative to the object size.
   loop_ = std::make_unique<SimulationLoop>(std::move(scene.world), settings, stats_);
+  loop_->setNotice([](const std::string& what) { ROS_WARN("flsm_node: %s", what.c_str()); });
+  if (params_.clock == NodeParams::Clock::Sim) {
+    clockPub_ = nh_.advertise<rosgraph_msgs::Clock>("/clock", kClockQueue);
+    loop_->setTickObserver([this](double time, const Snapshot* state) { onTick(time, state); });
+  }
 
   commands_.resize(objects_.size());
   for (std::size_t k = 0; k < objects_.size(); ++k) {
@@ -112,6 +142,9 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
     return attachedFrame(frame, T);
   });
   loop_->start();
+  if (params_.clock == NodeParams::Clock::Follow) {
+    clockSub_ = stateNh_.subscribe("/clock", kClockQueue, &SimulatorNode::onClock, this);
+  }
   publishTimer_ = pnh_.createTimer(ros::Duration(1.0 / params_.publishRate),
                                    &SimulatorNode::onPublishTimer, this);
   stateTimer_ = stateNh_.createTimer(ros::Duration(1.0 / params_.publishRate),
@@ -142,6 +175,9 @@ void SimulatorNode::advertise() {
   commandNh_.setCallbackQueue(&commandQueue_);
   serviceNh_.setCallbackQueue(&serviceQueue_);
   resetSrv_ = serviceNh_.advertiseService("reset", &SimulatorNode::onReset, this);
+  pauseSrv_ = serviceNh_.advertiseService("pause", &SimulatorNode::onPause, this);
+  unpauseSrv_ = serviceNh_.advertiseService("unpause", &SimulatorNode::onUnpause, this);
+  stepSrv_ = serviceNh_.advertiseService("step", &SimulatorNode::onStep, this);
   releaseAllSrv_ = serviceNh_.advertiseService("release_all", &SimulatorNode::onReleaseAll, this);
   // The top-level topics and service address the first object; with ~objects every object has
   // its own under ~objects/<name>/.
@@ -188,13 +224,20 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
     std::lock_guard<std::mutex> lock(paramsMutex_);
     reporter_->publishingTook(event.profile.last_duration.toSec());
   }
-  const ros::Time stamp = ros::Time::now();
   const Snapshot& s = loop_->acquire();
+  const ros::Time stamp = stampOf(s);
   std::shared_lock<std::shared_mutex> lock(objectsMutex_);
   // tf, the wrenches and the clouds of one snapshot carry one stamp: a subscriber pairs a cloud
-  // with the colliders' and objects' frames of the same step by it.
-  publisher_->publishTf(s, stamp);
-  colliders_->publishFrames(s, stamp);
+  // with the colliders' and objects' frames of the same step by it. tf goes once per stamp (a
+  // listener warns of a repeat, TF_REPEATED_DATA): a state the timer sends again, when the
+  // simulation runs slower than the publish rate, keeps its stamp and sends no tf. With ~clock
+  // sim every step sends its tf (onTick).
+  const bool tfDue = params_.clock != NodeParams::Clock::Sim && stamp > lastTfStamp_;
+  if (tfDue) {
+    publisher_->publishTf(s, stamp);
+    lastTfStamp_ = stamp;
+  }
+  colliders_->publishFrames(s, stamp, tfDue);
   colliders_->publishMarkers(s, stamp);
   // The handles of objects added or removed since the last tick, then every handle to its
   // object's frame: the snapshot lists the objects in the order they were added, without those
@@ -219,14 +262,87 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
 }
 
 void SimulatorNode::onStateTimer(const ros::TimerEvent&) {
-  const ros::Time stamp = ros::Time::now();
   loop_->copySummary(summary_);
+  const ros::Time stamp = stampOf(summary_);
   {
     std::shared_lock<std::shared_mutex> lock(objectsMutex_);
     publisher_->publishState(summary_, stamp, colliders_->frameMisses());
   }
   std::lock_guard<std::mutex> lock(paramsMutex_);
   reporter_->report(summary_.diag);
+}
+
+// --------------------------------------------------------------------------------------------
+// Time
+
+void SimulatorNode::checkClock() const {
+  const bool simTime = ros::Time::isSimTime();
+  if (params_.clock == NodeParams::Clock::Wall && simTime) {
+    throw ParamError("/use_sim_time is true but ~clock is 'wall': the node would stamp its "
+                     "messages with the wall clock among nodes on simulated time. Set ~clock to "
+                     "'sim' (this node serves /clock) or 'follow' (another node serves /clock, "
+                     "e.g. Gazebo or rosbag play --clock)");
+  }
+  if (params_.clock != NodeParams::Clock::Wall && !simTime) {
+    throw ParamError(std::string("~clock is '") + toString(params_.clock) +
+                     "' but /use_sim_time is not true: set it before any node starts "
+                     "(roslaunch deformable_flsm flsm.launch sim_time:=true, or <param "
+                     "name=\"/use_sim_time\" value=\"true\"/> first in your launch file), or "
+                     "set ~clock to 'wall'");
+  }
+}
+
+ros::Time SimulatorNode::stampOf(const Snapshot& s) const {
+  if (params_.clock == NodeParams::Clock::Wall) {
+    // at rest or paused the state holds on: it is the state now
+    return s.diag.idle || s.diag.paused ? ros::Time::now() : rosTime(s.wallTime);
+  }
+  return ros::Time(s.diag.idle && !s.diag.paused ? loop_->clockTime() : s.time);
+}
+
+void SimulatorNode::onTick(double time, const Snapshot* state) {
+  const ros::Time stamp(time);
+  if (state != nullptr) {
+    colliderTransforms(state->colliders, params_.frameId, stamp, tickTransforms_);
+    for (const ObjectSnapshot& o : state->objects) {
+      geometry_msgs::TransformStamped t = tf2::eigenToTransform(o.objectFrame);
+      t.header.frame_id = params_.frameId;
+      t.child_frame_id = o.name;
+      tickTransforms_.push_back(t);
+    }
+  }
+  for (geometry_msgs::TransformStamped& t : tickTransforms_) t.header.stamp = stamp;
+  // the state's tf first, then the time: a listener that looks a frame up at ros::Time::now()
+  // finds it
+  tickBroadcaster_.sendTransform(tickTransforms_);
+  rosgraph_msgs::Clock clock;
+  clock.clock = stamp;
+  clockPub_.publish(clock);
+}
+
+void SimulatorNode::onClock(const rosgraph_msgs::Clock::ConstPtr& clock) {
+  loop_->followTime(clock->clock.toSec());
+}
+
+bool SimulatorNode::onPause(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
+  const CommandOutcome o = send(PauseCommand{true}, true);
+  if (!o.accepted) ROS_WARN("flsm_node: ~pause: %s", o.message.c_str());
+  return o.accepted;
+}
+
+bool SimulatorNode::onUnpause(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
+  const CommandOutcome o = send(PauseCommand{false}, true);
+  if (!o.accepted) ROS_WARN("flsm_node: ~unpause: %s", o.message.c_str());
+  return o.accepted;
+}
+
+bool SimulatorNode::onStep(Step::Request& req, Step::Response& res) {
+  // However many steps it takes: the answer says they are done.
+  const CommandOutcome o = sendAndWaitForTheAnswer(StepCommand{req.steps});
+  res.success = o.accepted;
+  res.message = o.message;
+  res.time = loop_->clockTime();
+  return true;
 }
 
 // --------------------------------------------------------------------------------------------
@@ -311,8 +427,11 @@ bool SimulatorNode::attachedFrame(const std::string& frame, Eigen::Isometry3d& s
 bool SimulatorNode::lookupTransform(const std::string& frame, const ros::Time& stamp,
                                     Eigen::Isometry3d& T, std::string& why) {
   if (startTfListener()) {
-    // Once: let the new listener hear the frames (tf_static at once, tf within a period).
-    tfBuffer_.canTransform(params_.frameId, frame, ros::Time(0), ros::Duration(kFirstTransformTimeout));
+    // Once: let the new listener hear the frames (tf_static at once, tf within a period). A wait
+    // in wall time: on simulated time that stands still (paused) tf's own timeout never ends.
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(kFirstTransformTimeout);
+    while (!tfBuffer_.canTransform(params_.frameId, frame, ros::Time(0)) && ros::WallTime::now() < end)
+      ros::WallDuration(kFirstTransformPoll).sleep();
   }
   // Never wait: at the command's stamp if tf has it, else the latest transform (a command
   // stamped a little ahead of the last tf message), else refused. Waiting here would hold up
@@ -425,6 +544,13 @@ bool SimulatorNode::onReconfigure(const FlsmConfig& config) {
                    "youngs_modulus " + std::to_string(changed.youngsModulus) +
                        ": it must be > 0 Pa (a value below 0 arrives clamped to 0); the material "
                        "is unchanged. For alpha = stiffness per sub-step, set material classic");
+    return false;
+  }
+  if (config.real_time_factor == 0.0 && params_.clock != NodeParams::Clock::Sim) {
+    // dynamic_reconfigure has clamped anything below the range to its minimum, 0.
+    stats_->reject("invalid_params", "real_time_factor " + std::to_string(config.real_time_factor) +
+                                         ": it must be > 0 (0, as fast as the machine can, only with "
+                                         "~clock sim); nothing changed");
     return false;
   }
   // Every object takes the change with its own regions and density: one gravity, one material.

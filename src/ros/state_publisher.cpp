@@ -232,6 +232,7 @@ void StatePublisher::fillState(const LoopDiagnostics& d, const ros::Time& stamp,
   m.active_drags = static_cast<std::uint32_t>(d.drags);
   m.active_forces = static_cast<std::uint32_t>(d.forces);
   m.idle = d.idle;
+  m.paused = d.paused;
   m.stiffness_saturated = d.stiffnessSaturated;
   m.alpha = d.alpha;
   m.steps = d.steps;

@@ -60,10 +60,14 @@ void NodeParams::validate() const {
   } else if (!std::isfinite(publishRate) || publishRate <= 0.0 || publishRate > kMaxPublishRate) {
     why << "~publish_rate is " << publishRate << ": it must be a finite rate in (0, "
         << kMaxPublishRate << "] Hz";
-  } else if (!std::isfinite(realTimeFactor) || realTimeFactor <= 0.0 ||
+  } else if (realTimeFactor == 0.0 && clock != Clock::Sim) {
+    why << "~real_time_factor is 0 (as fast as the machine can) with ~clock " << toString(clock)
+        << ": that needs ~clock sim, where the node serves the time it steps; with ~clock wall "
+        << "give a factor in (0, " << kMaxRealTimeFactor << "]";
+  } else if (!std::isfinite(realTimeFactor) || realTimeFactor < 0.0 ||
              realTimeFactor > kMaxRealTimeFactor) {
     why << "~real_time_factor is " << realTimeFactor << ": it must be in (0, "
-        << kMaxRealTimeFactor << "] (simulated seconds per wall-clock second)";
+        << kMaxRealTimeFactor << "] (simulated seconds per wall-clock second), or 0 with ~clock sim";
   } else if (material == Material::Youngs && (!std::isfinite(youngsModulus) || youngsModulus <= 0.0)) {
     why << "~youngs_modulus is " << youngsModulus << ": it must be a finite modulus > 0 (Pa) "
         << "with ~material youngs (a firm jelly is ~1e4, rubber ~1e6); to give alpha per "
@@ -173,6 +177,25 @@ bool parseMaterial(const std::string& name, NodeParams::Material& material) {
     return false;
   }
   return true;
+}
+
+const char* toString(NodeParams::Clock clock) {
+  switch (clock) {
+    case NodeParams::Clock::Wall: return "wall";
+    case NodeParams::Clock::Sim: return "sim";
+    case NodeParams::Clock::Follow: return "follow";
+  }
+  return "wall";
+}
+
+bool parseClock(const std::string& name, NodeParams::Clock& clock) {
+  for (NodeParams::Clock c : {NodeParams::Clock::Wall, NodeParams::Clock::Sim, NodeParams::Clock::Follow}) {
+    if (name == toString(c)) {
+      clock = c;
+      return true;
+    }
+  }
+  return false;
 }
 
 }  // namespace deformable_flsm

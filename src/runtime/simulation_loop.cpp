@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 #include <stdexcept>
 #include <utility>
 
@@ -17,7 +18,21 @@ using Clock = std::chrono::steady_clock;
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
+/// A followed time that is behind the loop's by more than this many steps went back (a time
+/// a hair behind, by rounding, did not).
+constexpr double kFollowSlack = 1e-6;
+
 }  // namespace
+
+std::string checkLoopSettings(const LoopSettings& settings) {
+  const double rtf = settings.realTimeFactor;
+  if (!std::isfinite(rtf) || rtf < 0.0 || (rtf == 0.0 && settings.time != LoopTime::Served))
+    return "real-time factor must be finite and > 0 (0, as fast as the machine can, only for a "
+           "loop whose time is served)";
+  if (settings.maxCatchUpSteps < 1) return "catch-up must be >= 1 step";
+  if (!(settings.restFraction >= 0.0)) return "rest fraction must be >= 0";
+  return "";
+}
 
 SimulationLoop::SimulationLoop(std::unique_ptr<World> world, const LoopSettings& settings,
                                std::shared_ptr<CommandStats> stats, std::shared_ptr<LoopClock> clock)
@@ -27,15 +42,15 @@ SimulationLoop::SimulationLoop(std::unique_ptr<World> world, const LoopSettings&
   if (!world_ || world_->objectCount() == 0)
     throw std::invalid_argument("SimulationLoop: no object to simulate");
   if (!stats_) throw std::invalid_argument("SimulationLoop: no command statistics");
-  if (!(settings_.realTimeFactor > 0.0) || settings_.maxCatchUpSteps < 1)
-    throw std::invalid_argument("SimulationLoop: real-time factor must be > 0 and catch-up >= 1");
-  if (!(settings_.restFraction >= 0.0))
-    throw std::invalid_argument("SimulationLoop: rest fraction must be >= 0");
+  const std::string bad = checkLoopSettings(settings_);
+  if (!bad.empty()) throw std::invalid_argument("SimulationLoop: " + bad);
   startNames_ = world_->objectNames();
   for (const std::string& name : startNames_) trackObject(name);
   startLattices_ = lattices_;
   target_ = solvers_.front();
   diag_.requestedRealTimeFactor = settings_.realTimeFactor;
+  paused_ = settings_.startPaused;
+  diag_.paused = paused_;
   queue_.reserve(CommandLimits::kQueueCapacity);
 }
 
@@ -61,12 +76,13 @@ void SimulationLoop::stop() {
     std::lock_guard<std::mutex> lock(queueMutex_);
     left.swap(queue_);
   }
-  for (Command& c : left) {
-    if (c.outcome) {
-      CommandOutcome o;
-      o.message = "the simulation is shutting down";
-      c.outcome->set_value(o);
-    }
+  CommandOutcome o;
+  o.message = "the simulation is shutting down";
+  for (Command& c : left)
+    if (c.outcome) c.outcome->set_value(o);
+  if (stepAnswer_) {
+    stepAnswer_->set_value(o);
+    stepAnswer_.reset();
   }
 }
 
@@ -89,9 +105,15 @@ bool SimulationLoop::submit(Command command) {
 
 void SimulationLoop::setFrameSource(FrameSource source) { frameSource_ = std::move(source); }
 
+void SimulationLoop::setTickObserver(TickObserver observer) { tickObserver_ = std::move(observer); }
+
+void SimulationLoop::setNotice(Notice notice) { notice_ = std::move(notice); }
+
 void SimulationLoop::setRealTimeFactor(double realTimeFactor) {
-  if (!(realTimeFactor > 0.0) || !std::isfinite(realTimeFactor))
-    throw std::invalid_argument("real-time factor must be finite and > 0");
+  LoopSettings changed = settings_;
+  changed.realTimeFactor = realTimeFactor;
+  const std::string bad = checkLoopSettings(changed);
+  if (!bad.empty()) throw std::invalid_argument(bad);
   realTimeFactor_.store(realTimeFactor);
   {
     std::lock_guard<std::mutex> lock(queueMutex_);
@@ -100,10 +122,22 @@ void SimulationLoop::setRealTimeFactor(double realTimeFactor) {
   wakeUp_.notify_one();
 }
 
+void SimulationLoop::followTime(double time) {
+  if (!std::isfinite(time)) return;
+  {
+    std::lock_guard<std::mutex> lock(queueMutex_);
+    followTarget_ = time;
+    followSet_ = followMoved_ = true;
+  }
+  wakeUp_.notify_one();
+}
+
 void SimulationLoop::run() {
+  const LoopTime mode = settings_.time;
+  running_ = true;
   Clock::time_point last = clock_->now();
   restartWindow(last);
-  double owed = 0.0;  // simulated seconds due but not yet stepped
+  double owed = 0.0;  // simulated seconds due but not yet stepped (Paced, Served)
   // the clock's time since `last` owed at `pace`; `last` moves on to now, which it returns
   const auto accrue = [&](double pace) {
     const Clock::time_point t = clock_->now();
@@ -114,16 +148,27 @@ void SimulationLoop::run() {
   std::vector<Command> batch;
   batch.reserve(CommandLimits::kQueueCapacity);
   for (;;) {
-    bool woken = false;
+    bool woken = false, followed = false;
+    double target = 0.0;
     {
       std::unique_lock<std::mutex> lock(queueMutex_);
-      if (idle_) {
-        wakeUp_.wait(lock, [&] { return stopRequested_ || wakeRequested_ || !queue_.empty(); });
+      // Nothing to do until something happens: paused (no steps asked), or at rest where the
+      // time stands still with the state. At rest a served time goes on (below), and a followed
+      // one moves on with the time it follows.
+      const bool waitForWork = paused_ ? stepsRequested_ == 0 : idle_ && mode != LoopTime::Served;
+      if (waitForWork) {
+        wakeUp_.wait(lock, [&] {
+          return stopRequested_ || wakeRequested_ || !queue_.empty() ||
+                 (followMoved_ && !paused_);
+        });
       }
       if (stopRequested_) break;
       batch.swap(queue_);
       woken = wakeRequested_;
       wakeRequested_ = false;
+      followed = followSet_;
+      target = followTarget_;
+      followMoved_ = false;
     }
     bool acted = false;
     for (Command& c : batch) {
@@ -131,6 +176,11 @@ void SimulationLoop::run() {
       acted = apply(c) || acted;
     }
     batch.clear();
+    const double dt = world_->timeStep();
+    if (paused_) {
+      stepOnRequest(dt);
+      continue;
+    }
 
     const double rtf = realTimeFactor_.load();
     if (rtf != diag_.requestedRealTimeFactor) {
@@ -141,8 +191,14 @@ void SimulationLoop::run() {
       diag_.requestedRealTimeFactor = rtf;
       restartWindow(changed);
     }
-    if (idle_) {
-      if (!acted && !woken) continue;  // only rejected commands: rest on
+    if (resumed_) {
+      // Unpaused: the time spent paused is not owed.
+      resumed_ = false;
+      last = clock_->now();
+      owed = 0.0;
+      restartWindow(last);
+    }
+    if (idle_ && (acted || woken)) {
       // Awake: the time spent resting is not owed.
       idle_ = false;
       restartStillness();
@@ -155,46 +211,156 @@ void SimulationLoop::run() {
       restartStillness();
     }
 
-    accrue(rtf);
-    const double dt = world_->timeStep();
-    // whole steps owed (a sum of clock intervals a hair short of k steps is k steps)
-    auto steps = static_cast<std::int64_t>(std::floor(owed / dt + 1e-9));
-    if (steps > settings_.maxCatchUpSteps) {
-      // drop the whole steps beyond the batch, each counted; the fraction of a step stays owed
-      const std::int64_t dropped = steps - settings_.maxCatchUpSteps;
-      diag_.droppedSteps += static_cast<std::uint64_t>(dropped);
-      owed -= static_cast<double>(dropped) * dt;
-      steps = settings_.maxCatchUpSteps;
+    std::int64_t steps = 0;
+    if (mode == LoopTime::Followed) {
+      if (followed) steps = stepsToFollow(target, dt);
+    } else if (rtf == 0.0) {
+      steps = 1;  // as fast as the machine can
+    } else {
+      accrue(rtf);
+      // whole steps owed (a sum of clock intervals a hair short of k steps is k steps)
+      steps = static_cast<std::int64_t>(std::floor(owed / dt + 1e-9));
     }
-    if (steps == 0 && acted) {
-      // A command took effect between steps (0 <= owed < dt): step now rather than at the next
-      // step's time, up to a whole step later, borrowing that step. The next one then comes a
-      // step later than it would have: simulated time leads the clock by at most one step (until
-      // it is paid back, owed < 0 and steps < 0: no second early step), and the pace is kept.
-      steps = 1;
-    }
-    for (std::int64_t s = 0; s < steps; ++s) {
-      followColliders(dt);
-      followFrames();
-      timedStep();
-      owed -= dt;
-    }
-    if (steps > 0) {
-      updateStillness(steps * dt);
-      writeSnapshot();
+    if (idle_) {
+      // At rest the state holds: the time moves on (Served, Followed) without stepping.
+      tickAtRest(steps, dt);
+      owed -= static_cast<double>(steps) * dt;
+    } else {
+      if (steps > settings_.maxCatchUpSteps) {
+        // drop the whole steps beyond the batch, each counted; the fraction of a step stays owed
+        const std::int64_t dropped = steps - settings_.maxCatchUpSteps;
+        diag_.droppedSteps += static_cast<std::uint64_t>(dropped);
+        owed -= static_cast<double>(dropped) * dt;
+        // A followed time is kept up with by a jump; a paced one runs slower instead.
+        if (mode == LoopTime::Followed) ticks_ += dropped;
+        steps = settings_.maxCatchUpSteps;
+      }
+      if (steps == 0 && acted && mode != LoopTime::Followed) {
+        // A command took effect between steps (0 <= owed < dt): step now rather than at the next
+        // step's time, up to a whole step later, borrowing that step. The next one then comes a
+        // step later than it would have: simulated time leads the clock by at most one step (until
+        // it is paid back, owed < 0 and steps < 0: no second early step), and the pace is kept.
+        // A followed time is never led.
+        steps = 1;
+      }
+      for (std::int64_t s = 0; s < steps; ++s) {
+        stepScene(dt);
+        owed -= dt;
+        // A served time goes out with every step, each state with it.
+        if (mode == LoopTime::Served) {
+          updateStillness(dt);
+          writeSnapshot();
+        }
+      }
+      if (steps > 0 && mode != LoopTime::Served) {
+        updateStillness(static_cast<double>(steps) * dt);
+        writeSnapshot();
+      }
     }
 
     // Sleep until the next step is due, or until a command arrives. The time the steps took is
     // owed too: a step slower than its share of the clock leaves the next one due at once, and
     // the loop steps on without sleeping (a sleep of a step after every batch of 4 would run a
-    // step of 1.5 shares at 4/7 of the pace, not 2/3).
+    // step of 1.5 shares at 4/7 of the pace, not 2/3). A followed time wakes the loop when it
+    // moves; as fast as the machine can is no wait at all.
+    if (mode != LoopTime::Followed && rtf == 0.0) continue;
+    std::unique_lock<std::mutex> lock(queueMutex_);
+    const auto woke = [&] { return stopRequested_ || wakeRequested_ || !queue_.empty() || followMoved_; };
+    if (mode == LoopTime::Followed) {
+      wakeUp_.wait(lock, woke);
+      continue;
+    }
     accrue(rtf);
     const double wait = std::max(0.0, (dt - owed) / rtf);
-    std::unique_lock<std::mutex> lock(queueMutex_);
     clock_->waitUntil(lock, wakeUp_,
                       clock_->now() + std::chrono::duration_cast<LoopClock::Duration>(
                                           std::chrono::duration<double>(wait)),
-                      [&] { return stopRequested_ || wakeRequested_ || !queue_.empty(); });
+                      woke);
+  }
+}
+
+void SimulationLoop::stepScene(double dt) {
+  followColliders(dt);
+  followFrames();
+  timedStep();
+  ++ticks_;
+  setClock(dt);
+}
+
+void SimulationLoop::setClock(double dt) {
+  clockTime_.store(clockOrigin_ + static_cast<double>(ticks_) * dt);
+}
+
+void SimulationLoop::tickAtRest(std::int64_t steps, double dt) {
+  if (steps <= 0) return;
+  if (settings_.time == LoopTime::Followed) {
+    ticks_ += steps;  // one tick for the lot: the followed time went on by them at once
+    setClock(dt);
+    if (tickObserver_) tickObserver_(clockTime(), nullptr);
+    return;
+  }
+  if (settings_.time != LoopTime::Served) return;
+  for (std::int64_t s = 0; s < steps; ++s) {
+    ++ticks_;
+    setClock(dt);
+    if (tickObserver_) tickObserver_(clockTime(), nullptr);
+  }
+}
+
+std::int64_t SimulationLoop::stepsToFollow(double target, double dt) {
+  if (!clockStarted_) {
+    // The loop's time starts at the first time it follows: the state at start is the state then.
+    clockStarted_ = true;
+    clockOrigin_ = target;
+    ticks_ = 0;
+    setClock(dt);
+    writeSnapshot();
+    return 0;
+  }
+  const double now = clockTime();
+  if (target < now - kFollowSlack * dt) {
+    // The followed time went back (a bag played again, a simulator reset): the scene starts
+    // again from rest at the new time, so that no state is stamped before the one before it.
+    if (notice_) {
+      std::ostringstream os;
+      os << "the followed clock went back from " << now << " s to " << target
+         << " s: the scene is reset to rest and goes on from there";
+      notice_(os.str());
+    }
+    resetAll();
+    clockOrigin_ = target;
+    ticks_ = 0;
+    setClock(dt);
+    idle_ = false;
+    diag_.idle = false;
+    writeSnapshot();
+    return 0;
+  }
+  return static_cast<std::int64_t>(std::floor((target - now) / dt + 1e-9));
+}
+
+void SimulationLoop::stepOnRequest(double dt) {
+  const std::int64_t steps = std::min<std::int64_t>(stepsRequested_, settings_.maxCatchUpSteps);
+  // The pace of steps on request is the machine's: the time paused before them is no part of it.
+  if (steps > 0) restartWindow(clock_->now());
+  for (std::int64_t s = 0; s < steps; ++s) {
+    stepScene(dt);
+    --stepsRequested_;
+    updateStillness(dt);
+    // Stepping on request never rests: every step asked for is taken.
+    idle_ = false;
+    diag_.idle = false;
+    writeSnapshot();
+  }
+  if (stepsRequested_ == 0 && stepAnswer_) {
+    CommandOutcome o;
+    o.accepted = true;
+    std::ostringstream os;
+    os << "stepped to " << clockTime() << " s";
+    o.message = os.str();
+    o.pinnedTotal = solvers_.front()->pinnedCount();
+    stepAnswer_->set_value(o);
+    stepAnswer_.reset();
   }
 }
 

@@ -54,8 +54,14 @@ bool SimulationLoop::apply(Command& command) {
   if (outcome.accepted) stats_->accept();
   if (sceneCommand) target_ = solvers_.front();  // the first may have been removed
   outcome.pinnedTotal = target_ != nullptr ? target_->pinnedCount() : 0;
+  if (outcome.accepted && std::holds_alternative<StepCommand>(command.body)) {
+    // answered once its steps are taken (stepOnRequest())
+    stepAnswer_ = std::move(command.outcome);
+    return false;  // nothing has changed yet
+  }
   if (command.outcome) command.outcome->set_value(outcome);
-  return outcome.accepted;
+  // Pausing changes no state; it is no reason to wake or step.
+  return outcome.accepted && !std::holds_alternative<PauseCommand>(command.body);
 }
 
 CommandOutcome SimulationLoop::applyBody(Command& command) {
@@ -72,6 +78,10 @@ CommandOutcome SimulationLoop::applyBody(Command& command) {
           return release(c);
         } else if constexpr (std::is_same_v<T, ApplyForceCommand>) {
           return force(c);
+        } else if constexpr (std::is_same_v<T, PauseCommand>) {
+          return pause(c);
+        } else if constexpr (std::is_same_v<T, StepCommand>) {
+          return stepWhilePaused(c);
         } else if constexpr (std::is_same_v<T, ResetCommand>) {
           resetAll();
           return accepted("reset to rest; pins kept, drags and forces released");
@@ -355,6 +365,29 @@ void SimulationLoop::untrackObject(std::size_t k) {
   at(restCenterOfMass_);
   at(stillFrom_);
   at(versions_);
+}
+
+CommandOutcome SimulationLoop::pause(const PauseCommand& c) {
+  const bool was = paused_;
+  paused_ = c.pause;
+  diag_.paused = paused_;
+  if (was && !paused_) resumed_ = true;
+  if (was == paused_) return accepted(paused_ ? "already paused" : "already running");
+  return accepted(paused_ ? "paused" : "running");
+}
+
+CommandOutcome SimulationLoop::stepWhilePaused(const StepCommand& c) {
+  if (!paused_)
+    return reject("not_paused", "a step was asked for while the simulation runs: pause it first "
+                                "(~pause), or start it paused (~start_paused)");
+  if (c.steps < 1 || c.steps > CommandLimits::kMaxSteps)
+    return reject("invalid_steps", "steps is " + std::to_string(c.steps) + ": it must be 1 to " +
+                                       std::to_string(CommandLimits::kMaxSteps));
+  if (stepsRequested_ > 0)
+    return reject("step_pending", "the steps asked for before are not taken yet: ask again once "
+                                  "they are answered");
+  stepsRequested_ = c.steps;
+  return accepted("stepping " + std::to_string(c.steps) + " step(s)");
 }
 
 }  // namespace deformable_flsm

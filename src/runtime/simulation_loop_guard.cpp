@@ -108,7 +108,7 @@ std::string SimulationLoop::describeBlowUp(std::size_t k) const {
   static const char* const kNames[] = {"grab", "attach", "move", "release", "force", "reset",
                                        "release_all", "pin_box", "params", "set_collider",
                                        "move_collider", "remove_collider", "add_object",
-                                       "remove_object"};
+                                       "remove_object", "pause", "step"};
   static_assert(sizeof(kNames) / sizeof(kNames[0]) == std::variant_size_v<CommandBody>,
                 "a name for every command");
   bool any = false;

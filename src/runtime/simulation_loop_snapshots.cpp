@@ -24,6 +24,8 @@ void SimulationLoop::copySummary(Snapshot& out) const {
   std::lock_guard<std::mutex> lock(snapshotMutex_);
   const Snapshot& s = buffers_[fresh_ ? ready_ : front_];
   out.sequence = s.sequence;
+  out.time = s.time;
+  out.wallTime = s.wallTime;
   out.objects.resize(s.objects.size());
   for (std::size_t k = 0; k < s.objects.size(); ++k) {
     const ObjectSnapshot& from = s.objects[k];
@@ -70,7 +72,8 @@ void SimulationLoop::updateStillness(double simulated) {
   } else {
     stillFor_ += simulated;
   }
-  if (settings_.idleHold > 0.0 && stillFor_ >= settings_.idleHold) {
+  // As fast as the machine can (a real-time factor of 0) never rests: the time is the steps.
+  if (settings_.idleHold > 0.0 && stillFor_ >= settings_.idleHold && realTimeFactor_.load() > 0.0) {
     std::lock_guard<std::mutex> lock(queueMutex_);
     // A command that came in during the step keeps the loop awake.
     if (queue_.empty() && !wakeRequested_) idle_ = true;
@@ -141,8 +144,11 @@ void SimulationLoop::writeObject(const Solver& solver, std::size_t k, ObjectSnap
 void SimulationLoop::writeSnapshot() {
   Snapshot& s = buffers_[back_];
   s.sequence = ++sequence_;
+  s.time = clockTime();
+  s.wallTime = clock_->wallNow();
   diag_.simTime = world_->time() - timeOrigin_;
   diag_.idle = idle_;
+  diag_.paused = paused_;
   s.objects.resize(solvers_.size());
   LoopDiagnostics whole = diag_;
   whole.shapeError = whole.maxDisplacement = whole.kineticEnergy = whole.maxSpeed = 0.0;
@@ -169,11 +175,17 @@ void SimulationLoop::writeSnapshot() {
   for (const auto& entry : s.colliders) s.wrenches[entry.first] = world_->contactWrench(entry.first);
   s.objectWrenches = world_->objectWrenches();
 
-  std::lock_guard<std::mutex> lock(snapshotMutex_);
-  for (const ObjectSnapshot& o : s.objects) centerOfMass_[o.name] = o.objectFrame.translation();
-  std::swap(back_, ready_);
-  fresh_ = true;
+  {
+    std::lock_guard<std::mutex> lock(snapshotMutex_);
+    for (const ObjectSnapshot& o : s.objects) centerOfMass_[o.name] = o.objectFrame.translation();
+    std::swap(back_, ready_);
+    fresh_ = true;
+  }
   appliedKinds_.fill(0);
+  // The buffer just written stays ready_ or front_ until the next writeSnapshot(): reading it
+  // here, on the only thread that writes, races with nobody. The state before the thread
+  // starts is no tick: the time has not begun.
+  if (tickObserver_ && running_) tickObserver_(s.time, &s);
 }
 
 }  // namespace deformable_flsm

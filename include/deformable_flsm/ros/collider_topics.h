@@ -67,9 +67,10 @@ class ColliderTopics {
                  CommandValidator::TransformLookup lookup, Send send,
                  const std::vector<RestObject>& objects);
 
-  /// Every publish tick (the main thread): ~contact_wrenches (also at rest) and the colliders'
-  /// tf frames.
-  void publishFrames(const Snapshot& s, const ros::Time& stamp);
+  /// Every publish tick (the main thread): ~contact_wrenches (also at rest) and, `withTf`, the
+  /// colliders' tf frames (not with ~clock sim, where each step sends them, nor twice at one
+  /// stamp).
+  void publishFrames(const Snapshot& s, const ros::Time& stamp, bool withTf);
   /// Every publish tick (the main thread): ~colliders when it is due (LazyTopic::due(): while
   /// subscribed, like ~lattice).
   void publishMarkers(const Snapshot& s, const ros::Time& stamp);

@@ -21,14 +21,19 @@
 #include <deformable_flsm/ForceCommand.h>
 #include <deformable_flsm/PinBox.h>
 #include <deformable_flsm/RemoveObject.h>
+#include <deformable_flsm/Step.h>
+#include <geometry_msgs/TransformStamped.h>
+#include <rosgraph_msgs/Clock.h>
 #include <ros/callback_queue.h>
 #include <ros/node_handle.h>
 #include <ros/service_server.h>
 #include <ros/spinner.h>
 #include <ros/subscriber.h>
 #include <ros/timer.h>
+#include <std_srvs/Empty.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
 
 #include <Eigen/Geometry>
@@ -50,7 +55,9 @@ namespace deformable_flsm {
 ///   out  ~mesh, ~surface, ~particles, ~lattice, ~colliders (only while subscribed), ~state,
 ///        ~contact_wrenches, tf
 ///   srv  ~reset, ~release_all, ~pin_box (with ~objects also ~objects/<name>/pin_box,
-///        ~add_object and ~remove_object); dynamic_reconfigure on ~
+///        ~add_object and ~remove_object), ~pause, ~unpause, ~step; dynamic_reconfigure on ~
+///   time ~clock sim: /clock out, with each step's tf (onTick, on the simulation thread);
+///        ~clock follow: /clock in (onClock, on the state thread)
 ///
 /// Threads: the simulation thread (SimulationLoop) steps the solver; the main thread (ros::spin)
 /// runs the publish timer of tf, ~contact_wrenches, the meshes, clouds and markers (one snapshot,
@@ -84,6 +91,23 @@ class SimulatorNode {
   void advertise();
   void onPublishTimer(const ros::TimerEvent& event);
   void onStateTimer(const ros::TimerEvent& event);
+
+  // Time (NodeParams::clock).
+  /// @throws ParamError when ~clock and /use_sim_time disagree (the node's timers would never
+  /// fire, or run on a clock nobody serves).
+  void checkClock() const;
+  /// The stamp of state `s`: its time in the node's clock (wall: when it was computed; sim and
+  /// follow: its simulated time); at rest (and paused, with ~clock wall), the time now, as the
+  /// state holds on.
+  ros::Time stampOf(const Snapshot& s) const;
+  /// ~clock sim, on the simulation thread: each tick's tf (the objects' and colliders' frames of
+  /// the new state, or the last state's again at rest), then /clock.
+  void onTick(double time, const Snapshot* state);
+  /// ~clock follow: the time the simulation follows.
+  void onClock(const rosgraph_msgs::Clock::ConstPtr& clock);
+  bool onPause(std_srvs::Empty::Request& req, std_srvs::Empty::Response& res);
+  bool onUnpause(std_srvs::Empty::Request& req, std_srvs::Empty::Response& res);
+  bool onStep(Step::Request& req, Step::Response& res);
 
   // Commands in.
   /// (the event names the publisher: messages missing from its numbering are counted, see
@@ -186,6 +210,15 @@ class SimulatorNode {
   std::unique_ptr<ProblemReporter> reporter_;
   ros::Subscriber dragSub_, forceSub_;
   ros::ServiceServer resetSrv_, releaseAllSrv_, pinBoxSrv_, addObjectSrv_, removeObjectSrv_;
+  ros::ServiceServer pauseSrv_, unpauseSrv_, stepSrv_;
+  /// ~clock sim: /clock, and the tf of each tick (the simulation thread's)
+  ros::Publisher clockPub_;
+  tf2_ros::TransformBroadcaster tickBroadcaster_;
+  std::vector<geometry_msgs::TransformStamped> tickTransforms_;
+  /// ~clock follow: /clock in
+  ros::Subscriber clockSub_;
+  /// the newest stamp tf was sent with from the publish timer: none is sent twice
+  ros::Time lastTfStamp_;
   ros::Timer publishTimer_, stateTimer_;
   std::unique_ptr<ros::AsyncSpinner> stateSpinner_, commandSpinner_, serviceSpinner_, reconfigureSpinner_;
   std::unique_ptr<Reconfigure> reconfigure_;

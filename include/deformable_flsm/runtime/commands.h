@@ -46,6 +46,8 @@ struct CommandLimits {
   /// Commands waiting for the simulation thread; more are refused ("queue_full"). The thread
   /// drains the queue before every step, so this allows 256 commands per step (15k/s at 60 Hz).
   static constexpr std::size_t kQueueCapacity = 256;
+  /// Steps one StepCommand may ask for (an hour of simulated time at 30 steps a second).
+  static constexpr std::uint32_t kMaxSteps = 108000;
 };
 
 /// How a command ended, for services that wait for it.
@@ -161,10 +163,23 @@ struct RemoveObjectCommand {
   std::string name;
 };
 
+/// Pause the simulation (no step, and its time stands still, until unpaused) or go on. Commands
+/// are still applied while paused; they take effect at the next step.
+struct PauseCommand {
+  bool pause = true;
+};
+/// While paused: take `steps` steps (1 to CommandLimits::kMaxSteps) as fast as the machine can,
+/// then answer; refused when not paused ("not_paused"). Lockstep with a controller or a learning
+/// loop.
+struct StepCommand {
+  std::uint32_t steps = 1;
+};
+
 using CommandBody = std::variant<GrabCommand, AttachCommand, MoveCommand, ReleaseCommand,
                                  ApplyForceCommand, ResetCommand, ReleaseAllCommand, PinBoxCommand,
                                  ParamsCommand, SetColliderCommand, MoveColliderCommand,
-                                 RemoveColliderCommand, AddObjectCommand, RemoveObjectCommand>;
+                                 RemoveColliderCommand, AddObjectCommand, RemoveObjectCommand,
+                                 PauseCommand, StepCommand>;
 
 /// A command and, optionally, the promise its outcome is delivered to.
 struct Command {

@@ -23,6 +23,8 @@ class LoopClock {
 
   virtual ~LoopClock() = default;
   virtual TimePoint now() const = 0;
+  /// The calendar time now, which a state computed now is stamped with (the node's ~clock wall).
+  virtual std::chrono::system_clock::time_point wallNow() const { return std::chrono::system_clock::now(); }
   /// Waits on `wake`, with `lock` held on its mutex, until `woken()` holds or this clock reaches
   /// `deadline`.
   virtual void waitUntil(std::unique_lock<std::mutex>& lock, std::condition_variable& wake,
@@ -50,6 +52,11 @@ class ManualLoopClock final : public LoopClock {
   static constexpr std::chrono::milliseconds kTimeout{5000};
 
   TimePoint now() const override { return TimePoint(Duration(ticks_.load())); }
+  /// the calendar's epoch plus the time moved on so far
+  std::chrono::system_clock::time_point wallNow() const override {
+    return std::chrono::system_clock::time_point(
+        std::chrono::duration_cast<std::chrono::system_clock::duration>(Duration(ticks_.load())));
+  }
   void waitUntil(std::unique_lock<std::mutex>& lock, std::condition_variable& wake, TimePoint deadline,
                  const std::function<bool()>& woken) override {
     deadline_ = deadline.time_since_epoch().count();

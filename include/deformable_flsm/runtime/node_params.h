@@ -106,8 +106,22 @@ struct NodeParams {
   /// (docs/design.md). The clouds ~surface, ~particles, ~state and tf keep the rate at rest in
   /// any case.
   bool republishAtRest = false;
-  /// ~real_time_factor: simulated seconds per wall-clock second ((0, kMaxRealTimeFactor])
+  /// ~real_time_factor: simulated seconds per wall-clock second ((0, kMaxRealTimeFactor]; 0, as
+  /// fast as the machine can, with ~clock sim only; not used with ~clock follow)
   double realTimeFactor = 1.0;
+  /// ~clock: what the node's time is and what its messages are stamped with.
+  ///   Wall:   paced by the wall clock (a node beside a real robot); every message carries the
+  ///           wall time at which its state was computed (at rest or paused: the time it is sent,
+  ///           the state holding on).
+  ///   Sim:    the node serves /clock with its simulated time, once per step after that step's
+  ///           tf (/use_sim_time must be true: flsm.launch sim_time:=true), paced by the wall
+  ///           clock at ~real_time_factor; every message carries the simulated time of its state.
+  ///   Follow: another simulator serves /clock (Gazebo, rosbag play --clock); the node steps so
+  ///           that its time follows it, never ahead, and stamps as Sim does.
+  enum class Clock { Wall, Sim, Follow };
+  Clock clock = Clock::Wall;
+  /// ~start_paused: nothing steps until ~unpause or ~step
+  bool startPaused = false;
   /// ~pinned: boxes whose particles (by rest position) are pinned at start-up
   std::vector<Box> pinned;
   /// ~ground: a plane collider "ground" below the object, normal against gravity
@@ -153,5 +167,9 @@ struct NodeParams {
 const char* toString(NodeParams::Material material);
 /// Parses "youngs" / "classic"; false for anything else.
 bool parseMaterial(const std::string& name, NodeParams::Material& material);
+/// "wall", "sim" or "follow".
+const char* toString(NodeParams::Clock clock);
+/// Parses "wall" / "sim" / "follow"; false for anything else.
+bool parseClock(const std::string& name, NodeParams::Clock& clock);
 
 }  // namespace deformable_flsm

@@ -27,10 +27,32 @@
 
 namespace deformable_flsm {
 
+/// What the loop's simulated time follows.
+enum class LoopTime {
+  /// The loop's clock (the wall clock in the node) at the real-time factor; at rest the loop
+  /// waits and its time stands still with the state (the node's ~clock wall).
+  Paced,
+  /// Paced as Paced, and the simulated time goes on at rest in whole steps at the pace, each one
+  /// reported to the TickObserver, as every step is: the time of a simulator that serves /clock
+  /// (~clock sim). A loop that cannot keep up runs slower than the pace; its time is always the
+  /// time it stepped. A real-time factor of 0 steps as fast as the machine can and never rests.
+  Served,
+  /// The time handed to followTime() (another simulator's /clock, ~clock follow): the loop steps
+  /// while a whole step fits before it, never ahead of it; behind by more than maxCatchUpSteps, it
+  /// drops the steps beyond them (counted) and its time jumps to the followed one. The loop's time
+  /// starts at the first followed time; a followed time that goes back resets the scene to rest
+  /// and starts there (said through the Notice).
+  Followed,
+};
+
 /// How the loop paces itself and when it rests.
 struct LoopSettings {
-  /// Simulated seconds per wall-clock second.
+  /// Simulated seconds per wall-clock second (Paced and Served; 0 only with LoopTime::Served).
   double realTimeFactor = 1.0;
+  /// What the simulated time follows.
+  LoopTime time = LoopTime::Paced;
+  /// Starts paused (PauseCommand): nothing steps until unpaused or a StepCommand.
+  bool startPaused = false;
   /// When the loop has fallen behind, it takes at most this many steps back to back and drops
   /// the rest of the simulated time it owes (reported as dropped steps), so that a machine that
   /// cannot keep up runs slower than real time instead of piling up a growing backlog.
@@ -53,6 +75,9 @@ struct LoopSettings {
   double statsWindow = 1.0;
 };
 
+/// Whether `settings` are consistent; "" when they are, else why not.
+std::string checkLoopSettings(const LoopSettings& settings);
+
 /// Figures of the loop and the solver, as reported on ~state: of one object
 /// (ObjectSnapshot::diag), or of the whole scene (Snapshot::diag: energies, pins, drags, forces
 /// and particles summed over the objects, displacement, speed and shape error the largest of
@@ -73,6 +98,8 @@ struct LoopDiagnostics {
   std::size_t drags = 0;
   std::size_t forces = 0;
   bool idle = false;
+  /// paused (PauseCommand): nothing steps, the time stands still
+  bool paused = false;
   bool stiffnessSaturated = false;
   double alpha = 0.0;
   std::uint64_t steps = 0;         ///< Solver::step() calls since start
@@ -113,6 +140,11 @@ struct ObjectSnapshot {
 struct Snapshot {
   /// increases with every new state; equal sequence = identical content
   std::uint64_t sequence = 0;
+  /// the loop's simulated time of this state (s; SimulationLoop::clockTime()): whole steps since
+  /// the loop started (LoopTime::Followed: since the first followed time, which it starts at)
+  double time = 0.0;
+  /// when this state was computed, on the loop clock's calendar (LoopClock::wallNow())
+  std::chrono::system_clock::time_point wallTime;
   /// every object, in the World's order; objects[0] is the first (the single object)
   std::vector<ObjectSnapshot> objects;
   /// what each object exerted on each other it touched during the step (simulation frame)
@@ -139,6 +171,14 @@ class SimulationLoop {
   /// not block (the node reads tf's latest transform). false = not known now: the drag holds
   /// its last pose.
   using FrameSource = std::function<bool(const std::string& frame, Eigen::Isometry3d& simFromFrame)>;
+  /// Called on the simulation thread each time the loop's time moves on: `state` is the new
+  /// state (already handed out by acquire()) after a step; nullptr when the time went on at rest
+  /// (LoopTime::Served, Followed) and the state is the last one. The node serves /clock from it.
+  /// It must not block, nor call acquire().
+  using TickObserver = std::function<void(double time, const Snapshot* state)>;
+  /// Something a user should hear about that is not a command's outcome (a followed clock that
+  /// went back); called on the simulation thread.
+  using Notice = std::function<void(const std::string& what)>;
 
   /// @param[in] world     the objects, ready (pins and colliders set), at least one; owned by
   ///                      the loop from now on
@@ -165,8 +205,17 @@ class SimulationLoop {
   /// Sets how attached drags (AttachCommand) find their frames; call before start(). Without a
   /// source, attached drags hold their pose.
   void setFrameSource(FrameSource source);
-  /// Changes the pace (simulated seconds per wall second, > 0) and wakes an idle loop.
+  /// Changes the pace (simulated seconds per wall second, > 0; 0 with LoopTime::Served) and
+  /// wakes an idle loop.
   void setRealTimeFactor(double realTimeFactor);
+  /// Sets what hears of each tick and what is said; call before start().
+  void setTickObserver(TickObserver observer);
+  void setNotice(Notice notice);
+  /// LoopTime::Followed: the time to follow now (s, finite), from any thread.
+  void followTime(double time);
+  /// The loop's simulated time now (s), from any thread: the newest state's time, or later at
+  /// rest (LoopTime::Served, Followed), where the state holds on.
+  double clockTime() const { return clockTime_.load(); }
 
   /// Registers a collider that follows a tf frame; call before start() (colliders added at run
   /// time come as SetColliderCommand). It joins the solver at its first setColliderMotion().
@@ -219,6 +268,8 @@ class SimulationLoop {
   CommandOutcome removeCollider(const RemoveColliderCommand& c);
   CommandOutcome addObject(const AddObjectCommand& c);
   CommandOutcome removeObject(const RemoveObjectCommand& c);
+  CommandOutcome pause(const PauseCommand& c);
+  CommandOutcome stepWhilePaused(const StepCommand& c);
   /// Object `k`'s entries in the per-object lists below, for a new object (at the end) or one
   /// that goes.
   void trackObject(const std::string& name);
@@ -238,6 +289,19 @@ class SimulationLoop {
   /// Moves every attached drag to where its frame is now (see FrameSource).
   void followFrames();
   void timedStep();
+  /// One step of the scene at the loop's time, counted on it.
+  void stepScene(double dt);
+  /// The loop's time moves on by `steps` steps without stepping the scene (at rest: the state
+  /// holds); each tick is reported.
+  void tickAtRest(std::int64_t steps, double dt);
+  /// LoopTime::Followed: the whole steps from the loop's time to `target`, after starting the
+  /// time at the first target or resetting the scene when the target went back.
+  std::int64_t stepsToFollow(double target, double dt);
+  /// While paused: up to maxCatchUpSteps of the steps StepCommands asked for; answers the
+  /// command whose steps are done.
+  void stepOnRequest(double dt);
+  /// Sets the loop's time to `origin` + ticks_ steps of `dt`.
+  void setClock(double dt);
   /// Starts a new averaging window for the step cost and the achieved real-time factor.
   void restartWindow(std::chrono::steady_clock::time_point now);
   void updateStillness(double simulated);
@@ -270,7 +334,12 @@ class SimulationLoop {
   bool stopRequested_ = false;
   bool wakeRequested_ = false;
   std::atomic<double> realTimeFactor_;
+  /// LoopTime::Followed: the newest followed time, whether there was one, whether it moved since
+  /// the loop last looked
+  double followTarget_ = 0.0;
+  bool followSet_ = false, followMoved_ = false;
   std::thread thread_;
+  std::atomic<double> clockTime_{0.0};
 
   // Triple buffer: the thread fills back_, publishes it as ready_; the reader swaps ready_ into
   // front_. Only indices move under the lock.
@@ -291,6 +360,18 @@ class SimulationLoop {
 
   // Owned by the simulation thread.
   FrameSource frameSource_;
+  TickObserver tickObserver_;
+  Notice notice_;
+  /// the loop's time: clockOrigin_ + ticks_ steps (s)
+  double clockOrigin_ = 0.0;
+  std::int64_t ticks_ = 0;
+  bool clockStarted_ = false;  ///< LoopTime::Followed: a first time was followed
+  bool running_ = false;  ///< run() has begun: snapshots from here on are ticks
+  bool paused_ = false;
+  bool resumed_ = false;  ///< unpaused since the loop last paced itself
+  /// steps StepCommands asked for and not yet taken, and the command to answer when they are
+  std::int64_t stepsRequested_ = 0;
+  OutcomePromise stepAnswer_;
   /// (object, drag id) -> the frame it follows
   std::map<std::pair<Solver*, std::string>, std::string> attachedFrames_;
   /// A collider that follows a tf frame: its shape, whether it is in the solver yet, the pose
