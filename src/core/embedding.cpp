@@ -94,7 +94,6 @@ Embedding::Embedding(const Lattice& lattice, const std::vector<Eigen::Vector3d>&
       corners_[v][k] = static_cast<std::uint32_t>(particleCount_ + it->second);
     }
   }
-  nodes_.resize(ghostAnchor_.size());
 }
 
 void Embedding::deform(const std::vector<Eigen::Vector3d>& positions,
@@ -102,16 +101,20 @@ void Embedding::deform(const std::vector<Eigen::Vector3d>& positions,
                        std::vector<Eigen::Vector3d>& vertices) const {
   if (positions.size() != particleCount_ || rotations.size() != particleCount_)
     throw std::invalid_argument("embedding: positions/rotations do not match the lattice");
+  // per thread: the publishers and the cameras deform on threads of their own (allocates on a
+  // thread's first call only)
+  thread_local std::vector<Eigen::Vector3d> nodes;
+  nodes.resize(ghostAnchor_.size());
   for (std::size_t g = 0; g < ghostAnchor_.size(); ++g) {
     const std::uint32_t a = ghostAnchor_[g];
-    nodes_[g] = positions[a] + rotations[a] * ghostOffset_[g];
+    nodes[g] = positions[a] + rotations[a] * ghostOffset_[g];
   }
   vertices.resize(corners_.size());
   for (std::size_t v = 0; v < corners_.size(); ++v) {
     Eigen::Vector3d x = Eigen::Vector3d::Zero();
     for (int k = 0; k < 8; ++k) {
       const std::uint32_t idx = corners_[v][k];
-      x += weights_[v][k] * (idx < particleCount_ ? positions[idx] : nodes_[idx - particleCount_]);
+      x += weights_[v][k] * (idx < particleCount_ ? positions[idx] : nodes[idx - particleCount_]);
     }
     vertices[v] = x;
   }

@@ -109,16 +109,25 @@ void ColliderFollower::sample(const ros::Time& now, const Post& post, Report& re
     ColliderMotion m;
     m.pose = pose;
     const double dt = (t.header.stamp - e.stamp).toSec();
+    bool steady = false;  // the velocity posted now is one a next jump can be told from
     if (e.seen && !e.holding && dt > 0.0) {
       m.linearVelocity = (pose.translation() - e.pose.translation()) / dt;
       const Eigen::AngleAxisd turn(pose.linear() * e.pose.linear().transpose());
       m.angularVelocity = turn.axis() * (turn.angle() / dt);
-      if (m.linearVelocity.norm() > kJumpSpeed) {
+      // Too fast, or too sudden a change of speed (a hand standing still, then 0.22 m further in
+      // one sample): placed there at rest. Moving on along the jump's velocity would carry the
+      // collider past the pose tf gives, into whatever lies beyond.
+      const bool sudden = e.velocityKnown && (m.linearVelocity - e.velocity).norm() > kJumpAcceleration * dt;
+      if (m.linearVelocity.norm() > kJumpSpeed || sudden) {
         m.linearVelocity.setZero();
         m.angularVelocity.setZero();
         report.jumped.push_back(id);
+      } else {
+        steady = true;
       }
     }
+    e.velocity = m.linearVelocity;
+    e.velocityKnown = steady;
     e.seen = true;
     e.holding = false;
     e.stamp = t.header.stamp;

@@ -1,5 +1,6 @@
 #include "deformable_flsm/ros/collider_params.h"
 
+#include "entry_reader.h"
 #include "xmlrpc_value.h"
 
 #include "deformable_flsm/core/mesh_distance_field.h"
@@ -33,70 +34,10 @@ struct LoadedMesh {
 
 
 /// Fields an entry of ~colliders may have.
-const char* const kFields[] = {"id",       "type",       "frame_id",        "position",
-                               "orientation", "size",    "radius",          "length",
-                               "mesh",     "mesh_scale", "static_friction", "kinetic_friction"};
-
-/// Reads the fields of one ~colliders entry; every error names the entry.
-class EntryReader {
- public:
-  EntryReader(XmlRpc::XmlRpcValue& entry, int index) : entry_(entry), index_(index) {}
-
-  [[noreturn]] void fail(const std::string& what) const {
-    std::ostringstream out;
-    out << "~colliders entry " << index_;
-    if (!id_.empty()) out << " ('" << id_ << "')";
-    out << ": " << what;
-    throw ParamError(out.str());
-  }
-  void setId(const std::string& id) { id_ = id; }
-
-  bool has(const char* field) { return entry_.hasMember(field); }
-
-  std::string string(const char* field, const std::string& fallback) {
-    if (!has(field)) return fallback;
-    XmlRpc::XmlRpcValue& v = entry_[field];
-    if (v.getType() != XmlRpc::XmlRpcValue::TypeString)
-      fail(std::string(field) + " is " + describe(v) + ": it must be a string");
-    return static_cast<std::string&>(v);
-  }
-
-  double number(const char* field, double fallback) {
-    if (!has(field)) return fallback;
-    double out = 0.0;
-    if (!toNumber(entry_[field], out) || !std::isfinite(out))
-      fail(std::string(field) + " is " + describe(entry_[field]) + ": it must be a finite number");
-    return out;
-  }
-
-  Eigen::VectorXd numbers(const char* field, int count, const Eigen::VectorXd& fallback) {
-    if (!has(field)) return fallback;
-    XmlRpc::XmlRpcValue& v = entry_[field];
-    Eigen::VectorXd out(count);
-    bool ok = v.getType() == XmlRpc::XmlRpcValue::TypeArray && v.size() == count;
-    for (int k = 0; ok && k < count; ++k) ok = toNumber(v[k], out[k]) && std::isfinite(out[k]);
-    if (!ok)
-      fail(std::string(field) + " is " + describe(v) + ": it must be a list of " +
-           std::to_string(count) + " finite numbers");
-    return out;
-  }
-
-  void checkFields() {
-    for (auto it = entry_.begin(); it != entry_.end(); ++it) {
-      bool known = false;
-      for (const char* f : kFields) known = known || it->first == f;
-      if (!known)
-        fail("unknown field '" + it->first + "' (misspelt?): the fields are id, type, frame_id, "
-             "position, orientation, size, radius, length, mesh, mesh_scale, static_friction, "
-             "kinetic_friction");
-    }
-  }
-
- private:
-  XmlRpc::XmlRpcValue& entry_;
-  int index_;
-  std::string id_;
-};
+const std::vector<std::string> kFields = {"id",          "type",  "frame_id", "position",
+                                          "orientation", "size",  "radius",   "length",
+                                          "mesh",        "mesh_scale", "static_friction",
+                                          "kinetic_friction"};
 
 }  // namespace
 
@@ -171,7 +112,7 @@ std::vector<ColliderSpec> parseColliderList(XmlRpc::XmlRpcValue& value,
   std::set<std::string> ids;
   for (int i = 0; i < value.size(); ++i) {
     XmlRpc::XmlRpcValue& entry = value[i];
-    EntryReader r(entry, i);
+    EntryReader r(entry, "~colliders", i, kFields);
     if (entry.getType() != XmlRpc::XmlRpcValue::TypeStruct)
       r.fail("it is " + describe(entry) + ": each entry must be a dictionary with at least id "
              "and type");

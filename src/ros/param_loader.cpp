@@ -2,6 +2,7 @@
 
 #include "xmlrpc_value.h"
 
+#include "deformable_flsm/ros/camera_params.h"
 #include "deformable_flsm/ros/object_params.h"
 #include "deformable_flsm/runtime/render_mesh.h"
 
@@ -112,6 +113,12 @@ NodeParams ParamLoader::loadNodeParams() const {
   p.ground = getBool("ground", p.ground);
   p.groundClearance = getDouble("ground_clearance", p.groundClearance);
   p.colliders = getColliders("colliders", p.frameId);
+  read_.push_back("cameras");
+  if (pnh_.hasParam("cameras")) {
+    XmlRpc::XmlRpcValue cameras;
+    pnh_.getParam("cameras", cameras);
+    p.cameras = parseCameraList(cameras);
+  }
   p.robot = getRobot();
   ObjectContactParams& oc = p.objectContact;
   oc.enabled = getBool("object_contact", oc.enabled);

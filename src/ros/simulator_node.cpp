@@ -41,8 +41,11 @@ constexpr double kAttachStaleAfter = 0.5;
 constexpr double kAttachWarnPeriod = 5.0;  // s between two warnings about attached frames
 /// /clock carries one tick each; a subscriber that falls behind needs only the newest.
 constexpr std::uint32_t kClockQueue = 10;
-/// How often the first lookup in a foreign frame looks again while it waits (s, wall time).
+/// How often the first lookup in a foreign frame looks again while it waits, and ~step for the
+/// state it reached to go out (s, wall time).
 constexpr double kFirstTransformPoll = 0.01;
+/// A one-shot wall timer's delay for "on the main thread, now" (s).
+constexpr double kPublishAtOnce = 1e-4;
 
 ros::Time rosTime(std::chrono::system_clock::time_point t) {
   ros::Time out;
@@ -142,6 +145,11 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
     return attachedFrame(frame, T);
   });
   loop_->start();
+  if (!params_.cameras.empty()) {
+    cameras_ = std::make_unique<CameraTopics>(
+        pnh_, params_.cameras, params_.frameId, *loop_, objects_, objectsMutex_, tfBuffer_,
+        [this] { startTfListener(); }, [this](const Snapshot& s) { return stampOf(s); });
+  }
   if (params_.clock == NodeParams::Clock::Follow) {
     clockSub_ = stateNh_.subscribe("/clock", kClockQueue, &SimulatorNode::onClock, this);
   }
@@ -160,6 +168,7 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
 }
 
 SimulatorNode::~SimulatorNode() {
+  cameras_.reset();
   publishTimer_.stop();
   stateTimer_.stop();
   stateSpinner_->stop();
@@ -224,8 +233,14 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
     std::lock_guard<std::mutex> lock(paramsMutex_);
     reporter_->publishingTook(event.profile.last_duration.toSec());
   }
+  publishNewest();
+}
+
+void SimulatorNode::publishNewest() {
   const Snapshot& s = loop_->acquire();
   const ros::Time stamp = stampOf(s);
+  // A followed clock that went back: the state is ahead of it until the loop has reset.
+  if (aheadOfTheClock(stamp)) return;
   std::shared_lock<std::shared_mutex> lock(objectsMutex_);
   // tf, the wrenches and the clouds of one snapshot carry one stamp: a subscriber pairs a cloud
   // with the colliders' and objects' frames of the same step by it. tf goes once per stamp (a
@@ -259,11 +274,15 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
     next = k + 1;
   }
   publisher_->publishHeavy(s, stamp);
+  published_.store(s.sequence);
 }
 
-void SimulatorNode::onStateTimer(const ros::TimerEvent&) {
+void SimulatorNode::onStateTimer(const ros::TimerEvent&) { publishState(); }
+
+void SimulatorNode::publishState() {
   loop_->copySummary(summary_);
   const ros::Time stamp = stampOf(summary_);
+  if (aheadOfTheClock(stamp)) return;
   {
     std::shared_lock<std::shared_mutex> lock(objectsMutex_);
     publisher_->publishState(summary_, stamp, colliders_->frameMisses());
@@ -300,6 +319,10 @@ ros::Time SimulatorNode::stampOf(const Snapshot& s) const {
   return ros::Time(s.diag.idle && !s.diag.paused ? loop_->clockTime() : s.time);
 }
 
+bool SimulatorNode::aheadOfTheClock(const ros::Time& stamp) const {
+  return params_.clock == NodeParams::Clock::Follow && stamp > ros::Time::now();
+}
+
 void SimulatorNode::onTick(double time, const Snapshot* state) {
   const ros::Time stamp(time);
   if (state != nullptr) {
@@ -327,6 +350,9 @@ void SimulatorNode::onClock(const rosgraph_msgs::Clock::ConstPtr& clock) {
 bool SimulatorNode::onPause(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
   const CommandOutcome o = send(PauseCommand{true}, true);
   if (!o.accepted) ROS_WARN("flsm_node: ~pause: %s", o.message.c_str());
+  // ~state says so at once: on simulated time that stands still its timer would not
+  pauseState_ = stateNh_.createWallTimer(
+      ros::WallDuration(kPublishAtOnce), [this](const ros::WallTimerEvent&) { publishState(); }, true);
   return o.accepted;
 }
 
@@ -342,6 +368,16 @@ bool SimulatorNode::onStep(Step::Request& req, Step::Response& res) {
   res.success = o.accepted;
   res.message = o.message;
   res.time = loop_->clockTime();
+  if (!o.accepted) return true;
+  // The state the steps reached goes out before the answer: the publish timer's next tick may
+  // lie beyond it, and a paused time would never bring it. On the main thread, as every tick.
+  Snapshot reached;
+  loop_->copySummary(reached);
+  stepPublish_ = pnh_.createWallTimer(
+      ros::WallDuration(kPublishAtOnce), [this](const ros::WallTimerEvent&) { publishNewest(); }, true);
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(kServiceTimeout);
+  while (published_.load() < reached.sequence && ros::WallTime::now() < end && ros::ok())
+    ros::WallDuration(kFirstTransformPoll).sleep();
   return true;
 }
 

@@ -14,8 +14,6 @@ namespace deformable_flsm {
 
 namespace {
 
-/// Opaque, light clay colour: shading stays readable on RViz's dark background.
-constexpr std::array<float, 4> kMeshColor = {0.85f, 0.72f, 0.55f, 1.0f};
 /// The single object's marker namespace on ~mesh (with ~objects, the object's name).
 constexpr const char kMarkerNamespace[] = "flsm_mesh";
 /// Only the newest state matters to a subscriber.
@@ -30,26 +28,6 @@ bool allFinite(const std::vector<Eigen::Vector3d>& xs) {
   for (const Eigen::Vector3d& x : xs)
     if (!x.allFinite()) return false;
   return true;
-}
-
-/// A colour per object, so that touching objects stay apart on screen: the clay colour for
-/// the first, then hues around the wheel at the golden angle (no two neighbours alike).
-std::array<float, 4> objectColor(std::size_t k) {
-  if (k == 0) return kMeshColor;
-  const double hue = std::fmod(0.08 + 0.618034 * static_cast<double>(k), 1.0) * 6.0;
-  const double x = 1.0 - std::abs(std::fmod(hue, 2.0) - 1.0);
-  std::array<double, 3> rgb{};
-  switch (static_cast<int>(hue)) {
-    case 0: rgb = {1, x, 0}; break;
-    case 1: rgb = {x, 1, 0}; break;
-    case 2: rgb = {0, 1, x}; break;
-    case 3: rgb = {0, x, 1}; break;
-    case 4: rgb = {x, 0, 1}; break;
-    default: rgb = {1, 0, x}; break;
-  }
-  // pastel: halfway to white, as light as the clay colour
-  return {static_cast<float>(0.45 + 0.5 * rgb[0]), static_cast<float>(0.45 + 0.5 * rgb[1]),
-          static_cast<float>(0.45 + 0.5 * rgb[2]), 1.0f};
 }
 
 }  // namespace

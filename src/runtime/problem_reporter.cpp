@@ -87,8 +87,9 @@ void ProblemReporter::report(const LoopDiagnostics& d) {
                       d.achievedRealTimeFactor, d.requestedRealTimeFactor, 1e3 * d.stepSeconds,
                       1e3 * params_.solver.timeStep,
                       static_cast<unsigned long long>(d.droppedSteps)));
-  } else if (!d.idle && d.achievedRealTimeFactor < kSlowFraction * d.requestedRealTimeFactor &&
-             d.steps > 10) {
+  } else if (!d.idle && !d.paused && params_.clock != NodeParams::Clock::Follow &&
+             d.achievedRealTimeFactor < kSlowFraction * d.requestedRealTimeFactor && d.steps > 10) {
+    // (a followed clock sets the pace, not ~real_time_factor; paused, nothing is paced)
     // A step may take the wall time it stands for; if it takes (nearly) all of it, the scene is too
     // big for the asked rate (or the machine too busy to give it a core); if not, something else
     // holds the loop up.

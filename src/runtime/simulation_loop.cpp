@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
@@ -296,14 +297,16 @@ void SimulationLoop::tickAtRest(std::int64_t steps, double dt) {
   if (settings_.time == LoopTime::Followed) {
     ticks_ += steps;  // one tick for the lot: the followed time went on by them at once
     setClock(dt);
-    if (tickObserver_) tickObserver_(clockTime(), nullptr);
+    observed_ = clockTime();
+    if (tickObserver_) tickObserver_(observed_, nullptr);
     return;
   }
   if (settings_.time != LoopTime::Served) return;
   for (std::int64_t s = 0; s < steps; ++s) {
     ++ticks_;
     setClock(dt);
-    if (tickObserver_) tickObserver_(clockTime(), nullptr);
+    observed_ = clockTime();
+    if (tickObserver_) tickObserver_(observed_, nullptr);
   }
 }
 
@@ -333,6 +336,7 @@ std::int64_t SimulationLoop::stepsToFollow(double target, double dt) {
     setClock(dt);
     idle_ = false;
     diag_.idle = false;
+    observed_ = -std::numeric_limits<double>::infinity();  // the time starts again
     writeSnapshot();
     return 0;
   }

@@ -373,6 +373,7 @@ CommandOutcome SimulationLoop::pause(const PauseCommand& c) {
   diag_.paused = paused_;
   if (was && !paused_) resumed_ = true;
   if (was == paused_) return accepted(paused_ ? "already paused" : "already running");
+  writeSnapshot();  // the same state, now paused or running: readers see it at once
   return accepted(paused_ ? "paused" : "running");
 }
 

@@ -40,6 +40,17 @@ void SimulationLoop::copySummary(Snapshot& out) const {
   out.diag = s.diag;
 }
 
+void SimulationLoop::copyState(Snapshot& out) const {
+  std::lock_guard<std::mutex> lock(snapshotMutex_);
+  const Snapshot& s = buffers_[fresh_ ? ready_ : front_];
+  out.sequence = s.sequence;
+  out.time = s.time;
+  out.wallTime = s.wallTime;
+  out.objects = s.objects;  // the sizes of the last copy: no allocation while they stay
+  out.colliders = s.colliders;
+  out.diag = s.diag;
+}
+
 Eigen::Vector3d SimulationLoop::centerOfMass(std::size_t object) const {
   return centerOfMass(startNames_.at(object));
 }
@@ -185,7 +196,10 @@ void SimulationLoop::writeSnapshot() {
   // The buffer just written stays ready_ or front_ until the next writeSnapshot(): reading it
   // here, on the only thread that writes, races with nobody. The state before the thread
   // starts is no tick: the time has not begun.
-  if (tickObserver_ && running_) tickObserver_(s.time, &s);
+  if (tickObserver_ && running_ && s.time > observed_) {
+    observed_ = s.time;
+    tickObserver_(s.time, &s);
+  }
 }
 
 }  // namespace deformable_flsm

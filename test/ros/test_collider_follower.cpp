@@ -140,6 +140,44 @@ TEST(ColliderFollower, AFrameThatJumpsIsPlacedAtRestNotSweptThroughTheScene) {
   EXPECT_TRUE(report.jumped.empty());
 }
 
+TEST(ColliderFollower, AFrameThatStandsStillThenLeapsIsPlacedAtTheNewPoseNotCarriedPastIt) {
+  // A robot's hand stands still (its tf comes at 30 Hz), then its first joint state after a pause
+  // puts it 0.22 m lower in one sample (6.6 m/s: below kJumpSpeed). Moving on along that velocity
+  // until the next sample would carry the collider 0.22 m past the pose tf says; it is placed
+  // there at rest instead. A hand that speeds up as arms do is followed with its velocity.
+  tf2::BufferCore buffer;
+  ColliderFollower follower(buffer, "world");
+  follower.follow("hand", "finger", Eigen::Isometry3d::Identity());
+  Posted posted;
+  ColliderFollower::Report report;
+  const auto at = [](double z) { return Eigen::Isometry3d(Eigen::Translation3d(0.0, 0.0, z)); };
+  const double period = 1.0 / 30.0;
+  double t = 20.0;
+  for (int k = 0; k < 3; ++k, t += period) {
+    setFrame(buffer, at(0.083), t);
+    follower.sample(ros::Time(t), posted.post(), report);
+  }
+  setFrame(buffer, at(0.083 - 0.22), t);
+  follower.sample(ros::Time(t), posted.post(), report);
+  ASSERT_EQ(posted.motions.size(), 4u);
+  EXPECT_TRUE(posted.motions.back().second.pose.translation().isApprox(Eigen::Vector3d(0, 0, 0.083 - 0.22)));
+  EXPECT_TRUE(posted.motions.back().second.linearVelocity.isZero(0.0));
+  ASSERT_EQ(report.jumped.size(), 1u);
+  // From rest again: an arm's hand speeding up at 5 m/s^2 is no jump.
+  report.clear();
+  double z = 0.083 - 0.22, v = 0.0;
+  for (int k = 0; k < 10; ++k) {
+    t += period;
+    v += 5.0 * period;
+    z += v * period;
+    setFrame(buffer, at(z), t);
+    follower.sample(ros::Time(t), posted.post(), report);
+  }
+  EXPECT_TRUE(report.jumped.empty());
+  // (stamps are whole nanoseconds: the velocity is the motion over a rounded period)
+  EXPECT_NEAR(posted.motions.back().second.linearVelocity.z(), v, 1e-6);
+}
+
 TEST(ColliderFollower, StaticTransformNeverGoesStale) {
   tf2::BufferCore buffer;
   ColliderFollower follower(buffer, "world");

@@ -52,6 +52,26 @@ class StartupFailureTest(unittest.TestCase):
         self.assert_fails_naming('flsm_negative_rate', ['~publish_rate is -1', '(0, 1000]'],
                                  '_publish_rate:=-1')
 
+    def test_clock_on_wall_time_that_needs_simulated_time_is_refused(self):
+        # /use_sim_time is not set in this test: ~clock sim would serve a clock nobody reads
+        self.assert_fails_naming('flsm_sim_clock', ["~clock is 'sim'", '/use_sim_time', 'sim_time:=true'],
+                                 '_clock:=sim')
+
+    def test_unknown_clock_is_refused(self):
+        self.assert_fails_naming('flsm_bad_clock', ["~clock is 'gazebo'", "'follow'"], '_clock:=gazebo')
+
+    def test_as_fast_as_it_can_on_wall_time_is_refused(self):
+        self.assert_fails_naming('flsm_rtf0', ['~real_time_factor is 0', '~clock sim'],
+                                 '_real_time_factor:=0.0')
+
+    def test_camera_entry_that_is_wrong_names_the_entry_and_the_key(self):
+        rospy.set_param('/flsm_bad_camera/cameras', [{'name': 'top', 'frame': 'cam', 'encoding': '8UC1'}])
+        self.assert_fails_naming('flsm_bad_camera', ["~cameras entry 0 ('top')", 'encoding', '16UC1'])
+        rospy.set_param('/flsm_bad_camera2/cameras', [{'name': 'top', 'frame': 'cam', 'widht': 320}])
+        self.assert_fails_naming('flsm_bad_camera2', ["~cameras entry 0 ('top')", "unknown field 'widht'"])
+        rospy.set_param('/flsm_bad_camera3/cameras', [{'name': 'top', 'frame': 'cam', 'near': 2.0, 'far': 1.0}])
+        self.assert_fails_naming('flsm_bad_camera3', ["~cameras entry 0 ('top')", 'near 2', 'far 1'])
+
     def test_nan_publish_rate_is_refused(self):
         # roscpp reads `_x:=.nan` as a string, so a NaN can only arrive through the parameter
         # server (a YAML file loaded by a launch file): put it there.

@@ -28,7 +28,7 @@ class Embedding {
   std::size_t vertexCount() const { return corners_.size(); }
   std::size_t ghostCount() const { return ghostAnchor_.size(); }
 
-  /// Deformed vertex positions.
+  /// Deformed vertex positions; any number of threads at once.
   /// @param[in]  positions  #P particle positions (m)
   /// @param[in]  rotations  #P region rotations (Solver::regionRotations())
   /// @param[out] vertices   #V deformed vertices (m), resized
@@ -43,7 +43,6 @@ class Embedding {
   std::vector<std::uint32_t> ghostAnchor_;
   std::vector<Eigen::Vector3d> ghostOffset_;  // x0_ghost - x0_anchor
   std::size_t particleCount_ = 0;
-  mutable std::vector<Eigen::Vector3d> nodes_;
 };
 
 }  // namespace deformable_flsm

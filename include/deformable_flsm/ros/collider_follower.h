@@ -44,8 +44,8 @@ class ColliderFollower {
     std::vector<std::pair<std::string, std::string>> waiting;
     /// colliders their Admit refused at their first transform: forgotten since
     std::vector<std::string> excluded;
-    /// colliders whose frame jumped (moved faster than kJumpSpeed between two transforms):
-    /// placed at the new pose at rest
+    /// colliders whose frame jumped (moved faster than kJumpSpeed between two transforms, or
+    /// changed its speed faster than kJumpAcceleration): placed at the new pose at rest
     std::vector<std::string> jumped;
     void clear() {
       problems.clear();
@@ -68,6 +68,12 @@ class ColliderFollower {
   /// particles it finds inside out by position, without throwing them). Well above the speeds
   /// of robot links, a few m/s at an industrial arm's tool.
   static constexpr double kJumpSpeed = 10.0;
+  /// A frame whose speed changes faster than this between two transforms (m/s^2, ten g) has
+  /// jumped too: a hand that stood still and is 0.22 m further at the next sample (a robot's
+  /// first joint state after a pause) would otherwise move on along 6.6 m/s until the next one.
+  /// Well above what robot arms do (a few m/s^2 at the tool; the first sample after a frame
+  /// was seen, after a jump or after a hold has no speed to compare with).
+  static constexpr double kJumpAcceleration = 100.0;
 
   /// @param[in] buffer    where transforms are looked up (latest available, never waiting)
   /// @param[in] simFrame  ~frame_id
@@ -111,6 +117,10 @@ class ColliderFollower {
     bool announced = false;  // named in Report::waiting
     bool holding = false;    // posted with zero velocity because the frame is unknown or stale
     ros::Time stamp;         // of the newest transform
+    /// the velocity posted with it (m/s), and whether it was a steady one (from two transforms,
+    /// no jump) that the next may be compared with
+    Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
+    bool velocityKnown = false;
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // collider pose at `stamp`
   };
 

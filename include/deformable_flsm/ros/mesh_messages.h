@@ -36,6 +36,10 @@ void setTriangleListPoints(const std::vector<Eigen::Vector3d>& vertices,
                            const std::vector<std::array<std::uint32_t, 3>>& triangles,
                            visualization_msgs::Marker& marker);
 
+/// A colour per object (rgba, 0..1), so that touching objects stay apart on screen and in the
+/// cameras: the clay colour for the first, then hues around the wheel at the golden angle.
+std::array<float, 4> objectColor(std::size_t k);
+
 /// Fills an unorganised cloud (height 1) of packed float32 x, y, z, one point per vertex.
 /// @param[in]     vertices  #V positions (m)
 /// @param[in]     frameId   header.frame_id

@@ -3,6 +3,7 @@
 /// core (through SimulationLoop); this class owns the ROS handles and converts at the edges.
 #pragma once
 
+#include "deformable_flsm/ros/camera_topics.h"
 #include "deformable_flsm/ros/collider_topics.h"
 #include "deformable_flsm/ros/command_validator.h"
 #include "deformable_flsm/runtime/commands.h"
@@ -30,6 +31,7 @@
 #include <ros/spinner.h>
 #include <ros/subscriber.h>
 #include <ros/timer.h>
+#include <ros/wall_timer.h>
 #include <std_srvs/Empty.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
@@ -38,6 +40,7 @@
 
 #include <Eigen/Geometry>
 
+#include <atomic>
 #include <deque>
 #include <memory>
 #include <mutex>
@@ -90,7 +93,11 @@ class SimulatorNode {
  private:
   void advertise();
   void onPublishTimer(const ros::TimerEvent& event);
+  /// The newest snapshot out: tf, wrenches, markers, meshes and clouds (the main thread).
+  void publishNewest();
   void onStateTimer(const ros::TimerEvent& event);
+  /// ~state of the newest snapshot (the state thread).
+  void publishState();
 
   // Time (NodeParams::clock).
   /// @throws ParamError when ~clock and /use_sim_time disagree (the node's timers would never
@@ -100,6 +107,9 @@ class SimulatorNode {
   /// follow: its simulated time); at rest (and paused, with ~clock wall), the time now, as the
   /// state holds on.
   ros::Time stampOf(const Snapshot& s) const;
+  /// ~clock follow: `stamp` lies beyond the followed clock (which went back, and the loop has
+  /// not reset yet): such a state is not sent.
+  bool aheadOfTheClock(const ros::Time& stamp) const;
   /// ~clock sim, on the simulation thread: each tick's tf (the objects' and colliders' frames of
   /// the new state, or the last state's again at rest), then /clock.
   void onTick(double time, const Snapshot* state);
@@ -201,6 +211,7 @@ class SimulatorNode {
   std::vector<std::pair<std::size_t, visualization_msgs::InteractiveMarker>> handlesToAdd_;
   std::vector<std::size_t> handlesToRemove_;
   std::unique_ptr<ColliderTopics> colliders_;  ///< ~collider, ~contact_wrenches, ~colliders
+  std::unique_ptr<CameraTopics> cameras_;      ///< ~cameras, on a thread of their own
 
   tf2_ros::Buffer tfBuffer_;
   std::mutex tfListenerMutex_;
@@ -219,6 +230,12 @@ class SimulatorNode {
   ros::Subscriber clockSub_;
   /// the newest stamp tf was sent with from the publish timer: none is sent twice
   ros::Time lastTfStamp_;
+  /// the sequence of the newest snapshot published (publishNewest()), for ~step to wait on
+  std::atomic<std::uint64_t> published_{0};
+  /// ~step: the one-shot timer that publishes the state the steps reached
+  ros::WallTimer stepPublish_;
+  /// ~pause: the one-shot timer that sends ~state with paused set
+  ros::WallTimer pauseState_;
   ros::Timer publishTimer_, stateTimer_;
   std::unique_ptr<ros::AsyncSpinner> stateSpinner_, commandSpinner_, serviceSpinner_, reconfigureSpinner_;
   std::unique_ptr<Reconfigure> reconfigure_;

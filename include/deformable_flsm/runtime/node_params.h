@@ -8,6 +8,7 @@
 #include "deformable_flsm/core/mesh.h"
 #include "deformable_flsm/core/solver_params.h"
 #include "deformable_flsm/core/world.h"
+#include "deformable_flsm/runtime/camera_spec.h"
 #include "deformable_flsm/runtime/collider_spec.h"
 #include "deformable_flsm/runtime/robot_spec.h"
 
@@ -130,6 +131,8 @@ struct NodeParams {
   double groundClearance = 0.1;
   /// ~colliders: more colliders (parsed and validated, meshes loaded)
   std::vector<ColliderSpec> colliders;
+  /// ~cameras: simulated depth cameras (parsed and validated)
+  std::vector<CameraSpec> cameras;
   /// ~robot_description and ~robot_*: the robot's collision model (no colliders when
   /// robot.options.descriptionParam is empty)
   RobotColliders robot;

@@ -18,6 +18,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -236,6 +237,9 @@ class SimulationLoop {
   /// into `out`, from any one thread beside the reader of acquire(): ~state goes out on a
   /// thread of its own, never held up by the meshes.
   void copySummary(Snapshot& out) const;
+  /// Copies the newest snapshot whole (particles and rotations too, not the wrenches) into `out`,
+  /// from any one thread beside the readers above: the cameras render on a thread of their own.
+  void copyState(Snapshot& out) const;
   /// Why the last reset of a blown-up state happened (empty before the first), from any thread.
   std::string lastResetCause() const;
   /// Object `object`'s (index in objectNames()) current centre of mass (m), for range checks
@@ -367,6 +371,9 @@ class SimulationLoop {
   std::int64_t ticks_ = 0;
   bool clockStarted_ = false;  ///< LoopTime::Followed: a first time was followed
   bool running_ = false;  ///< run() has begun: snapshots from here on are ticks
+  /// the newest time reported to the TickObserver: a state written again at one time (paused,
+  /// a followed clock gone back and its reset) is no new tick
+  double observed_ = -std::numeric_limits<double>::infinity();
   bool paused_ = false;
   bool resumed_ = false;  ///< unpaused since the loop last paced itself
   /// steps StepCommands asked for and not yet taken, and the command to answer when they are

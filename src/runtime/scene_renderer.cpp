@@ -1,0 +1,387 @@
+/// @file scene_renderer.cpp
+/// SceneRenderer: Embree scenes for the objects and the colliders, and the camera's rays.
+#include "deformable_flsm/runtime/scene_renderer.h"
+
+#include <embree3/rtcore.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace deformable_flsm {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+/// A plane is drawn as a square of this half size (m) in its frame: far beyond any camera's
+/// far plane here, small enough for float vertices to keep depth within a micrometre at metres.
+constexpr float kPlaneHalfSize = 200.0f;
+/// Segments around a tessellated circle: a chord deviates from the arc by r (1 - cos(pi / n)),
+/// 0.05 % of the radius.
+constexpr int kRound = 96;
+/// Rings of a capsule's hemispherical end (pole to equator).
+constexpr int kRings = 24;
+/// Colours (0..1): colliders grey, a plane (the ground, walls) lighter.
+const Eigen::Vector3f kColliderColor(0.55f, 0.57f, 0.62f);
+const Eigen::Vector3f kPlaneColor(0.75f, 0.75f, 0.72f);
+/// Shading: ambient light and the headlight's share (by the cosine between normal and ray).
+constexpr float kAmbient = 0.25f;
+constexpr float kHeadlight = 0.75f;
+/// Rays go in packets of kTile x kTile pixels (Embree's 16-wide packets).
+constexpr int kTile = 4;
+
+using Triangles = std::vector<std::array<std::uint32_t, 3>>;
+
+/// A shape's triangles in its own frame.
+struct Tessellation {
+  std::vector<Eigen::Vector3f> vertices;
+  Triangles triangles;
+  std::uint32_t add(const Eigen::Vector3d& v) {
+    vertices.push_back(v.cast<float>());
+    return static_cast<std::uint32_t>(vertices.size() - 1);
+  }
+  void tri(std::uint32_t a, std::uint32_t b, std::uint32_t c) { triangles.push_back({a, b, c}); }
+  void quad(std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint32_t d) {
+    tri(a, b, c);
+    tri(a, c, d);
+  }
+};
+
+Tessellation box(const Eigen::Vector3d& h) {
+  Tessellation t;
+  for (int k = 0; k < 8; ++k)
+    t.add(Eigen::Vector3d((k & 1) ? h.x() : -h.x(), (k & 2) ? h.y() : -h.y(), (k & 4) ? h.z() : -h.z()));
+  t.quad(0, 2, 3, 1);  // -z
+  t.quad(4, 5, 7, 6);  // +z
+  t.quad(0, 1, 5, 4);  // -y
+  t.quad(2, 6, 7, 3);  // +y
+  t.quad(0, 4, 6, 2);  // -x
+  t.quad(1, 3, 7, 5);  // +x
+  return t;
+}
+
+/// A ring of kRound vertices of radius r at height z; returns the first index.
+std::uint32_t ring(Tessellation& t, double r, double z) {
+  const std::uint32_t first = static_cast<std::uint32_t>(t.vertices.size());
+  for (int k = 0; k < kRound; ++k) {
+    const double a = 2.0 * kPi * k / kRound;
+    t.add(Eigen::Vector3d(r * std::cos(a), r * std::sin(a), z));
+  }
+  return first;
+}
+
+void band(Tessellation& t, std::uint32_t lower, std::uint32_t upper) {
+  for (int k = 0; k < kRound; ++k) {
+    const std::uint32_t k1 = static_cast<std::uint32_t>((k + 1) % kRound);
+    t.quad(lower + k, lower + k1, upper + k1, upper + k);
+  }
+}
+
+void fan(Tessellation& t, std::uint32_t rim, const Eigen::Vector3d& centre, bool up) {
+  const std::uint32_t c = t.add(centre);
+  for (int k = 0; k < kRound; ++k) {
+    const std::uint32_t k1 = static_cast<std::uint32_t>((k + 1) % kRound);
+    if (up)
+      t.tri(c, rim + k, rim + k1);
+    else
+      t.tri(c, rim + k1, rim + k);
+  }
+}
+
+Tessellation cylinder(double r, double h) {
+  Tessellation t;
+  const std::uint32_t lo = ring(t, r, -h), hi = ring(t, r, h);
+  band(t, lo, hi);
+  fan(t, lo, Eigen::Vector3d(0, 0, -h), false);
+  fan(t, hi, Eigen::Vector3d(0, 0, h), true);
+  return t;
+}
+
+Tessellation capsule(double r, double h) {
+  Tessellation t;
+  // rings from the bottom pole's neighbour up to the top pole's
+  std::vector<std::uint32_t> rings;
+  for (int i = 1; i <= kRings; ++i) {  // lower hemisphere, pole to equator
+    const double phi = 0.5 * kPi * i / kRings;
+    rings.push_back(ring(t, r * std::sin(phi), -h - r * std::cos(phi)));
+  }
+  for (int i = kRings; i >= 1; --i) {  // upper hemisphere, equator to pole
+    const double phi = 0.5 * kPi * i / kRings;
+    rings.push_back(ring(t, r * std::sin(phi), h + r * std::cos(phi)));
+  }
+  for (std::size_t i = 0; i + 1 < rings.size(); ++i) band(t, rings[i], rings[i + 1]);
+  fan(t, rings.front(), Eigen::Vector3d(0, 0, -h - r), false);
+  fan(t, rings.back(), Eigen::Vector3d(0, 0, h + r), true);
+  return t;
+}
+
+Tessellation plane() {
+  Tessellation t;
+  const double s = kPlaneHalfSize;
+  t.quad(t.add({-s, -s, 0}), t.add({s, -s, 0}), t.add({s, s, 0}), t.add({-s, s, 0}));
+  return t;
+}
+
+Tessellation meshOf(const TriMesh& mesh) {
+  Tessellation t;
+  for (const Eigen::Vector3d& v : mesh.vertices) t.add(v);
+  t.triangles = mesh.triangles;
+  return t;
+}
+
+bool sameShape(const ColliderShape& a, const ColliderShape& b) {
+  return a.type == b.type && a.halfExtents == b.halfExtents && a.radius == b.radius &&
+         a.halfLength == b.halfLength && a.mesh == b.mesh;
+}
+
+void check(RTCDevice device, const char* what) {
+  const RTCError e = rtcGetDeviceError(device);
+  if (e != RTC_ERROR_NONE)
+    throw std::runtime_error(std::string("scene renderer: Embree failed to ") + what + " (error " +
+                             std::to_string(static_cast<int>(e)) + ")");
+}
+
+RTCGeometry triangleGeometry(RTCDevice device, const std::vector<Eigen::Vector3f>& vertices,
+                             const Triangles& triangles, RTCBuildQuality quality) {
+  RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                        3 * sizeof(float), vertices.size()));
+  auto* i = static_cast<std::uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                3 * sizeof(std::uint32_t), triangles.size()));
+  check(device, "make a triangle buffer");
+  for (std::size_t k = 0; k < vertices.size(); ++k)
+    for (int d = 0; d < 3; ++d) v[3 * k + d] = vertices[k][d];
+  for (std::size_t k = 0; k < triangles.size(); ++k)
+    for (int d = 0; d < 3; ++d) i[3 * k + d] = triangles[k][d];
+  rtcSetGeometryBuildQuality(g, quality);
+  rtcCommitGeometry(g);
+  return g;
+}
+
+}  // namespace
+
+struct SceneRenderer::Impl {
+  /// What a hit on a geometry of the top scene is.
+  struct Hit {
+    std::uint16_t label = kNothing;
+    Eigen::Vector3f color = Eigen::Vector3f::Ones();
+    /// an instance's rotation: its hits' normals are in the instanced shape's frame
+    Eigen::Matrix3f rotation = Eigen::Matrix3f::Identity();
+  };
+  struct ObjectGeometry {
+    RTCGeometry geometry = nullptr;
+    unsigned id = RTC_INVALID_GEOMETRY_ID;
+    const Triangles* triangles = nullptr;
+    std::size_t vertexCount = 0;
+  };
+  struct ColliderGeometry {
+    ColliderShape shape;
+    RTCScene scene = nullptr;      // the shape in its own frame
+    RTCGeometry instance = nullptr;
+    unsigned id = RTC_INVALID_GEOMETRY_ID;
+  };
+
+  RTCDevice device = nullptr;
+  RTCScene top = nullptr;
+  std::vector<ObjectGeometry> objects;
+  std::map<std::string, ColliderGeometry> colliders;
+  std::vector<Hit> hits;  // by geometry id in the top scene
+
+  Hit& hitOf(unsigned id) {
+    if (hits.size() <= id) hits.resize(id + 1);
+    return hits[id];
+  }
+
+  void dropObject(ObjectGeometry& o) {
+    rtcDetachGeometry(top, o.id);
+    rtcReleaseGeometry(o.geometry);
+  }
+  void dropCollider(ColliderGeometry& c) {
+    rtcDetachGeometry(top, c.id);
+    rtcReleaseGeometry(c.instance);
+    rtcReleaseScene(c.scene);
+  }
+
+  ColliderGeometry build(const ColliderShape& shape) {
+    ColliderGeometry c;
+    c.shape = shape;
+    c.scene = rtcNewScene(device);
+    RTCGeometry g = nullptr;
+    if (shape.type == ColliderType::Sphere) {
+      g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+      auto* p = static_cast<float*>(
+          rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
+      check(device, "make a sphere");
+      p[0] = p[1] = p[2] = 0.0f;
+      p[3] = static_cast<float>(shape.radius);
+      rtcCommitGeometry(g);
+    } else {
+      Tessellation t;
+      switch (shape.type) {
+        case ColliderType::HalfSpace: t = plane(); break;
+        case ColliderType::Box: t = box(shape.halfExtents); break;
+        case ColliderType::Capsule: t = capsule(shape.radius, shape.halfLength); break;
+        case ColliderType::Cylinder: t = cylinder(shape.radius, shape.halfLength); break;
+        case ColliderType::Mesh: t = meshOf(*shape.mesh); break;
+        case ColliderType::Sphere: break;
+      }
+      g = triangleGeometry(device, t.vertices, t.triangles, RTC_BUILD_QUALITY_HIGH);
+    }
+    rtcAttachGeometry(c.scene, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(c.scene);
+    c.instance = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+    rtcSetGeometryInstancedScene(c.instance, c.scene);
+    c.id = rtcAttachGeometry(top, c.instance);
+    check(device, "build a collider");
+    return c;
+  }
+};
+
+SceneRenderer::SceneRenderer() : impl_(std::make_unique<Impl>()) {
+  // One thread: the node renders on a thread of its own, beside the simulation's.
+  impl_->device = rtcNewDevice("threads=1,set_affinity=0");
+  if (impl_->device == nullptr)
+    throw std::runtime_error("scene renderer: Embree could not start (rtcNewDevice failed)");
+  impl_->top = rtcNewScene(impl_->device);
+  rtcSetSceneFlags(impl_->top, RTC_SCENE_FLAG_DYNAMIC);
+  rtcSetSceneBuildQuality(impl_->top, RTC_BUILD_QUALITY_LOW);
+}
+
+SceneRenderer::~SceneRenderer() {
+  for (auto& o : impl_->objects) impl_->dropObject(o);
+  for (auto& entry : impl_->colliders) impl_->dropCollider(entry.second);
+  rtcReleaseScene(impl_->top);
+  rtcReleaseDevice(impl_->device);
+}
+
+void SceneRenderer::setObjects(const std::vector<Object>& objects) {
+  Impl& m = *impl_;
+  bool same = objects.size() == m.objects.size();
+  for (std::size_t k = 0; same && k < objects.size(); ++k)
+    same = objects[k].triangles == m.objects[k].triangles &&
+           objects[k].vertices->size() == m.objects[k].vertexCount;
+  if (!same) {
+    for (auto& o : m.objects) m.dropObject(o);
+    m.objects.clear();
+  }
+  for (std::size_t k = 0; k < objects.size(); ++k) {
+    const Object& o = objects[k];
+    std::vector<Eigen::Vector3f> v(o.vertices->size());
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = (*o.vertices)[i].cast<float>();
+    if (!same) {
+      Impl::ObjectGeometry g;
+      g.geometry = triangleGeometry(m.device, v, *o.triangles, RTC_BUILD_QUALITY_REFIT);
+      g.id = rtcAttachGeometry(m.top, g.geometry);
+      g.triangles = o.triangles;
+      g.vertexCount = v.size();
+      m.objects.push_back(g);
+    } else {
+      RTCGeometry g = m.objects[k].geometry;
+      auto* p = static_cast<float*>(rtcGetGeometryBufferData(g, RTC_BUFFER_TYPE_VERTEX, 0));
+      for (std::size_t i = 0; i < v.size(); ++i)
+        for (int d = 0; d < 3; ++d) p[3 * i + d] = v[i][d];
+      rtcUpdateGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0);
+      rtcCommitGeometry(g);
+    }
+    Impl::Hit& h = m.hitOf(m.objects[k].id);
+    h.label = objectLabel(k);
+    h.color = o.color;
+    h.rotation.setIdentity();
+  }
+  check(m.device, "update the objects");
+}
+
+void SceneRenderer::setColliders(const std::map<std::string, Collider>& colliders) {
+  Impl& m = *impl_;
+  for (auto it = m.colliders.begin(); it != m.colliders.end();) {
+    const auto now = colliders.find(it->first);
+    if (now == colliders.end() || !sameShape(now->second.shape, it->second.shape)) {
+      m.dropCollider(it->second);
+      it = m.colliders.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  std::size_t i = 0;
+  for (const auto& entry : colliders) {
+    auto it = m.colliders.find(entry.first);
+    if (it == m.colliders.end()) it = m.colliders.emplace(entry.first, m.build(entry.second.shape)).first;
+    const Impl::ColliderGeometry& c = it->second;
+    const Eigen::Matrix<float, 3, 4> xfm = entry.second.pose.matrix().topRows<3>().cast<float>();
+    rtcSetGeometryTransform(c.instance, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm.data());
+    rtcCommitGeometry(c.instance);
+    Impl::Hit& h = m.hitOf(c.id);
+    h.label = colliderLabel(i++);
+    h.color = entry.second.shape.type == ColliderType::HalfSpace ? kPlaneColor : kColliderColor;
+    h.rotation = entry.second.pose.linear().cast<float>();
+  }
+  check(m.device, "update the colliders");
+}
+
+void SceneRenderer::render(const CameraIntrinsics& camera, const Eigen::Isometry3d& cameraPose,
+                           RenderedView& out) {
+  Impl& m = *impl_;
+  rtcCommitScene(m.top);
+  check(m.device, "build the scene");
+  const int w = camera.width, h = camera.height;
+  out.width = w;
+  out.height = h;
+  out.depth.assign(static_cast<std::size_t>(w) * h, std::numeric_limits<float>::quiet_NaN());
+  out.rgb.assign(static_cast<std::size_t>(w) * h * 3, 0);
+  out.label.assign(static_cast<std::size_t>(w) * h, kNothing);
+  const Eigen::Matrix3f R = cameraPose.linear().cast<float>();
+  const Eigen::Vector3f o = cameraPose.translation().cast<float>();
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  // Tiles of 4 x 4 pixels as one packet of 16 rays: neighbouring rays share their way through
+  // the BVH.
+  alignas(64) RTCRayHit16 rh;
+  alignas(64) int valid[16];
+  std::array<Eigen::Vector3f, 16> dirs;
+  for (int v0 = 0; v0 < h; v0 += kTile) {
+    for (int u0 = 0; u0 < w; u0 += kTile) {
+      for (int i = 0; i < 16; ++i) {
+        const int u = u0 + i % kTile, v = v0 + i / kTile;
+        valid[i] = u < w && v < h ? -1 : 0;
+        // z = 1 in the optical frame: the ray's parameter is the depth
+        dirs[i] = R * Eigen::Vector3f(static_cast<float>((u - camera.cx) / camera.fx),
+                                      static_cast<float>((v - camera.cy) / camera.fy), 1.0f);
+        rh.ray.org_x[i] = o.x();
+        rh.ray.org_y[i] = o.y();
+        rh.ray.org_z[i] = o.z();
+        rh.ray.dir_x[i] = dirs[i].x();
+        rh.ray.dir_y[i] = dirs[i].y();
+        rh.ray.dir_z[i] = dirs[i].z();
+        rh.ray.tnear[i] = static_cast<float>(camera.near);
+        rh.ray.tfar[i] = static_cast<float>(camera.far);
+        rh.ray.mask[i] = 0xFFFFFFFFu;
+        rh.ray.flags[i] = 0;
+        rh.ray.time[i] = 0.0f;
+        rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+      }
+      rtcIntersect16(valid, m.top, &context, &rh);
+      for (int i = 0; i < 16; ++i) {
+        if (!valid[i] || rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
+        const int u = u0 + i % kTile, v = v0 + i / kTile;
+        const bool instanced = rh.hit.instID[0][i] != RTC_INVALID_GEOMETRY_ID;
+        const Impl::Hit& hit = m.hits[instanced ? rh.hit.instID[0][i] : rh.hit.geomID[i]];
+        const std::size_t p = static_cast<std::size_t>(v) * w + u;
+        out.depth[p] = rh.ray.tfar[i];
+        out.label[p] = hit.label;
+        const Eigen::Vector3f n = hit.rotation * Eigen::Vector3f(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]);
+        const float cosine =
+            n.squaredNorm() > 0.0f ? std::abs(n.normalized().dot(dirs[i].normalized())) : 1.0f;
+        const Eigen::Vector3f c = hit.color * (kAmbient + kHeadlight * cosine);
+        for (int k = 0; k < 3; ++k)
+          out.rgb[3 * p + k] = static_cast<std::uint8_t>(std::lround(255.0f * std::min(1.0f, c[k])));
+      }
+    }
+  }
+}
+
+}  // namespace deformable_flsm
