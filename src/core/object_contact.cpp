@@ -226,7 +226,6 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
       const std::uint32_t o1 = owner_[keys_[i].first], o2 = owner_[keys_[i].second];
       if ((!stale_[o1] && !stale_[o2]) || (!frozen(o1) && !frozen(o2))) continue;
       if (!impulse(i)) continue;
-      reserveDoubling(carried_, carried_.size() + 1);
       carried_.push_back({keys_[i], keptLambda_[i], keptFriction_[i], keptSliding_[i]});
     }
     std::sort(carried_.begin(), carried_.end(), [](const Carried& l, const Carried& r) { return l.key < r.key; });
@@ -419,6 +418,8 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
   reserveDoubling(keptLambda_, keys_.size());
   reserveDoubling(keptFriction_, keys_.size());
   reserveDoubling(keptSliding_, keys_.size());
+  // the next build carries some of these keys: sized by them, not by the most carried so far
+  reserveDoubling(carried_, keys_.size());
   keptLambda_.resize(kept);
   keptFriction_.resize(kept);
   keptSliding_.resize(kept);
@@ -828,6 +829,8 @@ void ObjectContactSolver::takeCoupling(const std::vector<Solver*>& objects, bool
   springLambda_.clear();
   pushingSprings_.clear();
   if (coupling_ == nullptr || coupling_->empty()) return;
+  // sized by the springs, not by the most that pushed so far (which varies with the rounding)
+  reserveDoubling(pushingSprings_, coupling_->size());
   if (!rebuilt) {
     springLambda_.resize(keys_.size(), 0.0);
     for (const CouplingImpulse& ci : *coupling_)
@@ -851,7 +854,6 @@ void ObjectContactSolver::takeCoupling(const std::vector<Solver*>& objects, bool
     p.moment += point.cross(onB);
     if (last && ci.lambda > 0.0) {  // a contact that pushes, as the passes count theirs
       ++p.contacts;
-      reserveDoubling(pushingSprings_, pushingSprings_.size() + 1);
       pushingSprings_.emplace_back(std::min(ci.g1, ci.g2), std::max(ci.g1, ci.g2));
     }
   }
