@@ -167,8 +167,6 @@ struct SceneRenderer::Impl {
   struct Hit {
     std::uint16_t label = kNothing;
     Eigen::Vector3f color = Eigen::Vector3f::Ones();
-    /// an instance's rotation: its hits' normals are in the instanced shape's frame
-    Eigen::Matrix3f rotation = Eigen::Matrix3f::Identity();
   };
   struct ObjectGeometry {
     RTCGeometry geometry = nullptr;
@@ -176,11 +174,15 @@ struct SceneRenderer::Impl {
     const Triangles* triangles = nullptr;
     std::size_t vertexCount = 0;
   };
+  /// A collider's geometry in the top scene, in the simulation frame: moved by rewriting its
+  /// vertices (a second level of instances costs every ray more than this costs a frame).
   struct ColliderGeometry {
     ColliderShape shape;
-    RTCScene scene = nullptr;      // the shape in its own frame
-    RTCGeometry instance = nullptr;
+    Tessellation local;  // in the collider's frame (a sphere: none)
+    RTCGeometry geometry = nullptr;
     unsigned id = RTC_INVALID_GEOMETRY_ID;
+    Eigen::Isometry3d pose;
+    bool placed = false;  // its vertices are at `pose`
   };
 
   RTCDevice device = nullptr;
@@ -188,6 +190,7 @@ struct SceneRenderer::Impl {
   std::vector<ObjectGeometry> objects;
   std::map<std::string, ColliderGeometry> colliders;
   std::vector<Hit> hits;  // by geometry id in the top scene
+  std::vector<float> xs, ys;  // render(): the rays' slopes by column and row
 
   Hit& hitOf(unsigned id) {
     if (hits.size() <= id) hits.resize(id + 1);
@@ -200,41 +203,49 @@ struct SceneRenderer::Impl {
   }
   void dropCollider(ColliderGeometry& c) {
     rtcDetachGeometry(top, c.id);
-    rtcReleaseGeometry(c.instance);
-    rtcReleaseScene(c.scene);
+    rtcReleaseGeometry(c.geometry);
+  }
+
+  /// Puts collider `c`'s geometry at `pose`.
+  void place(ColliderGeometry& c, const Eigen::Isometry3d& pose) {
+    if (c.placed && c.pose.isApprox(pose, 0.0)) return;
+    auto* p = static_cast<float*>(rtcGetGeometryBufferData(c.geometry, RTC_BUFFER_TYPE_VERTEX, 0));
+    if (c.shape.type == ColliderType::Sphere) {
+      for (int d = 0; d < 3; ++d) p[d] = static_cast<float>(pose.translation()[d]);
+      p[3] = static_cast<float>(c.shape.radius);
+    } else {
+      const Eigen::Matrix3f R = pose.linear().cast<float>();
+      const Eigen::Vector3f t = pose.translation().cast<float>();
+      for (std::size_t k = 0; k < c.local.vertices.size(); ++k) {
+        const Eigen::Vector3f x = R * c.local.vertices[k] + t;
+        for (int d = 0; d < 3; ++d) p[3 * k + d] = x[d];
+      }
+    }
+    rtcUpdateGeometryBuffer(c.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
+    rtcCommitGeometry(c.geometry);
+    c.pose = pose;
+    c.placed = true;
   }
 
   ColliderGeometry build(const ColliderShape& shape) {
     ColliderGeometry c;
     c.shape = shape;
-    c.scene = rtcNewScene(device);
-    RTCGeometry g = nullptr;
     if (shape.type == ColliderType::Sphere) {
-      g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
-      auto* p = static_cast<float*>(
-          rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
+      c.geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+      rtcSetNewGeometryBuffer(c.geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1);
       check(device, "make a sphere");
-      p[0] = p[1] = p[2] = 0.0f;
-      p[3] = static_cast<float>(shape.radius);
-      rtcCommitGeometry(g);
     } else {
-      Tessellation t;
       switch (shape.type) {
-        case ColliderType::HalfSpace: t = plane(); break;
-        case ColliderType::Box: t = box(shape.halfExtents); break;
-        case ColliderType::Capsule: t = capsule(shape.radius, shape.halfLength); break;
-        case ColliderType::Cylinder: t = cylinder(shape.radius, shape.halfLength); break;
-        case ColliderType::Mesh: t = meshOf(*shape.mesh); break;
+        case ColliderType::HalfSpace: c.local = plane(); break;
+        case ColliderType::Box: c.local = box(shape.halfExtents); break;
+        case ColliderType::Capsule: c.local = capsule(shape.radius, shape.halfLength); break;
+        case ColliderType::Cylinder: c.local = cylinder(shape.radius, shape.halfLength); break;
+        case ColliderType::Mesh: c.local = meshOf(*shape.mesh); break;
         case ColliderType::Sphere: break;
       }
-      g = triangleGeometry(device, t.vertices, t.triangles, RTC_BUILD_QUALITY_HIGH);
+      c.geometry = triangleGeometry(device, c.local.vertices, c.local.triangles, RTC_BUILD_QUALITY_REFIT);
     }
-    rtcAttachGeometry(c.scene, g);
-    rtcReleaseGeometry(g);
-    rtcCommitScene(c.scene);
-    c.instance = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
-    rtcSetGeometryInstancedScene(c.instance, c.scene);
-    c.id = rtcAttachGeometry(top, c.instance);
+    c.id = rtcAttachGeometry(top, c.geometry);
     check(device, "build a collider");
     return c;
   }
@@ -289,7 +300,6 @@ void SceneRenderer::setObjects(const std::vector<Object>& objects) {
     Impl::Hit& h = m.hitOf(m.objects[k].id);
     h.label = objectLabel(k);
     h.color = o.color;
-    h.rotation.setIdentity();
   }
   check(m.device, "update the objects");
 }
@@ -309,14 +319,11 @@ void SceneRenderer::setColliders(const std::map<std::string, Collider>& collider
   for (const auto& entry : colliders) {
     auto it = m.colliders.find(entry.first);
     if (it == m.colliders.end()) it = m.colliders.emplace(entry.first, m.build(entry.second.shape)).first;
-    const Impl::ColliderGeometry& c = it->second;
-    const Eigen::Matrix<float, 3, 4> xfm = entry.second.pose.matrix().topRows<3>().cast<float>();
-    rtcSetGeometryTransform(c.instance, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm.data());
-    rtcCommitGeometry(c.instance);
+    Impl::ColliderGeometry& c = it->second;
+    m.place(c, entry.second.pose);
     Impl::Hit& h = m.hitOf(c.id);
     h.label = colliderLabel(i++);
     h.color = entry.second.shape.type == ColliderType::HalfSpace ? kPlaneColor : kColliderColor;
-    h.rotation = entry.second.pose.linear().cast<float>();
   }
   check(m.device, "update the colliders");
 }
@@ -339,6 +346,12 @@ void SceneRenderer::render(const CameraIntrinsics& camera, const Eigen::Isometry
   context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   // Tiles of 4 x 4 pixels as one packet of 16 rays: neighbouring rays share their way through
   // the BVH.
+  // the rays' slopes, once per column and row
+  m.xs.resize(w);
+  m.ys.resize(h);
+  for (int u = 0; u < w; ++u) m.xs[u] = static_cast<float>((u - camera.cx) / camera.fx);
+  for (int v = 0; v < h; ++v) m.ys[v] = static_cast<float>((v - camera.cy) / camera.fy);
+  const float tnear = static_cast<float>(camera.near), tfar = static_cast<float>(camera.far);
   alignas(64) RTCRayHit16 rh;
   alignas(64) int valid[16];
   std::array<Eigen::Vector3f, 16> dirs;
@@ -348,37 +361,34 @@ void SceneRenderer::render(const CameraIntrinsics& camera, const Eigen::Isometry
         const int u = u0 + i % kTile, v = v0 + i / kTile;
         valid[i] = u < w && v < h ? -1 : 0;
         // z = 1 in the optical frame: the ray's parameter is the depth
-        dirs[i] = R * Eigen::Vector3f(static_cast<float>((u - camera.cx) / camera.fx),
-                                      static_cast<float>((v - camera.cy) / camera.fy), 1.0f);
+        dirs[i] = R * Eigen::Vector3f(m.xs[std::min(u, w - 1)], m.ys[std::min(v, h - 1)], 1.0f);
         rh.ray.org_x[i] = o.x();
         rh.ray.org_y[i] = o.y();
         rh.ray.org_z[i] = o.z();
         rh.ray.dir_x[i] = dirs[i].x();
         rh.ray.dir_y[i] = dirs[i].y();
         rh.ray.dir_z[i] = dirs[i].z();
-        rh.ray.tnear[i] = static_cast<float>(camera.near);
-        rh.ray.tfar[i] = static_cast<float>(camera.far);
+        rh.ray.tnear[i] = tnear;
+        rh.ray.tfar[i] = tfar;
         rh.ray.mask[i] = 0xFFFFFFFFu;
         rh.ray.flags[i] = 0;
         rh.ray.time[i] = 0.0f;
         rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
       }
       rtcIntersect16(valid, m.top, &context, &rh);
       for (int i = 0; i < 16; ++i) {
         if (!valid[i] || rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
         const int u = u0 + i % kTile, v = v0 + i / kTile;
-        const bool instanced = rh.hit.instID[0][i] != RTC_INVALID_GEOMETRY_ID;
-        const Impl::Hit& hit = m.hits[instanced ? rh.hit.instID[0][i] : rh.hit.geomID[i]];
+        const Impl::Hit& hit = m.hits[rh.hit.geomID[i]];
         const std::size_t p = static_cast<std::size_t>(v) * w + u;
         out.depth[p] = rh.ray.tfar[i];
         out.label[p] = hit.label;
-        const Eigen::Vector3f n = hit.rotation * Eigen::Vector3f(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]);
-        const float cosine =
-            n.squaredNorm() > 0.0f ? std::abs(n.normalized().dot(dirs[i].normalized())) : 1.0f;
-        const Eigen::Vector3f c = hit.color * (kAmbient + kHeadlight * cosine);
+        const Eigen::Vector3f n(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]);
+        const float nn = n.squaredNorm() * dirs[i].squaredNorm();
+        const float cosine = nn > 0.0f ? std::abs(n.dot(dirs[i])) / std::sqrt(nn) : 1.0f;
+        const Eigen::Vector3f c = hit.color * (255.0f * (kAmbient + kHeadlight * cosine));
         for (int k = 0; k < 3; ++k)
-          out.rgb[3 * p + k] = static_cast<std::uint8_t>(std::lround(255.0f * std::min(1.0f, c[k])));
+          out.rgb[3 * p + k] = static_cast<std::uint8_t>(std::min(255.0f, c[k]) + 0.5f);
       }
     }
   }

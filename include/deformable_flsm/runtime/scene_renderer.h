@@ -4,9 +4,9 @@
 /// headless: per pixel the depth along the optical axis, a shaded colour and the label of what
 /// was hit. Spheres are Embree's exact sphere primitives; planes exact quads; boxes, capsules and
 /// cylinders tessellated finely enough for their depth to be within 0.1 % of their size; mesh
-/// colliders as given. Colliders are instances of shapes built once, moved by their pose each
-/// frame; objects are triangle meshes whose vertices change each frame (the BVH is refitted). No
-/// ROS.
+/// colliders as given. A collider's shape is built once and its vertices moved with its pose;
+/// objects are triangle meshes whose vertices change each frame (their BVHs are refitted). Rays
+/// go in packets of 4 x 4 pixels. No ROS.
 #pragma once
 
 #include "deformable_flsm/core/collider.h"
