@@ -75,6 +75,21 @@ ContactWrench Solver::contactWrench(const std::string& id) const {
   return ContactWrench();
 }
 
+void Solver::recordContacts(const std::string& id, bool on) {
+  if (on)
+    recordedIds_.insert(id);
+  else
+    recordedIds_.erase(id);
+  rebuildContactBodies();
+}
+
+const std::vector<ParticleContact>& Solver::recordedContacts(const std::string& id) const {
+  static const std::vector<ParticleContact> kNone;
+  for (const ContactBody& body : contactBodies_)
+    if (*body.id == id) return body.recorded;
+  return kNone;
+}
+
 // Every change of the collider set comes here, outside step(): the buffers the contact pass
 // writes are sized now, so that the pass allocates nothing.
 void Solver::rebuildContactBodies() {
@@ -88,7 +103,14 @@ void Solver::rebuildContactBodies() {
     // a collider that stays (another was added or removed) keeps its last wrench
     for (const ContactBody& old : contactBodies_)
       if (old.collider == body.collider) body.wrench = old.wrench;
-    bodies.push_back(body);
+    if (recordedIds_.count(entry.first) > 0) {
+      // sized now: recording allocates nothing in a step
+      body.recording = true;
+      body.particleImpulse.assign(x_.size(), Eigen::Vector3d::Zero());
+      body.particlePoint.assign(x_.size(), Eigen::Vector3d::Zero());
+      body.recorded.reserve(x_.size());
+    }
+    bodies.push_back(std::move(body));
   }
   contactBodies_ = std::move(bodies);
   activeBodies_.clear();
@@ -105,6 +127,7 @@ void Solver::beginContactStep() {
     body.impulse.setZero();
     body.moment.setZero();
     body.contacts = 0;
+    if (body.recording) std::fill(body.particleImpulse.begin(), body.particleImpulse.end(), Eigen::Vector3d::Zero());
   }
 }
 
@@ -268,6 +291,8 @@ void Solver::contactPass(double h, double elapsed) {
         ContactPartial& p = partial[a];
         p.impulse += J;
         p.moment += (x - r * normal - origin).cross(J);
+        // (particle i is this chunk's alone: no other thread writes its entries)
+        record(contactBodies_[a], i, J, x - r * normal);
         // counted once: the implicit solve may have counted it on this body (sumContactImpulses())
         if (markCounted(i, a, contactPasses_)) ++p.contacts;
         touched = true;
@@ -339,6 +364,12 @@ void Solver::endContactStep() {
     body.wrench.force = -body.impulse / T;
     body.wrench.torque = -body.moment / T;
     body.wrench.contacts = body.contacts;
+    if (body.recording) {
+      body.recorded.clear();
+      for (std::size_t i = 0; i < body.particleImpulse.size(); ++i)
+        if (!body.particleImpulse[i].isZero(0.0))
+          body.recorded.push_back({static_cast<std::uint32_t>(i), body.particlePoint[i], -body.particleImpulse[i] / T});
+    }
     Collider& c = *body.collider;
     c.pose = advancePose(body.start, c.linearVelocity, c.angularVelocity, T);
     body.now = c.pose;

@@ -631,6 +631,7 @@ void Solver::sumContactImpulses(double h, const std::vector<Eigen::Vector3d>& re
     const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
     body.impulse += J;
     body.moment += (x - r * n - pose.translation()).cross(J);
+    record(body, i, J, x - r * n);
     // a contact whose normal impulse pushes (one the solve let go of does not), counted on this
     // body in the contact pass that follows in this sub-step (countedContact())
     if ((-residual[offset + i]).dot(n) > 0.0 && markCounted(i, implicitContactBody_[i], contactPasses_ + 1))

@@ -216,6 +216,7 @@ Solver& World::addObject(const std::string& name, std::shared_ptr<const Lattice>
   solver->shareRegionScratch(impl_->scratch);
   for (const auto& entry : impl_->colliders) solver->setCollider(entry.first, entry.second);
   Solver& added = *solver;
+  for (const std::string& id : recordedIds_) solver->recordContacts(id, true);
   impl_->objects.push_back(std::move(solver));
   impl_->pointers.push_back(&added);
   names_.push_back(name);
@@ -308,6 +309,17 @@ ContactWrench World::contactWrench(const std::string& id) const {
     sum.contacts += w.contacts;
   }
   return sum;
+}
+
+void World::recordContacts(const std::string& id, bool on) {
+  if (on && contact_.couples(impl_->objects.size()))
+    throw std::invalid_argument("world: contacts on collider '" + id + "' cannot be recorded with object "
+                                "contact on: the objects' shared solve does not record them");
+  if (on)
+    recordedIds_.insert(id);
+  else
+    recordedIds_.erase(id);
+  for (const auto& object : impl_->objects) object->recordContacts(id, on);
 }
 
 void World::setContactParams(const ObjectContactParams& contact) {

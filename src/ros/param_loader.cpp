@@ -4,6 +4,7 @@
 
 #include "deformable_flsm/ros/camera_params.h"
 #include "deformable_flsm/ros/object_params.h"
+#include "deformable_flsm/ros/tactile_topics.h"
 #include "deformable_flsm/runtime/render_mesh.h"
 
 #include <ros/package.h>
@@ -113,13 +114,19 @@ NodeParams ParamLoader::loadNodeParams() const {
   p.ground = getBool("ground", p.ground);
   p.groundClearance = getDouble("ground_clearance", p.groundClearance);
   p.colliders = getColliders("colliders", p.frameId);
+  p.robot = getRobot();
+  read_.push_back("tactile");
+  if (pnh_.hasParam("tactile")) {
+    XmlRpc::XmlRpcValue tactile;
+    pnh_.getParam("tactile", tactile);
+    p.tactile = parseTactileList(tactile, p);
+  }
   read_.push_back("cameras");
   if (pnh_.hasParam("cameras")) {
     XmlRpc::XmlRpcValue cameras;
     pnh_.getParam("cameras", cameras);
     p.cameras = parseCameraList(cameras);
   }
-  p.robot = getRobot();
   ObjectContactParams& oc = p.objectContact;
   oc.enabled = getBool("object_contact", oc.enabled);
   oc.selfContact = getBool("self_contact", oc.selfContact);

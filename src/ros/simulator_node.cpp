@@ -78,6 +78,14 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   });
 
   checkClock();
+  for (const TactileSpec& t : params_.tactile) {
+    try {
+      scene.world->recordContacts(t.collider, true);
+    } catch (const std::invalid_argument& e) {
+      throw ParamError("~tactile sensor '" + t.name + "': " + e.what() + " (set ~object_contact false, or "
+                       "no tactile sensor)");
+    }
+  }
   LoopSettings settings;
   settings.realTimeFactor = params_.realTimeFactor;
   settings.time = loopTime(params_.clock);
@@ -145,6 +153,7 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
     return attachedFrame(frame, T);
   });
   loop_->start();
+  if (!params_.tactile.empty()) tactile_ = std::make_unique<TactileTopics>(pnh_, params_.tactile);
   if (!params_.cameras.empty()) {
     cameras_ = std::make_unique<CameraTopics>(
         pnh_, params_.cameras, params_.frameId, *loop_, objects_, objectsMutex_, tfBuffer_,
@@ -274,6 +283,7 @@ void SimulatorNode::publishNewest() {
     next = k + 1;
   }
   publisher_->publishHeavy(s, stamp);
+  if (tactile_) tactile_->publish(s, stamp);
   published_.store(s.sequence);
 }
 

@@ -185,6 +185,14 @@ void SimulationLoop::writeSnapshot() {
   s.wrenches.clear();
   for (const auto& entry : s.colliders) s.wrenches[entry.first] = world_->contactWrench(entry.first);
   s.objectWrenches = world_->objectWrenches();
+  for (const std::string& id : world_->recordedColliders()) {
+    std::vector<ParticleContact>& all = s.contacts[id];
+    all.clear();
+    for (const Solver* solver : solvers_) {
+      const std::vector<ParticleContact>& one = solver->recordedContacts(id);
+      all.insert(all.end(), one.begin(), one.end());
+    }
+  }
 
   {
     std::lock_guard<std::mutex> lock(snapshotMutex_);

@@ -216,6 +216,38 @@ TEST(Contact, BlockRestsOnTheGroundAndItsWeightIsTheNormalForce) {
   EXPECT_EQ(s.colliders().size(), 1u);
 }
 
+// Recorded contacts (a tactile image's data): every particle that pushed on the ground, where it
+// touched and with what force; they add up to the ground's wrench to rounding, with both steps,
+// and say where the weight rests: the bottom layer, on the ground's surface.
+TEST(Contact, RecordedContactsAddUpToTheWrenchWithBothIntegrators) {
+  for (const Integrator integrator : {Integrator::Explicit, Integrator::Implicit}) {
+    auto lattice = std::make_shared<const Lattice>(test::makeBox(6, 4, 3, 0.01), 1000.0, 1);
+    SolverParams p = sceneParams(*lattice, 0.3);
+    p.integrator = integrator;
+    Solver s(lattice, p);
+    s.recordContacts("ground", true);  // before the collider: kept by its id
+    const Collider ground = groundBelow(s, 0.0);
+    s.setCollider("ground", ground);
+    s.setCollider("unrecorded", boxCollider(Eigen::Vector3d(1, 0, 0), Eigen::Vector3d::Constant(0.1), 0.5));
+    for (int i = 0; i < stepsFor(2.0, s); ++i) s.step();
+    const std::vector<ParticleContact>& record = s.recordedContacts("ground");
+    ASSERT_EQ(record.size(), 24u) << "the bottom layer of 6 x 4 particles";
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (const ParticleContact& c : record) {
+      sum += c.force;
+      EXPECT_NEAR(c.point.z(), ground.pose.translation().z(), 1e-6) << "particle " << c.particle;
+      EXPECT_NEAR(lattice->restPositions()[c.particle].z(), lowestZ(s), 0.5 * lattice->spacing());
+    }
+    const Eigen::Vector3d w = s.contactWrench("ground").force;
+    EXPECT_LT((sum - w).norm(), 1e-12 * w.norm()) << sum.transpose() << " vs " << w.transpose();
+    EXPECT_NEAR(-w.z(), lattice->totalMass() * kG, 0.02 * lattice->totalMass() * kG);
+    EXPECT_TRUE(s.recordedContacts("unrecorded").empty());
+    s.recordContacts("ground", false);
+    s.step();
+    EXPECT_TRUE(s.recordedContacts("ground").empty());
+  }
+}
+
 // A block pushed into the corner of the ground and a wall (gravity tilted towards the wall):
 // each collider counts the particles of the face resting on it, the edge row on both, each once,
 // whichever of the two the implicit solve holds it on and the contact pass meets first.

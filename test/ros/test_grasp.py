@@ -18,6 +18,7 @@ import numpy as np
 import rospy
 import rostest
 import tf2_ros
+from sensor_msgs.msg import Image
 from geometry_msgs.msg import Point, Quaternion, TransformStamped, Vector3
 
 from deformable_flsm.msg import ColliderCommand, ContactWrenches
@@ -173,13 +174,35 @@ class GraspTest(unittest.TestCase):
         cls.wrench_lock = threading.Lock()
         rospy.Subscriber('/flsm_node/contact_wrenches', ContactWrenches, cls.on_wrenches,
                          queue_size=50)
+        # the fingers' tactile pads (grasp_scene.launch): pressure images and the fingers'
+        # forces, by stamp
+        cls.pressed = {f: {} for f in FINGERS}
+        cls.finger_force = {f: {} for f in FINGERS}
+        for finger, pad in zip(FINGERS, ('left', 'right')):
+            rospy.Subscriber('/flsm_node/tactile/%s/pressure' % pad, Image, cls.on_pressure(finger),
+                             queue_size=50)
 
     @classmethod
     def tearDownClass(cls):
         cls.fingers.stop()
 
     @classmethod
+    def on_pressure(cls, finger):
+        def on(msg):
+            p = np.frombuffer(msg.data, dtype=np.float32)
+            # the pad covers the finger's x-z face: taxels of (size x / cols) (size z / rows)
+            area = (cls.size[finger][0] / msg.width) * (cls.size[finger][2] / msg.height)
+            with cls.wrench_lock:
+                cls.pressed[finger][msg.header.stamp] = float(p.sum()) * area
+        return on
+
+    @classmethod
     def on_wrenches(cls, msg):
+        with cls.wrench_lock:
+            for i, w in zip(msg.ids, msg.wrenches):
+                if i in FINGERS:
+                    f = w.wrench.force
+                    cls.finger_force[i][msg.header.stamp] = np.array([f.x, f.y, f.z])
         fz = {i: w.wrench.force.z for i, w in zip(msg.ids, msg.wrenches)}
         contacts = dict(zip(msg.ids, msg.contacts))
         if not all(f in fz for f in FINGERS):
@@ -285,6 +308,24 @@ class GraspTest(unittest.TestCase):
                       'ground contacts up to %d', self.expect, HOLD, 1e3 * LIFT, 1e3 * slip,
                       1e3 * drop, 1e3 * final_drop, carried, weight,
                       100.0 * (carried / weight - 1.0), on_ground)
+        # The tactile pads: what each presses on its taxels adds up to its finger's force along
+        # the pad's normal (finger_left's pad faces +y, finger_right's -y; the object pushes the
+        # fingers apart), within 1 %, in every state both were sent for while gripping.
+        compared, worst = 0, 0.0
+        with self.wrench_lock:
+            for finger, sign in zip(FINGERS, (1.0, -1.0)):
+                for stamp, pa in self.pressed[finger].items():
+                    f = self.finger_force[finger].get(stamp)
+                    normal = None if f is None else -sign * f[1]
+                    if normal is None or normal < 0.1:
+                        continue
+                    self.assertAlmostEqual(pa, normal, delta=0.01 * normal,
+                                           msg='%s pad %.4f N against the finger force %.4f N' % (finger, pa, normal))
+                    compared += 1
+                    worst = max(worst, abs(pa / normal - 1.0))
+        rospy.loginfo('grasp: tactile pads against the finger forces in %d states: within %.3f %%',
+                      compared, 100.0 * worst)
+        self.assertGreater(compared, 20, 'too few tactile frames while gripping')
         if self.expect == 'hold':
             # (The hanging jelly sags: its lowest particles may still brush the ground; what the
             # ground then carries is what the fingers' share misses, held within the tolerance.)

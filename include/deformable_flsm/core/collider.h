@@ -11,6 +11,7 @@
 #include <Eigen/Geometry>
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <string>
 
@@ -87,6 +88,17 @@ struct ContactWrench {
   Eigen::Vector3d torque = Eigen::Vector3d::Zero();
   /// particles in contact at the end of the last sub-step
   std::size_t contacts = 0;
+};
+
+/// One particle's push on a collider over the last step (Solver::recordContacts()).
+struct ParticleContact {
+  /// the particle's index in its object
+  std::uint32_t particle = 0;
+  /// where its sphere met the collider's surface at its last contact in the step (m, simulation
+  /// frame)
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  /// its force on the collider, the step's mean (N, simulation frame)
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();
 };
 
 }  // namespace deformable_flsm

@@ -23,6 +23,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -219,6 +220,15 @@ class Solver : private RegionKernel {
   const std::map<std::string, Collider>& colliders() const { return colliders_; }
   /// What the object exerted on collider `id` during the last step(); zero for an unknown id.
   ContactWrench contactWrench(const std::string& id) const;
+  /// Records from the next step on (or stops recording) each particle's force on collider `id`
+  /// (its tactile image); kept for a collider of that id added later. Between steps only; a
+  /// recorded collider costs a vector per particle and a store per contact.
+  void recordContacts(const std::string& id, bool on);
+  /// The forces recorded on `id` over the last step, one entry per particle that touched it (in
+  /// particle order); they add up to contactWrench(id).force when this object's own contact
+  /// pass or implicit solve found every contact (not those another contact solver added with
+  /// addColliderImpulse()). Empty for a collider not recorded.
+  const std::vector<ParticleContact>& recordedContacts(const std::string& id) const;
   /// Radius of the particles' contact spheres (m): params().contactRadius, or half the lattice
   /// spacing when that is 0. At half the spacing a particle's sphere touches its cell's faces, so
   /// the particles of a full bottom layer stand with their cells' lower faces on the ground: the
@@ -375,7 +385,20 @@ class Solver : private RegionKernel {
     std::size_t contacts = 0;                            // in the last sub-step
     std::size_t solved = 0;  // pushing contacts of this sub-step's implicit solve (contactPass() adds its own)
     ContactWrench wrench;                                // over the last step
+    /// recordContacts(): per particle its impulse on the body this step (m dv, summed) and its
+    /// last contact point; the step's contacts as a list
+    bool recording = false;
+    std::vector<Eigen::Vector3d> particleImpulse, particlePoint;
+    std::vector<ParticleContact> recorded;
   };
+  /// the colliders whose contacts are recorded (recordContacts()), by id
+  std::set<std::string> recordedIds_;
+  /// Counts particle i's impulse J on body a, meeting it at `point`, when a records.
+  static void record(ContactBody& body, std::size_t i, const Eigen::Vector3d& J, const Eigen::Vector3d& point) {
+    if (!body.recording) return;
+    body.particleImpulse[i] += J;
+    body.particlePoint[i] = point;
+  }
   /// One chunk's share of a body's impulse (chunks of fixed size: thread-count-independent sums).
   struct ContactPartial {
     Eigen::Vector3d impulse = Eigen::Vector3d::Zero();

@@ -16,6 +16,7 @@
 
 #include <cstddef>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -119,6 +120,14 @@ class World {
   bool removeCollider(const std::string& id);
   /// what all objects together exerted on collider `id` over the last step
   ContactWrench contactWrench(const std::string& id) const;
+  /// Records each particle's force on collider `id` in every object, and in objects added later
+  /// (Solver::recordContacts(); read with object(name)->recordedContacts(id)). Where objects
+  /// touch (ObjectContactParams::couples()), the collider contacts of particles near other
+  /// objects go through the objects' shared solve and would be missing from the record:
+  /// @throws std::invalid_argument then.
+  void recordContacts(const std::string& id, bool on);
+  /// the colliders whose contacts are recorded
+  const std::set<std::string>& recordedColliders() const { return recordedIds_; }
 
   // --- object-object contact ----------------------------------------------------------
   const ObjectContactParams& contactParams() const { return contact_; }
@@ -194,6 +203,7 @@ class World {
   std::unique_ptr<Impl> impl_;
   std::vector<std::string> names_;
   ObjectContactParams contact_;
+  std::set<std::string> recordedIds_;  ///< recordContacts()
   SleepParams sleep_;
   double timeStep_ = 0.0;
   int substeps_ = 1;

@@ -5,6 +5,7 @@
 
 #include "deformable_flsm/ros/camera_topics.h"
 #include "deformable_flsm/ros/collider_topics.h"
+#include "deformable_flsm/ros/tactile_topics.h"
 #include "deformable_flsm/ros/command_validator.h"
 #include "deformable_flsm/runtime/commands.h"
 #include "deformable_flsm/ros/interactive_drag.h"
@@ -212,6 +213,7 @@ class SimulatorNode {
   std::vector<std::size_t> handlesToRemove_;
   std::unique_ptr<ColliderTopics> colliders_;  ///< ~collider, ~contact_wrenches, ~colliders
   std::unique_ptr<CameraTopics> cameras_;      ///< ~cameras, on a thread of their own
+  std::unique_ptr<TactileTopics> tactile_;     ///< ~tactile, with each publish tick
 
   tf2_ros::Buffer tfBuffer_;
   std::mutex tfListenerMutex_;

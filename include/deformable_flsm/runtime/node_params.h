@@ -11,6 +11,7 @@
 #include "deformable_flsm/runtime/camera_spec.h"
 #include "deformable_flsm/runtime/collider_spec.h"
 #include "deformable_flsm/runtime/robot_spec.h"
+#include "deformable_flsm/runtime/tactile.h"
 
 #include <Eigen/Core>
 
@@ -133,6 +134,8 @@ struct NodeParams {
   std::vector<ColliderSpec> colliders;
   /// ~cameras: simulated depth cameras (parsed and validated)
   std::vector<CameraSpec> cameras;
+  /// ~tactile: tactile sensors on box colliders' faces (parsed and checked against the colliders)
+  std::vector<TactileSpec> tactile;
   /// ~robot_description and ~robot_*: the robot's collision model (no colliders when
   /// robot.options.descriptionParam is empty)
   RobotColliders robot;

@@ -154,6 +154,9 @@ struct Snapshot {
   /// each during the step (simulation frame), all objects together
   std::map<std::string, Collider> colliders;
   std::map<std::string, ContactWrench> wrenches;
+  /// per collider whose contacts the World records (World::recordContacts()), each particle's
+  /// force on it over the step, every object's (simulation frame)
+  std::map<std::string, std::vector<ParticleContact>> contacts;
   /// the whole scene's figures
   LoopDiagnostics diag;
 };

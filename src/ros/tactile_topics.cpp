@@ -1,0 +1,116 @@
+#include "deformable_flsm/ros/tactile_topics.h"
+
+#include "deformable_flsm/ros/collider_messages.h"
+#include "deformable_flsm/runtime/node_params.h"
+
+#include "entry_reader.h"
+
+#include <sensor_msgs/image_encodings.h>
+
+#include <cmath>
+#include <cstring>
+#include <set>
+
+namespace deformable_flsm {
+
+namespace {
+
+const std::vector<std::string> kFields = {"name", "collider", "face", "rows", "cols"};
+
+/// The box collider of id `id` among the node's colliders, or nullptr.
+const Collider* colliderNamed(const NodeParams& params, const std::string& id) {
+  for (const ColliderSpec& c : params.colliders)
+    if (c.id == id) return &c.collider;
+  for (const RobotCollider& c : params.robot.colliders)
+    if (c.spec.id == id) return &c.spec.collider;
+  return nullptr;
+}
+
+int taxels(EntryReader& r, const char* field, int fallback) {
+  const double v = r.number(field, fallback);
+  if (v != std::floor(v) || v < 1 || v > TactileSpec::kMaxTaxels)
+    r.fail(std::string(field) + " is " + std::to_string(v) + ": it must be a whole number of taxels, 1 to " +
+           std::to_string(TactileSpec::kMaxTaxels));
+  return static_cast<int>(v);
+}
+
+template <class T>
+void fillImage(const std::string& encoding, const std::vector<T>& values, int channels, int rows, int cols,
+               const std::string& frame, const ros::Time& stamp, sensor_msgs::Image& m) {
+  m.header.stamp = stamp;
+  m.header.frame_id = frame;
+  m.height = static_cast<std::uint32_t>(rows);
+  m.width = static_cast<std::uint32_t>(cols);
+  m.encoding = encoding;
+  m.is_bigendian = 0;
+  m.step = static_cast<std::uint32_t>(cols * channels * sizeof(T));
+  m.data.resize(values.size() * sizeof(T));
+  std::memcpy(m.data.data(), values.data(), m.data.size());
+}
+
+}  // namespace
+
+std::vector<TactileSpec> parseTactileList(XmlRpc::XmlRpcValue& list, const NodeParams& params) {
+  if (list.getType() != XmlRpc::XmlRpcValue::TypeArray)
+    throw ParamError("~tactile is " + describe(list) + ": it must be a list of sensors (dictionaries)");
+  std::vector<TactileSpec> out;
+  std::set<std::string> names;
+  for (int i = 0; i < list.size(); ++i) {
+    XmlRpc::XmlRpcValue& entry = list[i];
+    EntryReader r(entry, "~tactile", i, kFields);
+    if (entry.getType() != XmlRpc::XmlRpcValue::TypeStruct)
+      r.fail("it is " + describe(entry) + ": each sensor is a dictionary (name, collider, face, rows, cols)");
+    TactileSpec t;
+    t.name = r.string("name", "");
+    r.setId(t.name);
+    r.checkFields();
+    if (t.name.empty() || t.name.find_first_of(" /~") != std::string::npos)
+      r.fail("name '" + t.name + "' must be a non-empty topic name without '/', '~' or spaces");
+    if (!names.insert(t.name).second) r.fail("name is taken by an earlier sensor: each needs its own");
+    t.collider = r.string("collider", "");
+    const Collider* c = colliderNamed(params, t.collider);
+    if (c == nullptr)
+      r.fail("collider '" + t.collider + "' is not one of ~colliders nor a robot link's collider");
+    if (c->shape.type != ColliderType::Box)
+      r.fail("collider '" + t.collider + "' is a " + std::string(toString(c->shape.type)) +
+             ": a tactile sensor covers a face of a box");
+    const std::string face = r.string("face", "");
+    if (!parseFace(face, t.axis, t.sign))
+      r.fail("face is '" + face + "': it must be '+x', '-x', '+y', '-y', '+z' or '-z' (of the collider's frame)");
+    t.rows = taxels(r, "rows", t.rows);
+    t.cols = taxels(r, "cols", t.cols);
+    out.push_back(t);
+  }
+  return out;
+}
+
+TactileTopics::TactileTopics(ros::NodeHandle& pnh, std::vector<TactileSpec> sensors) {
+  for (TactileSpec& spec : sensors) {
+    Sensor s;
+    ros::NodeHandle ns(pnh, "tactile/" + spec.name);
+    s.pressure = ns.advertise<sensor_msgs::Image>("pressure", 1);
+    s.shear = ns.advertise<sensor_msgs::Image>("shear", 1);
+    s.spec = std::move(spec);
+    sensors_.push_back(std::move(s));
+  }
+}
+
+void TactileTopics::publish(const Snapshot& snapshot, const ros::Time& stamp) {
+  static const std::vector<ParticleContact> kNone;
+  for (Sensor& s : sensors_) {
+    if (s.pressure.getNumSubscribers() == 0 && s.shear.getNumSubscribers() == 0) continue;
+    const auto collider = snapshot.colliders.find(s.spec.collider);
+    if (collider == snapshot.colliders.end()) continue;  // a followed frame not seen yet
+    const auto contacts = snapshot.contacts.find(s.spec.collider);
+    tactileImage(s.spec, collider->second, contacts == snapshot.contacts.end() ? kNone : contacts->second, s.image);
+    const std::string frame = colliderFrameId(s.spec.collider);
+    fillImage(sensor_msgs::image_encodings::TYPE_32FC1, s.image.pressure, 1, s.image.rows, s.image.cols, frame,
+              stamp, s.pressureMsg);
+    fillImage(sensor_msgs::image_encodings::TYPE_32FC2, s.image.shear, 2, s.image.rows, s.image.cols, frame,
+              stamp, s.shearMsg);
+    s.pressure.publish(s.pressureMsg);
+    s.shear.publish(s.shearMsg);
+  }
+}
+
+}  // namespace deformable_flsm
