@@ -310,10 +310,13 @@ class GraspTest(unittest.TestCase):
                       100.0 * (carried / weight - 1.0), on_ground)
         # The tactile pads: what each presses on its taxels adds up to its finger's force along
         # the pad's normal (finger_left's pad faces +y, finger_right's -y; the object pushes the
-        # fingers apart), within 1 %, in every state both were sent for while gripping.
+        # fingers apart), within 1 %, in every state both were sent for while gripping. (Not
+        # while the object slips out: squeezed past the pads it also touches the fingers' backs,
+        # which the pads do not cover and the finger's force nets out.)
         compared, worst = 0, 0.0
+        pads = zip(FINGERS, (1.0, -1.0)) if self.expect == 'hold' else ()
         with self.wrench_lock:
-            for finger, sign in zip(FINGERS, (1.0, -1.0)):
+            for finger, sign in pads:
                 for stamp, pa in self.pressed[finger].items():
                     f = self.finger_force[finger].get(stamp)
                     normal = None if f is None else -sign * f[1]
@@ -325,7 +328,8 @@ class GraspTest(unittest.TestCase):
                     worst = max(worst, abs(pa / normal - 1.0))
         rospy.loginfo('grasp: tactile pads against the finger forces in %d states: within %.3f %%',
                       compared, 100.0 * worst)
-        self.assertGreater(compared, 20, 'too few tactile frames while gripping')
+        if self.expect == 'hold':
+            self.assertGreater(compared, 20, 'too few tactile frames while gripping')
         if self.expect == 'hold':
             # (The hanging jelly sags: its lowest particles may still brush the ground; what the
             # ground then carries is what the fingers' share misses, held within the tolerance.)
