@@ -72,6 +72,22 @@ class StartupFailureTest(unittest.TestCase):
         rospy.set_param('/flsm_bad_camera3/cameras', [{'name': 'top', 'frame': 'cam', 'near': 2.0, 'far': 1.0}])
         self.assert_fails_naming('flsm_bad_camera3', ["~cameras entry 0 ('top')", 'near 2', 'far 1'])
 
+    def test_tactile_entry_that_is_wrong_names_the_entry_and_the_key(self):
+        ball = {'id': 'ball', 'type': 'sphere', 'radius': 0.05, 'position': [1.0, 0.0, 0.0]}
+        pad = {'id': 'pad', 'type': 'box', 'size': [0.1, 0.02, 0.1], 'position': [-1.0, 0.0, 0.0]}
+        for name, entry, expected in (
+                ('flsm_tactile_unknown', {'name': 'left', 'collider': 'nothing', 'face': '+y'},
+                 ["~tactile entry 0 ('left')", "collider 'nothing' is not one of ~colliders"]),
+                ('flsm_tactile_sphere', {'name': 'left', 'collider': 'ball', 'face': '+y'},
+                 ["~tactile entry 0 ('left')", "'ball' is a sphere", 'box']),
+                ('flsm_tactile_face', {'name': 'left', 'collider': 'pad', 'face': 'y'},
+                 ["~tactile entry 0 ('left')", "face is 'y'", "'+x'"]),
+                ('flsm_tactile_rows', {'name': 'left', 'collider': 'pad', 'face': '+y', 'rows': 0},
+                 ["~tactile entry 0 ('left')", 'rows is 0'])):
+            rospy.set_param('/%s/colliders' % name, [ball, pad])
+            rospy.set_param('/%s/tactile' % name, [entry])
+            self.assert_fails_naming(name, expected)
+
     def test_nan_publish_rate_is_refused(self):
         # roscpp reads `_x:=.nan` as a string, so a NaN can only arrive through the parameter
         # server (a YAML file loaded by a launch file): put it there.
