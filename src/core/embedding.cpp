@@ -101,8 +101,8 @@ void Embedding::deform(const std::vector<Eigen::Vector3d>& positions,
                        std::vector<Eigen::Vector3d>& vertices) const {
   if (positions.size() != particleCount_ || rotations.size() != particleCount_)
     throw std::invalid_argument("embedding: positions/rotations do not match the lattice");
-  // per thread: the publishers and the cameras deform on threads of their own (allocates on a
-  // thread's first call only)
+  // per thread: the publishers and the cameras deform on threads of their own (allocates when
+  // a thread first deforms a mesh with more ghost nodes than it did before)
   thread_local std::vector<Eigen::Vector3d> nodes;
   nodes.resize(ghostAnchor_.size());
   for (std::size_t g = 0; g < ghostAnchor_.size(); ++g) {

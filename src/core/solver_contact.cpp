@@ -109,6 +109,9 @@ void Solver::rebuildContactBodies() {
       body.particleImpulse.assign(x_.size(), Eigen::Vector3d::Zero());
       body.particlePoint.assign(x_.size(), Eigen::Vector3d::Zero());
       body.recorded.reserve(x_.size());
+      // and, as its wrench, a collider that stays keeps its last record (a sleeping object's)
+      for (const ContactBody& old : contactBodies_)
+        if (old.collider == body.collider && old.recording) body.recorded = old.recorded;
     }
     bodies.push_back(std::move(body));
   }

@@ -216,6 +216,10 @@ Solver& World::addObject(const std::string& name, std::shared_ptr<const Lattice>
   solver->shareRegionScratch(impl_->scratch);
   for (const auto& entry : impl_->colliders) solver->setCollider(entry.first, entry.second);
   Solver& added = *solver;
+  if (!recordedIds_.empty() && contact_.couples(impl_->objects.size() + 1))
+    throw std::invalid_argument("world: object '" + name + "' would touch the others, and contacts on collider '" +
+                                *recordedIds_.begin() + "' are recorded: the objects' shared solve does not "
+                                "record them (turn object and self contact off, or record nothing)");
   for (const std::string& id : recordedIds_) solver->recordContacts(id, true);
   impl_->objects.push_back(std::move(solver));
   impl_->pointers.push_back(&added);
@@ -313,8 +317,9 @@ ContactWrench World::contactWrench(const std::string& id) const {
 
 void World::recordContacts(const std::string& id, bool on) {
   if (on && contact_.couples(impl_->objects.size()))
-    throw std::invalid_argument("world: contacts on collider '" + id + "' cannot be recorded with object "
-                                "contact on: the objects' shared solve does not record them");
+    throw std::invalid_argument("world: contacts on collider '" + id + "' cannot be recorded where objects "
+                                "touch each other or themselves (object or self contact on): their shared "
+                                "solve does not record them");
   if (on)
     recordedIds_.insert(id);
   else

@@ -3,6 +3,8 @@
 #include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/ros/mesh_messages.h"
 
+#include "image_fill.h"
+
 #include <ros/console.h>
 #include <sensor_msgs/image_encodings.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
@@ -11,7 +13,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <mutex>
 
@@ -23,22 +24,6 @@ constexpr double kWarnPeriod = 5.0;  // s between two warnings of the same kind
 /// 16UC1 depth: millimetres, 0 where there is no reading (REP 118).
 constexpr double kMillimetres = 1000.0;
 constexpr double kMaxMillimetres = 65535.0;
-
-template <class T>
-void fillImage(const std::string& encoding, const std::vector<T>& pixels, int channels,
-               const std::string& frame, const ros::Time& stamp, int width, int height,
-               sensor_msgs::Image& out) {
-  out.header.stamp = stamp;
-  out.header.frame_id = frame;
-  out.width = static_cast<std::uint32_t>(width);
-  out.height = static_cast<std::uint32_t>(height);
-  out.encoding = encoding;
-  out.is_bigendian = 0;
-  out.step = static_cast<std::uint32_t>(width) * static_cast<std::uint32_t>(channels) *
-             static_cast<std::uint32_t>(sizeof(T));
-  out.data.resize(pixels.size() * sizeof(T));
-  std::memcpy(out.data.data(), pixels.data(), out.data.size());
-}
 
 void fillInfo(const CameraIntrinsics& k, const std::string& frame, const ros::Time& stamp,
               sensor_msgs::CameraInfo& out) {
@@ -131,7 +116,9 @@ void CameraTopics::updateScene() {
       const SceneObject* found = nullptr;
       for (const SceneObject& s : objects_)
         if (s.name == o.name) found = &s;
-      if (found == nullptr) continue;  // added a moment ago: in the next frame
+      // added a moment ago (or removed and added again, its lattice not yet the node's): in the
+      // next frame
+      if (found == nullptr || found->lattice->size() != o.positions.size()) continue;
       found->embedding->deform(o.positions, o.rotations, vertices_[k]);
       // as ~surface and ~mesh show it: not dipping below a collider the particles rest on
       projectOutOfColliders(vertices_[k], state_.colliders, 0.0);
@@ -145,9 +132,17 @@ void CameraTopics::updateScene() {
 
 void CameraTopics::onTimer(Camera& camera) {
   if (!camera.watched()) return;
+  try {
+    render(camera);
+  } catch (const std::exception& e) {  // a frame lost, never the node
+    ROS_ERROR_THROTTLE(kWarnPeriod, "flsm_node: camera '%s' could not render: %s", camera.spec.name.c_str(), e.what());
+  }
+}
+
+void CameraTopics::render(Camera& camera) {
   updateScene();
-  if (state_.sequence == 0) return;
-  const ros::Time stamp = stampOf_(state_);
+  ros::Time stamp;
+  if (state_.sequence == 0 || !stampOf_(state_, stamp)) return;
   const CameraSpec& spec = camera.spec;
   Eigen::Isometry3d pose;
   try {
@@ -170,28 +165,27 @@ void CameraTopics::publish(Camera& c, const ros::Time& stamp, const RenderedView
   fillInfo(k, spec.frame, stamp, c.info);
   if (c.depth.getNumSubscribers() > 0) {
     if (spec.encoding == CameraSpec::DepthEncoding::Float32Metres) {
-      fillImage(sensor_msgs::image_encodings::TYPE_32FC1, view.depth, 1, spec.frame, stamp, k.width, k.height,
-                c.depthImage);
+      fillImage(sensor_msgs::image_encodings::TYPE_32FC1, view.depth, 1, k.height, k.width, spec.frame, stamp, c.depthImage);
     } else {
       c.millimetres.resize(view.depth.size());
       for (std::size_t p = 0; p < view.depth.size(); ++p) {
         const float z = view.depth[p];
-        c.millimetres[p] = std::isfinite(z) ? static_cast<std::uint16_t>(std::min(kMaxMillimetres, std::round(z * kMillimetres))) : 0;
+        const double mm = std::round(z * kMillimetres);
+        // 0: no reading (REP 118), also for what 16 bits cannot hold
+        c.millimetres[p] = std::isfinite(z) && mm > 0.0 && mm <= kMaxMillimetres ? static_cast<std::uint16_t>(mm) : 0;
       }
-      fillImage(sensor_msgs::image_encodings::TYPE_16UC1, c.millimetres, 1, spec.frame, stamp, k.width,
-                k.height, c.depthImage);
+      fillImage(sensor_msgs::image_encodings::TYPE_16UC1, c.millimetres, 1, k.height, k.width, spec.frame, stamp, c.depthImage);
     }
     c.depth.publish(c.depthImage);
   }
   c.depthInfo.publish(c.info);
   c.rgbInfo.publish(c.info);
   if (c.rgb.getNumSubscribers() > 0) {
-    fillImage(sensor_msgs::image_encodings::RGB8, view.rgb, 3, spec.frame, stamp, k.width, k.height, c.rgbImage);
+    fillImage(sensor_msgs::image_encodings::RGB8, view.rgb, 3, k.height, k.width, spec.frame, stamp, c.rgbImage);
     c.rgb.publish(c.rgbImage);
   }
   if (c.mask.getNumSubscribers() > 0) {
-    fillImage(sensor_msgs::image_encodings::TYPE_16UC1, view.label, 1, spec.frame, stamp, k.width, k.height,
-              c.maskImage);
+    fillImage(sensor_msgs::image_encodings::TYPE_16UC1, view.label, 1, k.height, k.width, spec.frame, stamp, c.maskImage);
     c.mask.publish(c.maskImage);
   }
   if (c.points.getNumSubscribers() > 0) {

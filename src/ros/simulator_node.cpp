@@ -82,8 +82,8 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
     try {
       scene.world->recordContacts(t.collider, true);
     } catch (const std::invalid_argument& e) {
-      throw ParamError("~tactile sensor '" + t.name + "': " + e.what() + " (set ~object_contact false, or "
-                       "no tactile sensor)");
+      throw ParamError("~tactile sensor '" + t.name + "': " + e.what() + " (set ~object_contact and "
+                       "~self_contact false, or no tactile sensor)");
     }
   }
   LoopSettings settings;
@@ -152,13 +152,17 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   loop_->setFrameSource([this](const std::string& frame, Eigen::Isometry3d& T) {
     return attachedFrame(frame, T);
   });
-  loop_->start();
+  // (before the loop starts: a sensor that cannot start leaves no thread running)
   if (!params_.tactile.empty()) tactile_ = std::make_unique<TactileTopics>(pnh_, params_.tactile);
   if (!params_.cameras.empty()) {
     cameras_ = std::make_unique<CameraTopics>(
         pnh_, params_.cameras, params_.frameId, *loop_, objects_, objectsMutex_, tfBuffer_,
-        [this] { startTfListener(); }, [this](const Snapshot& s) { return stampOf(s); });
+        [this] { startTfListener(); }, [this](const Snapshot& s, ros::Time& stamp) {
+          stamp = stampOf(s);
+          return !aheadOfTheClock(stamp);
+        });
   }
+  loop_->start();
   if (params_.clock == NodeParams::Clock::Follow) {
     clockSub_ = stateNh_.subscribe("/clock", kClockQueue, &SimulatorNode::onClock, this);
   }
@@ -256,7 +260,8 @@ void SimulatorNode::publishNewest() {
   // listener warns of a repeat, TF_REPEATED_DATA): a state the timer sends again, when the
   // simulation runs slower than the publish rate, keeps its stamp and sends no tf. With ~clock
   // sim every step sends its tf (onTick).
-  const bool tfDue = params_.clock != NodeParams::Clock::Sim && stamp > lastTfStamp_;
+  // (!=, not >: a followed clock that went back, and the scene with it, sends tf again)
+  const bool tfDue = params_.clock != NodeParams::Clock::Sim && stamp != lastTfStamp_;
   if (tfDue) {
     publisher_->publishTf(s, stamp);
     lastTfStamp_ = stamp;

@@ -4,11 +4,12 @@
 #include "deformable_flsm/runtime/node_params.h"
 
 #include "entry_reader.h"
+#include "image_fill.h"
 
+#include <ros/console.h>
 #include <sensor_msgs/image_encodings.h>
 
 #include <cmath>
-#include <cstring>
 #include <set>
 
 namespace deformable_flsm {
@@ -16,6 +17,7 @@ namespace deformable_flsm {
 namespace {
 
 const std::vector<std::string> kFields = {"name", "collider", "face", "rows", "cols"};
+constexpr double kWarnPeriod = 5.0;  // s between two warnings of the same kind
 
 /// The box collider of id `id` among the node's colliders, or nullptr.
 const Collider* colliderNamed(const NodeParams& params, const std::string& id) {
@@ -32,20 +34,6 @@ int taxels(EntryReader& r, const char* field, int fallback) {
     r.fail(std::string(field) + " is " + std::to_string(v) + ": it must be a whole number of taxels, 1 to " +
            std::to_string(TactileSpec::kMaxTaxels));
   return static_cast<int>(v);
-}
-
-template <class T>
-void fillImage(const std::string& encoding, const std::vector<T>& values, int channels, int rows, int cols,
-               const std::string& frame, const ros::Time& stamp, sensor_msgs::Image& m) {
-  m.header.stamp = stamp;
-  m.header.frame_id = frame;
-  m.height = static_cast<std::uint32_t>(rows);
-  m.width = static_cast<std::uint32_t>(cols);
-  m.encoding = encoding;
-  m.is_bigendian = 0;
-  m.step = static_cast<std::uint32_t>(cols * channels * sizeof(T));
-  m.data.resize(values.size() * sizeof(T));
-  std::memcpy(m.data.data(), values.data(), m.data.size());
 }
 
 }  // namespace
@@ -101,6 +89,11 @@ void TactileTopics::publish(const Snapshot& snapshot, const ros::Time& stamp) {
     if (s.pressure.getNumSubscribers() == 0 && s.shear.getNumSubscribers() == 0) continue;
     const auto collider = snapshot.colliders.find(s.spec.collider);
     if (collider == snapshot.colliders.end()) continue;  // a followed frame not seen yet
+    if (collider->second.shape.type != ColliderType::Box) {  // replaced through ~collider
+      ROS_WARN_THROTTLE(kWarnPeriod, "flsm_node: tactile sensor '%s': collider '%s' is no longer a box: no image",
+                        s.spec.name.c_str(), s.spec.collider.c_str());
+      continue;
+    }
     const auto contacts = snapshot.contacts.find(s.spec.collider);
     tactileImage(s.spec, collider->second, contacts == snapshot.contacts.end() ? kNone : contacts->second, s.image);
     const std::string frame = colliderFrameId(s.spec.collider);

@@ -32,7 +32,7 @@ void addDepthNoise(CameraSpec::Noise noise, std::mt19937& rng, std::vector<float
   if (noise == CameraSpec::Noise::None) return;
   std::normal_distribution<double> unit(0.0, 1.0);
   for (float& z : depth)
-    if (std::isfinite(z)) z = static_cast<float>(z + kinectSigma(z) * unit(rng));
+    if (std::isfinite(z)) z = static_cast<float>(std::max(0.0, z + kinectSigma(z) * unit(rng)));
 }
 
 void validateCamera(const CameraSpec& c, const std::string& label) {
@@ -48,8 +48,9 @@ void validateCamera(const CameraSpec& c, const std::string& label) {
     why << "fx " << k.fx << " and fy " << k.fy << " must be finite focal lengths > 0 (pixels)";
   } else if (!std::isfinite(k.cx) || !std::isfinite(k.cy)) {
     why << "cx and cy must be finite (pixels)";
-  } else if (!(k.near > 0.0) || !(k.far > k.near) || !std::isfinite(k.far)) {
-    why << "near " << k.near << " and far " << k.far << " must satisfy 0 < near < far (m)";
+  } else if (!(k.near > 0.0) || !(k.far > k.near) || !(k.far <= CameraSpec::kMaxFar)) {
+    why << "near " << k.near << " and far " << k.far << " must satisfy 0 < near < far <= "
+        << CameraSpec::kMaxFar << " (m)";
   } else if (!(c.rate > 0.0) || c.rate > CameraSpec::kMaxRate) {
     why << "rate " << c.rate << " must be in (0, " << CameraSpec::kMaxRate << "] Hz";
   } else {

@@ -264,7 +264,11 @@ void SimulationLoop::run() {
     // the loop steps on without sleeping (a sleep of a step after every batch of 4 would run a
     // step of 1.5 shares at 4/7 of the pace, not 2/3). A followed time wakes the loop when it
     // moves; as fast as the machine can is no wait at all.
-    if (mode != LoopTime::Followed && rtf == 0.0) continue;
+    if (mode != LoopTime::Followed && rtf == 0.0) {
+      owed = 0.0;  // as fast as it can owes nothing: a pace set later starts from now
+      last = clock_->now();
+      continue;
+    }
     std::unique_lock<std::mutex> lock(queueMutex_);
     const auto woke = [&] { return stopRequested_ || wakeRequested_ || !queue_.empty() || followMoved_; };
     if (mode == LoopTime::Followed) {
@@ -321,7 +325,9 @@ std::int64_t SimulationLoop::stepsToFollow(double target, double dt) {
     return 0;
   }
   const double now = clockTime();
-  if (target < now - kFollowSlack * dt) {
+  // (a bag's times are ~1.7e9 s, where a double's rounding is ~2e-7 s)
+  const double slack = kFollowSlack * dt + 8.0 * std::numeric_limits<double>::epsilon() * std::abs(now);
+  if (target < now - slack) {
     // The followed time went back (a bag played again, a simulator reset): the scene starts
     // again from rest at the new time, so that no state is stamped before the one before it.
     if (notice_) {

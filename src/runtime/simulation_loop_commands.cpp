@@ -372,6 +372,15 @@ CommandOutcome SimulationLoop::pause(const PauseCommand& c) {
   paused_ = c.pause;
   diag_.paused = paused_;
   if (was && !paused_) resumed_ = true;
+  if (!paused_ && stepAnswer_) {
+    // steps asked for and not all taken: the answer says how far they got
+    CommandOutcome o;
+    o.accepted = true;
+    o.message = "unpaused with " + std::to_string(stepsRequested_) + " of the steps asked for not taken";
+    stepAnswer_->set_value(o);
+    stepAnswer_.reset();
+    stepsRequested_ = 0;
+  }
   if (was == paused_) return accepted(paused_ ? "already paused" : "already running");
   writeSnapshot();  // the same state, now paused or running: readers see it at once
   return accepted(paused_ ? "paused" : "running");
@@ -381,6 +390,10 @@ CommandOutcome SimulationLoop::stepWhilePaused(const StepCommand& c) {
   if (!paused_)
     return reject("not_paused", "a step was asked for while the simulation runs: pause it first "
                                 "(~pause), or start it paused (~start_paused)");
+  if (settings_.time == LoopTime::Followed)
+    return reject("not_paused", "a step was asked for while the simulation follows another clock "
+                                "(~clock follow): that clock paces the steps; step the simulator "
+                                "that serves it, or use ~clock sim for lockstep");
   if (c.steps < 1 || c.steps > CommandLimits::kMaxSteps)
     return reject("invalid_steps", "steps is " + std::to_string(c.steps) + ": it must be 1 to " +
                                        std::to_string(CommandLimits::kMaxSteps));

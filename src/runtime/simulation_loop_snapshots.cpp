@@ -43,6 +43,7 @@ void SimulationLoop::copySummary(Snapshot& out) const {
 void SimulationLoop::copyState(Snapshot& out) const {
   std::lock_guard<std::mutex> lock(snapshotMutex_);
   const Snapshot& s = buffers_[fresh_ ? ready_ : front_];
+  if (out.sequence == s.sequence) return;  // it has this one: no copy under the lock
   out.sequence = s.sequence;
   out.time = s.time;
   out.wallTime = s.wallTime;
@@ -156,7 +157,6 @@ void SimulationLoop::writeSnapshot() {
   Snapshot& s = buffers_[back_];
   s.sequence = ++sequence_;
   s.time = clockTime();
-  s.wallTime = clock_->wallNow();
   diag_.simTime = world_->time() - timeOrigin_;
   diag_.idle = idle_;
   diag_.paused = paused_;
@@ -194,6 +194,7 @@ void SimulationLoop::writeSnapshot() {
     }
   }
 
+  s.wallTime = clock_->wallNow();  // as it is handed out: no reader stamps later before it
   {
     std::lock_guard<std::mutex> lock(snapshotMutex_);
     for (const ObjectSnapshot& o : s.objects) centerOfMass_[o.name] = o.objectFrame.translation();

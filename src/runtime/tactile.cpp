@@ -13,6 +13,10 @@ bool parseFace(const std::string& face, int& axis, int& sign) {
   return true;
 }
 
+int tactileColumnAxis(const TactileSpec& spec) { return (spec.axis + (spec.sign > 0 ? 1 : 2)) % 3; }
+
+int tactileRowAxis(const TactileSpec& spec) { return (spec.axis + (spec.sign > 0 ? 2 : 1)) % 3; }
+
 std::string faceName(int axis, int sign) {
   return std::string(1, sign > 0 ? '+' : '-') + static_cast<char>('x' + axis);
 }
@@ -22,7 +26,7 @@ void tactileImage(const TactileSpec& spec, const Collider& box, const std::vecto
   if (box.shape.type != ColliderType::Box)
     throw std::invalid_argument("tactile sensor '" + spec.name + "': collider '" + spec.collider + "' is a " +
                                 toString(box.shape.type) + ", not a box");
-  const int a = spec.axis, u = (a + 1) % 3, v = (a + 2) % 3;
+  const int a = spec.axis, u = tactileColumnAxis(spec), v = tactileRowAxis(spec);
   const Eigen::Vector3d& h = box.shape.halfExtents;
   out.rows = spec.rows;
   out.cols = spec.cols;

@@ -11,6 +11,7 @@ import unittest
 
 import rospy
 import rostest
+import tf2_ros
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
 
@@ -34,6 +35,8 @@ class FollowTest(unittest.TestCase):
         self.clock_pub = rospy.Publisher('/clock', Clock, queue_size=10)
         rospy.Subscriber('/flsm_node/state', SimulationState, self.on_msg('state'), queue_size=100)
         rospy.Subscriber('/flsm_node/particles', PointCloud2, self.on_msg('particles'), queue_size=100)
+        self.tf = tf2_ros.Buffer()
+        self.listener = tf2_ros.TransformListener(self.tf)
 
     def on_msg(self, topic):
         def record(msg):
@@ -85,6 +88,10 @@ class FollowTest(unittest.TestCase):
             self.assertEqual(len(back), 1, '%s went back %d times: %s' % (topic, len(back), back[:3]))
         after = [s[1] for s in seen[count_before_jump:]]
         self.assertTrue(after and min(after) < last_before_jump, 'the jump back was not followed')
+        # tf goes on after the jump back too (the listener dropped what it had when the clock
+        # went back): the object's frame at a stamp of the new run
+        t = self.tf.lookup_transform('world', 'flsm_object', rospy.Time(0), rospy.Duration(2.0))
+        self.assertLess(t.header.stamp.to_sec(), last_before_jump)
 
 
 if __name__ == '__main__':

@@ -148,6 +148,27 @@ TEST(SimulationLoopTime, AtARealTimeFactorOfZeroItStepsAsFastAsItCanAndNeverRest
       << "a real-time factor of 0 is for a served time only";
 }
 
+TEST(SimulationLoopTime, APaceSetAfterAsFastAsItCanStepsFromThen) {
+  // As fast as it can for a while, then real time: the steps taken fast are no debt, and the
+  // loop goes on at one step per step of the clock.
+  auto clock = std::make_shared<ManualLoopClock>();
+  LoopSettings settings;
+  settings.time = LoopTime::Served;
+  settings.realTimeFactor = 0.0;
+  settings.idleHold = 0.0;
+  TimeRig rig(settings, 0.02, clock);
+  rig.loop->start();
+  ASSERT_TRUE(rig.waitFor([](const Snapshot& s) { return s.diag.steps >= 50; }));
+  const std::uint64_t waits = clock->waits();
+  rig.loop->setRealTimeFactor(1.0);
+  ASSERT_TRUE(clock->awaitWaitBeyond(waits)) << "it never waits on its clock again";
+  const std::uint64_t before = rig.loop->acquire().diag.steps;
+  for (int i = 1; i <= 5; ++i) {
+    advance(*clock, 0.02);
+    EXPECT_EQ(rig.loop->acquire().diag.steps, before + i);
+  }
+}
+
 TEST(SimulationLoopTime, AFollowedTimeIsNeverLedAndAJumpBackResetsTheScene) {
   LoopSettings settings;
   settings.time = LoopTime::Followed;
@@ -173,6 +194,10 @@ TEST(SimulationLoopTime, AFollowedTimeIsNeverLedAndAJumpBackResetsTheScene) {
   ASSERT_TRUE(timeIs(100.5));
   EXPECT_EQ(rig.loop->acquire().diag.steps, 7u);
   EXPECT_EQ(rig.loop->acquire().diag.droppedSteps, 18u);
+  // Paused, it takes no steps on request: the followed clock paces them.
+  ASSERT_TRUE(rig.run(PauseCommand{true}).accepted);
+  EXPECT_FALSE(rig.run(StepCommand{3}).accepted);
+  ASSERT_TRUE(rig.run(PauseCommand{false}).accepted);
   // Back in time (a bag played again): the scene is reset to rest and goes on from there.
   rig.loop->followTime(50.0);
   ASSERT_TRUE(timeIs(50.0));
@@ -222,6 +247,26 @@ TEST(SimulationLoopTime, APausedLoopStepsOnlyWhenAskedAndGoesOnFromThereWhenUnpa
   EXPECT_EQ(rig.loop->acquire().diag.steps, 7u);
   EXPECT_EQ(rig.loop->acquire().diag.droppedSteps, 0u);
   EXPECT_DOUBLE_EQ(rig.loop->clockTime(), 0.14);
+}
+
+TEST(SimulationLoopTime, UnpausingAnswersTheStepsAskedFor) {
+  // Many steps asked for, and an unpause right behind them: the steps' answer comes, whether
+  // they were all taken or the unpause cut them short.
+  LoopSettings settings;
+  settings.time = LoopTime::Served;
+  settings.startPaused = true;
+  settings.idleHold = 0.0;
+  TimeRig rig(settings, 0.02);
+  rig.loop->start();
+  Command step{StepCommand{CommandLimits::kMaxSteps}, std::make_shared<std::promise<CommandOutcome>>()};
+  auto answer = step.outcome->get_future();
+  rig.loop->submit(std::move(step));
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));  // some steps taken
+  ASSERT_TRUE(rig.run(PauseCommand{false}).accepted);
+  ASSERT_EQ(answer.wait_for(std::chrono::seconds(5)), std::future_status::ready);
+  const CommandOutcome o = answer.get();
+  EXPECT_TRUE(o.accepted);
+  EXPECT_NE(o.message.find("not taken"), std::string::npos) << o.message;
 }
 
 TEST(SimulationLoopTime, SteppingOnRequestIsBitIdenticalFromRunToRun) {

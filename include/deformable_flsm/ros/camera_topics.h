@@ -36,8 +36,9 @@ namespace deformable_flsm {
 
 class CameraTopics {
  public:
-  /// The stamp of a state in the node's clock (SimulatorNode::stampOf).
-  using StampOf = std::function<ros::Time(const Snapshot&)>;
+  /// The stamp of a state in the node's clock (SimulatorNode::stampOf); false when the state is
+  /// not to be sent (stamped beyond a followed clock).
+  using StampOf = std::function<bool(const Snapshot&, ros::Time& stamp)>;
 
   /// @param[in] pnh        the node's private handle: topics under ~<camera>/
   /// @param[in] cameras    the validated ~cameras
@@ -58,6 +59,7 @@ class CameraTopics {
  private:
   struct Camera;
   void onTimer(Camera& camera);
+  void render(Camera& camera);
   /// The newest state into state_, its render meshes into the renderer; false when it cannot be
   /// (nothing to render yet).
   void updateScene();

@@ -38,6 +38,7 @@ struct CameraSpec {
 
   static constexpr int kMaxPixels = 4096;      ///< width and height at most
   static constexpr double kMaxRate = 100.0;     ///< Hz
+  static constexpr double kMaxFar = 1000.0;     ///< m
 };
 
 /// The optical frame (z forward, x right, y down) of a camera at `eye` looking at `at`, with

@@ -237,11 +237,12 @@ class SimulationLoop {
   const Snapshot& acquire();
   /// Copies the newest snapshot's small part (sequence, each object's name, version, drags,
   /// frame and figures, the colliders, the scene's figures; not the particles nor the wrenches)
-  /// into `out`, from any one thread beside the reader of acquire(): ~state goes out on a
-  /// thread of its own, never held up by the meshes.
+  /// into `out`, from any thread beside the reader of acquire(): ~state goes out on a thread of
+  /// its own, never held up by the meshes.
   void copySummary(Snapshot& out) const;
   /// Copies the newest snapshot whole (particles and rotations too, not the wrenches) into `out`,
-  /// from any one thread beside the readers above: the cameras render on a thread of their own.
+  /// from any thread: the cameras render on a thread of their own. Nothing is copied when `out`
+  /// already holds it (its sequence).
   void copyState(Snapshot& out) const;
   /// Why the last reset of a blown-up state happened (empty before the first), from any thread.
   std::string lastResetCause() const;

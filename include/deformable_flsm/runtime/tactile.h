@@ -22,8 +22,9 @@ struct TactileSpec {
   /// the face: its outward normal is +/- the collider frame's axis `axis` (0 x, 1 y, 2 z)
   int axis = 2;
   int sign = 1;
-  /// taxels along the face's v axis (rows) and u axis (columns): u is the axis after `axis`
-  /// (x -> y -> z -> x), v the one after u
+  /// taxels along the face's v axis (rows) and u axis (columns), (u, v, outward normal)
+  /// right-handed: for a + face u is the axis after `axis` (x -> y -> z -> x) and v the one after
+  /// u, for a - face the two swapped (tactileColumnAxis(), tactileRowAxis())
   int rows = 16, cols = 16;
 
   static constexpr int kMaxTaxels = 1024;  ///< rows and columns at most
@@ -33,6 +34,9 @@ struct TactileSpec {
 bool parseFace(const std::string& face, int& axis, int& sign);
 /// "+x" ... "-z".
 std::string faceName(int axis, int sign);
+/// The collider-frame axis a sensor's columns run along (u), and its rows (v).
+int tactileColumnAxis(const TactileSpec& spec);
+int tactileRowAxis(const TactileSpec& spec);
 
 /// One frame of a tactile sensor, row-major rows x cols.
 struct TactileImage {
@@ -44,7 +48,8 @@ struct TactileImage {
   /// N/m^2: the shear along the face's u and v axes, two values a taxel
   std::vector<float> shear;
   /// N: what fell on the face in all (the normal force, positive into the face, and the shear
-  /// along u and v), and what of the collider's recorded force fell elsewhere (other faces)
+  /// along u and v), and what of the collider's recorded force fell elsewhere (the box's other
+  /// half; simulation frame)
   double normalForce = 0.0;
   Eigen::Vector2d shearForce = Eigen::Vector2d::Zero();
   Eigen::Vector3d elsewhere = Eigen::Vector3d::Zero();
