@@ -3,6 +3,7 @@
 #include "entry_reader.h"
 
 #include <cmath>
+#include <limits>
 #include <set>
 #include <string>
 
@@ -14,12 +15,6 @@ const std::vector<std::string> kFields = {"name",  "frame", "position", "look_at
                                           "height", "horizontal_fov", "fx", "fy", "cx", "cy",
                                           "near",  "far",   "rate",  "encoding", "noise", "seed"};
 constexpr double kDefaultFov = 60.0 * 3.14159265358979323846 / 180.0;
-
-int wholeNumber(EntryReader& r, const char* field, int fallback) {
-  const double v = r.number(field, fallback);
-  if (v != std::floor(v) || std::abs(v) > 1e9) r.fail(std::string(field) + " is " + std::to_string(v) + ": it must be a whole number");
-  return static_cast<int>(v);
-}
 
 CameraSpec parseEntry(XmlRpc::XmlRpcValue& entry, int index) {
   EntryReader r(entry, "~cameras", index, kFields);
@@ -43,8 +38,8 @@ CameraSpec parseEntry(XmlRpc::XmlRpcValue& entry, int index) {
     c.pose = opticalLookAt(eye, at);
   }
   CameraIntrinsics& k = c.intrinsics;
-  k.width = wholeNumber(r, "width", k.width);
-  k.height = wholeNumber(r, "height", k.height);
+  k.width = r.integer("width", k.width, 1, CameraSpec::kMaxPixels);
+  k.height = r.integer("height", k.height, 1, CameraSpec::kMaxPixels);
   if (r.has("horizontal_fov") && r.has("fx"))
     r.fail("horizontal_fov and fx are both set: give one (the field of view, or fx, fy, cx, cy)");
   if (!r.has("fx") && (r.has("fy") || r.has("cx") || r.has("cy")))
@@ -73,9 +68,7 @@ CameraSpec parseEntry(XmlRpc::XmlRpcValue& entry, int index) {
     c.noise = CameraSpec::Noise::Kinect;
   else
     r.fail("noise is '" + noise + "': it must be 'none' or 'kinect'");
-  const int seed = wholeNumber(r, "seed", 0);
-  if (seed < 0) r.fail("seed is " + std::to_string(seed) + ": it must be >= 0");
-  c.seed = static_cast<std::uint32_t>(seed);
+  c.seed = static_cast<std::uint32_t>(r.integer("seed", 0, 0, std::numeric_limits<int>::max()));
   validateCamera(c, "~cameras entry " + std::to_string(index) + " ('" + c.name + "')");
   return c;
 }

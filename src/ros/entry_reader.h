@@ -53,6 +53,15 @@ class EntryReader {
     return out;
   }
 
+  /// A whole number in [lo, hi] (YAML's 3 or 3.0), else the entry fails saying so.
+  int integer(const char* field, int fallback, int lo, int hi) {
+    const double v = number(field, fallback);
+    if (v != std::floor(v) || v < lo || v > hi)
+      fail(std::string(field) + " is " + std::to_string(v) + ": it must be a whole number from " +
+           std::to_string(lo) + " to " + std::to_string(hi));
+    return static_cast<int>(v);
+  }
+
   Eigen::VectorXd numbers(const char* field, int count, const Eigen::VectorXd& fallback) {
     if (!has(field)) return fallback;
     XmlRpc::XmlRpcValue& v = entry_[field];

@@ -28,14 +28,6 @@ const Collider* colliderNamed(const NodeParams& params, const std::string& id) {
   return nullptr;
 }
 
-int taxels(EntryReader& r, const char* field, int fallback) {
-  const double v = r.number(field, fallback);
-  if (v != std::floor(v) || v < 1 || v > TactileSpec::kMaxTaxels)
-    r.fail(std::string(field) + " is " + std::to_string(v) + ": it must be a whole number of taxels, 1 to " +
-           std::to_string(TactileSpec::kMaxTaxels));
-  return static_cast<int>(v);
-}
-
 }  // namespace
 
 std::vector<TactileSpec> parseTactileList(XmlRpc::XmlRpcValue& list, const NodeParams& params) {
@@ -65,8 +57,8 @@ std::vector<TactileSpec> parseTactileList(XmlRpc::XmlRpcValue& list, const NodeP
     const std::string face = r.string("face", "");
     if (!parseFace(face, t.axis, t.sign))
       r.fail("face is '" + face + "': it must be '+x', '-x', '+y', '-y', '+z' or '-z' (of the collider's frame)");
-    t.rows = taxels(r, "rows", t.rows);
-    t.cols = taxels(r, "cols", t.cols);
+    t.rows = r.integer("rows", t.rows, 1, TactileSpec::kMaxTaxels);
+    t.cols = r.integer("cols", t.cols, 1, TactileSpec::kMaxTaxels);
     out.push_back(t);
   }
   return out;
