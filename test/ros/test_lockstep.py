@@ -50,6 +50,12 @@ class Run(object):
         self.state_sub = rospy.Subscriber('/%s/state' % NODE, SimulationState,
                                           lambda m: self.states.append(m), queue_size=100)
         rospy.wait_for_service('/%s/step' % NODE, timeout=TIMEOUT_S)
+        # connected before the first step: the node sends a topic nobody subscribes to no message,
+        # and the paused time brings no second chance
+        deadline = time.monotonic() + TIMEOUT_S
+        while (self.sub.get_num_connections() == 0 or self.state_sub.get_num_connections() == 0) \
+                and time.monotonic() < deadline:
+            time.sleep(0.01)
         self.step = rospy.ServiceProxy('/%s/step' % NODE, Step)
         self.pause = rospy.ServiceProxy('/%s/pause' % NODE, Empty)
         self.unpause = rospy.ServiceProxy('/%s/unpause' % NODE, Empty)
