@@ -44,7 +44,7 @@ std::vector<TactileSpec> parseTactileList(XmlRpc::XmlRpcValue& list, const NodeP
     t.name = r.string("name", "");
     r.setId(t.name);
     r.checkFields();
-    if (t.name.empty() || t.name.find_first_of(" /~") != std::string::npos)
+    if (!isTopicLevel(t.name))
       r.fail("name '" + t.name + "' must be a non-empty topic name without '/', '~' or spaces");
     if (!names.insert(t.name).second) r.fail("name is taken by an earlier sensor: each needs its own");
     t.collider = r.string("collider", "");

@@ -38,7 +38,7 @@ void addDepthNoise(CameraSpec::Noise noise, std::mt19937& rng, std::vector<float
 void validateCamera(const CameraSpec& c, const std::string& label) {
   const CameraIntrinsics& k = c.intrinsics;
   std::ostringstream why;
-  if (c.name.empty() || c.name.find_first_of(" /~") != std::string::npos) {
+  if (!isTopicLevel(c.name)) {
     why << "name '" << c.name << "' must be a non-empty topic name without '/', '~' or spaces";
   } else if (c.frame.empty()) {
     why << "frame is empty: give the tf frame of the camera's optical frame (z forward)";

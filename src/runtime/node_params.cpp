@@ -179,6 +179,10 @@ bool parseMaterial(const std::string& name, NodeParams::Material& material) {
   return true;
 }
 
+bool isTopicLevel(const std::string& name) {
+  return !name.empty() && name.find_first_of(" /~") == std::string::npos;
+}
+
 const char* toString(NodeParams::Clock clock) {
   switch (clock) {
     case NodeParams::Clock::Wall: return "wall";

@@ -173,6 +173,10 @@ struct NodeParams {
 const char* toString(NodeParams::Material material);
 /// Parses "youngs" / "classic"; false for anything else.
 bool parseMaterial(const std::string& name, NodeParams::Material& material);
+/// A name that can stand as one level of a topic's name (a camera's, a tactile pad's): not
+/// empty, no '/', '~' or space.
+bool isTopicLevel(const std::string& name);
+
 /// "wall", "sim" or "follow".
 const char* toString(NodeParams::Clock clock);
 /// Parses "wall" / "sim" / "follow"; false for anything else.
