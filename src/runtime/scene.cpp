@@ -350,7 +350,7 @@ std::string describeScene(const SceneInfo& info, const NodeParams& params) {
                 info.particles, info.regionHalfWidth, info.regionHalfWidth * info.spacing,
                 params.regionRadius > 0.0
                     ? (info.regionAskedCells > 0 ? " from ~region_radius, clamped" : " from ~region_radius")
-                    : "",
+                    : params.regionHalfWidth > 0 ? " from ~region_half_width" : " (the default)",
                 info.objectSize,
                 info.totalMass);
   out << buf << "\n";

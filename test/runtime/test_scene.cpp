@@ -30,7 +30,13 @@ TEST(BuildScene, ResolutionGivesTheExactLattice) {
   EXPECT_EQ(s.info.latticeFrom, "resolution");
   EXPECT_EQ(s.info.particles, 1000u);
   EXPECT_DOUBLE_EQ(s.info.spacing, 0.1);
-  EXPECT_EQ(s.info.regionHalfWidth, 2);  // neither radius nor half-width: the default
+  // neither radius nor half-width: the narrowest regions, right under a finger
+  EXPECT_EQ(s.info.regionHalfWidth, 1);
+  EXPECT_NE(describeScene(s.info, cubeParams()).find("w = 1 cells (0.1 m) (the default)"), std::string::npos)
+      << describeScene(s.info, cubeParams());
+  NodeParams classic = cubeParams();
+  classic.material = NodeParams::Material::Classic;
+  EXPECT_EQ(classic.resolveRegionHalfWidth(0.1), 2);  // alpha per sub-step: FastLSM's own default
   EXPECT_EQ(s.solver->lattice().size(), 1000u);
   EXPECT_GT(s.info.stepSeconds, 0.0);
   EXPECT_GT(s.info.nsPerParticleSubstep, 0.0);
@@ -123,7 +129,8 @@ TEST(BuildScene, RegionsWiderThanTheThinnestSectionWarnOrAreNarrowed) {
 }
 
 TEST(BuildScene, RegionsThatFitTheSectionDoNotWarn) {
-  NodeParams p = cubeParams();  // 10 cells across, w = 2
+  NodeParams p = cubeParams();  // 10 cells across
+  p.regionHalfWidth = 2;
   p.solver.youngsModulus = 14000.0;
   p.regionFromSection = true;
   const Scene s = buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 0);

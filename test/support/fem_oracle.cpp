@@ -281,7 +281,11 @@ FemSolution FemOracle::solveStatic(const Eigen::Vector3d& bodyAcceleration) cons
     for (std::size_t i = 0; i < f.freeDofs.size(); ++i) u[f.freeDofs[i]] = uf[static_cast<Eigen::Index>(i)];
   }
   FemSolution out;
-  out.strainEnergy = 0.5 * u.dot(f.K * u);
+  const Eigen::VectorXd Ku = f.K * u;
+  out.strainEnergy = 0.5 * u.dot(Ku);
+  out.nodeReactions.assign(nodes_.size(), Eigen::Vector3d::Zero());
+  for (std::size_t d = 0; d < dofs; ++d)
+    if (prescribed_[d]) out.nodeReactions[d / 3][static_cast<Eigen::Index>(d % 3)] = Ku[static_cast<Eigen::Index>(d)] - load[static_cast<Eigen::Index>(d)];
   out.nodeDisplacements.resize(nodes_.size());
   for (std::size_t n = 0; n < nodes_.size(); ++n) out.nodeDisplacements[n] = u.segment<3>(3 * static_cast<Eigen::Index>(n));
   out.cellDisplacements.resize(cellCentreNodes_.size());
@@ -348,6 +352,22 @@ double uniaxialLateralStrain(double axialStrain, double poissonsRatio) { return 
 double cantileverFirstBendingFrequency(double length, double t, double youngsModulus, double density) {
   constexpr double kBeta1 = 1.8751040687119611;  // first root of cos(b) cosh(b) = -1
   return kBeta1 * kBeta1 / (length * length) * std::sqrt(youngsModulus * t * t / (12.0 * density));
+}
+
+double hertzSphereForce(double radius, double depth, double youngsModulus, double poissonsRatio) {
+  return 4.0 / 3.0 * youngsModulus / (1.0 - poissonsRatio * poissonsRatio) * std::sqrt(radius) * std::pow(depth, 1.5);
+}
+
+double hertzSphereOnBondedLayerForce(double radius, double depth, double thickness, double youngsModulus,
+                                     double poissonsRatio) {
+  const double nu = poissonsRatio, pi = 3.14159265358979323846;
+  const double a0 = -(1.2876 - 1.4678 * nu + 1.3442 * nu * nu) / (1.0 - nu);
+  const double b0 = (0.6387 - 1.0277 * nu + 1.5164 * nu * nu) / (1.0 - nu);
+  const double chi = std::sqrt(radius * depth) / thickness;
+  const double series = 1.0 - 2.0 * a0 / pi * chi + 4.0 * a0 * a0 / (pi * pi) * chi * chi -
+                        8.0 / std::pow(pi, 3) * (a0 * a0 * a0 + 4.0 * pi * pi / 15.0 * b0) * std::pow(chi, 3) +
+                        -16.0 * a0 / std::pow(pi, 4) * (a0 * a0 * a0 + 3.0 * pi * pi / 5.0 * b0) * std::pow(chi, 4);
+  return hertzSphereForce(radius, depth, youngsModulus, poissonsRatio) * series;
 }
 
 }  // namespace analytic

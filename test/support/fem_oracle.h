@@ -59,6 +59,10 @@ struct FemSolution {
   /// interpolation of the element field there (for subdivision 1, the mean of the cell's 8
   /// corner displacements)
   std::vector<Eigen::Vector3d> cellDisplacements;
+  /// #N force (N) the prescribed displacements and clamps exert on each node, K u - f, in the
+  /// components they hold (zero in the free ones): their sum over a punch's nodes is the force
+  /// the punch applies to the body (the body pushes the punch with its opposite)
+  std::vector<Eigen::Vector3d> nodeReactions;
   /// Strain energy 1/2 u^T K u (J)
   double strainEnergy = 0.0;
 };
@@ -154,6 +158,18 @@ double uniaxialLateralStrain(double axialStrain, double poissonsRatio);
 /// and section height t along the vibration: omega_1 = (1.8751)^2 sqrt(E I / (rho A L^4)),
 /// I / A = t^2 / 12.
 double cantileverFirstBendingFrequency(double length, double t, double youngsModulus, double density);
+/// Force (N) of a rigid frictionless sphere of radius R pressed to depth d into an elastic
+/// half-space (Hertz): 4/3 E / (1 - nu^2) sqrt(R) d^1.5; contact radius sqrt(R d).
+double hertzSphereForce(double radius, double depth, double youngsModulus, double poissonsRatio);
+/// The same sphere pressed into a layer of thickness t bonded to a rigid base (laterally
+/// unbounded): Hertz's force times the series of Dimitriadis et al. 2002 (Biophys. J. 82,
+/// eq. 12) in chi = sqrt(R d) / t, 1 + c1 chi + c2 chi^2 + c3 chi^3 + c4 chi^4 with coefficients
+/// from alpha0 = -(1.2876 - 1.4678 nu + 1.3442 nu^2) / (1 - nu) and
+/// beta0 = (0.6387 - 1.0277 nu + 1.5164 nu^2) / (1 - nu) (at nu = 0.5: 1 + 1.133 chi +
+/// 1.283 chi^2 + 0.769 chi^3 + 0.0975 chi^4, as published). At nu = 0 a layer 10 contact radii
+/// thick carries 8.9 % more than the half-space.
+double hertzSphereOnBondedLayerForce(double radius, double depth, double thickness, double youngsModulus,
+                                     double poissonsRatio);
 
 }  // namespace analytic
 

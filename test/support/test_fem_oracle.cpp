@@ -157,3 +157,39 @@ TEST(FemOracle, RefusesBadInputWithAMessage) {
     EXPECT_NE(std::string(e.what()).find("rigid motion"), std::string::npos) << e.what();
   }
 }
+
+// A bar compressed by a prescribed displacement of its end face, free sides, nu = 0: uniaxial
+// stress, so the end face's reactions sum to E A eps exactly, and to 2 U / d (Clapeyron).
+TEST(FemOracle, ReactionsOfAPrescribedFaceAreTheForceItTakes) {
+  const double dx = 0.1, E = 1e5, d = 1e-3;
+  FemOracle fem(box(6, 2, 2, dx), FemMaterial{E, 0.0, 1000.0}, 1);
+  // the x = 0 face held along x only (and one node fully, no rigid motion), the far face pushed
+  fem.prescribeInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(1e-9, kBig, kBig), 0, 0.0);
+  fem.prescribeInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(1e-9, 1e-9, 1e-9), 1, 0.0);
+  fem.prescribeInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(1e-9, 1e-9, 1e-9), 2, 0.0);
+  fem.prescribeInBox(Eigen::Vector3d::Constant(-kBig), Eigen::Vector3d(1e-9, kBig, 1e-9), 2, 0.0);
+  fem.prescribeInBox(Eigen::Vector3d(0.6 - 1e-9, -kBig, -kBig), Eigen::Vector3d::Constant(kBig), 0, -d);
+  const FemSolution u = fem.solveStatic(Eigen::Vector3d::Zero());
+  double far = 0.0, near = 0.0;
+  for (std::size_t n = 0; n < fem.nodePositions().size(); ++n)
+    (fem.nodePositions()[n].x() > 0.3 ? far : near) += u.nodeReactions[n].x();
+  const double exact = E * (0.2 * 0.2) * d / 0.6;
+  EXPECT_NEAR(-far, exact, 1e-6 * exact);
+  EXPECT_NEAR(near, -far, 1e-9 * exact);  // the support takes it back
+  EXPECT_NEAR(2.0 * u.strainEnergy / d, -far, 1e-6 * exact);
+}
+
+// Hertz: 4/3 E* sqrt(R) d^1.5; on a bonded layer the published series at nu = 0.5 (Dimitriadis
+// et al. 2002: 1 + 1.133 chi + 1.283 chi^2 + 0.769 chi^3 + 0.0975 chi^4) and the half-space as
+// the layer grows thick.
+TEST(FemOracle, HertzOnAHalfSpaceAndOnABondedLayer) {
+  const double R = 0.02, d = 0.002, E = 2e4;
+  EXPECT_NEAR(analytic::hertzSphereForce(R, d, E, 0.0), 4.0 / 3.0 * E * std::sqrt(R) * std::pow(d, 1.5), 1e-12);
+  EXPECT_NEAR(analytic::hertzSphereForce(R, d, E, 0.3) / analytic::hertzSphereForce(R, d, E, 0.0), 1.0 / 0.91, 1e-12);
+  const double chi = 0.4, t = std::sqrt(R * d) / chi;
+  const double published = 1 + 1.133 * chi + 1.283 * chi * chi + 0.769 * std::pow(chi, 3) + 0.0975 * std::pow(chi, 4);
+  EXPECT_NEAR(analytic::hertzSphereOnBondedLayerForce(R, d, t, E, 0.499999) / analytic::hertzSphereForce(R, d, E, 0.499999),
+              published, 2e-3);
+  EXPECT_NEAR(analytic::hertzSphereOnBondedLayerForce(R, d, 1e3, E, 0.0) / analytic::hertzSphereForce(R, d, E, 0.0), 1.0,
+              1e-4);
+}
