@@ -7,6 +7,13 @@
 //  - a stubby cantilever (L/t = 2): tip deflection;
 //  - a free bar pulled at both ends (uniaxial stress): axial strain against sigma / E and lateral
 //    strain against -nu eps.
+// Then the local cases (support/indentation.h), what a finger meets:
+//  - a frictionless flat punch 5 cells wide pressed 2 mm into a 5 cm cube of 13 cells held by
+//    its base: force against the oracle's on the same 5 x 5 cells;
+//  - a frictionless sphere of radius 2 cm pressed 2 mm into a block 21 x 21 x 12 cells of 2.5 mm:
+//    force against Hertz on a layer bonded to its base (Dimitriadis et al. 2002),
+// at 20 kPa, w = 1 to 3, the explicit step at 120 sub-steps of 1/30 s (not capped) and the
+// implicit step at 4 (--local-only prints only these).
 // Loads are small (deflections ~1 % of the length), where linear elasticity is the reference.
 // A benchmark: it prints figures and never fails.
 //
@@ -23,13 +30,14 @@
 // case the Young's modulus E (Pa) instead of the one that keeps the explicit step under its cap.
 //
 //   bench_material [--quick] [--nu NU] [--substeps N] [--across N] [--from-section]
-//                  [--integrator explicit|implicit] [--modulus E]
+//                  [--integrator explicit|implicit] [--modulus E] [--local-only]
 
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/section.h"
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/voxelizer.h"
 #include "support/fem_oracle.h"
+#include "support/indentation.h"
 
 #include <cmath>
 #include <cstdio>
@@ -279,8 +287,46 @@ std::pair<Row, Row> stretch(double t, int across, const Setting& s) {
 
 }  // namespace
 
+namespace {
+
+/// The local cases (see the top of this file), one row per w and integrator.
+void printLocalCases(const std::vector<double>& nus) {
+  namespace ind = indentation;
+  constexpr double kLocalModulus = 20000.0;
+  std::printf("\nlocal cases: E %.0f Pa, frictionless indenters lowered over 0.5 s, held 1.5 s (force, N)\n",
+              kLocalModulus);
+  std::printf("%-12s %3s %2s %3s %5s %9s %12s %12s %8s\n", "case", "n", "w", "sub", "nu", "step", "lattice",
+              "oracle", "ratio");
+  const Voxelization cube = box(13, 13, 13, 0.05 / 13, Eigen::Vector3d(-0.025, -0.025, 0.0));
+  const Voxelization slab = box(21, 21, 12, 0.0025, Eigen::Vector3d(-0.02625, -0.02625, 0.0));
+  const double depth = 0.002, R = 0.02;
+  for (double nu : nus) {
+    const double punchOracle = ind::femPunch(cube, 5, depth, FemMaterial{kLocalModulus, nu, kDensity});
+    const double hertz = analytic::hertzSphereOnBondedLayerForce(R, depth, 11.5 * 0.0025, kLocalModulus, nu);
+    for (int w = 1; w <= 3; ++w)
+      for (Integrator integrator : {Integrator::Explicit, Integrator::Implicit}) {
+        ind::Press how;
+        how.integrator = integrator;
+        how.substeps = integrator == Integrator::Explicit ? 120 : 4;
+        how.w = w;
+        how.nu = nu;
+        how.youngsModulus = kLocalModulus;
+        const ind::PressResult punch = ind::press(cube, ind::punch(5, cube.spacing), ind::kPunchBottom, depth, how);
+        const ind::PressResult sphere = ind::press(slab, ind::sphere(R), R, depth, how);
+        std::printf("%-12s %3d %2d %3d %5.2f %9s %12.4f %12.4f %8.3f%s\n", "punch 5x5", 13, w, how.substeps, nu,
+                    toString(integrator), punch.force, punchOracle, punch.force / punchOracle,
+                    punch.saturated ? " capped" : "");
+        std::printf("%-12s %3d %2d %3d %5.2f %9s %12.4f %12.4f %8.3f%s\n", "sphere 2 mm", 21, w, how.substeps, nu,
+                    toString(integrator), sphere.force, hertz, sphere.force / hertz,
+                    sphere.saturated ? " capped" : "");
+      }
+  }
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
-  bool quick = false, implicit = false;
+  bool quick = false, implicit = false, localOnly = false;
   int onlySubsteps = 0, onlyAcross = 0;
   std::vector<double> nus = {0.0, 0.3};
   for (int a = 1; a < argc; ++a) {
@@ -292,6 +338,11 @@ int main(int argc, char** argv) {
     if (std::strcmp(argv[a], "--across") == 0 && a + 1 < argc) onlyAcross = std::atoi(argv[++a]);
     if (std::strcmp(argv[a], "--integrator") == 0 && a + 1 < argc) implicit = parseIntegrator(argv[++a]) == Integrator::Implicit;
     if (std::strcmp(argv[a], "--modulus") == 0 && a + 1 < argc) gModulus = std::atof(argv[++a]);
+    if (std::strcmp(argv[a], "--local-only") == 0) localOnly = true;
+  }
+  if (localOnly) {
+    printLocalCases(nus);
+    return 0;
   }
   // each setting, and with --integrator implicit the same at implicitSubsteps with the implicit step
   const int implicitSubsteps = onlySubsteps > 0 ? onlySubsteps : 1;
@@ -338,5 +389,6 @@ int main(int argc, char** argv) {
         }
       }
   }
+  if (onlyAcross == 0) printLocalCases(nus);
   return 0;
 }

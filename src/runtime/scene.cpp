@@ -414,12 +414,12 @@ std::string describeScene(const SceneInfo& info, const NodeParams& params) {
 std::string saturationWarning(const SceneInfo& info, const NodeParams& params) {
   if (info.substepsForModulus == 0) return "";
   const SolverParams& s = params.solver;
-  char buf[512];
+  char buf[768];
   std::snprintf(buf, sizeof buf,
                 "~youngs_modulus %.4g Pa asks for alpha %.3g per sub-step, more than the %.3g "
                 "the solver allows under ~stiffness %.3g: the material is %.3g times softer "
                 "than asked because the sub-step (%.3g s) is too long. ~substeps %d (instead of %d) "
-                "would fix it.",
+                "would fix it, or ~integrator implicit (the modulus as asked at any sub-step).",
                 s.youngsModulus, info.requestedAlpha, info.alpha, s.stiffness,
                 info.requestedAlpha / info.alpha, s.substepLength(), info.substepsForModulus,
                 s.substeps);

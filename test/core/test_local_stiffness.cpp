@@ -5,6 +5,7 @@
 #include "deformable_flsm/core/solver.h"
 #include "fixtures.h"
 #include "support/fem_oracle.h"
+#include "support/indentation.h"
 
 #include <gtest/gtest.h>
 
@@ -12,30 +13,15 @@
 #include <cmath>
 #include <cstdio>
 
-using deformable_flsm::Collider;
-using deformable_flsm::ColliderType;
 using deformable_flsm::FemMaterial;
-using deformable_flsm::FemOracle;
-using deformable_flsm::FemSolution;
 using deformable_flsm::Integrator;
-using deformable_flsm::Lattice;
-using deformable_flsm::Solver;
-using deformable_flsm::SolverParams;
 using deformable_flsm::Voxelization;
 namespace analytic = deformable_flsm::analytic;
 
 namespace {
 
-constexpr double kDensity = 1000.0;
-constexpr double kStep = 1.0 / 30.0;
+namespace ind = deformable_flsm::indentation;
 constexpr double kModulus = 20000.0;  // soft enough for the explicit step at 60-120 sub-steps
-
-/// Height (m) of a block's top face (its base on z = 0).
-double topOf(const Voxelization& vox) {
-  int top = 0;
-  for (const Eigen::Vector3i& c : vox.cells) top = std::max(top, c.z() + 1);
-  return top * vox.spacing;
-}
 
 /// A block of nx x ny x nz cells of spacing dx, its base on z = 0, centred on the z axis.
 Voxelization block(int nx, int ny, int nz, double dx) {
@@ -44,77 +30,18 @@ Voxelization block(int nx, int ny, int nz, double dx) {
   return v;
 }
 
-struct Press {
-  Integrator integrator = Integrator::Implicit;
-  int substeps = 4;
-  int w = 1;
-  double nu = 0.0;
-};
-
-/// The block held by its bottom layer of particles, gravity off, an indenter (frictionless,
-/// the collider `shape` with its lowest point at the block's top centre at rest, offset by
-/// `bottom` below the frame origin) lowered by `depth` over 0.5 s and held 1.5 s. The indenter's
-/// force (N, upwards) once settled.
-double press(const Voxelization& vox, const Collider& shape, double bottom, double depth, const Press& how,
-             bool* saturated = nullptr) {
-  SolverParams p;
-  p.density = kDensity;
+ind::Press how(Integrator integrator, int substeps, int w, double nu) {
+  ind::Press p;
+  p.integrator = integrator;
+  p.substeps = substeps;
+  p.w = w;
+  p.nu = nu;
   p.youngsModulus = kModulus;
-  p.poissonsRatio = how.nu;
-  p.regionHalfWidth = how.w;
-  p.timeStep = kStep;
-  p.substeps = how.substeps;
-  p.integrator = how.integrator;
-  p.gravity.setZero();
-  Solver s(std::make_shared<const Lattice>(vox, kDensity, how.w), p);
-  s.pinBox(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d(1.0, 1.0, 0.6 * vox.spacing), true);
-  const double top = topOf(vox);
-  Collider c = shape;
-  c.staticFriction = c.kineticFriction = 0.0;
-  c.pose.translation() = Eigen::Vector3d(0, 0, top + bottom);
-  s.setCollider("indenter", c);
-  const int pressSteps = static_cast<int>(std::lround(0.5 / kStep)), holdSteps = static_cast<int>(std::lround(1.5 / kStep));
-  for (int i = 0; i < pressSteps + holdSteps; ++i) {
-    const bool moving = i < pressSteps;
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.translation() = Eigen::Vector3d(0, 0, top + bottom - depth * std::min(1.0, double(i) / pressSteps));
-    s.moveCollider("indenter", pose, Eigen::Vector3d(0, 0, moving ? -depth / 0.5 : 0.0), Eigen::Vector3d::Zero());
-    s.step();
-  }
-  if (saturated) *saturated = s.stiffnessSaturated();
-  return s.contactWrench("indenter").force.z();
+  return p;
 }
 
-/// A flat square punch k cells wide (a little less, so that exactly k x k particles meet it),
-/// centred over the middle cell of a block with an odd number of cells across.
-Collider punch(int k, double dx) {
-  Collider c;
-  c.shape.type = ColliderType::Box;
-  c.shape.halfExtents = Eigen::Vector3d(0.5 * (k - 0.4) * dx, 0.5 * (k - 0.4) * dx, 0.01);
-  return c;
-}
-
-/// The oracle's punch: the same block, its nodes held up to the centres of the pinned layer, the
-/// top nodes over the k x k cells the punch meets lowered by `depth` (frictionless: z only),
-/// one element per cell (two per edge: 3 % less at 13 cells across and nu = 0, but minutes of
-/// factorization). The punch's force (N).
 double femPunch(const Voxelization& vox, int k, double depth, double nu) {
-  FemOracle fem(vox, FemMaterial{kModulus, nu, kDensity}, 1);
-  const double dx = vox.spacing, top = topOf(vox), half = 0.5 * k * dx + 1e-9;
-  fem.fixNodesInBox(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d(1.0, 1.0, 0.5 * dx + 1e-9));
-  fem.prescribeInBox(Eigen::Vector3d(-half, -half, top - 1e-9), Eigen::Vector3d(half, half, top + 1e-9), 2, -depth);
-  const FemSolution u = fem.solveStatic(Eigen::Vector3d::Zero());
-  double force = 0.0;
-  for (std::size_t n = 0; n < u.nodeReactions.size(); ++n)
-    if (fem.nodePositions()[n].z() > top - 1e-9) force -= u.nodeReactions[n].z();
-  return force;
-}
-
-Collider sphere(double radius) {
-  Collider c;
-  c.shape.type = ColliderType::Sphere;
-  c.shape.radius = radius;
-  return c;
+  return ind::femPunch(vox, k, depth, FemMaterial{kModulus, nu, 1000.0});
 }
 
 }  // namespace
@@ -129,10 +56,12 @@ TEST(LocalStiffness, FlatPunchMeetsTheFemOracleWithBothIntegrators) {
   const Voxelization vox = block(13, 13, 13, dx);
   for (double nu : {0.0, 0.3}) {
     const double oracle = femPunch(vox, 5, depth, nu);
-    bool saturated = true;
-    const double implicitForce = press(vox, punch(5, dx), 0.01, depth, {Integrator::Implicit, 4, 1, nu});
-    const double explicitForce =
-        press(vox, punch(5, dx), 0.01, depth, {Integrator::Explicit, nu > 0 ? 120 : 60, 1, nu}, &saturated);
+    const double implicitForce =
+        ind::press(vox, ind::punch(5, dx), ind::kPunchBottom, depth, how(Integrator::Implicit, 4, 1, nu)).force;
+    const ind::PressResult e =
+        ind::press(vox, ind::punch(5, dx), ind::kPunchBottom, depth, how(Integrator::Explicit, nu > 0 ? 120 : 60, 1, nu));
+    const double explicitForce = e.force;
+    const bool saturated = e.saturated;
     std::printf("[ punch   ] nu %.1f: oracle %.4f N, implicit %.4f N (%+.1f %%), explicit %.4f N (%+.1f %%)\n", nu,
                 oracle, implicitForce, 100 * (implicitForce / oracle - 1), explicitForce,
                 100 * (explicitForce / oracle - 1));
@@ -152,7 +81,7 @@ TEST(LocalStiffness, WiderRegionsAreSofterUnderAPunch) {
   const double oracle = femPunch(vox, 5, depth, 0.0);
   double previous = 2.0 * oracle;
   for (int w : {1, 2, 4}) {
-    const double f = press(vox, punch(5, dx), 0.01, depth, {Integrator::Implicit, 4, w, 0.0});
+    const double f = ind::press(vox, ind::punch(5, dx), ind::kPunchBottom, depth, how(Integrator::Implicit, 4, w, 0.0)).force;
     std::printf("[ punch   ] w = %d: %.4f N, %.2f of the oracle\n", w, f, f / oracle);
     EXPECT_LT(f, previous);
     previous = f;
@@ -177,7 +106,7 @@ TEST(LocalStiffness, SpherePressedIntoABlockFollowsHertz) {
     double f1 = 0.0, f3 = 0.0;
     for (double depth : {0.001, 0.002, 0.003}) {
       const double hertz = analytic::hertzSphereOnBondedLayerForce(R, depth, thickness, kModulus, nu);
-      const double f = press(vox, sphere(R), R, depth, {Integrator::Implicit, 4, 1, nu});
+      const double f = ind::press(vox, ind::sphere(R), R, depth, how(Integrator::Implicit, 4, 1, nu)).force;
       std::printf("[ sphere  ] nu %.1f, depth %.0f mm: %.4f N, Hertz on the layer %.4f N (%+.1f %%; half-space %.4f N)\n",
                   nu, 1e3 * depth, f, hertz, 100 * (f / hertz - 1),
                   analytic::hertzSphereForce(R, depth, kModulus, nu));
@@ -185,8 +114,9 @@ TEST(LocalStiffness, SpherePressedIntoABlockFollowsHertz) {
       if (depth == 0.001) f1 = f;
       if (depth == 0.003) f3 = f;
       if (depth == 0.002) {
-        bool saturated = true;
-        const double e = press(vox, sphere(R), R, depth, {Integrator::Explicit, 120, 1, nu}, &saturated);
+        const ind::PressResult explicitPress = ind::press(vox, ind::sphere(R), R, depth, how(Integrator::Explicit, 120, 1, nu));
+        const double e = explicitPress.force;
+        const bool saturated = explicitPress.saturated;
         std::printf("[ sphere  ] explicit: %.4f N (%+.2f %% of the implicit)\n", e, 100 * (e / f - 1));
         EXPECT_FALSE(saturated);
         EXPECT_NEAR(e / f, 1.0, 0.02) << "nu " << nu;

@@ -1,0 +1,118 @@
+/// @file indentation.h
+/// The local cases of the material: a flat punch and a sphere pressed into a block of lattice
+/// cells held by its bottom layer, read as the indenter's force once settled, and the FEM
+/// oracle's punch on the same voxels. Shared by test_local_stiffness and bench_material --local.
+#pragma once
+
+#include "deformable_flsm/core/solver.h"
+#include "support/fem_oracle.h"
+
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+namespace deformable_flsm {
+namespace indentation {
+
+/// Height (m) of a block's top face (its base on z = 0).
+inline double topOf(const Voxelization& vox) {
+  int top = 0;
+  for (const Eigen::Vector3i& c : vox.cells) top = std::max(top, c.z() + 1);
+  return top * vox.spacing;
+}
+
+/// How a block is pressed.
+struct Press {
+  Integrator integrator = Integrator::Implicit;
+  int substeps = 4;
+  int w = 1;
+  double nu = 0.0;
+  double youngsModulus = 20000.0;
+  double density = 1000.0;
+  /// step (s); the indenter is lowered over `pressSeconds`, then held `holdSeconds`
+  double timeStep = 1.0 / 30.0;
+  double pressSeconds = 0.5;
+  double holdSeconds = 1.5;
+};
+
+/// What press() read.
+struct PressResult {
+  /// the indenter's force (N, upwards) over the last step
+  double force = 0.0;
+  std::size_t contacts = 0;
+  /// the explicit step's alpha was capped: the material was softer than asked
+  bool saturated = false;
+};
+
+/// The block (voxels with their base on z = 0) held by its bottom layer of particles, gravity
+/// off, the frictionless indenter `shape` with its lowest point `bottom` below its frame origin,
+/// starting at the block's top face and lowered by `depth` (m), then held.
+inline PressResult press(const Voxelization& vox, const Collider& shape, double bottom, double depth,
+                         const Press& how) {
+  SolverParams p;
+  p.density = how.density;
+  p.youngsModulus = how.youngsModulus;
+  p.poissonsRatio = how.nu;
+  p.regionHalfWidth = how.w;
+  p.timeStep = how.timeStep;
+  p.substeps = how.substeps;
+  p.integrator = how.integrator;
+  p.gravity.setZero();
+  Solver s(std::make_shared<const Lattice>(vox, how.density, how.w), p);
+  s.pinBox(Eigen::Vector3d::Constant(-1e3), Eigen::Vector3d(1e3, 1e3, 0.6 * vox.spacing), true);
+  const double top = topOf(vox);
+  Collider c = shape;
+  c.staticFriction = c.kineticFriction = 0.0;
+  c.pose.translation() = Eigen::Vector3d(0, 0, top + bottom);
+  s.setCollider("indenter", c);
+  const int pressSteps = std::max(1, static_cast<int>(std::lround(how.pressSeconds / how.timeStep)));
+  const int holdSteps = static_cast<int>(std::lround(how.holdSeconds / how.timeStep));
+  for (int i = 0; i < pressSteps + holdSteps; ++i) {
+    const bool moving = i < pressSteps;
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translation() = Eigen::Vector3d(0, 0, top + bottom - depth * std::min(1.0, double(i) / pressSteps));
+    const double speed = moving ? depth / (pressSteps * how.timeStep) : 0.0;
+    s.moveCollider("indenter", pose, Eigen::Vector3d(0, 0, -speed), Eigen::Vector3d::Zero());
+    s.step();
+  }
+  return {s.contactWrench("indenter").force.z(), s.contactWrench("indenter").contacts, s.stiffnessSaturated()};
+}
+
+/// A flat square punch k cells wide (a little less, so that exactly k x k particles meet it when
+/// centred over the middle cell of a block with an odd number of cells across); its lowest
+/// point 0.01 m below its frame origin.
+inline Collider punch(int k, double dx) {
+  Collider c;
+  c.shape.type = ColliderType::Box;
+  c.shape.halfExtents = Eigen::Vector3d(0.5 * (k - 0.4) * dx, 0.5 * (k - 0.4) * dx, 0.01);
+  return c;
+}
+constexpr double kPunchBottom = 0.01;
+
+inline Collider sphere(double radius) {
+  Collider c;
+  c.shape.type = ColliderType::Sphere;
+  c.shape.radius = radius;
+  return c;
+}
+
+/// The oracle's punch: the same block, its nodes held up to the centres of the pinned layer, the
+/// top nodes over the k x k cells the punch meets lowered by `depth` (frictionless: z only), one
+/// element per cell (two per edge read 3 % less on 13 cells at nu 0, but take minutes to
+/// factorize). The punch's force (N).
+inline double femPunch(const Voxelization& vox, int k, double depth, const FemMaterial& material) {
+  FemOracle fem(vox, material, 1);
+  const double dx = vox.spacing, top = topOf(vox), half = 0.5 * k * dx + 1e-9;
+  fem.fixNodesInBox(Eigen::Vector3d::Constant(-1e3), Eigen::Vector3d(1e3, 1e3, 0.5 * dx + 1e-9));
+  fem.prescribeInBox(Eigen::Vector3d(-half, -half, top - 1e-9), Eigen::Vector3d(half, half, top + 1e-9), 2, -depth);
+  const FemSolution u = fem.solveStatic(Eigen::Vector3d::Zero());
+  double force = 0.0;
+  for (std::size_t n = 0; n < u.nodeReactions.size(); ++n)
+    if (fem.nodePositions()[n].z() > top - 1e-9) force -= u.nodeReactions[n].z();
+  return force;
+}
+
+}  // namespace indentation
+}  // namespace deformable_flsm
