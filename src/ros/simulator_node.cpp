@@ -289,6 +289,7 @@ void SimulatorNode::publishNewest() {
   }
   publisher_->publishHeavy(s, stamp);
   if (tactile_) tactile_->publish(s, stamp);
+  reporter_->watchContacts(s.wrenches, s.time);
   published_.store(s.sequence);
 }
 

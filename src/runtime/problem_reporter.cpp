@@ -1,5 +1,6 @@
 #include "deformable_flsm/runtime/problem_reporter.h"
 
+#include <cmath>
 #include <cstdarg>
 #include <cstdio>
 #include <string>
@@ -112,6 +113,29 @@ void ProblemReporter::publishingTook(double seconds) const {
               line("publishing took %.1f ms, longer than the %.1f ms period of "
                       "~publish_rate: lower ~publish_rate or ~render_triangle_budget",
                       1e3 * seconds, 1e3 / params_.publishRate));
+  }
+}
+
+void ProblemReporter::watchContacts(const std::map<std::string, ContactWrench>& wrenches, double time) {
+  for (const auto& [id, w] : wrenches) {
+    const bool small = w.contacts > 0 && w.contacts < kResolvedContacts && w.force.squaredNorm() > 0.0;
+    if (!small) {
+      smallPatchSince_.erase(id);
+      continue;
+    }
+    const auto since = smallPatchSince_.emplace(id, time).first->second;
+    if (time - since < kUnresolvedSeconds || warnedSmallPatch_.count(id) != 0) continue;
+    warnedSmallPatch_.insert(id);
+    const double dx = lattice_.spacing();
+    const double across = 2.0 * std::sqrt(static_cast<double>(w.contacts) / 3.14159265358979) * dx;
+    log_(ProblemSeverity::Warning,
+         line("collider '%s' has pressed on only %zu particle%s for %.1f s: a patch about %.3g m "
+              "across, under 3 cells of %.3g m, which the lattice does not resolve, so its force "
+              "(%.3g N) is only roughly what ~youngs_modulus gives (a sphere at 1.8 cells of contact "
+              "radius reads 1.14 of Hertz's). A lattice of ~spacing %.3g m (about %.0f times the "
+              "particles) or a larger ~particle_budget resolves it.",
+              id.c_str(), w.contacts, w.contacts == 1 ? "" : "s", time - since, across, dx, w.force.norm(),
+              across / 3.0, std::pow(3.0 * dx / across, 3)));
   }
 }
 

@@ -118,5 +118,30 @@ TEST_F(ProblemReporterTest, SaturationIsReportedWhenItStartsNotWhileItLasts) {
   EXPECT_EQ(log_.lines.size(), 2u);
 }
 
+// A collider that keeps pressing on a patch under 3 cells across is warned about once, with the
+// spacing that would resolve it; a touch that passes, or a patch of enough particles, is not.
+TEST_F(ProblemReporterTest, ASmallContactPatchThatLastsIsWarnedAboutOnce) {
+  ProblemReporter reporter(params_, info_, lattice_, log_.sink());
+  ContactWrench small, resolved;
+  small.contacts = 3;
+  small.force = Eigen::Vector3d(0, 0, 0.5);
+  resolved.contacts = ProblemReporter::kResolvedContacts;
+  resolved.force = Eigen::Vector3d(0, 0, 2.0);
+  const double dt = 1.0 / 30.0;
+  // a touch on its way in: small for half a second, then resolved, then gone
+  for (int i = 0; i < 15; ++i) reporter.watchContacts({{"finger", small}, {"pad", resolved}}, i * dt);
+  reporter.watchContacts({{"finger", resolved}, {"pad", resolved}}, 15 * dt);
+  for (int i = 16; i < 60; ++i) reporter.watchContacts({{"finger", ContactWrench{}}, {"pad", resolved}}, i * dt);
+  EXPECT_TRUE(log_.lines.empty());
+  // then pressing on 3 particles for more than a second: one warning, naming the collider
+  for (int i = 60; i < 200; ++i) reporter.watchContacts({{"finger", small}, {"pad", resolved}}, i * dt);
+  ASSERT_EQ(log_.lines.size(), 1u);
+  EXPECT_EQ(log_.lines[0].first, ProblemSeverity::Warning);
+  EXPECT_TRUE(log_.anyContains("collider 'finger' has pressed on only 3 particles")) << log_.lines[0].second;
+  EXPECT_TRUE(log_.anyContains("under 3 cells of 0.01 m")) << log_.lines[0].second;
+  // 3 particles: about 2 sqrt(3 / pi) = 1.95 cells across; 3 cells across needs a spacing of 0.0065 m, 3.7 times the particles
+  EXPECT_TRUE(log_.anyContains("~spacing 0.00651 m (about 4 times the particles)")) << log_.lines[0].second;
+}
+
 }  // namespace
 }  // namespace deformable_flsm

@@ -10,10 +10,14 @@
 #include "deformable_flsm/runtime/scene.h"
 #include "deformable_flsm/runtime/simulation_loop.h"
 
+#include "deformable_flsm/core/collider.h"
+
 #include <array>
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <map>
+#include <set>
 #include <string>
 
 namespace deformable_flsm {
@@ -44,12 +48,27 @@ class ProblemReporter {
   /// Warns when publishing took longer than the publish period.
   void publishingTook(double seconds) const;
 
+  /// A collider pressing on fewer particles than this meets a patch under about 3 cells across,
+  /// which the lattice does not resolve (docs/method.md: a sphere's force is 1.14 of Hertz's at
+  /// 1.8 cells of contact radius, 1.10 at 3.1; a 5-cell punch 0.90 of the FEM's).
+  static constexpr std::size_t kResolvedContacts = 7;
+  /// ... for at least this long (s of simulated time): a touch on its way in or out is not warned
+  static constexpr double kUnresolvedSeconds = 1.0;
+  /// Watches each collider's contact (the wrenches of the newest state, at simulated time
+  /// `time`): one warning per collider id that keeps pressing on 1 to kResolvedContacts - 1
+  /// particles for kUnresolvedSeconds, with the lattice spacing that would resolve it (the first
+  /// object's lattice).
+  void watchContacts(const std::map<std::string, ContactWrench>& wrenches, double time);
+
  private:
   const NodeParams& params_;
   const SceneInfo& info_;
   const Lattice& lattice_;
   std::uint64_t reportedResets_ = 0, reportedDropped_ = 0;
   std::function<std::string()> resetCause_;
+  /// colliders pressing on a patch the lattice does not resolve: since when (simulated s)
+  std::map<std::string, double> smallPatchSince_;
+  std::set<std::string> warnedSmallPatch_;
   bool reportedSaturated_ = false;
   ProblemLog log_;
   /// kinds of throttled line: the loop cannot keep up, the loop runs slow, publishing is slow
