@@ -120,6 +120,7 @@ void Solver::rebuildContactBodies() {
   activeBodies_.reserve(contactBodies_.size());
   const std::size_t chunks = (x_.size() + kContactChunk - 1) / kContactChunk;
   contactPartials_.assign(chunks * contactBodies_.size(), ContactPartial());
+  buriedNow_.assign(contactBodies_.size(), 0);
   chunkBodies_.assign(chunks * contactBodies_.size(), 0);
 }
 
@@ -130,6 +131,7 @@ void Solver::beginContactStep() {
     body.impulse.setZero();
     body.moment.setZero();
     body.contacts = 0;
+    body.buried = 0;
     if (body.recording) std::fill(body.particleImpulse.begin(), body.particleImpulse.end(), Eigen::Vector3d::Zero());
   }
 }
@@ -279,6 +281,7 @@ void Solver::contactPass(double h, double elapsed) {
         // buried deeper than its radius since before the sub-step (above)
         if (startDepth < -r) {
           buried = true;
+          ++partial[a].buried;
           if ((held && depth < enclosed) || startNormal.dot(normal) < kTurnedNormal) {  // no velocity response (above)
             touched = true;
             continue;
@@ -318,6 +321,7 @@ void Solver::contactPass(double h, double elapsed) {
       v_[i] = v;
     }
   }
+  for (int a : activeBodies_) buriedNow_[static_cast<std::size_t>(a)] = 0;
   for (std::ptrdiff_t chunk = 0; chunk < chunks; ++chunk) {
     const ContactPartial* partial = contactPartials_.data() + static_cast<std::size_t>(chunk) * bodies;
     for (int a : activeBodies_) {
@@ -325,8 +329,11 @@ void Solver::contactPass(double h, double elapsed) {
       body.impulse += partial[a].impulse;
       body.moment += partial[a].moment;
       body.contacts += partial[a].contacts;
+      buriedNow_[static_cast<std::size_t>(a)] += partial[a].buried;
     }
   }
+  for (int a : activeBodies_)
+    contactBodies_[a].buried = std::max(contactBodies_[a].buried, buriedNow_[static_cast<std::size_t>(a)]);
 }
 
 bool Solver::markCounted(std::size_t i, int a, std::uint64_t pass) {
@@ -367,6 +374,7 @@ void Solver::endContactStep() {
     body.wrench.force = -body.impulse / T;
     body.wrench.torque = -body.moment / T;
     body.wrench.contacts = body.contacts;
+    body.wrench.buried = body.buried;
     if (body.recording) {
       body.recorded.clear();
       for (std::size_t i = 0; i < body.particleImpulse.size(); ++i)

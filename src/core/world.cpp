@@ -311,6 +311,7 @@ ContactWrench World::contactWrench(const std::string& id) const {
     sum.force += w.force;
     sum.torque += w.torque;
     sum.contacts += w.contacts;
+    sum.buried += w.buried;
   }
   return sum;
 }

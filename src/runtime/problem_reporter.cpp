@@ -118,6 +118,15 @@ void ProblemReporter::publishingTook(double seconds) const {
 
 void ProblemReporter::watchContacts(const std::map<std::string, ContactWrench>& wrenches, double time) {
   for (const auto& [id, w] : wrenches) {
+    if (w.buried > 0 && warnedBuried_.insert(id).second)
+      log_(ProblemSeverity::Warning,
+           line("collider '%s' found %zu particle%s deeper than their radius (%.3g m) inside it at the "
+                "start of a sub-step: it was placed, or moved in one jump, into the object, so they are "
+                "pushed out through its nearest face (a pad set into a surface sends the particles under "
+                "its edges out sideways, and its force is not that of the pad pressed in). Move a "
+                "collider into the object over several steps (poses closer than %.3g m apart, or a "
+                "velocity).",
+                id.c_str(), w.buried, w.buried == 1 ? "" : "s", 0.5 * lattice_.spacing(), 0.5 * lattice_.spacing()));
     const bool small = w.contacts > 0 && w.contacts < kResolvedContacts && w.force.squaredNorm() > 0.0;
     if (!small) {
       smallPatchSince_.erase(id);

@@ -199,3 +199,44 @@ TEST(LocalStiffness, SqueezeBetweenTwoPadsMeetsTheFemOracle) {
     EXPECT_NEAR(forces[1] / forces[0], 1.0, 0.02) << "nu " << nu;
   }
 }
+
+// A pad placed 3 mm into 3.85 mm cells (deeper than a particle's radius, 1.92 mm) is a state no
+// motion made: its wrench counts the buried particles, so that the node can say so; pressed in
+// over 0.5 s, none is buried at any step.
+TEST(LocalStiffness, APadPlacedIntoTheObjectCountsTheParticlesBuriedInIt) {
+  const double dx = 0.05 / 13, depth = 0.003;
+  const Voxelization vox = block(13, 13, 13, dx);
+  SolverParams p;
+  p.youngsModulus = kModulus;
+  p.regionHalfWidth = 1;
+  p.timeStep = 1.0 / 30.0;
+  p.substeps = 4;
+  p.integrator = Integrator::Implicit;
+  p.gravity.setZero();
+  const auto lattice = std::make_shared<const deformable_flsm::Lattice>(vox, 1000.0, 1);
+  const double top = ind::topOf(vox);
+  auto pad = [&](Solver& s, double z) {
+    deformable_flsm::Collider c = ind::punch(5, dx);
+    c.pose.translation() = Eigen::Vector3d(0, 0, z + ind::kPunchBottom);
+    s.setCollider("pad", c);
+  };
+  Solver placed(lattice, p);
+  placed.pinBox(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d(1.0, 1.0, 0.6 * dx), true);
+  pad(placed, top - depth);
+  placed.step();
+  EXPECT_GE(placed.contactWrench("pad").buried, 9u) << "the 5 x 5 particles under the pad start inside it";
+  for (int i = 0; i < 30; ++i) placed.step();
+  EXPECT_EQ(placed.contactWrench("pad").buried, 0u) << "pushed out, nothing is buried any more";
+
+  Solver pressed(lattice, p);
+  pressed.pinBox(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d(1.0, 1.0, 0.6 * dx), true);
+  pad(pressed, top);
+  for (int i = 0; i < 30; ++i) {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translation() = Eigen::Vector3d(0, 0, top + ind::kPunchBottom - depth * std::min(1.0, i / 15.0));
+    pressed.moveCollider("pad", pose, Eigen::Vector3d(0, 0, i < 15 ? -depth / 0.5 : 0.0), Eigen::Vector3d::Zero());
+    pressed.step();
+    ASSERT_EQ(pressed.contactWrench("pad").buried, 0u) << "step " << i;
+  }
+  EXPECT_GT(pressed.contactWrench("pad").contacts, 0u);
+}

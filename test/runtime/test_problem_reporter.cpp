@@ -143,5 +143,20 @@ TEST_F(ProblemReporterTest, ASmallContactPatchThatLastsIsWarnedAboutOnce) {
   EXPECT_TRUE(log_.anyContains("~spacing 0.00651 m (about 4 times the particles)")) << log_.lines[0].second;
 }
 
+// A collider placed deep into the object is warned about once, with what to do instead.
+TEST_F(ProblemReporterTest, AColliderPlacedDeepIntoTheObjectIsWarnedAboutOnce) {
+  ProblemReporter reporter(params_, info_, lattice_, log_.sink());
+  ContactWrench placed;
+  placed.contacts = 12;
+  placed.buried = 5;
+  placed.force = Eigen::Vector3d(0, 0, 1.0);
+  reporter.watchContacts({{"pad", placed}}, 0.0);
+  reporter.watchContacts({{"pad", placed}}, 1.0 / 30.0);
+  ASSERT_EQ(log_.lines.size(), 1u);
+  EXPECT_TRUE(log_.anyContains("collider 'pad' found 5 particles deeper than their radius (0.005 m)"))
+      << log_.lines[0].second;
+  EXPECT_TRUE(log_.anyContains("Move a collider into the object over several steps")) << log_.lines[0].second;
+}
+
 }  // namespace
 }  // namespace deformable_flsm

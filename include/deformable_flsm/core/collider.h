@@ -88,6 +88,11 @@ struct ContactWrench {
   Eigen::Vector3d torque = Eigen::Vector3d::Zero();
   /// particles in contact at the end of the last sub-step
   std::size_t contacts = 0;
+  /// the most particles that began one of the step's sub-steps deeper than their radius inside
+  /// the collider: it was placed, or moved in one jump, into the object rather than moved into
+  /// it, so they are pushed out through its nearest face (a pad set into a surface sends the
+  /// particles under its edges out sideways)
+  std::size_t buried = 0;
 };
 
 /// One particle's push on a collider over the last step (Solver::recordContacts()).

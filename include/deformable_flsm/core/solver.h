@@ -383,6 +383,7 @@ class Solver : private RegionKernel {
     Eigen::Vector3d impulse = Eigen::Vector3d::Zero();  // sum of m dv on the particles this step
     Eigen::Vector3d moment = Eigen::Vector3d::Zero();   // sum of (contact point - origin) x m dv
     std::size_t contacts = 0;                            // in the last sub-step
+    std::size_t buried = 0;  // the most particles buried deeper than r at a sub-step's start, this step
     std::size_t solved = 0;  // pushing contacts of this sub-step's implicit solve (contactPass() adds its own)
     ContactWrench wrench;                                // over the last step
     /// recordContacts(): per particle its impulse on the body this step (m dv, summed) and its
@@ -404,9 +405,11 @@ class Solver : private RegionKernel {
     Eigen::Vector3d impulse = Eigen::Vector3d::Zero();
     Eigen::Vector3d moment = Eigen::Vector3d::Zero();
     std::size_t contacts = 0;
+    std::size_t buried = 0;
   };
   std::vector<ContactBody> contactBodies_;
   std::vector<int> activeBodies_;               // bodies near the object in this sub-step
+  std::vector<std::size_t> buriedNow_;          // per body: particles buried at this sub-step's start
   // per particle: the bodies (bit a for body a < 64) the contact pass numbered countedPass_, or
   // the implicit solve before it, counted it on; contactPasses_ numbers the passes
   std::vector<std::uint64_t> countedBodies_;

@@ -57,7 +57,8 @@ class ProblemReporter {
   /// Watches each collider's contact (the wrenches of the newest state, at simulated time
   /// `time`): one warning per collider id that keeps pressing on 1 to kResolvedContacts - 1
   /// particles for kUnresolvedSeconds, with the lattice spacing that would resolve it (the first
-  /// object's lattice).
+  /// object's lattice); and one per collider id placed or moved in one jump deeper than a
+  /// particle's radius into the object (ContactWrench::buried), saying to move it in instead.
   void watchContacts(const std::map<std::string, ContactWrench>& wrenches, double time);
 
  private:
@@ -68,7 +69,7 @@ class ProblemReporter {
   std::function<std::string()> resetCause_;
   /// colliders pressing on a patch the lattice does not resolve: since when (simulated s)
   std::map<std::string, double> smallPatchSince_;
-  std::set<std::string> warnedSmallPatch_;
+  std::set<std::string> warnedSmallPatch_, warnedBuried_;
   bool reportedSaturated_ = false;
   ProblemLog log_;
   /// kinds of throttled line: the loop cannot keep up, the loop runs slow, publishing is slow
