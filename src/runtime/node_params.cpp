@@ -150,9 +150,9 @@ int NodeParams::resolveRegionHalfWidth(double latticeSpacing, int* askedCells) c
   if (askedCells) *askedCells = 0;
   if (regionHalfWidth > 0) return regionHalfWidth;
   // Unset: with a modulus, the narrowest regions. Shape matching averages a deformation over a
-  // region, so a dent narrower than a region meets less than the modulus (a punch 5 cells wide:
-  // w = 2 carries 0.73 of w = 1's force, w = 4 0.42; w = 1 is within 10 % of linear FEM and of
-  // Hertz, docs/method.md); wider regions are for a scene that is only pushed as a whole.
+  // region, so a dent narrower than a region meets less than the modulus (a punch 5 cells wide
+  // carries 0.90, 0.71 and 0.39 of a linear FEM's force at w = 1, 2 and 4; docs/method.md);
+  // wider regions are for a scene that is only pushed as a whole.
   if (regionRadius <= 0.0) return material == Material::Youngs ? 1 : SolverParams().regionHalfWidth;
   if (std::isfinite(latticeSpacing) && latticeSpacing > 0.0 &&
       std::round(regionRadius / latticeSpacing) > kMaxRegionHalfWidth) {

@@ -163,8 +163,9 @@ struct NodeParams {
 
   /// Region half-width w for a lattice of the given spacing: from regionRadius (rounded to
   /// whole cells), from regionHalfWidth, or else 1 with Material::Youngs (the narrowest
-  /// regions: a contact a few cells wide meets the asked modulus) and 2 with Material::Classic. A radius of more cells than the solver accepts
-  /// (kMaxRegionHalfWidth) on this lattice is clamped to the largest that fits, and
+  /// regions: a contact a few cells wide meets the asked modulus) and 2 with Material::Classic.
+  /// A radius of more cells than the solver accepts (kMaxRegionHalfWidth) on this lattice is
+  /// clamped to the largest that fits, and
   /// `askedCells`, when given, receives the cells asked for (else 0), so that the caller can
   /// warn: a radius that suits one mesh must not stop another from starting.
   int resolveRegionHalfWidth(double latticeSpacing, int* askedCells = nullptr) const;
