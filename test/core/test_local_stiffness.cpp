@@ -1,7 +1,9 @@
 // The material under a finger: a flat punch and a sphere pressed into a block, against the FEM
 // oracle (the punch, its displacement prescribed on the same footprint) and Hertz's contact on a
-// bonded layer (the sphere), with both integrators; the regions' size against what a dent
-// narrower than a region meets. bench_material prints the full table (--local).
+// bonded layer (the sphere), and a cube squeezed between two pads, against the oracle, with both
+// integrators; the regions' size against what a dent narrower than a region meets; a pad placed
+// into the object, counted as such. bench_material prints the table for w 1 to 3 (after the
+// global cases, or alone with --local-only).
 #include "deformable_flsm/core/solver.h"
 #include "fixtures.h"
 #include "support/fem_oracle.h"
