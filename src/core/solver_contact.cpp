@@ -120,7 +120,6 @@ void Solver::rebuildContactBodies() {
   activeBodies_.reserve(contactBodies_.size());
   const std::size_t chunks = (x_.size() + kContactChunk - 1) / kContactChunk;
   contactPartials_.assign(chunks * contactBodies_.size(), ContactPartial());
-  buriedNow_.assign(contactBodies_.size(), 0);
   chunkBodies_.assign(chunks * contactBodies_.size(), 0);
 }
 
@@ -321,19 +320,18 @@ void Solver::contactPass(double h, double elapsed) {
       v_[i] = v;
     }
   }
-  for (int a : activeBodies_) buriedNow_[static_cast<std::size_t>(a)] = 0;
-  for (std::ptrdiff_t chunk = 0; chunk < chunks; ++chunk) {
-    const ContactPartial* partial = contactPartials_.data() + static_cast<std::size_t>(chunk) * bodies;
-    for (int a : activeBodies_) {
-      ContactBody& body = contactBodies_[a];
-      body.impulse += partial[a].impulse;
-      body.moment += partial[a].moment;
-      body.contacts += partial[a].contacts;
-      buriedNow_[static_cast<std::size_t>(a)] += partial[a].buried;
+  for (int a : activeBodies_) {
+    ContactBody& body = contactBodies_[a];
+    std::size_t buried = 0;  // this pass's
+    for (std::ptrdiff_t chunk = 0; chunk < chunks; ++chunk) {
+      const ContactPartial& partial = contactPartials_[static_cast<std::size_t>(chunk) * bodies + static_cast<std::size_t>(a)];
+      body.impulse += partial.impulse;
+      body.moment += partial.moment;
+      body.contacts += partial.contacts;
+      buried += partial.buried;
     }
+    body.buried = std::max(body.buried, buried);
   }
-  for (int a : activeBodies_)
-    contactBodies_[a].buried = std::max(contactBodies_[a].buried, buriedNow_[static_cast<std::size_t>(a)]);
 }
 
 bool Solver::markCounted(std::size_t i, int a, std::uint64_t pass) {

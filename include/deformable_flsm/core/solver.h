@@ -409,7 +409,6 @@ class Solver : private RegionKernel {
   };
   std::vector<ContactBody> contactBodies_;
   std::vector<int> activeBodies_;               // bodies near the object in this sub-step
-  std::vector<std::size_t> buriedNow_;          // per body: particles buried at this sub-step's start
   // per particle: the bodies (bit a for body a < 64) the contact pass numbered countedPass_, or
   // the implicit solve before it, counted it on; contactPasses_ numbers the passes
   std::vector<std::uint64_t> countedBodies_;
