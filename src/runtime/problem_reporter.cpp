@@ -116,6 +116,10 @@ void ProblemReporter::publishingTook(double seconds) const {
   }
 }
 
+double ProblemReporter::contactRadius() const {
+  return info_.contactRadius > 0.0 ? info_.contactRadius : 0.5 * lattice_.spacing();
+}
+
 void ProblemReporter::watchContacts(const std::map<std::string, ContactWrench>& wrenches, double time) {
   for (const auto& [id, w] : wrenches) {
     if (w.buried > 0 && warnedBuried_.insert(id).second)
@@ -126,7 +130,7 @@ void ProblemReporter::watchContacts(const std::map<std::string, ContactWrench>& 
                 "its edges out sideways, and its force is not that of the pad pressed in). Move a "
                 "collider into the object over several steps (poses closer than %.3g m apart, or a "
                 "velocity).",
-                id.c_str(), w.buried, w.buried == 1 ? "" : "s", 0.5 * lattice_.spacing(), 0.5 * lattice_.spacing()));
+                id.c_str(), w.buried, w.buried == 1 ? "" : "s", contactRadius(), contactRadius()));
     const bool small = w.contacts > 0 && w.contacts < kResolvedContacts && w.force.squaredNorm() > 0.0;
     if (!small) {
       smallPatchSince_.erase(id);

@@ -77,6 +77,8 @@ class ProblemReporter {
   /// when each kind was last logged (mutable: publishingTook() is const)
   mutable std::array<std::chrono::steady_clock::time_point, kThrottledKinds> lastLogged_{};
   mutable std::array<bool, kThrottledKinds> everLogged_{};
+  /// the particles' contact radius (m): the scene's, or half the spacing before it is known
+  double contactRadius() const;
   /// logs `line` unless a line of this kind went out less than kThrottleSeconds ago
   void throttled(Throttled kind, const std::string& line) const;
 };
