@@ -156,23 +156,13 @@ TEST(LocalStiffness, SqueezeBetweenTwoPadsMeetsTheFemOracle) {
       fem.prescribeInBox(lo, hi, 2, 0.0);
     }
     const FemSolution u = fem.solveStatic(Eigen::Vector3d::Zero());
-    double oracle = 0.0;
-    for (std::size_t n = 0; n < u.nodeReactions.size(); ++n)
-      if (fem.nodePositions()[n].x() > 0.5 * L - eps) oracle += u.nodeReactions[n].x();  // the pad at +x pushes -x
-    oracle = -oracle;
+    // the +x face's reaction pushes the body along -x
+    const double oracle = -fem.reactionInBox(u, Eigen::Vector3d(0.5 * L - eps, -big, -big), Eigen::Vector3d::Constant(big)).x();
     double forces[2] = {0.0, 0.0};
     int k = 0;
     for (Integrator integrator : {Integrator::Implicit, Integrator::Explicit}) {
-      SolverParams p;
-      p.density = 1000.0;
-      p.youngsModulus = kModulus;
-      p.poissonsRatio = nu;
-      p.regionHalfWidth = 1;
-      p.timeStep = 1.0 / 30.0;
-      p.substeps = integrator == Integrator::Explicit ? 120 : 4;
-      p.integrator = integrator;
-      p.gravity.setZero();
-      Solver s(std::make_shared<const deformable_flsm::Lattice>(vox, 1000.0, 1), p);
+      const SolverParams p = ind::solverParams(how(integrator, integrator == Integrator::Explicit ? 120 : 4, 1, nu));
+      Solver s(std::make_shared<const deformable_flsm::Lattice>(vox, p.density, 1), p);
       for (int side : {-1, 1}) {
         deformable_flsm::Collider c;
         c.shape.type = deformable_flsm::ColliderType::Box;
@@ -208,14 +198,8 @@ TEST(LocalStiffness, SqueezeBetweenTwoPadsMeetsTheFemOracle) {
 TEST(LocalStiffness, APadPlacedIntoTheObjectCountsTheParticlesBuriedInIt) {
   const double dx = 0.05 / 13, depth = 0.003;
   const Voxelization vox = block(13, 13, 13, dx);
-  SolverParams p;
-  p.youngsModulus = kModulus;
-  p.regionHalfWidth = 1;
-  p.timeStep = 1.0 / 30.0;
-  p.substeps = 4;
-  p.integrator = Integrator::Implicit;
-  p.gravity.setZero();
-  const auto lattice = std::make_shared<const deformable_flsm::Lattice>(vox, 1000.0, 1);
+  const SolverParams p = ind::solverParams(how(Integrator::Implicit, 4, 1, 0.0));
+  const auto lattice = std::make_shared<const deformable_flsm::Lattice>(vox, p.density, 1);
   const double top = ind::topOf(vox);
   auto pad = [&](Solver& s, double z) {
     deformable_flsm::Collider c = ind::punch(5, dx);
@@ -223,7 +207,7 @@ TEST(LocalStiffness, APadPlacedIntoTheObjectCountsTheParticlesBuriedInIt) {
     s.setCollider("pad", c);
   };
   Solver placed(lattice, p);
-  placed.pinBox(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d(1.0, 1.0, 0.6 * dx), true);
+  ind::holdBase(placed, vox);
   pad(placed, top - depth);
   placed.step();
   EXPECT_GE(placed.contactWrench("pad").buried, 9u) << "the 5 x 5 particles under the pad start inside it";
@@ -231,7 +215,7 @@ TEST(LocalStiffness, APadPlacedIntoTheObjectCountsTheParticlesBuriedInIt) {
   EXPECT_EQ(placed.contactWrench("pad").buried, 0u) << "pushed out, nothing is buried any more";
 
   Solver pressed(lattice, p);
-  pressed.pinBox(Eigen::Vector3d::Constant(-1.0), Eigen::Vector3d(1.0, 1.0, 0.6 * dx), true);
+  ind::holdBase(pressed, vox);
   pad(pressed, top);
   for (int i = 0; i < 30; ++i) {
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();

@@ -12,7 +12,7 @@ from sensor_msgs import point_cloud2
 from sensor_msgs.msg import PointCloud2
 from std_srvs.srv import Trigger
 
-from deformable_flsm.msg import DragCommand, ForceCommand, SimulationState
+from deformable_flsm.msg import ColliderCommand, DragCommand, ForceCommand, SimulationState
 from deformable_flsm.srv import PinBox
 
 
@@ -56,6 +56,12 @@ class FlsmClient(object):
         lo, hi = rest.min(axis=0), rest.max(axis=0)
         self.size = float(np.linalg.norm(hi - lo))  # like Lattice::objectSize()
         self.frame = 'world'
+
+    def collider_publisher(self, queue_size=100, timeout=10.0):
+        """A publisher of ColliderCommand on ~collider, once the node has subscribed to it."""
+        pub = rospy.Publisher(self.node + '/collider', ColliderCommand, queue_size=queue_size)
+        self._wait_connected(pub, timeout)
+        return pub
 
     @staticmethod
     def _wait_connected(pub, timeout):

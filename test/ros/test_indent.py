@@ -42,10 +42,7 @@ class IndentTest(unittest.TestCase):
     def setUpClass(cls):
         rospy.init_node('test_indent')
         cls.flsm = FlsmClient()
-        cls.pub = rospy.Publisher('/flsm_node/collider', ColliderCommand, queue_size=20)
-        end = time.time() + 10.0
-        while cls.pub.get_num_connections() == 0 and time.time() < end:
-            time.sleep(0.05)
+        cls.pub = cls.flsm.collider_publisher()
 
     def send(self, action, z):
         m = ColliderCommand()

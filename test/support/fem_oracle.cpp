@@ -257,6 +257,14 @@ const FemOracle::Factorization& FemOracle::factorization() const {
   return f;
 }
 
+Eigen::Vector3d FemOracle::reactionInBox(const FemSolution& u, const Eigen::Vector3d& lo,
+                                         const Eigen::Vector3d& hi) const {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (std::size_t n = 0; n < nodes_.size(); ++n)
+    if ((nodes_[n].array() >= lo.array()).all() && (nodes_[n].array() <= hi.array()).all()) sum += u.nodeReactions[n];
+  return sum;
+}
+
 FemSolution FemOracle::solveStatic(const Eigen::Vector3d& bodyAcceleration) const {
   if (!bodyAcceleration.allFinite()) throw std::invalid_argument("fem: the body acceleration must be finite");
   const Factorization& f = factorization();

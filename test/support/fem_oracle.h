@@ -107,6 +107,10 @@ class FemOracle {
   /// @throws std::runtime_error when the constraints leave a rigid motion free (singular K).
   FemSolution solveStatic(const Eigen::Vector3d& bodyAcceleration) const;
 
+  /// Sum of u.nodeReactions over the nodes whose rest positions lie in [lo, hi] (m): the force
+  /// the prescribed displacements there exert on the body (N), e.g. a punch's.
+  Eigen::Vector3d reactionInBox(const FemSolution& u, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) const;
+
   /// Lowest natural angular frequency omega_1 (rad/s) of K phi = omega^2 M phi with the lumped
   /// (row-sum) mass matrix, the constrained components held at zero (inverse iteration).
   /// @throws std::runtime_error when the constraints leave a rigid motion free.

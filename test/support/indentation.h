@@ -46,11 +46,8 @@ struct PressResult {
   bool saturated = false;
 };
 
-/// The block (voxels with their base on z = 0) held by its bottom layer of particles, gravity
-/// off, the frictionless indenter `shape` with its lowest point `bottom` below its frame origin,
-/// starting at the block's top face and lowered by `depth` (m), then held.
-inline PressResult press(const Voxelization& vox, const Collider& shape, double bottom, double depth,
-                         const Press& how) {
+/// The solver's parameters for `how`, gravity off.
+inline SolverParams solverParams(const Press& how) {
   SolverParams p;
   p.density = how.density;
   p.youngsModulus = how.youngsModulus;
@@ -60,8 +57,21 @@ inline PressResult press(const Voxelization& vox, const Collider& shape, double 
   p.substeps = how.substeps;
   p.integrator = how.integrator;
   p.gravity.setZero();
-  Solver s(std::make_shared<const Lattice>(vox, how.density, how.w), p);
+  return p;
+}
+
+/// Pins the bottom layer of particles of a block whose base is on z = 0.
+inline void holdBase(Solver& s, const Voxelization& vox) {
   s.pinBox(Eigen::Vector3d::Constant(-1e3), Eigen::Vector3d(1e3, 1e3, 0.6 * vox.spacing), true);
+}
+
+/// The block (voxels with their base on z = 0) held by its bottom layer of particles, gravity
+/// off, the frictionless indenter `shape` with its lowest point `bottom` below its frame origin,
+/// starting at the block's top face and lowered by `depth` (m), then held.
+inline PressResult press(const Voxelization& vox, const Collider& shape, double bottom, double depth,
+                         const Press& how) {
+  Solver s(std::make_shared<const Lattice>(vox, how.density, how.w), solverParams(how));
+  holdBase(s, vox);
   const double top = topOf(vox);
   Collider c = shape;
   c.staticFriction = c.kineticFriction = 0.0;
@@ -108,10 +118,7 @@ inline double femPunch(const Voxelization& vox, int k, double depth, const FemMa
   fem.fixNodesInBox(Eigen::Vector3d::Constant(-1e3), Eigen::Vector3d(1e3, 1e3, 0.5 * dx + 1e-9));
   fem.prescribeInBox(Eigen::Vector3d(-half, -half, top - 1e-9), Eigen::Vector3d(half, half, top + 1e-9), 2, -depth);
   const FemSolution u = fem.solveStatic(Eigen::Vector3d::Zero());
-  double force = 0.0;
-  for (std::size_t n = 0; n < u.nodeReactions.size(); ++n)
-    if (fem.nodePositions()[n].z() > top - 1e-9) force -= u.nodeReactions[n].z();
-  return force;
+  return -fem.reactionInBox(u, Eigen::Vector3d(-1e3, -1e3, top - 1e-9), Eigen::Vector3d::Constant(1e3)).z();
 }
 
 }  // namespace indentation
