@@ -26,22 +26,45 @@ bool startsWith(const std::string& s, const char* prefix) {
   return s.rfind(prefix, 0) == 0;
 }
 
-[[noreturn]] void throwWrongType(const ros::NodeHandle& pnh, const std::string& name,
-                                 const char* expected) {
-  XmlRpc::XmlRpcValue found;
-  pnh.getParam(name, found);
+}  // namespace
+
+ParamLoader::ParamLoader(const XmlRpc::XmlRpcValue& tree, const std::string& source)
+    : tree_(tree), source_(source) {
+  if (tree_.getType() != XmlRpc::XmlRpcValue::TypeStruct) {
+    throw ParamError(source_ + " must hold a dictionary of the node's parameters, got " +
+                     describe(tree_));
+  }
+}
+
+bool ParamLoader::has(const std::string& name) const {
+  return pnh_ ? pnh_->hasParam(name) : tree_.hasMember(name);
+}
+
+XmlRpc::XmlRpcValue ParamLoader::fetch(const std::string& name) const {
+  XmlRpc::XmlRpcValue value;
+  if (pnh_)
+    pnh_->getParam(name, value);
+  else if (tree_.hasMember(name))
+    value = const_cast<XmlRpc::XmlRpcValue&>(tree_)[name];  // operator[] is not const
+  return value;
+}
+
+std::string ParamLoader::where(const std::string& name) const {
+  return pnh_ ? pnh_->resolveName(name) : "in " + source_;
+}
+
+void ParamLoader::throwWrongType(const std::string& name, const char* expected) const {
+  XmlRpc::XmlRpcValue found = fetch(name);
   std::string hint;
-  if (found.getType() == XmlRpc::XmlRpcValue::TypeString &&
+  if (pnh_ && found.getType() == XmlRpc::XmlRpcValue::TypeString &&
       static_cast<std::string&>(found).find('[') != std::string::npos) {
     // rosrun's _name:=[...] arrives as a string: roscpp does not parse lists there.
     hint = " (a list given as _" + name + ":=[...] on the command line arrives as a string: "
-           "set it in a YAML file, or with rosparam set " + pnh.resolveName(name) + " \"[...]\")";
+           "set it in a YAML file, or with rosparam set " + where(name) + " \"[...]\")";
   }
-  throw ParamError("~" + name + " (" + pnh.resolveName(name) + ") must be " + expected +
-                   ", got " + describe(found) + hint);
+  throw ParamError("~" + name + " (" + where(name) + ") must be " + expected + ", got " +
+                   describe(found) + hint);
 }
-
-}  // namespace
 
 NodeParams ParamLoader::loadNodeParams() const {
   NodeParams p;
@@ -116,15 +139,13 @@ NodeParams ParamLoader::loadNodeParams() const {
   p.colliders = getColliders("colliders", p.frameId);
   p.robot = getRobot();
   read_.push_back("tactile");
-  if (pnh_.hasParam("tactile")) {
-    XmlRpc::XmlRpcValue tactile;
-    pnh_.getParam("tactile", tactile);
+  if (has("tactile")) {
+    XmlRpc::XmlRpcValue tactile = fetch("tactile");
     p.tactile = parseTactileList(tactile, p);
   }
   read_.push_back("cameras");
-  if (pnh_.hasParam("cameras")) {
-    XmlRpc::XmlRpcValue cameras;
-    pnh_.getParam("cameras", cameras);
+  if (has("cameras")) {
+    XmlRpc::XmlRpcValue cameras = fetch("cameras");
     p.cameras = parseCameraList(cameras);
   }
   ObjectContactParams& oc = p.objectContact;
@@ -140,9 +161,8 @@ NodeParams ParamLoader::loadNodeParams() const {
 
 std::vector<ObjectSpec> ParamLoader::loadObjects(const NodeParams& params) const {
   read_.push_back("objects");
-  if (!pnh_.hasParam("objects")) return {};
-  XmlRpc::XmlRpcValue value;
-  pnh_.getParam("objects", value);
+  if (!has("objects")) return {};
+  XmlRpc::XmlRpcValue value = fetch("objects");
   return parseObjectList(value, params);
 }
 
@@ -153,8 +173,13 @@ std::vector<std::string> ParamLoader::unknownParams() const {
   std::vector<std::string> known(read_.begin(), read_.end());
   known.insert(known.end(), std::begin(kReconfigureOnly), std::end(kReconfigureOnly));
   std::vector<std::string> all, unknown;
-  ros::param::getParamNames(all);
-  const std::string prefix = pnh_.getNamespace() + "/";
+  std::string prefix;
+  if (pnh_) {
+    ros::param::getParamNames(all);
+    prefix = pnh_->getNamespace() + "/";
+  } else {
+    for (const auto& entry : tree_) all.push_back(entry.first);
+  }
   for (const std::string& name : all) {
     if (name.rfind(prefix, 0) != 0) continue;
     const std::string rest = name.substr(prefix.size());
@@ -169,12 +194,13 @@ std::vector<std::string> ParamLoader::unknownParams() const {
 
 double ParamLoader::getDouble(const std::string& name, double fallback) const {
   read_.push_back(name);
-  if (!pnh_.hasParam(name)) {
+  if (!has(name)) {
     return fallback;
   }
-  double value = 0.0;  // roscpp converts an int parameter to double
-  if (!pnh_.getParam(name, value)) {
-    throwWrongType(pnh_, name, "a number");
+  double value = 0.0;  // an int parameter is a number too
+  XmlRpc::XmlRpcValue found = fetch(name);
+  if (!toNumber(found, value)) {
+    throwWrongType(name, "a number");
   }
   return value;
 }
@@ -182,12 +208,12 @@ double ParamLoader::getDouble(const std::string& name, double fallback) const {
 bool ParamLoader::getOfType(const std::string& name, XmlRpc::XmlRpcValue::Type type, const char* expected,
                             XmlRpc::XmlRpcValue& value) const {
   read_.push_back(name);
-  if (!pnh_.hasParam(name)) {
+  if (!has(name)) {
     return false;
   }
-  pnh_.getParam(name, value);
+  value = fetch(name);
   if (value.getType() != type) {
-    throwWrongType(pnh_, name, expected);
+    throwWrongType(name, expected);
   }
   return true;
 }
@@ -205,30 +231,24 @@ bool ParamLoader::getBool(const std::string& name, bool fallback) const {
 }
 
 std::string ParamLoader::getString(const std::string& name, const std::string& fallback) const {
-  read_.push_back(name);
-  if (!pnh_.hasParam(name)) {
-    return fallback;
-  }
-  std::string value;
-  if (!pnh_.getParam(name, value)) {
-    throwWrongType(pnh_, name, "a string");
-  }
-  return value;
+  XmlRpc::XmlRpcValue value;
+  return getOfType(name, XmlRpc::XmlRpcValue::TypeString, "a string", value)
+             ? static_cast<std::string&>(value)
+             : fallback;
 }
 
 Eigen::Vector3d ParamLoader::getVector3(const std::string& name,
                                         const Eigen::Vector3d& fallback) const {
   read_.push_back(name);
-  if (!pnh_.hasParam(name)) {
+  if (!has(name)) {
     return fallback;
   }
-  XmlRpc::XmlRpcValue value;
-  pnh_.getParam(name, value);
+  XmlRpc::XmlRpcValue value = fetch(name);
   Eigen::Vector3d out;
   if (value.getType() != XmlRpc::XmlRpcValue::TypeArray || value.size() != 3 ||
       !toNumber(value[0], out.x()) || !toNumber(value[1], out.y()) ||
       !toNumber(value[2], out.z())) {
-    throwWrongType(pnh_, name, "a list of three numbers");
+    throwWrongType(name, "a list of three numbers");
   }
   return out;
 }
@@ -236,15 +256,14 @@ Eigen::Vector3d ParamLoader::getVector3(const std::string& name,
 std::vector<Box> ParamLoader::getBoxes(const std::string& name) const {
   read_.push_back(name);
   std::vector<Box> boxes;
-  if (!pnh_.hasParam(name)) {
+  if (!has(name)) {
     return boxes;
   }
-  XmlRpc::XmlRpcValue value;
-  pnh_.getParam(name, value);
+  XmlRpc::XmlRpcValue value = fetch(name);
   constexpr const char* kExpected =
       "a list of boxes, each a list of six numbers [xmin, ymin, zmin, xmax, ymax, zmax] (m)";
   if (value.getType() != XmlRpc::XmlRpcValue::TypeArray) {
-    throwWrongType(pnh_, name, kExpected);
+    throwWrongType(name, kExpected);
   }
   for (int b = 0; b < value.size(); ++b) {
     XmlRpc::XmlRpcValue& entry = value[b];
@@ -265,22 +284,20 @@ std::vector<Box> ParamLoader::getBoxes(const std::string& name) const {
 std::vector<ColliderSpec> ParamLoader::getColliders(const std::string& name,
                                                     const std::string& simFrame) const {
   read_.push_back(name);
-  if (!pnh_.hasParam(name)) {
+  if (!has(name)) {
     return {};
   }
-  XmlRpc::XmlRpcValue value;
-  pnh_.getParam(name, value);
+  XmlRpc::XmlRpcValue value = fetch(name);
   return parseColliderList(value, simFrame);
 }
 
 std::vector<std::string> ParamLoader::getStrings(const std::string& name,
                                                  const std::vector<std::string>& fallback) const {
   read_.push_back(name);
-  if (!pnh_.hasParam(name)) {
+  if (!has(name)) {
     return fallback;
   }
-  XmlRpc::XmlRpcValue value;
-  pnh_.getParam(name, value);
+  XmlRpc::XmlRpcValue value = fetch(name);
   std::vector<std::string> out;
   bool ok = value.getType() == XmlRpc::XmlRpcValue::TypeArray;
   for (int i = 0; ok && i < value.size(); ++i) {
@@ -288,7 +305,7 @@ std::vector<std::string> ParamLoader::getStrings(const std::string& name,
     if (ok) out.push_back(static_cast<std::string&>(value[i]));
   }
   if (!ok) {
-    throwWrongType(pnh_, name, "a list of strings");
+    throwWrongType(name, "a list of strings");
   }
   return out;
 }
@@ -305,6 +322,17 @@ RobotColliders ParamLoader::getRobot() const {
     RobotColliders none;
     none.options = o;
     return none;
+  }
+  if (!pnh_) {
+    // A tree: the URDF text under the key ~robot_description names.
+    XmlRpc::XmlRpcValue xml = fetch(o.descriptionParam);
+    if (xml.getType() != XmlRpc::XmlRpcValue::TypeString) {
+      throw ParamError("~robot_description names '" + o.descriptionParam + "', which " + where(o.descriptionParam) +
+                       " is " + (has(o.descriptionParam) ? "not a string" : "not set") +
+                       ": put the URDF text there, or set ~robot_description to '' for no robot");
+    }
+    read_.push_back(o.descriptionParam);
+    return parseRobotColliders(static_cast<std::string&>(xml), o);
   }
   // Resolved as robot_state_publisher resolves it: in the node's namespace.
   const ros::NodeHandle nh;

@@ -12,6 +12,7 @@ import rospy
 import rostest
 from geometry_msgs.msg import Point, Quaternion
 
+from deformable_flsm.analytic import hertz_on_bonded_layer
 from deformable_flsm.msg import ColliderCommand, ContactWrenches
 from flsm_testing import FlsmClient
 
@@ -21,19 +22,6 @@ SPACING = 0.0025
 TOP = 0.03                # the block's top face (m)
 RADIUS = 0.02
 DEPTH = 0.002
-
-
-def hertz_on_bonded_layer(radius, depth, thickness, e, nu):
-    """Hertz's sphere on a layer bonded to a rigid base (Dimitriadis et al. 2002, Biophys. J. 82:
-    the half-space's 4/3 E/(1 - nu^2) sqrt(R) d^1.5 times a series in chi = sqrt(R d) / t)."""
-    a0 = -(1.2876 - 1.4678 * nu + 1.3442 * nu * nu) / (1.0 - nu)
-    b0 = (0.6387 - 1.0277 * nu + 1.5164 * nu * nu) / (1.0 - nu)
-    chi = math.sqrt(radius * depth) / thickness
-    pi = math.pi
-    series = (1.0 - 2.0 * a0 / pi * chi + 4.0 * a0 * a0 / pi ** 2 * chi ** 2
-              - 8.0 / pi ** 3 * (a0 ** 3 + 4.0 * pi ** 2 / 15.0 * b0) * chi ** 3
-              - 16.0 * a0 / pi ** 4 * (a0 ** 3 + 3.0 * pi ** 2 / 5.0 * b0) * chi ** 4)
-    return 4.0 / 3.0 * e / (1.0 - nu * nu) * math.sqrt(radius) * depth ** 1.5 * series
 
 
 class IndentTest(unittest.TestCase):

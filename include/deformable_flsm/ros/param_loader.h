@@ -14,6 +14,7 @@
 #include <Eigen/Core>
 
 #include <cstddef>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -23,11 +24,19 @@ namespace deformable_flsm {
 struct ObjectSpec;
 
 /// Reads `~` parameters with their defaults. A parameter that is set with the wrong type is an
-/// error, never silently replaced by its default.
+/// error, never silently replaced by its default. The parameters come from the parameter server
+/// (the node) or from a tree of the same names (the Python bindings, which read the node's YAML
+/// without a master): one set of names, defaults and checks for both.
 class ParamLoader {
  public:
   /// @param[in] pnh  the node's private handle ("~")
   explicit ParamLoader(const ros::NodeHandle& pnh) : pnh_(pnh) {}
+  /// @param[in] tree    the private parameters as a dictionary (TypeStruct), as a YAML file
+  ///                    loaded with rosparam would put them under the node; ~robot_description
+  ///                    names a key of it holding the URDF text
+  /// @param[in] source  where the tree came from, for error messages (e.g. the file name)
+  /// @throws ParamError when `tree` is not a dictionary
+  ParamLoader(const XmlRpc::XmlRpcValue& tree, const std::string& source);
 
   /// @throws ParamError on a wrongly typed or invalid parameter.
   NodeParams loadNodeParams() const;
@@ -58,7 +67,17 @@ class ParamLoader {
   /// ~robot_description (the URDF read from the parameter it names) and ~robot_*.
   RobotColliders getRobot() const;
 
-  ros::NodeHandle pnh_;
+  /// whether ~name is set, and its value (from the server or the tree)
+  bool has(const std::string& name) const;
+  XmlRpc::XmlRpcValue fetch(const std::string& name) const;
+  /// ~name where it is looked up, for messages: its resolved name, or the tree's source
+  std::string where(const std::string& name) const;
+  [[noreturn]] void throwWrongType(const std::string& name, const char* expected) const;
+
+  /// the server's parameters (the node), unset when reading a tree
+  std::optional<ros::NodeHandle> pnh_;
+  XmlRpc::XmlRpcValue tree_;
+  std::string source_;
   /// the names the getters were asked for, set or not (unknownParams())
   mutable std::vector<std::string> read_;
 };

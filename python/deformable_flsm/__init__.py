@@ -1,0 +1,13 @@
+"""FastLSM deformable objects from Python: the node's scene, stepped without ROS.
+
+    import deformable_flsm as flsm
+    sim = flsm.Simulation.from_yaml("config/flsm.yaml", youngs_modulus=2e5)
+    sim.step(30)
+    x = sim.positions()          # (N, 3) view of the particles, no copy
+
+The scene is the one flsm_node builds from the same parameters (the node's own loader and
+scene builder); fit.py fits its material to a recording, batch.py runs many scenes.
+"""
+from deformable_flsm.scene import ParamError, Simulation, load_params
+
+__all__ = ["ParamError", "Simulation", "load_params"]
