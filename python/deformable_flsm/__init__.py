@@ -8,6 +8,11 @@
 The scene is the one flsm_node builds from the same parameters (the node's own loader and
 scene builder); fit.py fits its material to a recording, batch.py runs many scenes.
 """
+# The package spans this directory and the build's (the compiled _core, the messages): found
+# whichever of them a process imports first (catkin's devel space, or a Dask worker spawned
+# with this directory first on its path).
+__path__ = __import__("pkgutil").extend_path(__path__, __name__)
+
 from deformable_flsm.scene import ParamError, Simulation, load_params
 
 __all__ = ["ParamError", "Simulation", "load_params"]

@@ -1,0 +1,473 @@
+"""Fit the simulated object's material to a recorded poke, each generation evaluated on Dask.
+
+    ./scripts/flsm fit examples/fit/punch_fit.yaml [--scheduler tcp://HOST:8786] [--workers N]
+    python3 -m deformable_flsm.fit SPEC.yaml [options]
+
+Each evaluation builds the scene from its plain parameters (the node's YAML with the candidate's
+values), replays the tool's recorded motion with the scene's tool collider and compares the force
+on it with the recorded force. CMA-ES (python3-cmaes, ask and tell) searches two or more
+parameters; one parameter is bracketed (a grid over the interval, narrowed around the best). A
+checkpoint after each generation lets a stopped fit resume; a worker lost mid-fit costs its
+evaluations (Dask runs them again elsewhere). docs/fit.md has the method and the figures.
+"""
+import argparse
+import copy
+import hashlib
+import json
+import math
+import os
+import pickle
+import sys
+import time
+
+import numpy as np
+import yaml
+
+from deformable_flsm.recording import Recording, RecordingError
+from deformable_flsm.scene import ParamError, Simulation, load_params
+
+#: what a fit may vary: the node's material parameters, and the tool's friction
+FITTABLE = ("youngs_modulus", "poissons_ratio", "damping", "ambient_damping", "density", "friction")
+
+
+class FitError(ValueError):
+    """A fit that cannot start; the message says what to fix."""
+
+
+# --- the simulation of one candidate (runs on the workers) -------------------------------------
+
+def scene_with(base, values, tool):
+    """The scene's parameters with `values` applied (friction: the tool collider's)."""
+    tree = copy.deepcopy(base)
+    for name, value in values.items():
+        if name == "friction":
+            for c in tree.get("colliders", []):
+                if isinstance(c, dict) and c.get("id") == tool:
+                    c["static_friction"] = c["kinetic_friction"] = float(value)
+        else:
+            tree[name] = float(value)
+    return tree
+
+
+def tool_path(recording, dt):
+    """The tool's poses at the simulation's steps 0, dt, 2 dt, ... up to the recording's end:
+    positions interpolated linearly, orientations normalised linearly (small turns a step)."""
+    n = int(math.ceil(recording.times[-1] / dt - 1e-9))
+    ts = np.arange(n + 1) * dt
+    out = np.column_stack([np.interp(ts, recording.times, recording.poses[:, j]) for j in range(7)])
+    out[:, 3:] /= np.linalg.norm(out[:, 3:], axis=1, keepdims=True)
+    return ts, out
+
+
+def simulate(tree, recording, tool):
+    """The force on collider `tool` (N, (K, 3)) at the recording's times when it follows the
+    recorded poses through the scene `tree` (the node's private parameters)."""
+    sim = Simulation(tree, "the fit's scene")
+    if tool not in sim.colliders:
+        raise ParamError(f"the scene has no collider '{tool}' (its colliders: {', '.join(sim.colliders)})")
+    ts, poses = tool_path(recording, sim.time_step)
+    forces = np.zeros((len(ts) + 1, 3))
+    for k, (_, wrench) in enumerate(sim.follow(tool, poses)):
+        forces[k + 1] = wrench["force"]  # the mean over the step that ends at ts[k] + dt
+    times = np.concatenate([[0.0], ts + sim.time_step])
+    return np.column_stack([np.interp(recording.times, times, forces[:, j]) for j in range(3)])
+
+
+def evaluate(values, base, recording, tool, fit_mask):
+    """{cost, forces} for one candidate: the RMS of the force error over the fit's samples,
+    relative to the RMS of the recorded force there; cost inf when the scene refuses it."""
+    try:
+        forces = simulate(scene_with(base, values, tool), recording, tool)
+    except ParamError as e:
+        return {"cost": math.inf, "forces": None, "error": str(e)}
+    return {"cost": relative_rms(forces, recording.forces, fit_mask), "forces": forces, "error": ""}
+
+
+def relative_rms(simulated, measured, mask):
+    error = np.sum((simulated[mask] - measured[mask]) ** 2, axis=1).mean()
+    scale = np.sum(measured[mask] ** 2, axis=1).mean()
+    return math.sqrt(error / scale) if scale > 0 else math.sqrt(error)
+
+
+# --- the search ----------------------------------------------------------------------------------
+
+class Space:
+    """Parameters and bounds; a candidate is a point of the unit cube, logarithmic along a
+    parameter whose bounds are positive and a decade or more apart."""
+
+    def __init__(self, bounds):
+        self.names = list(bounds)
+        self.lo = np.array([float(bounds[n][0]) for n in self.names])
+        self.hi = np.array([float(bounds[n][1]) for n in self.names])
+        self.log = (self.lo > 0) & (self.hi >= 10 * self.lo)
+
+    def values(self, u):
+        u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
+        lin = self.lo + u * (self.hi - self.lo)
+        geo = np.exp(np.log(np.where(self.log, self.lo, 1.0)) +
+                     u * np.log(np.where(self.log, self.hi / np.where(self.log, self.lo, 1.0), 1.0)))
+        return dict(zip(self.names, np.where(self.log, geo, lin).tolist()))
+
+
+class Bracket:
+    """One parameter: `population` points across the interval, then the interval narrowed to a
+    grid step either side of the best."""
+
+    def __init__(self, population):
+        self.population = max(3, population)
+        self.lo, self.hi = 0.0, 1.0
+
+    def ask_all(self):
+        return [np.array([u]) for u in np.linspace(self.lo, self.hi, self.population)]
+
+    def tell(self, points, costs):
+        best = float(points[int(np.argmin(costs))][0])
+        step = (self.hi - self.lo) / (self.population - 1)
+        self.lo, self.hi = max(0.0, best - step), min(1.0, best + step)
+
+    def should_stop(self):
+        return self.hi - self.lo < 1e-5
+
+
+class Cma:
+    """CMA-ES over the unit cube (python3-cmaes)."""
+
+    def __init__(self, dims, population, seed):
+        from cmaes import CMA
+        self.opt = CMA(mean=np.full(dims, 0.5), sigma=0.25, bounds=np.array([[0.0, 1.0]] * dims),
+                       seed=seed, population_size=population)
+
+    @property
+    def population(self):
+        return self.opt.population_size
+
+    def ask_all(self):
+        return [self.opt.ask() for _ in range(self.opt.population_size)]
+
+    def tell(self, points, costs):
+        self.opt.tell([(p, c if math.isfinite(c) else 1e6) for p, c in zip(points, costs)])
+
+    def should_stop(self):
+        return self.opt.should_stop()
+
+
+class Cluster:
+    """A Dask client: on the scheduler at `address`, or on a local cluster of `workers`
+    single-threaded processes."""
+
+    def __init__(self, address=None, workers=None):
+        from distributed import Client, LocalCluster
+        self.local = None
+        if address:
+            self.client = Client(address, timeout="30s")
+        else:
+            self.local = LocalCluster(n_workers=workers or os.cpu_count(), threads_per_worker=1,
+                                      processes=True, dashboard_address=None)
+            self.client = Client(self.local)
+
+    def map(self, fn, items, **kwargs):
+        futures = self.client.map(fn, items, pure=False, retries=3, **kwargs)
+        return self.client.gather(futures)
+
+    def close(self):
+        self.client.close()
+        if self.local is not None:
+            self.local.close()
+
+
+# --- the fit -------------------------------------------------------------------------------------
+
+class FitSpec:
+    """What to fit: the recording, the scene (files over the node's config/flsm.yaml), the tool
+    collider, the parameters and their bounds, the held-out share of the recording."""
+
+    def __init__(self, recording, scene, tool, bounds, holdout=0.25, generations=30, population=0,
+                 seed=1, base=None):
+        self.recording = recording
+        self.scene_files = list(scene)
+        self.tool = tool
+        self.bounds = dict(bounds)
+        self.holdout = float(holdout)
+        self.generations = int(generations)
+        self.population = int(population)
+        self.seed = int(seed)
+        self.base_file = base or package_config()
+        self.validate()
+
+    @classmethod
+    def from_yaml(cls, path, **overrides):
+        with open(path) as f:
+            spec = yaml.safe_load(f)
+        if not isinstance(spec, dict):
+            raise FitError(f"{path}: a fit spec is a dictionary (recording, scene, tool, fit)")
+        here = os.path.dirname(os.path.abspath(path))
+        rel = lambda p: p if os.path.isabs(p) else os.path.join(here, p)  # noqa: E731
+        scene = spec.get("scene", [])
+        scene = [scene] if isinstance(scene, str) else scene
+        args = dict(recording=rel(spec["recording"]) if "recording" in spec else None,
+                    scene=[rel(s) for s in scene], tool=spec.get("tool"), bounds=spec.get("fit", {}),
+                    holdout=spec.get("holdout", 0.25), generations=spec.get("generations", 30),
+                    population=spec.get("population", 0), seed=spec.get("seed", 1))
+        args.update({k: v for k, v in overrides.items() if v is not None})
+        return cls(**args)
+
+    def validate(self):
+        if not self.recording:
+            raise FitError("no recording: give a CSV (time, x, y, z, fx, fy, fz) or a bag")
+        if not self.tool:
+            raise FitError("no tool: name the scene's collider that follows the recorded tool")
+        if not self.bounds:
+            raise FitError(f"nothing to fit: give bounds for any of {', '.join(FITTABLE)}")
+        for name, b in self.bounds.items():
+            if name not in FITTABLE:
+                raise FitError(f"'{name}' cannot be fitted: it must be one of {', '.join(FITTABLE)}")
+            ok = isinstance(b, (list, tuple)) and len(b) == 2 and all(isinstance(v, (int, float)) for v in b)
+            if not ok or not (math.isfinite(b[0]) and math.isfinite(b[1]) and b[0] < b[1]):
+                raise FitError(f"the bounds of '{name}' are {b}: give [low, high] with low < high")
+        if not 0.0 <= self.holdout < 0.9:
+            raise FitError(f"holdout {self.holdout}: the held-out share must be in [0, 0.9)")
+        if self.generations < 1:
+            raise FitError("generations must be 1 or more")
+
+    def base_tree(self):
+        tree = load_params(self.base_file, *self.scene_files)
+        tree.setdefault("threads", 1)  # the workers run in parallel: one core each
+        return tree
+
+
+def package_config():
+    """config/flsm.yaml of the package (as launch/flsm.launch loads it)."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    source = os.path.join(here, "..", "..", "config", "flsm.yaml")
+    if os.path.isfile(source):
+        return os.path.normpath(source)
+    import rospkg
+    return os.path.join(rospkg.RosPack().get_path("deformable_flsm"), "config", "flsm.yaml")
+
+
+def load_recording(spec, tool_frame=None, wrench_topic=None, frame_id="world"):
+    path = spec.recording
+    if not os.path.isfile(path):
+        raise FitError(f"the recording {path} does not exist")
+    if path.endswith(".bag"):
+        if not tool_frame or not wrench_topic:
+            raise FitError("a bag needs --tool-frame (the tool's tf frame) and --wrench-topic "
+                           "(its geometry_msgs/WrenchStamped)")
+        return Recording.from_bag(path, tool_frame, wrench_topic, frame_id)
+    return Recording.from_csv(path)
+
+
+def _key(spec, base, recording):
+    h = hashlib.sha256()
+    h.update(json.dumps([base, spec.tool, spec.bounds, spec.holdout, spec.seed, spec.population],
+                        sort_keys=True, default=str).encode())
+    for a in (recording.times, recording.poses, recording.forces):
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
+def _save(path, state):
+    tmp = path + ".tmp"
+    with open(tmp, "wb") as f:
+        pickle.dump(state, f)
+    os.replace(tmp, path)
+
+
+def _bar(done, total, width=24):
+    n = int(round(width * done / total))
+    return "[" + "#" * n + "-" * (width - n) + "]"
+
+
+def fit(spec, out_dir, cluster=None, recording=None, log=print):
+    """Runs (or resumes) the fit; returns the result dict written to out_dir/report.yaml."""
+    recording = recording or load_recording(spec)
+    base = spec.base_tree()
+    space = Space(spec.bounds)
+    mask = recording.times <= recording.times[-1] * (1.0 - spec.holdout) + 1e-12
+    held = ~mask
+    # the scene is checked once here, before any generation: a scene it refuses stops the fit
+    try:
+        check = Simulation(scene_with(base, space.values(np.full(len(space.names), 0.5)), spec.tool),
+                           "the fit's scene")
+    except ParamError as e:
+        raise FitError(f"the scene cannot be built: {e}") from None
+    if spec.tool not in check.colliders:
+        raise FitError(f"the scene has no collider '{spec.tool}' (it has: {', '.join(check.colliders) or 'none'})")
+    if check.unknown_params:
+        log(f"fit: not parameters of the node (misspelt?): {', '.join(check.unknown_params)}")
+    del check
+
+    os.makedirs(out_dir, exist_ok=True)
+    checkpoint = os.path.join(out_dir, "checkpoint.pkl")
+    key = _key(spec, base, recording)
+    state = None
+    if os.path.isfile(checkpoint):
+        with open(checkpoint, "rb") as f:
+            state = pickle.load(f)
+        if state.get("key") != key:
+            log("fit: the checkpoint in %s is of another fit: starting anew" % out_dir)
+            state = None
+        else:
+            log("fit: resuming after generation %d" % state["generation"])
+    if state is None:
+        dims = len(space.names)
+        population = spec.population or (4 + int(3 * math.log(dims)) if dims > 1 else 7)
+        search = Cma(dims, population, spec.seed) if dims > 1 else Bracket(population)
+        state = {"key": key, "generation": 0, "search": search, "history": [], "best": None,
+                 "evaluations": 0, "seconds": 0.0}
+
+    own = cluster is None
+    cluster = cluster or Cluster()
+    try:
+        search = state["search"]
+        while state["generation"] < spec.generations and not search.should_stop():
+            t0 = time.time()
+            points = search.ask_all()
+            results = cluster.map(evaluate, [space.values(u) for u in points], base=base,
+                                  recording=recording, tool=spec.tool, fit_mask=mask)
+            costs = [r["cost"] for r in results]
+            search.tell(points, costs)
+            k = int(np.argmin(costs))
+            if state["best"] is None or costs[k] < state["best"]["cost"]:
+                state["best"] = {"values": space.values(points[k]), "cost": costs[k], "forces": results[k]["forces"]}
+            state["generation"] += 1
+            state["evaluations"] += len(points)
+            state["seconds"] += time.time() - t0
+            state["history"].append((state["generation"], costs))
+            _save(checkpoint, state)
+            best = state["best"]
+            log("fit: generation %d/%d %s best %.4f %s (%d evaluations, %.1f s)" % (
+                state["generation"], spec.generations, _bar(state["generation"], spec.generations),
+                best["cost"], " ".join("%s=%.4g" % kv for kv in best["values"].items()),
+                len(points), time.time() - t0))
+            refused = [r["error"] for r in results if r["error"]]
+            if refused and len(refused) == len(results):
+                raise FitError("the scene refused every candidate: " + refused[0])
+        best = state["best"]
+        sigma = uncertainty(cluster, best, base, recording, spec.tool, mask)
+    finally:
+        if own:
+            cluster.close()
+    result = {
+        "parameters": {n: float(v) for n, v in best["values"].items()},
+        "standard_error": {n: float(s) for n, s in sigma.items()},
+        "cost": float(best["cost"]),
+        "held_out_cost": float(relative_rms(best["forces"], recording.forces, held)) if held.any() else None,
+        "generations": state["generation"],
+        "evaluations": state["evaluations"],
+        "seconds": round(state["seconds"], 2),
+        "recording": recording.source,
+        "held_out_from": float(recording.times[held][0]) if held.any() else None,
+    }
+    write_outputs(out_dir, spec, result, recording, best["forces"], mask)
+    return result
+
+
+def uncertainty(cluster, best, base, recording, tool, mask):
+    """Standard errors from the residuals' Jacobian at the optimum (central differences of 1 %):
+    s^2 (J^T J)^-1 with s^2 the residuals' variance; the noise's share of the error only, not the
+    model's."""
+    names = list(best["values"])
+    x = np.array([best["values"][n] for n in names])
+    h = np.where(x != 0.0, 0.01 * np.abs(x), 1e-3)
+    probes = []
+    for i in range(len(names)):
+        for sign in (+1, -1):
+            v = x.copy()
+            v[i] += sign * h[i]
+            probes.append(dict(zip(names, v.tolist())))
+    results = cluster.map(evaluate, probes, base=base, recording=recording, tool=tool, fit_mask=mask)
+    if any(r["forces"] is None for r in results):
+        return {n: math.nan for n in names}
+    J = np.column_stack([(results[2 * i]["forces"][mask] - results[2 * i + 1]["forces"][mask]).ravel() / (2 * h[i])
+                         for i in range(len(names))])
+    r = (best["forces"][mask] - recording.forces[mask]).ravel()
+    dof = max(1, r.size - len(names))
+    try:
+        cov = np.linalg.inv(J.T @ J) * (r @ r) / dof
+    except np.linalg.LinAlgError:
+        return {n: math.inf for n in names}
+    return {n: math.sqrt(max(0.0, cov[i, i])) for i, n in enumerate(names)}
+
+
+def write_outputs(out_dir, spec, result, recording, forces, mask):
+    """fitted.yaml (the scene with the fitted values: the node's scene_params), report.yaml and
+    fit.png (force against depth and time, with the residuals)."""
+    scene = load_params(*spec.scene_files) if spec.scene_files else {}
+    scene = scene_with(scene, result["parameters"], spec.tool)
+    with open(os.path.join(out_dir, "fitted.yaml"), "w") as f:
+        f.write("# The scene with its material fitted by deformable_flsm.fit to %s\n" % recording.source)
+        f.write("# (%s); run: roslaunch deformable_flsm flsm.launch scene_params:=%s\n" % (
+            ", ".join("%s %.4g +- %.2g" % (n, v, result["standard_error"][n])
+                      for n, v in result["parameters"].items()),
+            os.path.join(os.path.abspath(out_dir), "fitted.yaml")))
+        yaml.safe_dump(scene, f, default_flow_style=None, sort_keys=False)
+    with open(os.path.join(out_dir, "report.yaml"), "w") as f:
+        yaml.safe_dump(result, f, sort_keys=False)
+    plot(os.path.join(out_dir, "fit.png"), recording, forces, mask, result)
+
+
+def plot(path, recording, forces, mask, result):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    axis = -recording.forces.mean(axis=0)
+    axis = axis / np.linalg.norm(axis) if np.linalg.norm(axis) > 0 else np.array([0.0, 0.0, -1.0])
+    measured, fitted = -recording.forces @ axis, -forces @ axis
+    depth = 1e3 * recording.depth
+    fig, ax = plt.subplots(3, 1, figsize=(7, 9))
+    ax[0].plot(depth[mask], measured[mask], ".", ms=3, label="recorded (fitted)")
+    ax[0].plot(depth[~mask], measured[~mask], ".", ms=3, color="grey", label="recorded (held out)")
+    ax[0].plot(depth, fitted, "-", label="simulated, fitted")
+    ax[0].set_xlabel("depth (mm)")
+    ax[0].set_ylabel("force (N)")
+    ax[0].legend()
+    ax[0].set_title(", ".join("%s %.4g" % kv for kv in result["parameters"].items()))
+    ax[1].plot(recording.times, measured, ".", ms=3, label="recorded")
+    ax[1].plot(recording.times, fitted, "-", label="simulated")
+    if (~mask).any():
+        ax[1].axvspan(recording.times[~mask][0], recording.times[-1], color="grey", alpha=0.15, label="held out")
+    ax[1].set_xlabel("time (s)")
+    ax[1].set_ylabel("force (N)")
+    ax[1].legend()
+    ax[2].plot(recording.times, fitted - measured, ".", ms=3)
+    ax[2].axhline(0.0, color="k", lw=0.5)
+    ax[2].set_xlabel("time (s)")
+    ax[2].set_ylabel("residual (N)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="flsm fit", description=__doc__.split("\n\n")[0])
+    parser.add_argument("spec", help="the fit's YAML: recording, scene, tool, fit: {name: [low, high]}")
+    parser.add_argument("--recording", help="a CSV (time, x, y, z[, qx, qy, qz, qw], fx, fy, fz) or a bag")
+    parser.add_argument("--tool-frame", help="(bag) the tool's tf frame")
+    parser.add_argument("--wrench-topic", help="(bag) the tool's geometry_msgs/WrenchStamped topic")
+    parser.add_argument("--frame-id", default="world", help="(bag) the simulation frame (default world)")
+    parser.add_argument("--scheduler", help="a Dask scheduler (tcp://HOST:8786); default: a local cluster")
+    parser.add_argument("--workers", type=int, help="local cluster's worker processes (default: the cores)")
+    parser.add_argument("--generations", type=int)
+    parser.add_argument("--seed", type=int)
+    parser.add_argument("--out", default="fit_out", help="output directory (default fit_out)")
+    args = parser.parse_args(argv)
+    try:
+        spec = FitSpec.from_yaml(args.spec, recording=args.recording, generations=args.generations, seed=args.seed)
+        recording = load_recording(spec, args.tool_frame, args.wrench_topic, args.frame_id)
+        cluster = Cluster(args.scheduler, args.workers)
+        try:
+            result = fit(spec, args.out, cluster, recording,
+                         log=lambda m: print(m, file=sys.stderr, flush=True))
+        finally:
+            cluster.close()
+    except (FitError, RecordingError, ParamError, OSError) as e:
+        print("flsm fit: %s" % e, file=sys.stderr)
+        return 2
+    print(yaml.safe_dump(result, sort_keys=False), end="")
+    print("flsm fit: wrote %s/fitted.yaml, report.yaml, fit.png" % args.out, file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

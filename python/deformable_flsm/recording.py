@@ -1,0 +1,162 @@
+"""A recorded poke: the tool's pose and the force on it over time, from a CSV file or a bag."""
+import csv
+
+import numpy as np
+
+
+class RecordingError(ValueError):
+    """A recording that cannot be used; the message says what to fix."""
+
+
+class Recording:
+    """times (K,) s from the recording's start; poses (K, 7): position (m) and orientation
+    [x, y, z, w] of the tool's frame in the simulation frame; forces (K, 3): the force the object
+    exerts on the tool (N, simulation frame)."""
+
+    def __init__(self, times, poses, forces, source="recording"):
+        self.times = np.asarray(times, dtype=float)
+        self.poses = np.asarray(poses, dtype=float)
+        self.forces = np.asarray(forces, dtype=float)
+        self.source = source
+        k = len(self.times)
+        if k < 3:
+            raise RecordingError(f"{source}: {k} samples; a fit needs at least 3")
+        if self.poses.shape != (k, 7) or self.forces.shape != (k, 3):
+            raise RecordingError(f"{source}: poses must be (K, 7) and forces (K, 3) for K = {k} times")
+        for name, a in (("times", self.times), ("poses", self.poses), ("forces", self.forces)):
+            if not np.all(np.isfinite(a)):
+                raise RecordingError(f"{source}: its {name} are not all finite")
+        if np.any(np.diff(self.times) <= 0.0):
+            raise RecordingError(f"{source}: its times must increase")
+        norms = np.linalg.norm(self.poses[:, 3:], axis=1)
+        if np.any(np.abs(norms - 1.0) > 1e-3):
+            raise RecordingError(f"{source}: its orientations must be unit quaternions [x, y, z, w]")
+        self.times = self.times - self.times[0]
+
+    @property
+    def depth(self):
+        """How far the tool has moved along the mean force's opposite since the start (m): the
+        indentation for a poke."""
+        axis = -self.forces.mean(axis=0)
+        n = np.linalg.norm(axis)
+        axis = axis / n if n > 0 else np.array([0.0, 0.0, -1.0])
+        return (self.poses[:, :3] - self.poses[0, :3]) @ axis
+
+    @classmethod
+    def from_csv(cls, path):
+        """Columns by header: time, x, y, z, optionally qx, qy, qz, qw, then fx, fy, fz; lines
+        starting with # are comments."""
+        with open(path) as f:
+            rows = [r for r in csv.reader(line for line in f if not line.lstrip().startswith("#")) if r]
+        if not rows:
+            raise RecordingError(f"{path}: empty")
+        header = [h.strip() for h in rows[0]]
+        need = ["time", "x", "y", "z", "fx", "fy", "fz"]
+        missing = [h for h in need if h not in header]
+        if missing:
+            raise RecordingError(f"{path}: the header has no column {', '.join(missing)} "
+                                 f"(it needs {', '.join(need)}, optionally qx, qy, qz, qw)")
+        try:
+            data = np.array([[float(v) for v in r] for r in rows[1:]])
+        except ValueError as e:
+            raise RecordingError(f"{path}: a value is not a number ({e})") from None
+        if data.ndim != 2 or data.shape[1] != len(header):
+            raise RecordingError(f"{path}: every row must have the header's {len(header)} columns")
+        col = {h: data[:, header.index(h)] for h in header}
+        quat = (np.column_stack([col[q] for q in ("qx", "qy", "qz", "qw")])
+                if all(q in col for q in ("qx", "qy", "qz", "qw"))
+                else np.tile([0.0, 0.0, 0.0, 1.0], (len(data), 1)))
+        poses = np.column_stack([col["x"], col["y"], col["z"], quat])
+        return cls(col["time"], poses, np.column_stack([col["fx"], col["fy"], col["fz"]]), path)
+
+    def to_csv(self, path):
+        with open(path, "w") as f:
+            f.write("time,x,y,z,qx,qy,qz,qw,fx,fy,fz\n")
+            for t, p, w in zip(self.times, self.poses, self.forces):
+                f.write(",".join("%.9g" % v for v in (t, *p, *w)) + "\n")
+
+    @classmethod
+    def from_bag(cls, path, tool_frame, wrench_topic, frame_id="world"):
+        """The tool frame's pose in `frame_id` from the bag's /tf (and /tf_static) at each message
+        of `wrench_topic` (geometry_msgs/WrenchStamped, the force on the tool, expressed in
+        `frame_id` or in the tool frame)."""
+        import rosbag  # Debian's python3-rosbag; only needed for bags
+
+        try:
+            bag = rosbag.Bag(path)
+        except Exception as e:  # rosbag raises its own exceptions and IOError
+            raise RecordingError(f"{path}: not a readable bag ({e})") from None
+        with bag:
+            topics = bag.get_type_and_topic_info().topics
+            if wrench_topic not in topics:
+                raise RecordingError(f"{path}: no topic {wrench_topic} (it has {', '.join(sorted(topics))})")
+            if topics[wrench_topic].msg_type != "geometry_msgs/WrenchStamped":
+                raise RecordingError(f"{path}: {wrench_topic} is {topics[wrench_topic].msg_type}, "
+                                     "not geometry_msgs/WrenchStamped")
+            edges = {}  # child -> list of (stamp, parent, 7-vector)
+            for _, msg, _ in bag.read_messages(topics=["/tf", "/tf_static"]):
+                for tr in msg.transforms:
+                    t, r = tr.transform.translation, tr.transform.rotation
+                    edges.setdefault(tr.child_frame_id.lstrip("/"), []).append(
+                        (tr.header.stamp.to_sec(), tr.header.frame_id.lstrip("/"),
+                         np.array([t.x, t.y, t.z, r.x, r.y, r.z, r.w])))
+            wrenches = [(m.header.stamp.to_sec(), m.header.frame_id.lstrip("/"), m.wrench.force)
+                        for _, m, _ in bag.read_messages(topics=[wrench_topic])]
+        if not wrenches:
+            raise RecordingError(f"{path}: {wrench_topic} has no messages")
+        times, poses, forces = [], [], []
+        for stamp, frame, f in wrenches:
+            pose = _lookup(edges, frame_id, tool_frame, stamp, path)
+            if pose is None:
+                continue  # before the tool's frame is known
+            force = np.array([f.x, f.y, f.z])
+            if frame == tool_frame:
+                force = _rotate(pose[3:], force)
+            elif frame != frame_id:
+                raise RecordingError(f"{path}: {wrench_topic} is expressed in '{frame}': it must be "
+                                     f"'{frame_id}' or the tool frame '{tool_frame}'")
+            times.append(stamp)
+            poses.append(pose)
+            forces.append(force)
+        if not times:
+            raise RecordingError(f"{path}: no transform from '{frame_id}' to '{tool_frame}' on /tf "
+                                 f"at the times of {wrench_topic}")
+        return cls(times, poses, forces, path)
+
+
+def _quat_mul(a, b):
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return np.array([aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw,
+                     aw * bw - ax * bx - ay * by - az * bz])
+
+
+def _rotate(q, v):
+    p = _quat_mul(_quat_mul(q, [v[0], v[1], v[2], 0.0]), [-q[0], -q[1], -q[2], q[3]])
+    return p[:3]
+
+
+def _compose(a, b):
+    return np.concatenate([a[:3] + _rotate(a[3:], b[:3]), _quat_mul(a[3:], b[3:])])
+
+
+def _lookup(edges, root, frame, stamp, path):
+    """The pose of `frame` in `root` at `stamp`: each link of the chain from the latest transform
+    at or before it (None when a link has none yet)."""
+    pose = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
+    seen = set()
+    while frame != root:
+        if frame in seen or frame not in edges:
+            raise RecordingError(f"{path}: /tf has no chain from '{root}' to the tool frame "
+                                 f"(it stops at '{frame}')")
+        seen.add(frame)
+        before = [e for e in edges[frame] if e[0] <= stamp + 1e-9]
+        if not before:
+            return None
+        _, parent, t = max(before, key=lambda e: e[0])
+        pose = _compose(t, pose)
+        frame = parent
+    return pose
+
