@@ -43,15 +43,15 @@ class Recording:
         return (self.poses[:, :3] - self.poses[0, :3]) @ axis
 
     @classmethod
-    def from_csv(cls, path):
-        """Columns by header: time, x, y, z, optionally qx, qy, qz, qw, then fx, fy, fz; lines
-        starting with # are comments."""
+    def from_csv(cls, path, forces=True):
+        """Columns by header: time, x, y, z, optionally qx, qy, qz, qw, then fx, fy, fz (zero when
+        `forces` is False: a tool path); lines starting with # are comments."""
         with open(path) as f:
             rows = [r for r in csv.reader(line for line in f if not line.lstrip().startswith("#")) if r]
         if not rows:
             raise RecordingError(f"{path}: empty")
         header = [h.strip() for h in rows[0]]
-        need = ["time", "x", "y", "z", "fx", "fy", "fz"]
+        need = ["time", "x", "y", "z"] + (["fx", "fy", "fz"] if forces else [])
         missing = [h for h in need if h not in header]
         if missing:
             raise RecordingError(f"{path}: the header has no column {', '.join(missing)} "
@@ -67,7 +67,9 @@ class Recording:
                 if all(q in col for q in ("qx", "qy", "qz", "qw"))
                 else np.tile([0.0, 0.0, 0.0, 1.0], (len(data), 1)))
         poses = np.column_stack([col["x"], col["y"], col["z"], quat])
-        return cls(col["time"], poses, np.column_stack([col["fx"], col["fy"], col["fz"]]), path)
+        force = (np.column_stack([col["fx"], col["fy"], col["fz"]]) if forces
+                 else np.zeros((len(data), 3)))
+        return cls(col["time"], poses, force, path)
 
     def to_csv(self, path):
         with open(path, "w") as f:
