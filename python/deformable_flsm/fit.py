@@ -63,6 +63,13 @@ def simulate(tree, recording, tool):
     """The force on collider `tool` (N, (K, 3)) at the recording's times when it follows the
     recorded poses through the scene `tree` (the node's private parameters)."""
     sim = Simulation(tree, "the fit's scene")
+    for name in sim.objects:
+        info = sim.info(name)
+        if info["stiffness_saturated"]:
+            # the explicit step caps the modulus: any larger one would read the same
+            raise ParamError("the explicit step caps youngs_modulus %.4g at these substeps (alpha %.3g "
+                             "asked, %.3g used): set integrator: implicit, or more substeps"
+                             % (tree.get("youngs_modulus", math.nan), info["requested_alpha"], info["alpha"]))
     if tool not in sim.colliders:
         raise ParamError(f"the scene has no collider '{tool}' (its colliders: {', '.join(sim.colliders)})")
     ts, poses = tool_path(recording, sim.time_step)
@@ -311,10 +318,10 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
             log("fit: resuming after generation %d" % state["generation"])
     if state is None:
         dims = len(space.names)
-        population = spec.population or (4 + int(3 * math.log(dims)) if dims > 1 else 7)
+        population = spec.population or (4 + int(3 * math.log(dims)) if dims > 1 else 8)
         search = Cma(dims, population, spec.seed) if dims > 1 else Bracket(population)
         state = {"key": key, "generation": 0, "search": search, "history": [], "best": None,
-                 "evaluations": 0, "seconds": 0.0}
+                 "evaluations": 0, "seconds": 0.0, "refused": 0, "refusal": ""}
 
     own = cluster is None
     cluster = cluster or Cluster()
@@ -341,10 +348,21 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
                 best["cost"], " ".join("%s=%.4g" % kv for kv in best["values"].items()),
                 len(points), time.time() - t0))
             refused = [r["error"] for r in results if r["error"]]
-            if refused and len(refused) == len(results):
+            if refused:
+                state["refused"] += len(refused)
+                state["refusal"] = refused[0]
+            if state["best"] is None or not math.isfinite(state["best"]["cost"]):
                 raise FitError("the scene refused every candidate: " + refused[0])
         best = state["best"]
         sigma = uncertainty(cluster, best, base, recording, spec.tool, mask)
+        at_bound = [n for n in space.names
+                    if min(abs(best["values"][n] - spec.bounds[n][0]), abs(best["values"][n] - spec.bounds[n][1]))
+                    <= 0.01 * (spec.bounds[n][1] - spec.bounds[n][0])]
+        if at_bound:
+            log("fit: %s ended at a bound: widen the bounds, or the scene cannot match the recording"
+                % ", ".join(at_bound))
+        if state["refused"]:
+            log("fit: %d candidates refused, e.g.: %s" % (state["refused"], state["refusal"]))
     finally:
         if own:
             cluster.close()
@@ -356,6 +374,8 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
         "generations": state["generation"],
         "evaluations": state["evaluations"],
         "seconds": round(state["seconds"], 2),
+        "at_bound": at_bound,
+        "refused": state["refused"],
         "recording": recording.source,
         "held_out_from": float(recording.times[held][0]) if held.any() else None,
     }

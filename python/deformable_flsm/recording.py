@@ -78,10 +78,12 @@ class Recording:
                 f.write(",".join("%.9g" % v for v in (t, *p, *w)) + "\n")
 
     @classmethod
-    def from_bag(cls, path, tool_frame, wrench_topic, frame_id="world"):
-        """The tool frame's pose in `frame_id` from the bag's /tf (and /tf_static) at each message
-        of `wrench_topic` (geometry_msgs/WrenchStamped, the force on the tool, expressed in
-        `frame_id` or in the tool frame)."""
+    def from_bag(cls, path, tool_frame, wrench_topic, frame_id="world", collider=None):
+        """The tool frame's pose in `frame_id` from the bag's /tf and /tf_static (interpolated)
+        at each message of `wrench_topic`: a geometry_msgs/WrenchStamped (a wrist force-torque
+        sensor: the force on the tool), or the node's deformable_flsm/ContactWrenches (the entry
+        of collider `collider`). The force is turned into `frame_id` from its message's frame,
+        which must be on /tf."""
         import rosbag  # Debian's python3-rosbag; only needed for bags
 
         try:
@@ -92,34 +94,44 @@ class Recording:
             topics = bag.get_type_and_topic_info().topics
             if wrench_topic not in topics:
                 raise RecordingError(f"{path}: no topic {wrench_topic} (it has {', '.join(sorted(topics))})")
-            if topics[wrench_topic].msg_type != "geometry_msgs/WrenchStamped":
-                raise RecordingError(f"{path}: {wrench_topic} is {topics[wrench_topic].msg_type}, "
-                                     "not geometry_msgs/WrenchStamped")
+            kind = topics[wrench_topic].msg_type
+            if kind not in ("geometry_msgs/WrenchStamped", "deformable_flsm/ContactWrenches"):
+                raise RecordingError(f"{path}: {wrench_topic} is {kind}, not geometry_msgs/WrenchStamped "
+                                     "or deformable_flsm/ContactWrenches")
+            if kind == "deformable_flsm/ContactWrenches" and not collider:
+                raise RecordingError(f"{path}: {wrench_topic} holds every collider's wrench: name the tool's "
+                                     "collider")
             edges = {}  # child -> list of (stamp, parent, 7-vector)
-            for _, msg, _ in bag.read_messages(topics=["/tf", "/tf_static"]):
+            for topic, msg, _ in bag.read_messages(topics=["/tf", "/tf_static"]):
                 for tr in msg.transforms:
                     t, r = tr.transform.translation, tr.transform.rotation
                     edges.setdefault(tr.child_frame_id.lstrip("/"), []).append(
-                        (tr.header.stamp.to_sec(), tr.header.frame_id.lstrip("/"),
+                        (0.0 if topic == "/tf_static" else tr.header.stamp.to_sec(), tr.header.frame_id.lstrip("/"),
                          np.array([t.x, t.y, t.z, r.x, r.y, r.z, r.w])))
-            wrenches = [(m.header.stamp.to_sec(), m.header.frame_id.lstrip("/"), m.wrench.force)
-                        for _, m, _ in bag.read_messages(topics=[wrench_topic])]
+            wrenches = []
+            for _, m, _ in bag.read_messages(topics=[wrench_topic]):
+                if kind == "geometry_msgs/WrenchStamped":
+                    wrenches.append((m.header.stamp.to_sec(), m.header.frame_id.lstrip("/"), m.wrench.force))
+                elif collider in m.ids:
+                    w = m.wrenches[list(m.ids).index(collider)]
+                    wrenches.append((m.header.stamp.to_sec(), w.header.frame_id.lstrip("/"), w.wrench.force))
         if not wrenches:
-            raise RecordingError(f"{path}: {wrench_topic} has no messages")
+            raise RecordingError(f"{path}: {wrench_topic} has no messages" +
+                                 (f" with collider '{collider}'" if collider else ""))
+        for child in edges:
+            edges[child].sort(key=lambda e: e[0])
         times, poses, forces = [], [], []
-        for stamp, frame, f in wrenches:
+        for stamp, frame, f in sorted(wrenches, key=lambda w: w[0]):
+            if times and stamp <= times[-1]:
+                continue  # the same state again (a node republishing at rest)
             pose = _lookup(edges, frame_id, tool_frame, stamp, path)
-            if pose is None:
-                continue  # before the tool's frame is known
-            force = np.array([f.x, f.y, f.z])
-            if frame == tool_frame:
-                force = _rotate(pose[3:], force)
-            elif frame != frame_id:
-                raise RecordingError(f"{path}: {wrench_topic} is expressed in '{frame}': it must be "
-                                     f"'{frame_id}' or the tool frame '{tool_frame}'")
+            turn = pose if frame == tool_frame else (
+                np.array([0, 0, 0, 0, 0, 0, 1.0]) if frame == frame_id else _lookup(edges, frame_id, frame, stamp, path))
+            if pose is None or turn is None:
+                continue  # before the frames are known
             times.append(stamp)
             poses.append(pose)
-            forces.append(force)
+            forces.append(_rotate(turn[3:], np.array([f.x, f.y, f.z])))
         if not times:
             raise RecordingError(f"{path}: no transform from '{frame_id}' to '{tool_frame}' on /tf "
                                  f"at the times of {wrench_topic}")
@@ -144,21 +156,36 @@ def _compose(a, b):
     return np.concatenate([a[:3] + _rotate(a[3:], b[:3]), _quat_mul(a[3:], b[3:])])
 
 
+def _interpolate(link, stamp):
+    """A link's transform at `stamp`: between the two around it (positions linearly, rotations
+    normalised linearly), the nearest past the ends; None before its first (/tf_static's,
+    stored at 0, hold always)."""
+    stamps = [e[0] for e in link]
+    k = int(np.searchsorted(stamps, stamp, side="right"))
+    if k == 0:
+        return (link[0][1], link[0][2]) if stamps[0] <= 0.0 else None
+    if k == len(link) or stamps[k] == stamps[k - 1]:
+        return link[k - 1][1], link[k - 1][2]
+    a, b = link[k - 1][2], link[k][2]
+    s = (stamp - stamps[k - 1]) / (stamps[k] - stamps[k - 1])
+    qb = b[3:] if np.dot(a[3:], b[3:]) >= 0 else -b[3:]
+    q = (1 - s) * a[3:] + s * qb
+    return link[k - 1][1], np.concatenate([(1 - s) * a[:3] + s * b[:3], q / np.linalg.norm(q)])
+
+
 def _lookup(edges, root, frame, stamp, path):
-    """The pose of `frame` in `root` at `stamp`: each link of the chain from the latest transform
-    at or before it (None when a link has none yet)."""
+    """The pose of `frame` in `root` at `stamp`, composed along the chain of /tf (None when a
+    link of it has no transform yet)."""
     pose = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
     seen = set()
     while frame != root:
         if frame in seen or frame not in edges:
-            raise RecordingError(f"{path}: /tf has no chain from '{root}' to the tool frame "
-                                 f"(it stops at '{frame}')")
+            raise RecordingError(f"{path}: /tf has no chain from '{root}' to '{frame}'")
         seen.add(frame)
-        before = [e for e in edges[frame] if e[0] <= stamp + 1e-9]
-        if not before:
+        found = _interpolate(edges[frame], stamp)
+        if found is None:
             return None
-        _, parent, t = max(before, key=lambda e: e[0])
+        parent, t = found
         pose = _compose(t, pose)
         frame = parent
     return pose
-

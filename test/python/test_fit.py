@@ -154,7 +154,7 @@ def test_a_stopped_fit_resumes_from_its_checkpoint(local, tmp_path):
     spec = F.FitSpec.from_yaml(SPEC, generations=5)
     resumed = F.fit(spec, str(tmp_path), local, log=messages.append)
     assert any("resuming after generation 3" in m for m in messages)
-    assert resumed["generations"] == 5 and resumed["evaluations"] == 5 * 7
+    assert resumed["generations"] == 5 and resumed["evaluations"] == 5 * 8
 
 
 def test_bad_input_is_refused_before_any_simulation(local, tmp_path):
@@ -172,7 +172,7 @@ def test_bad_input_is_refused_before_any_simulation(local, tmp_path):
     write_bag(bag, Recording.from_csv(os.path.join(EXAMPLE, "punch_fem.csv")))
     with pytest.raises(RecordingError, match="no topic /ft"):
         Recording.from_bag(bag, "tool", "/ft", "world")
-    with pytest.raises(RecordingError, match="no chain from 'world' to the tool frame"):
+    with pytest.raises(RecordingError, match="no chain from 'world' to 'gripper'"):
         Recording.from_bag(bag, "gripper", "/wrist/wrench", "world")
     spec = F.FitSpec.from_yaml(SPEC)
     spec.tool = "finger"
@@ -185,6 +185,13 @@ def test_bad_input_is_refused_before_any_simulation(local, tmp_path):
     with pytest.raises(F.FitError, match="~spacing"):
         F.fit(spec, str(tmp_path / "b"), local, log=lambda m: None)
     assert not os.path.exists(tmp_path / "b" / "checkpoint.pkl")
+    # an explicit step that caps every candidate's modulus: refused, not fitted to the cap
+    capped = tmp_path / "capped.yaml"
+    capped.write_text("integrator: explicit\nsubsteps: 1\n")
+    spec = F.FitSpec.from_yaml(SPEC, generations=2)
+    spec.scene_files.append(str(capped))
+    with pytest.raises(F.FitError, match="caps youngs_modulus"):
+        F.fit(spec, str(tmp_path / "c"), local, log=lambda m: None)
 
 
 def test_the_command_line_fits_the_example(tmp_path):

@@ -1,0 +1,85 @@
+#!/usr/bin/env python3
+"""The fit's round trip through ROS (fit_roundtrip.test): the node's punch pressed 2 mm into the
+block along the tf frame `tool` and lifted again, `rosbag record` of /tf and ~contact_wrenches,
+then deformable_flsm.fit on the bag gives back the node's modulus within 3 %."""
+
+import os
+import shutil
+import signal
+import subprocess
+import tempfile
+import unittest
+
+import numpy as np
+import rospy
+import rostest
+import tf2_ros
+from geometry_msgs.msg import TransformStamped
+
+from deformable_flsm import fit as F
+from deformable_flsm.recording import Recording
+from flsm_testing import FlsmClient
+
+PKG = 'deformable_flsm'
+MODULUS = 35000.0          # fit_roundtrip.test
+TOP, DEPTH = 0.05, 0.002   # the block's top face; how far the punch goes in
+
+
+def tool_height(t):
+    """1 s on the surface, 3 s down, 2 s held, 3 s up, 1 s on the surface (m)."""
+    d = DEPTH * np.clip(min((t - 1.0) / 3.0, 1.0 - (t - 6.0) / 3.0), 0.0, 1.0)
+    return TOP - d
+
+
+class FitRoundTripTest(unittest.TestCase):
+
+    def test_the_nodes_modulus_comes_back_from_a_bag(self):
+        rospy.init_node('test_fit_roundtrip')
+        flsm = FlsmClient()
+        self.assertIsNotNone(flsm.wait_state(lambda s: s.idle, 60.0), 'the block did not come to rest')
+        out = tempfile.mkdtemp()
+        bag = os.path.join(out, 'poke.bag')
+        record = subprocess.Popen(['rosbag', 'record', '-O', bag, '/tf', '/flsm_node/contact_wrenches'],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            rospy.sleep(2.0)  # rosbag subscribes
+            tf = tf2_ros.TransformBroadcaster()
+            rate = rospy.Rate(60.0)
+            t0 = rospy.Time.now()
+            while not rospy.is_shutdown():
+                t = (rospy.Time.now() - t0).to_sec()
+                if t > 10.0:
+                    break
+                m = TransformStamped()
+                m.header.stamp = rospy.Time.now()
+                m.header.frame_id, m.child_frame_id = 'world', 'tool'
+                m.transform.translation.z = tool_height(t)
+                m.transform.rotation.w = 1.0
+                tf.sendTransform(m)
+                rate.sleep()
+            rospy.sleep(0.5)
+        finally:
+            record.send_signal(signal.SIGINT)
+            record.wait(30)
+        try:
+            recording = Recording.from_bag(bag, 'tool', '/flsm_node/contact_wrenches', 'world', collider='punch')
+            depth = TOP - recording.poses[:, 2]
+            self.assertGreater(depth.max(), 0.99 * DEPTH)
+            self.assertGreater(recording.forces[:, 2].max(), 0.5)
+            spec = F.FitSpec.from_yaml(os.path.join(os.path.dirname(F.package_config()), '..', 'examples', 'fit',
+                                                    'punch_fit.yaml'), recording=bag)
+            cluster = F.Cluster(workers=2)
+            try:
+                result = F.fit(spec, os.path.join(out, 'fit'), cluster, recording, log=rospy.loginfo)
+            finally:
+                cluster.close()
+            e = result['parameters']['youngs_modulus']
+            rospy.loginfo('fit_roundtrip: %d samples, E %.0f Pa (%.4f of the node\'s), error %.4f',
+                          len(recording.times), e, e / MODULUS, result['cost'])
+            self.assertAlmostEqual(e / MODULUS, 1.0, delta=0.03)
+        finally:
+            shutil.rmtree(out, ignore_errors=True)
+
+
+if __name__ == '__main__':
+    rostest.rosrun(PKG, 'fit_roundtrip', FitRoundTripTest)
