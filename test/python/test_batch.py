@@ -47,7 +47,7 @@ def test_the_example_grid_is_written_with_an_index_and_resumes(local, tmp_path):
         peak[(params["youngs_modulus"], params["poissons_ratio"], params["damping"])] = d["wrenches"][:, 0, 2].max()
     # linear elasticity: at 2 mm in 5 cm the punch's force is proportional to the modulus
     for nu in (0.0, 0.3):
-        for c in (0.1, 0.5):
+        for c in (5.0, 20.0):
             assert peak[(100000.0, nu, c)] / peak[(10000.0, nu, c)] == pytest.approx(10.0, rel=0.02)
     # a lost sample (its file gone) is run again, and only it
     os.remove(os.path.join(out, index[5]["file"]))

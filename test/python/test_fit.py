@@ -94,6 +94,19 @@ def test_a_simulated_poke_read_back_from_a_bag_gives_its_modulus_within_three_pe
     assert result["cost"] < 1e-3
 
 
+def test_two_parameters_are_searched_with_cma_es(local, tmp_path):
+    # the simulation's own poke at 35 kPa (damping 10/s): CMA-ES over the modulus and the damping;
+    # a slow poke hardly depends on the damping, so only the modulus is checked
+    truth = 35000.0
+    recorded = poke_recording(truth)
+    spec = F.FitSpec(recorded.source, [os.path.join(EXAMPLE, "punch_scene.yaml")], "punch",
+                     {"youngs_modulus": [5000.0, 200000.0], "damping": [1.0, 100.0]}, generations=18)
+    result = F.fit(spec, str(tmp_path), local, recorded, log=lambda m: None)
+    assert result["evaluations"] % 6 == 0  # CMA-ES's population for two parameters
+    assert result["parameters"]["youngs_modulus"] / truth == pytest.approx(1.0, abs=0.03)
+    assert result["cost"] < 0.01
+
+
 def free_port():
     s = socket.socket()
     s.bind(("127.0.0.1", 0))
