@@ -13,6 +13,7 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <stdexcept>
@@ -140,6 +141,8 @@ class Simulation {
   }
 
   py::dict contactWrench(const std::string& id) const {
+    const std::vector<std::string> ids = colliderIds();
+    if (std::find(ids.begin(), ids.end(), id) == ids.end()) throw py::key_error("no collider '" + id + "'");
     const ContactWrench w = scene_.world->contactWrench(id);
     py::dict out;
     out["force"] = Eigen::Vector3d(w.force);

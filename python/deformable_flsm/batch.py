@@ -1,7 +1,7 @@
 """Many scenes run on Dask: a grid or a random set of parameters, each sample's trajectory and
 contact wrenches written with an index (a data set for learning).
 
-    ./scripts/flsm batch examples/batch/drops.yaml [--scheduler tcp://HOST:8786] [--workers N] [--out DIR]
+    ./scripts/flsm batch examples/batch/pokes.yaml [--scheduler tcp://HOST:8786] [--workers N] [--out DIR]
     python3 -m deformable_flsm.batch SPEC.yaml [options]
 
 The spec (paths relative to it):
@@ -9,15 +9,15 @@ The spec (paths relative to it):
     scene: [scene.yaml, ...]          # over the package's config/flsm.yaml, as the launch loads them
     seconds: 2.0                      # simulated per sample
     record_every: 3                   # steps between recorded states
-    grid:   {youngs_modulus: [1e4, 1e5], damping: [0.1, 0.5]}      # every combination, or
-    random: {count: 100, seed: 1, bounds: {youngs_modulus: [1e4, 1e5]}}
+    grid:   {youngs_modulus: [1.0e+4, 1.0e+5], damping: [5.0, 20.0]}   # every combination, or
+    random: {count: 100, seed: 1, bounds: {youngs_modulus: [1.0e+4, 1.0e+5]}}
     tool:                             # optional: a collider of the scene moved along a path
       id: punch
       path: poke.csv                  # time, x, y, z[, qx, qy, qz, qw] (other columns ignored)
 
 Each sample writes sample_NNNNN.npz (params, times, positions per object, velocities, the wrench
-on every collider) and a row of index.csv; samples already written are skipped, so a stopped
-batch resumes where it stopped.
+on every collider) and a row of index.csv; samples already written with the same parameters are
+skipped, so a stopped batch resumes where it stopped.
 """
 import argparse
 import csv
@@ -33,7 +33,7 @@ import yaml
 
 from deformable_flsm.fit import Cluster, FitError, _bar, package_config
 from deformable_flsm.recording import Recording, RecordingError
-from deformable_flsm.scene import ParamError, Simulation, load_params
+from deformable_flsm.scene import ParamError, Simulation, _angular_velocity, load_params
 
 
 class BatchError(ValueError):
@@ -91,7 +91,8 @@ def run_sample(index, values, base, seconds, record_every, tool, path, out_dir):
     for k in range(steps):
         if poses is not None:
             v = (poses[k + 1, :3] - poses[k, :3]) / sim.time_step
-            sim.move_collider(tool, poses[k, :3], poses[k, 3:], v)
+            w = _angular_velocity(poses[k, 3:], poses[k + 1, 3:], sim.time_step)
+            sim.move_collider(tool, poses[k, :3], poses[k, 3:], v, w)
         sim.step()
         if (k + 1) % record_every == 0 or k + 1 == steps:
             times.append(sim.time)
@@ -141,6 +142,9 @@ def batch(spec_path, out_dir, cluster, log=print, **overrides):
         first = Simulation({**base, **samples[0]}, "the batch's scene")
     except ParamError as e:
         raise BatchError(f"the scene cannot be built: {e}") from None
+    unknown = sorted({n for v in samples for n in v} & set(first.unknown_params))
+    if unknown:
+        raise BatchError(f"{', '.join(unknown)}: not parameters of the node (misspelt?)")
     if tool and tool not in first.colliders:
         raise BatchError(f"the scene has no collider '{tool}' (it has: {', '.join(first.colliders) or 'none'})")
     del first
@@ -150,8 +154,11 @@ def batch(spec_path, out_dir, cluster, log=print, **overrides):
     if os.path.isfile(index_path):
         with open(index_path) as f:
             for row in csv.DictReader(f):
-                if row["status"] == "ok" and os.path.isfile(os.path.join(out_dir, row["file"])):
-                    done[int(row["sample"])] = row
+                i = int(row["sample"])
+                same = i < len(samples) and all(row.get(n) not in (None, "") and float(row[n]) == float(v)
+                                                for n, v in samples[i].items())
+                if row["status"] == "ok" and same and os.path.isfile(os.path.join(out_dir, row["file"])):
+                    done[i] = row
     todo = [i for i in range(len(samples)) if i not in done]
     if done:
         log("batch: %d of %d samples already written: running the other %d" % (len(done), len(samples), len(todo)))

@@ -75,8 +75,11 @@ def simulate(tree, recording, tool):
     ts, poses = tool_path(recording, sim.time_step)
     forces = np.zeros((len(ts) + 1, 3))
     for k, (_, wrench) in enumerate(sim.follow(tool, poses)):
-        forces[k + 1] = wrench["force"]  # the mean over the step that ends at ts[k] + dt
-    times = np.concatenate([[0.0], ts + sim.time_step])
+        forces[k + 1] = wrench["force"]
+    # each the mean of the step's S sub-steps' forces, each at its sub-step's end: on average
+    # dt (S + 1) / (2 S) after the step's start
+    s = sim.substeps
+    times = np.concatenate([[0.0], ts + sim.time_step * (s + 1) / (2.0 * s)])
     return np.column_stack([np.interp(recording.times, times, forces[:, j]) for j in range(3)])
 
 
@@ -87,7 +90,10 @@ def evaluate(values, base, recording, tool, fit_mask):
         forces = simulate(scene_with(base, values, tool), recording, tool)
     except ParamError as e:
         return {"cost": math.inf, "forces": None, "error": str(e)}
-    return {"cost": relative_rms(forces, recording.forces, fit_mask), "forces": forces, "error": ""}
+    cost = relative_rms(forces, recording.forces, fit_mask)
+    if not math.isfinite(cost):
+        return {"cost": math.inf, "forces": None, "error": "the simulation diverged (a non-finite force)"}
+    return {"cost": cost, "forces": forces, "error": ""}
 
 
 def relative_rms(simulated, measured, mask):
@@ -107,6 +113,14 @@ class Space:
         self.lo = np.array([float(bounds[n][0]) for n in self.names])
         self.hi = np.array([float(bounds[n][1]) for n in self.names])
         self.log = (self.lo > 0) & (self.hi >= 10 * self.lo)
+
+    def unit(self, values):
+        """The point of the unit cube of `values` (a dict)."""
+        x = np.array([float(values[n]) for n in self.names])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            geo = np.log(np.maximum(x, 1e-300) / self.lo) / np.log(self.hi / self.lo)
+            lin = (x - self.lo) / (self.hi - self.lo)
+        return np.where(self.log, geo, lin)
 
     def values(self, u):
         u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
@@ -229,7 +243,10 @@ class FitSpec:
             if name not in FITTABLE:
                 raise FitError(f"'{name}' cannot be fitted: it must be one of {', '.join(FITTABLE)}")
             ok = isinstance(b, (list, tuple)) and len(b) == 2 and all(isinstance(v, (int, float)) for v in b)
-            if not ok or not (math.isfinite(b[0]) and math.isfinite(b[1]) and b[0] < b[1]):
+            if not ok:
+                raise FitError(f"the bounds of '{name}' are {b!r}: give two numbers [low, high] (YAML reads "
+                               "2e3 as a string: write 2.0e+3 or 2000.0)")
+            if not (math.isfinite(b[0]) and math.isfinite(b[1]) and b[0] < b[1]):
                 raise FitError(f"the bounds of '{name}' are {b}: give [low, high] with low < high")
         if not 0.0 <= self.holdout < 0.9:
             raise FitError(f"holdout {self.holdout}: the held-out share must be in [0, 0.9)")
@@ -253,14 +270,16 @@ def package_config():
 
 
 def load_recording(spec, tool_frame=None, wrench_topic=None, frame_id="world"):
+    """The spec's recording; a bag's wrenches from a WrenchStamped topic or from the node's
+    ~contact_wrenches (the entry of the spec's tool collider)."""
     path = spec.recording
     if not os.path.isfile(path):
         raise FitError(f"the recording {path} does not exist")
     if path.endswith(".bag"):
         if not tool_frame or not wrench_topic:
             raise FitError("a bag needs --tool-frame (the tool's tf frame) and --wrench-topic "
-                           "(its geometry_msgs/WrenchStamped)")
-        return Recording.from_bag(path, tool_frame, wrench_topic, frame_id)
+                           "(its geometry_msgs/WrenchStamped, or the node's ~contact_wrenches)")
+        return Recording.from_bag(path, tool_frame, wrench_topic, frame_id, collider=spec.tool)
     return Recording.from_csv(path)
 
 
@@ -341,23 +360,22 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
             state["evaluations"] += len(points)
             state["seconds"] += time.time() - t0
             state["history"].append((state["generation"], costs))
+            refused = [r["error"] for r in results if r["error"]]
+            if refused:
+                state["refused"] += len(refused)
+                state["refusal"] = refused[0]
             _save(checkpoint, state)
             best = state["best"]
             log("fit: generation %d/%d %s best %.4f %s (%d evaluations, %.1f s)" % (
                 state["generation"], spec.generations, _bar(state["generation"], spec.generations),
                 best["cost"], " ".join("%s=%.4g" % kv for kv in best["values"].items()),
                 len(points), time.time() - t0))
-            refused = [r["error"] for r in results if r["error"]]
-            if refused:
-                state["refused"] += len(refused)
-                state["refusal"] = refused[0]
-            if state["best"] is None or not math.isfinite(state["best"]["cost"]):
+            if not math.isfinite(best["cost"]):
                 raise FitError("the scene refused every candidate: " + refused[0])
         best = state["best"]
         sigma = uncertainty(cluster, best, base, recording, spec.tool, mask)
-        at_bound = [n for n in space.names
-                    if min(abs(best["values"][n] - spec.bounds[n][0]), abs(best["values"][n] - spec.bounds[n][1]))
-                    <= 0.01 * (spec.bounds[n][1] - spec.bounds[n][0])]
+        u = space.unit(best["values"])
+        at_bound = [n for n, x in zip(space.names, u) if x <= 0.01 or x >= 0.99]
         if at_bound:
             log("fit: %s ended at a bound: widen the bounds, or the scene cannot match the recording"
                 % ", ".join(at_bound))
@@ -399,9 +417,13 @@ def uncertainty(cluster, best, base, recording, tool, mask):
     results = cluster.map(evaluate, probes, base=base, recording=recording, tool=tool, fit_mask=mask)
     if any(r["forces"] is None for r in results):
         return {n: math.nan for n in names}
-    J = np.column_stack([(results[2 * i]["forces"][mask] - results[2 * i + 1]["forces"][mask]).ravel() / (2 * h[i])
+    # along the recorded force's mean direction: one residual a sample (the other components of a
+    # poke are mostly zero and would count as degrees of freedom they are not)
+    axis = recording.forces[mask].mean(axis=0)
+    axis = axis / np.linalg.norm(axis) if np.linalg.norm(axis) > 0 else np.array([0.0, 0.0, 1.0])
+    J = np.column_stack([(results[2 * i]["forces"][mask] - results[2 * i + 1]["forces"][mask]) @ axis / (2 * h[i])
                          for i in range(len(names))])
-    r = (best["forces"][mask] - recording.forces[mask]).ravel()
+    r = (best["forces"][mask] - recording.forces[mask]) @ axis
     dof = max(1, r.size - len(names))
     try:
         cov = np.linalg.inv(J.T @ J) * (r @ r) / dof

@@ -31,6 +31,10 @@ class Recording:
         norms = np.linalg.norm(self.poses[:, 3:], axis=1)
         if np.any(np.abs(norms - 1.0) > 1e-3):
             raise RecordingError(f"{source}: its orientations must be unit quaternions [x, y, z, w]")
+        # q and -q are one turn: made continuous, so that interpolating between samples is safe
+        for i in range(1, k):
+            if np.dot(self.poses[i, 3:], self.poses[i - 1, 3:]) < 0.0:
+                self.poses[i, 3:] *= -1.0
         self.times = self.times - self.times[0]
 
     @property

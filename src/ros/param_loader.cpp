@@ -326,6 +326,12 @@ RobotColliders ParamLoader::getRobot() const {
   if (!pnh_) {
     // A tree: the URDF text under the key ~robot_description names.
     XmlRpc::XmlRpcValue xml = fetch(o.descriptionParam);
+    if (o.descriptionParam == "robot_description") {
+      // the node's files name the global parameter robot_description, which a tree has not
+      throw ParamError("~robot_description names '" + o.descriptionParam + "', itself " + where(o.descriptionParam) +
+                       ": put the URDF text under another key and name that key, or set "
+                       "~robot_description to '' for no robot");
+    }
     if (xml.getType() != XmlRpc::XmlRpcValue::TypeString) {
       throw ParamError("~robot_description names '" + o.descriptionParam + "', which " + where(o.descriptionParam) +
                        " is " + (has(o.descriptionParam) ? "not a string" : "not set") +

@@ -102,9 +102,10 @@ def test_a_collider_that_follows_a_frame_joins_at_its_first_pose():
     sim.step()
     assert sim.contact_wrench("pad")["contacts"] == 0
     # the frame turned upside down: the offset now points down, into the block
-    sim.move_collider("pad", [0.0, 0.0, 0.04], [1.0, 0.0, 0.0, 0.0])
+    sim.move_collider("pad", [0.0, 0.0, 0.045], [1.0, 0.0, 0.0, 0.0])
     sim.step(3)
-    assert sim.contact_wrench("pad")["contacts"] == 0   # 0.035 - 0.005: still 5 mm above the top
+    assert sim.contact_wrench("pad")["contacts"] == 0   # its bottom 5 mm above the top face
+    # its bottom 0.5 mm above the top face, then lowered 1 mm a step: it presses
     sim.move_collider("pad", [0.0, 0.0, 0.0405], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -0.03])
     sim.step(10)
     assert sim.contact_wrench("pad")["force"][2] > 0.0
@@ -152,6 +153,8 @@ def test_bad_commands_are_refused_and_change_nothing():
     x = sim.positions().copy()
     with pytest.raises(KeyError):
         sim.move_collider("nobody", [0.0, 0.0, 1.0])
+    with pytest.raises(KeyError):
+        sim.contact_wrench("nobody")
     with pytest.raises(ValueError, match="unit quaternion"):
         sim.move_collider("nobody", [0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 2.0])
     with pytest.raises(ValueError):
