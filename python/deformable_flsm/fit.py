@@ -381,6 +381,11 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
                 % ", ".join(at_bound))
         if state["refused"]:
             log("fit: %d candidates refused, e.g.: %s" % (state["refused"], state["refusal"]))
+        # a standard error of half the value or more: the recording does not tell this parameter
+        vague = [n for n in space.names if not sigma[n] < 0.5 * abs(best["values"][n])]
+        if vague:
+            log("fit: the recording does not determine %s (standard error half its value or more): "
+                "fix it in the scene, or record a motion it changes" % ", ".join(vague))
     finally:
         if own:
             cluster.close()
@@ -393,6 +398,7 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
         "evaluations": state["evaluations"],
         "seconds": round(state["seconds"], 2),
         "at_bound": at_bound,
+        "not_determined": vague,
         "refused": state["refused"],
         "recording": recording.source,
         "held_out_from": float(recording.times[held][0]) if held.any() else None,
