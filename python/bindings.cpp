@@ -1,6 +1,7 @@
 // deformable_flsm._core: the simulation for Python, built from the node's own parameters (the
 // dictionary a YAML file of them loads to) by the node's own loader and scene builder, stepped
 // with the GIL released. Positions and velocities are numpy views of the solver's arrays.
+#include "deformable_flsm/core/embedding.h"
 #include "deformable_flsm/ros/object_params.h"
 #include "deformable_flsm/ros/param_loader.h"
 #include "deformable_flsm/runtime/collider_spec.h"
@@ -178,6 +179,33 @@ class Simulation {
   std::map<std::string, ColliderSpec> followers_;
 };
 
+/// Material points of an object followed as the render mesh is (trilinear in the lattice, ghosts
+/// near the surface): markers on the object, a tracked point cloud.
+class Markers {
+ public:
+  Markers(const Solver& solver, const Eigen::Ref<const Eigen::MatrixXd>& rest) : solver_(solver) {
+    if (rest.cols() != 3 || rest.rows() < 1 || !rest.allFinite())
+      throw std::invalid_argument("markers: rest points must be a finite (K, 3) array");
+    std::vector<Eigen::Vector3d> points(static_cast<std::size_t>(rest.rows()));
+    for (Eigen::Index k = 0; k < rest.rows(); ++k) points[static_cast<std::size_t>(k)] = rest.row(k).transpose();
+    embedding_ = std::make_unique<Embedding>(solver.lattice(), points);
+  }
+  /// (K, 3) where the points are now (m)
+  py::array_t<double> positions() const {
+    embedding_->deform(solver_.positions(), solver_.regionRotations(), scratch_);
+    py::array_t<double> out({static_cast<py::ssize_t>(scratch_.size()), py::ssize_t{3}});
+    auto w = out.mutable_unchecked<2>();
+    for (std::size_t k = 0; k < scratch_.size(); ++k)
+      for (int a = 0; a < 3; ++a) w(static_cast<py::ssize_t>(k), a) = scratch_[k][a];
+    return out;
+  }
+
+ private:
+  const Solver& solver_;
+  std::unique_ptr<Embedding> embedding_;
+  mutable std::vector<Eigen::Vector3d> scratch_;
+};
+
 /// A read-only (N, 3) view of a vector of Vector3d (three packed doubles each), alive as long as
 /// `owner` is.
 py::array_t<double> view(const std::vector<Eigen::Vector3d>& v, const py::object& owner) {
@@ -197,6 +225,9 @@ PYBIND11_MODULE(_core, m) {
   m.doc() = "FastLSM deformable objects (the ROS-free core of deformable_flsm), built from the "
             "node's parameters";
   py::register_exception<ParamError>(m, "ParamError", PyExc_ValueError);
+
+  py::class_<Markers>(m, "Markers")
+      .def("positions", &Markers::positions, "(K, 3) where the points are now (m), a copy");
 
   py::class_<Simulation>(m, "Simulation")
       .def(py::init<const py::dict&, const std::string&>(), py::arg("params"),
@@ -236,6 +267,13 @@ PYBIND11_MODULE(_core, m) {
              return out;
            },
            py::arg("name") = "")
+      .def("markers",
+           [](py::object self, const Eigen::Ref<const Eigen::MatrixXd>& rest, const std::string& name) {
+             return Markers(self.cast<Simulation&>().object(name), rest);
+           },
+           py::arg("rest"), py::arg("name") = "", py::keep_alive<0, 1>(),
+           "Points of the object given at rest ((K, 3), m, simulation frame) followed as the "
+           "render mesh is: markers(rest).positions() is where they are now")
       .def("info", &Simulation::info, py::arg("name") = "",
            "the lattice, regions and material chosen for an object")
       .def_property_readonly("colliders", &Simulation::colliderIds)

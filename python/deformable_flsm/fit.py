@@ -23,7 +23,7 @@ import time
 import numpy as np
 import yaml
 
-from deformable_flsm.recording import Recording, RecordingError
+from deformable_flsm.recording import Markers, Recording, RecordingError
 from deformable_flsm.scene import ParamError, Simulation, load_params
 
 #: what a fit may vary: the node's material parameters, and the tool's friction
@@ -59,9 +59,11 @@ def tool_path(recording, dt):
     return ts, out
 
 
-def simulate(tree, recording, tool):
+def simulate(tree, recording, tool, markers=None):
     """The force on collider `tool` (N, (K, 3)) at the recording's times when it follows the
-    recorded poses through the scene `tree` (the node's private parameters)."""
+    recorded poses through the scene `tree` (the node's private parameters); with `markers`
+    (recording.Markers, their times on the recording's clock from its start), also where the
+    simulated object carries them at their times ((M, P, 3))."""
     sim = Simulation(tree, "the fit's scene")
     for name in sim.objects:
         info = sim.info(name)
@@ -74,26 +76,52 @@ def simulate(tree, recording, tool):
         raise ParamError(f"the scene has no collider '{tool}' (its colliders: {', '.join(sim.colliders)})")
     ts, poses = tool_path(recording, sim.time_step)
     forces = np.zeros((len(ts) + 1, 3))
+    follow = sim.markers(markers.rest) if markers is not None else None
+    carried = [follow.positions()] if follow is not None else None
     for k, (_, wrench) in enumerate(sim.follow(tool, poses)):
         forces[k + 1] = wrench["force"]
+        if follow is not None:
+            carried.append(follow.positions())
     # each the mean of the step's S sub-steps' forces, each at its sub-step's end: on average
     # dt (S + 1) / (2 S) after the step's start
     s = sim.substeps
     times = np.concatenate([[0.0], ts + sim.time_step * (s + 1) / (2.0 * s)])
-    return np.column_stack([np.interp(recording.times, times, forces[:, j]) for j in range(3)])
+    out = np.column_stack([np.interp(recording.times, times, forces[:, j]) for j in range(3)])
+    if follow is None:
+        return out
+    # the state after each step, at its end; between steps interpolated
+    ends = np.concatenate([[0.0], ts + sim.time_step])
+    carried = np.stack(carried)
+    flat = carried.reshape(len(ends), -1)
+    at = np.column_stack([np.interp(markers.times, ends, flat[:, j]) for j in range(flat.shape[1])])
+    return out, at.reshape(len(markers.times), -1, 3)
 
 
-def evaluate(values, base, recording, tool, fit_mask):
-    """{cost, forces} for one candidate: the RMS of the force error over the fit's samples,
-    relative to the RMS of the recorded force there; cost inf when the scene refuses it."""
+def evaluate(values, base, recording, tool, fit_mask, markers=None, marker_mask=None):
+    """{cost, forces[, markers]} for one candidate: the RMS of the force error over the fit's
+    samples relative to the RMS of the recorded force there; with markers, combined (root sum of
+    squares) with the RMS of the markers' position error relative to the RMS of their recorded
+    displacement. Cost inf when the scene refuses the candidate."""
     try:
-        forces = simulate(scene_with(base, values, tool), recording, tool)
+        out = simulate(scene_with(base, values, tool), recording, tool, markers)
     except ParamError as e:
         return {"cost": math.inf, "forces": None, "error": str(e)}
-    cost = relative_rms(forces, recording.forces, fit_mask)
+    forces, carried = out if markers is not None else (out, None)
+    force_cost = relative_rms(forces, recording.forces, fit_mask)
+    marker_cost = marker_rms(carried, markers, marker_mask) if markers is not None else 0.0
+    cost = math.hypot(force_cost, marker_cost)
     if not math.isfinite(cost):
         return {"cost": math.inf, "forces": None, "error": "the simulation diverged (a non-finite force)"}
-    return {"cost": cost, "forces": forces, "error": ""}
+    return {"cost": cost, "forces": forces, "markers": carried, "force_cost": force_cost,
+            "marker_cost": marker_cost, "error": ""}
+
+
+def marker_rms(carried, markers, mask):
+    """RMS of the markers' position error over the masked times, relative to the RMS of their
+    recorded displacement from rest there."""
+    error = np.sum((carried[mask] - markers.positions[mask]) ** 2, axis=2).mean()
+    scale = np.sum((markers.positions[mask] - markers.rest) ** 2, axis=2).mean()
+    return math.sqrt(error / scale) if scale > 0 else math.sqrt(error)
 
 
 def relative_rms(simulated, measured, mask):
@@ -199,12 +227,14 @@ class Cluster:
 # --- the fit -------------------------------------------------------------------------------------
 
 class FitSpec:
-    """What to fit: the recording, the scene (files over the node's config/flsm.yaml), the tool
-    collider, the parameters and their bounds, the held-out share of the recording."""
+    """What to fit: the recording (and optionally markers on the object: recording.Markers), the
+    scene (files over the node's config/flsm.yaml), the tool collider, the parameters and their
+    bounds, the held-out share of the recording."""
 
     def __init__(self, recording, scene, tool, bounds, holdout=0.25, generations=30, population=0,
-                 seed=1, base=None):
+                 seed=1, base=None, markers=None):
         self.recording = recording
+        self.markers = markers
         self.scene_files = list(scene)
         self.tool = tool
         self.bounds = dict(bounds)
@@ -226,6 +256,7 @@ class FitSpec:
         scene = spec.get("scene", [])
         scene = [scene] if isinstance(scene, str) else scene
         args = dict(recording=rel(spec["recording"]) if "recording" in spec else None,
+                    markers=rel(spec["markers"]) if spec.get("markers") else None,
                     scene=[rel(s) for s in scene], tool=spec.get("tool"), bounds=spec.get("fit", {}),
                     holdout=spec.get("holdout", 0.25), generations=spec.get("generations", 30),
                     population=spec.get("population", 0), seed=spec.get("seed", 1))
@@ -283,13 +314,30 @@ def load_recording(spec, tool_frame=None, wrench_topic=None, frame_id="world"):
     return Recording.from_csv(path)
 
 
-def _key(spec, base, recording):
+def _key(spec, base, recording, markers):
     h = hashlib.sha256()
     h.update(json.dumps([base, spec.tool, spec.bounds, spec.holdout, spec.seed, spec.population],
                         sort_keys=True, default=str).encode())
-    for a in (recording.times, recording.poses, recording.forces):
+    arrays = [recording.times, recording.poses, recording.forces]
+    if markers is not None:
+        arrays += [markers.times, markers.positions]
+    for a in arrays:
         h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()
+
+
+def load_markers(spec, recording):
+    """The spec's markers (None without), their times on the recording's clock from its start."""
+    if not spec.markers:
+        return None
+    if not os.path.isfile(spec.markers):
+        raise FitError(f"the markers {spec.markers} do not exist")
+    m = Markers.from_csv(spec.markers)
+    m.times = m.times - recording.start
+    if m.times[0] < -1e-9 or m.times[-1] > recording.times[-1] + 1e-9:
+        raise FitError(f"{spec.markers}: the markers' times must lie within the recording's "
+                       f"(0 to {recording.times[-1]:.3f} s from its start)")
+    return m
 
 
 def _save(path, state):
@@ -309,8 +357,11 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
     recording = recording or load_recording(spec)
     base = spec.base_tree()
     space = Space(spec.bounds)
-    mask = recording.times <= recording.times[-1] * (1.0 - spec.holdout) + 1e-12
+    cut = recording.times[-1] * (1.0 - spec.holdout) + 1e-12
+    mask = recording.times <= cut
     held = ~mask
+    markers = load_markers(spec, recording)
+    marker_mask = markers.times <= cut if markers is not None else None
     # the scene is checked once here, before any generation: a scene it refuses stops the fit
     try:
         check = Simulation(scene_with(base, space.values(np.full(len(space.names), 0.5)), spec.tool),
@@ -325,7 +376,7 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
 
     os.makedirs(out_dir, exist_ok=True)
     checkpoint = os.path.join(out_dir, "checkpoint.pkl")
-    key = _key(spec, base, recording)
+    key = _key(spec, base, recording, markers)
     state = None
     if os.path.isfile(checkpoint):
         with open(checkpoint, "rb") as f:
@@ -350,12 +401,16 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
             t0 = time.time()
             points = search.ask_all()
             results = cluster.map(evaluate, [space.values(u) for u in points], base=base,
-                                  recording=recording, tool=spec.tool, fit_mask=mask)
+                                  recording=recording, tool=spec.tool, fit_mask=mask, markers=markers,
+                                  marker_mask=marker_mask)
             costs = [r["cost"] for r in results]
             search.tell(points, costs)
             k = int(np.argmin(costs))
             if state["best"] is None or costs[k] < state["best"]["cost"]:
-                state["best"] = {"values": space.values(points[k]), "cost": costs[k], "forces": results[k]["forces"]}
+                state["best"] = {"values": space.values(points[k]), "cost": costs[k], "forces": results[k]["forces"],
+                                 "markers": results[k].get("markers"),
+                                 "force_cost": results[k].get("force_cost"),
+                                 "marker_cost": results[k].get("marker_cost")}
             state["generation"] += 1
             state["evaluations"] += len(points)
             state["seconds"] += time.time() - t0
@@ -373,7 +428,7 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
             if not math.isfinite(best["cost"]):
                 raise FitError("the scene refused every candidate: " + refused[0])
         best = state["best"]
-        sigma = uncertainty(cluster, best, base, recording, spec.tool, mask)
+        sigma = uncertainty(cluster, best, base, recording, spec.tool, mask, markers, marker_mask)
         u = space.unit(best["values"])
         at_bound = [n for n, x in zip(space.names, u) if x <= 0.01 or x >= 0.99]
         if at_bound:
@@ -393,7 +448,11 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
         "parameters": {n: float(v) for n, v in best["values"].items()},
         "standard_error": {n: float(s) for n, s in sigma.items()},
         "cost": float(best["cost"]),
+        "force_cost": float(best.get("force_cost") or best["cost"]),
         "held_out_cost": float(relative_rms(best["forces"], recording.forces, held)) if held.any() else None,
+        "marker_cost": float(best["marker_cost"]) if markers is not None else None,
+        "held_out_marker_cost": (float(marker_rms(best["markers"], markers, ~marker_mask))
+                                 if markers is not None and (~marker_mask).any() else None),
         "generations": state["generation"],
         "evaluations": state["evaluations"],
         "seconds": round(state["seconds"], 2),
@@ -403,11 +462,12 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
         "recording": recording.source,
         "held_out_from": float(recording.times[held][0]) if held.any() else None,
     }
-    write_outputs(out_dir, spec, result, recording, best["forces"], mask)
+    write_outputs(out_dir, spec, result, recording, best["forces"], mask,
+                  (markers, best.get("markers")) if markers is not None else None)
     return result
 
 
-def uncertainty(cluster, best, base, recording, tool, mask):
+def uncertainty(cluster, best, base, recording, tool, mask, markers=None, marker_mask=None):
     """Standard errors from the residuals' Jacobian at the optimum (central differences of 1 %):
     s^2 (J^T J)^-1 with s^2 the residuals' variance; the noise's share of the error only, not the
     model's."""
@@ -420,16 +480,27 @@ def uncertainty(cluster, best, base, recording, tool, mask):
             v = x.copy()
             v[i] += sign * h[i]
             probes.append(dict(zip(names, v.tolist())))
-    results = cluster.map(evaluate, probes, base=base, recording=recording, tool=tool, fit_mask=mask)
+    results = cluster.map(evaluate, probes, base=base, recording=recording, tool=tool, fit_mask=mask,
+                          markers=markers, marker_mask=marker_mask)
     if any(r["forces"] is None for r in results):
         return {n: math.nan for n in names}
-    # along the recorded force's mean direction: one residual a sample (the other components of a
-    # poke are mostly zero and would count as degrees of freedom they are not)
+    # the residuals in the cost's units: the force along the recorded force's mean direction (one
+    # a sample: the other components of a poke are mostly zero and would count as degrees of
+    # freedom they are not) over its RMS, the markers' coordinates over their displacement's RMS
     axis = recording.forces[mask].mean(axis=0)
     axis = axis / np.linalg.norm(axis) if np.linalg.norm(axis) > 0 else np.array([0.0, 0.0, 1.0])
-    J = np.column_stack([(results[2 * i]["forces"][mask] - results[2 * i + 1]["forces"][mask]) @ axis / (2 * h[i])
+    fscale = math.sqrt(np.sum(recording.forces[mask] ** 2, axis=1).mean()) or 1.0
+
+    def residual(res):
+        out = (res["forces"][mask] - recording.forces[mask]) @ axis / fscale
+        if markers is not None:
+            mscale = math.sqrt(np.sum((markers.positions[marker_mask] - markers.rest) ** 2, axis=2).mean()) or 1.0
+            out = np.concatenate([out, ((res["markers"][marker_mask] - markers.positions[marker_mask]) / mscale).ravel()])
+        return out
+
+    J = np.column_stack([(residual(results[2 * i]) - residual(results[2 * i + 1])) / (2 * h[i])
                          for i in range(len(names))])
-    r = (best["forces"][mask] - recording.forces[mask]) @ axis
+    r = residual(best)
     dof = max(1, r.size - len(names))
     try:
         cov = np.linalg.inv(J.T @ J) * (r @ r) / dof
@@ -438,7 +509,7 @@ def uncertainty(cluster, best, base, recording, tool, mask):
     return {n: math.sqrt(max(0.0, cov[i, i])) for i, n in enumerate(names)}
 
 
-def write_outputs(out_dir, spec, result, recording, forces, mask):
+def write_outputs(out_dir, spec, result, recording, forces, mask, markers=None):
     """fitted.yaml (the scene with the fitted values: the node's scene_params), report.yaml and
     fit.png (force against depth and time, with the residuals)."""
     scene = load_params(*spec.scene_files) if spec.scene_files else {}
@@ -452,10 +523,10 @@ def write_outputs(out_dir, spec, result, recording, forces, mask):
         yaml.safe_dump(scene, f, default_flow_style=None, sort_keys=False)
     with open(os.path.join(out_dir, "report.yaml"), "w") as f:
         yaml.safe_dump(result, f, sort_keys=False)
-    plot(os.path.join(out_dir, "fit.png"), recording, forces, mask, result)
+    plot(os.path.join(out_dir, "fit.png"), recording, forces, mask, result, markers)
 
 
-def plot(path, recording, forces, mask, result):
+def plot(path, recording, forces, mask, result, markers=None):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -463,7 +534,7 @@ def plot(path, recording, forces, mask, result):
     axis = axis / np.linalg.norm(axis) if np.linalg.norm(axis) > 0 else np.array([0.0, 0.0, -1.0])
     measured, fitted = -recording.forces @ axis, -forces @ axis
     depth = 1e3 * recording.depth
-    fig, ax = plt.subplots(3, 1, figsize=(7, 9))
+    fig, ax = plt.subplots(4 if markers else 3, 1, figsize=(7, 12 if markers else 9))
     ax[0].plot(depth[mask], measured[mask], ".", ms=3, label="recorded (fitted)")
     ax[0].plot(depth[~mask], measured[~mask], ".", ms=3, color="grey", label="recorded (held out)")
     ax[0].plot(depth, fitted, "-", label="simulated, fitted")
@@ -482,6 +553,16 @@ def plot(path, recording, forces, mask, result):
     ax[2].axhline(0.0, color="k", lw=0.5)
     ax[2].set_xlabel("time (s)")
     ax[2].set_ylabel("residual (N)")
+    if markers:
+        m, carried = markers
+        for k, name in ((0, "x"), (1, "y"), (2, "z")):
+            ax[3].plot(m.times, 1e3 * np.sqrt(np.mean((m.positions[:, :, k] - m.rest[:, k]) ** 2, axis=1)), ".",
+                       ms=4, color="C%d" % k, label="recorded, %s" % name)
+            ax[3].plot(m.times, 1e3 * np.sqrt(np.mean((carried[:, :, k] - m.rest[:, k]) ** 2, axis=1)), "-",
+                       color="C%d" % k, label="simulated, %s" % name)
+        ax[3].set_xlabel("time (s)")
+        ax[3].set_ylabel("markers' RMS displacement (mm)")
+        ax[3].legend(ncol=3, fontsize="small")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -35,6 +35,7 @@ class Recording:
         for i in range(1, k):
             if np.dot(self.poses[i, 3:], self.poses[i - 1, 3:]) < 0.0:
                 self.poses[i, 3:] *= -1.0
+        self.start = float(self.times[0])  # the recording's clock at its first sample
         self.times = self.times - self.times[0]
 
     @property
@@ -193,3 +194,45 @@ def _lookup(edges, root, frame, stamp, path):
         pose = _compose(t, pose)
         frame = parent
     return pose
+
+
+class Markers:
+    """Points on the object followed over time (markers, a tracked cloud): times (M,) s from the
+    recording's start, rest (P, 3) where they are at rest (the first time), positions (M, P, 3)
+    (m, simulation frame)."""
+
+    def __init__(self, times, rest, positions, source="markers"):
+        self.times = np.asarray(times, dtype=float)
+        self.rest = np.asarray(rest, dtype=float)
+        self.positions = np.asarray(positions, dtype=float)
+        self.source = source
+        m, p = len(self.times), len(self.rest)
+        if m < 2 or p < 1 or self.positions.shape != (m, p, 3) or self.rest.shape != (p, 3):
+            raise RecordingError(f"{source}: markers need two or more times of the same points")
+        if not (np.all(np.isfinite(self.positions)) and np.all(np.isfinite(self.times))):
+            raise RecordingError(f"{source}: the markers are not all finite")
+        if np.any(np.diff(self.times) <= 0.0):
+            raise RecordingError(f"{source}: its times must increase")
+
+    @classmethod
+    def from_csv(cls, path):
+        """Columns time, marker, x, y, z: every marker at every time; the first time is the rest."""
+        with open(path) as f:
+            rows = [r for r in csv.reader(line for line in f if not line.lstrip().startswith("#")) if r]
+        header = [h.strip() for h in rows[0]] if rows else []
+        if header[:5] != ["time", "marker", "x", "y", "z"]:
+            raise RecordingError(f"{path}: the header must be time,marker,x,y,z")
+        try:
+            data = np.array([[float(v) for v in r[:5]] for r in rows[1:]])
+        except ValueError as e:
+            raise RecordingError(f"{path}: a value is not a number ({e})") from None
+        if data.ndim != 2 or len(data) == 0:
+            raise RecordingError(f"{path}: no markers")
+        times = np.unique(data[:, 0])
+        ids = np.unique(data[:, 1]).astype(int)
+        if len(data) != len(times) * len(ids):
+            raise RecordingError(f"{path}: every marker must be given at every time "
+                                 f"({len(ids)} markers, {len(times)} times, {len(data)} rows)")
+        order = np.lexsort((data[:, 1], data[:, 0]))
+        positions = data[order, 2:5].reshape(len(times), len(ids), 3)
+        return cls(times, positions[0], positions, path)

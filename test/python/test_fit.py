@@ -48,6 +48,19 @@ def test_the_fem_oracles_modulus_is_recovered_within_ten_percent(local, tmp_path
     flsm.Simulation.from_yaml(F.package_config(), str(tmp_path / "fitted.yaml"))
 
 
+def test_a_squeeze_with_markers_gives_the_fem_oracles_modulus_and_poissons_ratio(local, tmp_path):
+    # the oracle's block squeezed 2 mm by a frictionless plate, with its side nodes tracked
+    # (squeeze_markers.csv): the force tells E, the sides' bulge nu
+    spec = F.FitSpec.from_yaml(os.path.join(EXAMPLE, "squeeze_fit.yaml"))
+    result = F.fit(spec, str(tmp_path), local, log=lambda m: None)
+    p = result["parameters"]
+    assert p["youngs_modulus"] / FEM_MODULUS == pytest.approx(1.0, abs=0.10)
+    assert p["poissons_ratio"] == pytest.approx(0.3, abs=0.05)
+    assert result["marker_cost"] < 0.1 and result["force_cost"] < 0.05
+    assert result["not_determined"] == [] and result["at_bound"] == []
+    assert os.path.getsize(tmp_path / "fit.png") > 0
+
+
 def poke_recording(youngs, nu=0.3, depth=0.002):
     """The example's scene with a known material, poked along the FEM recording's path: the
     force on the punch, as a robot's wrist sensor would record it."""

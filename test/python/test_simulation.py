@@ -163,3 +163,21 @@ def test_bad_commands_are_refused_and_change_nothing():
         sim.step(-1)
     np.testing.assert_array_equal(sim.positions(), x)
     assert sim.time == 0.0
+
+
+def test_markers_follow_the_object_as_the_render_mesh_does():
+    sim = block(gravity=[0.0, 0.0, -9.81])
+    rest = sim.rest_positions()
+    # a particle's own rest position follows it exactly; a point between particles their mean
+    # (trilinear), and a point on the surface the nearest particle rigidly (a ghost node)
+    points = np.array([rest[100], 0.5 * (rest[100] + rest[101]), [0.0, 0.0, 0.03]])
+    markers = sim.markers(points)
+    np.testing.assert_allclose(markers.positions(), points, atol=1e-12)
+    sim.step(5)
+    x = sim.positions()
+    now = markers.positions()
+    np.testing.assert_allclose(now[0], x[100], atol=1e-12)
+    np.testing.assert_allclose(now[1], 0.5 * (x[100] + x[101]), atol=1e-12)
+    assert np.all(np.isfinite(now))
+    with pytest.raises(ValueError):
+        sim.markers(np.zeros((3, 2)))
