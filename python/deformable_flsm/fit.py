@@ -232,9 +232,11 @@ class FitSpec:
     bounds, the held-out share of the recording."""
 
     def __init__(self, recording, scene, tool, bounds, holdout=0.25, generations=30, population=0,
-                 seed=1, base=None, markers=None):
+                 seed=1, base=None, markers=None, markers_topic=None, frame_id="world"):
         self.recording = recording
         self.markers = markers
+        self.markers_topic = markers_topic
+        self.frame_id = frame_id
         self.scene_files = list(scene)
         self.tool = tool
         self.bounds = dict(bounds)
@@ -257,6 +259,7 @@ class FitSpec:
         scene = [scene] if isinstance(scene, str) else scene
         args = dict(recording=rel(spec["recording"]) if "recording" in spec else None,
                     markers=rel(spec["markers"]) if spec.get("markers") else None,
+                    markers_topic=spec.get("markers_topic"), frame_id=spec.get("frame_id", "world"),
                     scene=[rel(s) for s in scene], tool=spec.get("tool"), bounds=spec.get("fit", {}),
                     holdout=spec.get("holdout", 0.25), generations=spec.get("generations", 30),
                     population=spec.get("population", 0), seed=spec.get("seed", 1))
@@ -327,7 +330,13 @@ def _key(spec, base, recording, markers):
 
 
 def load_markers(spec, recording):
-    """The spec's markers (None without), their times on the recording's clock from its start."""
+    """The spec's markers (None without), their times on the recording's clock from its start: a
+    CSV, or a PointCloud2 topic of the recording's bag (markers_topic: the node's ~particles)."""
+    if spec.markers_topic:
+        if not spec.recording.endswith(".bag"):
+            raise FitError("markers_topic needs the recording to be a bag")
+        return Markers.from_bag(spec.recording, spec.markers_topic, spec.frame_id, recording.start,
+                                recording.start + recording.times[-1])
     if not spec.markers:
         return None
     if not os.path.isfile(spec.markers):
@@ -574,7 +583,9 @@ def main(argv=None):
     parser.add_argument("--recording", help="a CSV (time, x, y, z[, qx, qy, qz, qw], fx, fy, fz) or a bag")
     parser.add_argument("--tool-frame", help="(bag) the tool's tf frame")
     parser.add_argument("--wrench-topic", help="(bag) the tool's geometry_msgs/WrenchStamped topic")
-    parser.add_argument("--frame-id", default="world", help="(bag) the simulation frame (default world)")
+    parser.add_argument("--frame-id", help="(bag) the simulation frame (default world)")
+    parser.add_argument("--markers-topic", help="(bag) a PointCloud2 of the same points in every message "
+                                                "(the node's ~particles) to follow as markers")
     parser.add_argument("--scheduler", help="a Dask scheduler (tcp://HOST:8786); default: a local cluster")
     parser.add_argument("--workers", type=int, help="local cluster's worker processes (default: the cores)")
     parser.add_argument("--generations", type=int)
@@ -582,8 +593,9 @@ def main(argv=None):
     parser.add_argument("--out", default="fit_out", help="output directory (default fit_out)")
     args = parser.parse_args(argv)
     try:
-        spec = FitSpec.from_yaml(args.spec, recording=args.recording, generations=args.generations, seed=args.seed)
-        recording = load_recording(spec, args.tool_frame, args.wrench_topic, args.frame_id)
+        spec = FitSpec.from_yaml(args.spec, recording=args.recording, generations=args.generations, seed=args.seed,
+                                 markers_topic=args.markers_topic, frame_id=args.frame_id)
+        recording = load_recording(spec, args.tool_frame, args.wrench_topic, spec.frame_id)
         cluster = Cluster(args.scheduler, args.workers)
         try:
             result = fit(spec, args.out, cluster, recording,

@@ -236,3 +236,48 @@ class Markers:
         order = np.lexsort((data[:, 1], data[:, 0]))
         positions = data[order, 2:5].reshape(len(times), len(ids), 3)
         return cls(times, positions[0], positions, path)
+
+    @classmethod
+    def from_bag(cls, path, topic, frame_id, start, end, interval=0.1):
+        """Markers from a bag's sensor_msgs/PointCloud2 whose points are the same material points
+        in the same order in every message (the node's ~particles): the last cloud at or before
+        `start` (the recording's clock) is the rest, then one cloud every `interval` s or more up
+        to `end`; times from `start`."""
+        import rosbag
+
+        with rosbag.Bag(path) as bag:
+            topics = bag.get_type_and_topic_info().topics
+            if topic not in topics:
+                raise RecordingError(f"{path}: no topic {topic} (it has {', '.join(sorted(topics))})")
+            if topics[topic].msg_type != "sensor_msgs/PointCloud2":
+                raise RecordingError(f"{path}: {topic} is {topics[topic].msg_type}, not sensor_msgs/PointCloud2")
+            rest, times, clouds = None, [], []
+            for _, m, _ in bag.read_messages(topics=[topic]):
+                t = m.header.stamp.to_sec()
+                if m.header.frame_id.lstrip("/") != frame_id:
+                    raise RecordingError(f"{path}: {topic} is in '{m.header.frame_id}': markers must be in "
+                                         f"the simulation frame '{frame_id}'")
+                if t <= start + 1e-9:
+                    rest = _cloud_xyz(m, path, topic)
+                elif t <= end + 1e-9 and rest is not None and (not times or t - start - times[-1] >= interval - 1e-9):
+                    times.append(t - start)
+                    clouds.append(_cloud_xyz(m, path, topic))
+        if rest is None:
+            raise RecordingError(f"{path}: {topic} has no cloud at or before the recording's start (the rest)")
+        if not clouds or any(c.shape != rest.shape for c in clouds):
+            raise RecordingError(f"{path}: {topic} needs clouds of the same points during the recording")
+        return cls(np.concatenate([[0.0], times]), rest, np.stack([rest] + clouds), f"{path} {topic}")
+
+
+def _cloud_xyz(msg, path, topic):
+    """(N, 3) float64 x, y, z of a PointCloud2 whose x, y, z are float32."""
+    fields = {f.name: f for f in msg.fields}
+    if not all(n in fields and fields[n].datatype == 7 for n in ("x", "y", "z")):  # 7: FLOAT32
+        raise RecordingError(f"{path}: {topic} has no float32 x, y, z")
+    n = msg.width * msg.height
+    raw = np.frombuffer(msg.data, dtype=np.uint8).reshape(n, msg.point_step)
+    out = np.empty((n, 3))
+    for k, name in enumerate(("x", "y", "z")):
+        o = fields[name].offset
+        out[:, k] = raw[:, o:o + 4].copy().view("<f4" if not msg.is_bigendian else ">f4")[:, 0]
+    return out
