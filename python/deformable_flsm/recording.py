@@ -259,7 +259,7 @@ class Markers:
                                          f"the simulation frame '{frame_id}'")
                 if t <= start + 1e-9:
                     rest = _cloud_xyz(m, path, topic)
-                elif t <= end + 1e-9 and rest is not None and (not times or t - start - times[-1] >= interval - 1e-9):
+                elif t <= end + 1e-9 and rest is not None and t - start - (times[-1] if times else 0.0) >= interval - 1e-9:
                     times.append(t - start)
                     clouds.append(_cloud_xyz(m, path, topic))
         if rest is None:

@@ -144,6 +144,36 @@ def test_a_bag_with_a_turned_tool_and_its_own_stamps_reads_back():
         np.testing.assert_allclose(f, world_force, atol=1e-4)
 
 
+def test_markers_read_from_a_bags_point_clouds(tmp_path):
+    # the node's ~particles: the same points in every cloud; the last before the start is the rest
+    import rosbag
+    import rospy
+    from sensor_msgs import point_cloud2
+    from sensor_msgs.msg import PointField
+    from std_msgs.msg import Header
+    from deformable_flsm.recording import Markers
+
+    fields = [PointField("x", 0, PointField.FLOAT32, 1), PointField("y", 4, PointField.FLOAT32, 1),
+              PointField("z", 8, PointField.FLOAT32, 1), PointField("displacement", 12, PointField.FLOAT32, 1)]
+    rest = np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [0.0, 0.02, 0.01]])
+    path = str(tmp_path / "clouds.bag")
+    with rosbag.Bag(path, "w") as bag:
+        for k in range(61):  # 30 Hz from t = 9 s to 11 s; the recording starts at 10 s
+            t = 9.0 + k / 30.0
+            moved = rest + max(0.0, t - 10.0) * np.array([0.0, 0.0, -0.001])
+            header = Header(stamp=rospy.Time.from_sec(t), frame_id="world")
+            cloud = point_cloud2.create_cloud(header, fields, [(*p, 0.0) for p in moved])
+            bag.write("/flsm_node/particles", cloud, header.stamp)
+    m = Markers.from_bag(path, "/flsm_node/particles", "world", start=10.0, end=10.5, interval=0.1)
+    np.testing.assert_allclose(m.rest, rest, atol=1e-7)
+    assert m.times[0] == 0.0 and np.all(np.diff(m.times) >= 0.1 - 1e-6) and m.times[-1] <= 0.5 + 1e-6
+    np.testing.assert_allclose(m.positions[:, :, 2] - rest[:, 2], np.outer(-0.001 * m.times, np.ones(3)), atol=1e-7)
+    with pytest.raises(RecordingError, match="simulation frame"):
+        Markers.from_bag(path, "/flsm_node/particles", "map", start=10.0, end=10.5)
+    with pytest.raises(RecordingError, match="at or before the recording's start"):
+        Markers.from_bag(path, "/flsm_node/particles", "world", start=5.0, end=10.5)
+
+
 def test_a_simulated_poke_read_back_from_a_bag_gives_its_modulus_within_three_percent(local, tmp_path):
     truth = 35000.0
     recorded = poke_recording(truth)
