@@ -9,9 +9,11 @@ import shutil
 import signal
 import subprocess
 import tempfile
+import time
 import unittest
 
 import numpy as np
+import rosgraph
 import rospy
 import rostest
 import tf2_ros
@@ -34,6 +36,20 @@ def tool_height(t):
 
 class FitRoundTripTest(unittest.TestCase):
 
+    def wait_recording(self, record, topics, timeout=60.0):
+        """Until rosbag record subscribes to every topic (a busy machine takes seconds)."""
+        master = rosgraph.Master('/test_fit_roundtrip')
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            self.assertIsNone(record.poll(), 'rosbag record stopped')
+            _, subscribers, _ = master.getSystemState()
+            subscribed = {t for t, nodes in subscribers if any(n.startswith('/record') for n in nodes)}
+            if all(t in subscribed for t in topics):
+                rospy.sleep(0.5)
+                return
+            rospy.sleep(0.2)
+        self.fail('rosbag record did not subscribe to %s within %.0f s' % (', '.join(topics), timeout))
+
     def test_the_nodes_modulus_comes_back_from_a_bag(self):
         rospy.init_node('test_fit_roundtrip')
         flsm = FlsmClient()
@@ -44,7 +60,7 @@ class FitRoundTripTest(unittest.TestCase):
                                    '/flsm_node/particles'],
                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         try:
-            rospy.sleep(2.0)  # rosbag subscribes
+            self.wait_recording(record, ['/tf', '/flsm_node/contact_wrenches', '/flsm_node/particles'])
             tf = tf2_ros.TransformBroadcaster()
             rate = rospy.Rate(60.0)
             t0 = rospy.Time.now()
@@ -62,7 +78,8 @@ class FitRoundTripTest(unittest.TestCase):
             rospy.sleep(0.5)
         finally:
             record.send_signal(signal.SIGINT)
-            record.wait(30)
+            record.wait(60)
+        self.assertTrue(os.path.isfile(bag), 'rosbag record wrote no bag')
         try:
             recording = Recording.from_bag(bag, 'tool', '/flsm_node/contact_wrenches', 'world', collider='plate')
             depth = TOP - recording.poses[:, 2]
