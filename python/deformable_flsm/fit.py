@@ -268,6 +268,65 @@ def _bar(done, total, width=24):
     return "[" + "#" * n + "-" * (width - n) + "]"
 
 
+def _check_scene(spec, base, space, log):
+    """The scene built once before any generation: a scene it refuses stops the fit."""
+    try:
+        check = Simulation(scene_with(base, space.values(np.full(len(space.names), 0.5)), spec.tool),
+                           "the fit's scene")
+    except ParamError as e:
+        raise FitError(f"the scene cannot be built: {e}") from None
+    if spec.tool not in check.colliders:
+        raise FitError(f"the scene has no collider '{spec.tool}' (it has: {', '.join(check.colliders) or 'none'})")
+    if check.unknown_params:
+        log(f"fit: not parameters of the node (misspelt?): {', '.join(check.unknown_params)}")
+
+
+def _start_or_resume(spec, space, key, checkpoint, log):
+    """The search's state: the checkpoint's when it is of this fit, else a new one."""
+    if os.path.isfile(checkpoint):
+        with open(checkpoint, "rb") as f:
+            state = pickle.load(f)
+        if state.get("key") == key:
+            log("fit: resuming after generation %d" % state["generation"])
+            return state
+        log("fit: the checkpoint in %s is of another fit: starting anew" % os.path.dirname(checkpoint))
+    dims = len(space.names)
+    population = spec.population or (4 + int(3 * math.log(dims)) if dims > 1 else 8)
+    search = Cma(dims, population, spec.seed) if dims > 1 else Bracket(population)
+    return {"key": key, "generation": 0, "search": search, "history": [], "best": None,
+            "evaluations": 0, "seconds": 0.0, "refused": 0, "refusal": ""}
+
+
+def _generation(state, space, cluster, problem, spec, checkpoint, log):
+    """One generation evaluated on the cluster, told to the search, saved."""
+    t0 = time.time()
+    search = state["search"]
+    points = search.ask_all()
+    results = cluster.map(evaluate, [space.values(u) for u in points], **problem)
+    costs = [r["cost"] for r in results]
+    search.tell(points, costs)
+    k = int(np.argmin(costs))
+    if state["best"] is None or costs[k] < state["best"]["cost"]:
+        state["best"] = {"values": space.values(points[k]), "cost": costs[k], "forces": results[k]["forces"],
+                         "markers": results[k].get("markers"), "force_cost": results[k].get("force_cost"),
+                         "marker_cost": results[k].get("marker_cost")}
+    state["generation"] += 1
+    state["evaluations"] += len(points)
+    state["seconds"] += time.time() - t0
+    state["history"].append((state["generation"], costs))
+    refused = [r["error"] for r in results if r["error"]]
+    if refused:
+        state["refused"] += len(refused)
+        state["refusal"] = refused[0]
+    _save(checkpoint, state)
+    best = state["best"]
+    log("fit: generation %d/%d %s best %.4f %s (%d evaluations, %.1f s)" % (
+        state["generation"], spec.generations, _bar(state["generation"], spec.generations),
+        best["cost"], " ".join("%s=%.4g" % kv for kv in best["values"].items()), len(points), time.time() - t0))
+    if not math.isfinite(best["cost"]):
+        raise FitError("the scene refused every candidate: " + refused[0])
+
+
 def fit(spec, out_dir, cluster=None, recording=None, log=print):
     """Runs (or resumes) the fit; returns the result dict written to out_dir/report.yaml."""
     recording = recording or load_recording(spec)
@@ -278,88 +337,33 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
     held = ~mask
     markers = load_markers(spec, recording)
     marker_mask = markers.times <= cut if markers is not None else None
-    # the scene is checked once here, before any generation: a scene it refuses stops the fit
-    try:
-        check = Simulation(scene_with(base, space.values(np.full(len(space.names), 0.5)), spec.tool),
-                           "the fit's scene")
-    except ParamError as e:
-        raise FitError(f"the scene cannot be built: {e}") from None
-    if spec.tool not in check.colliders:
-        raise FitError(f"the scene has no collider '{spec.tool}' (it has: {', '.join(check.colliders) or 'none'})")
-    if check.unknown_params:
-        log(f"fit: not parameters of the node (misspelt?): {', '.join(check.unknown_params)}")
-    del check
-
+    _check_scene(spec, base, space, log)
     os.makedirs(out_dir, exist_ok=True)
     checkpoint = os.path.join(out_dir, "checkpoint.pkl")
-    key = _key(spec, base, recording, markers)
-    state = None
-    if os.path.isfile(checkpoint):
-        with open(checkpoint, "rb") as f:
-            state = pickle.load(f)
-        if state.get("key") != key:
-            log("fit: the checkpoint in %s is of another fit: starting anew" % out_dir)
-            state = None
-        else:
-            log("fit: resuming after generation %d" % state["generation"])
-    if state is None:
-        dims = len(space.names)
-        population = spec.population or (4 + int(3 * math.log(dims)) if dims > 1 else 8)
-        search = Cma(dims, population, spec.seed) if dims > 1 else Bracket(population)
-        state = {"key": key, "generation": 0, "search": search, "history": [], "best": None,
-                 "evaluations": 0, "seconds": 0.0, "refused": 0, "refusal": ""}
-
+    state = _start_or_resume(spec, space, _key(spec, base, recording, markers), checkpoint, log)
+    problem = dict(base=base, recording=recording, tool=spec.tool, fit_mask=mask, markers=markers,
+                   marker_mask=marker_mask)
     own = cluster is None
     cluster = cluster or Cluster()
     try:
-        search = state["search"]
-        while state["generation"] < spec.generations and not search.should_stop():
-            t0 = time.time()
-            points = search.ask_all()
-            results = cluster.map(evaluate, [space.values(u) for u in points], base=base,
-                                  recording=recording, tool=spec.tool, fit_mask=mask, markers=markers,
-                                  marker_mask=marker_mask)
-            costs = [r["cost"] for r in results]
-            search.tell(points, costs)
-            k = int(np.argmin(costs))
-            if state["best"] is None or costs[k] < state["best"]["cost"]:
-                state["best"] = {"values": space.values(points[k]), "cost": costs[k], "forces": results[k]["forces"],
-                                 "markers": results[k].get("markers"),
-                                 "force_cost": results[k].get("force_cost"),
-                                 "marker_cost": results[k].get("marker_cost")}
-            state["generation"] += 1
-            state["evaluations"] += len(points)
-            state["seconds"] += time.time() - t0
-            state["history"].append((state["generation"], costs))
-            refused = [r["error"] for r in results if r["error"]]
-            if refused:
-                state["refused"] += len(refused)
-                state["refusal"] = refused[0]
-            _save(checkpoint, state)
-            best = state["best"]
-            log("fit: generation %d/%d %s best %.4f %s (%d evaluations, %.1f s)" % (
-                state["generation"], spec.generations, _bar(state["generation"], spec.generations),
-                best["cost"], " ".join("%s=%.4g" % kv for kv in best["values"].items()),
-                len(points), time.time() - t0))
-            if not math.isfinite(best["cost"]):
-                raise FitError("the scene refused every candidate: " + refused[0])
+        while state["generation"] < spec.generations and not state["search"].should_stop():
+            _generation(state, space, cluster, problem, spec, checkpoint, log)
         best = state["best"]
         sigma = uncertainty(cluster, best, base, recording, spec.tool, mask, markers, marker_mask)
-        u = space.unit(best["values"])
-        at_bound = [n for n, x in zip(space.names, u) if x <= 0.01 or x >= 0.99]
-        if at_bound:
-            log("fit: %s ended at a bound: widen the bounds, or the scene cannot match the recording"
-                % ", ".join(at_bound))
-        if state["refused"]:
-            log("fit: %d candidates refused, e.g.: %s" % (state["refused"], state["refusal"]))
-        # a standard error of half the value or more: the recording does not tell this parameter
-        vague = [n for n in space.names if not sigma[n] < 0.5 * abs(best["values"][n])]
-        if vague:
-            log("fit: the recording does not determine %s (standard error half its value or more): "
-                "fix it in the scene, or record a motion it changes" % ", ".join(vague))
     finally:
         if own:
             cluster.close()
+    at_bound = [n for n, x in zip(space.names, space.unit(best["values"])) if x <= 0.01 or x >= 0.99]
+    if at_bound:
+        log("fit: %s ended at a bound: widen the bounds, or the scene cannot match the recording"
+            % ", ".join(at_bound))
+    if state["refused"]:
+        log("fit: %d candidates refused, e.g.: %s" % (state["refused"], state["refusal"]))
+    # a standard error of half the value or more: the recording does not tell this parameter
+    vague = [n for n in space.names if not sigma[n] < 0.5 * abs(best["values"][n])]
+    if vague:
+        log("fit: the recording does not determine %s (standard error half its value or more): "
+            "fix it in the scene, or record a motion it changes" % ", ".join(vague))
     result = {
         "parameters": {n: float(v) for n, v in best["values"].items()},
         "standard_error": {n: float(s) for n, s in sigma.items()},
