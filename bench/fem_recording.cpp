@@ -86,12 +86,11 @@ int main(int argc, char** argv) {
     const double top = indentation::topOf(vox);
     // linear elastic: the force and the displacements are proportional to the depth
     FemOracle fem(vox, FemMaterial{youngs, nu, 1000.0}, subdivision);
-    const double dx = vox.spacing, half = squeeze ? 1e3 : 0.5 * cells * dx + 1e-9, unit = 1e-3;
-    fem.fixNodesInBox(Eigen::Vector3d::Constant(-1e3), Eigen::Vector3d(1e3, 1e3, 0.5 * dx + 1e-9));
-    fem.prescribeInBox(Eigen::Vector3d(-half, -half, top - 1e-9), Eigen::Vector3d(half, half, top + 1e-9), 2, -unit);
-    const FemSolution u = fem.solveStatic(Eigen::Vector3d::Zero());
-    const double perMetre =
-        -fem.reactionInBox(u, Eigen::Vector3d(-1e3, -1e3, top - 1e-9), Eigen::Vector3d::Constant(1e3)).z() / unit;
+    const double unit = 1e-3;
+    double unitForce = 0.0;
+    const FemSolution u =
+        indentation::femPress(fem, vox, squeeze ? 1e3 : 0.5 * cells * vox.spacing + 1e-9, unit, unitForce);
+    const double perMetre = unitForce / unit;
     std::mt19937 rng(seed);
     std::normal_distribution<double> gauss(0.0, noise * perMetre * depth);
     const int n = static_cast<int>(std::lround((2 * press + hold) * rate));

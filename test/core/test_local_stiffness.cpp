@@ -148,24 +148,12 @@ TEST(LocalStiffness, ThePressureUnderASphereHasHertzsProfile) {
   const double dx = 0.0015, R = 0.02, depth = 0.002;
   const Voxelization vox = block(33, 33, 16, dx);
   for (double nu : {0.0, 0.3}) {
-    const ind::Press p = how(Integrator::Implicit, 1, 1, nu);
+    ind::Press p = how(Integrator::Implicit, 1, 1, nu);
+    p.pressSeconds = p.holdSeconds = 1.0;
     Solver s(std::make_shared<const deformable_flsm::Lattice>(vox, p.density, p.w), ind::solverParams(p));
     ind::holdBase(s, vox);
-    const double top = ind::topOf(vox);
-    deformable_flsm::Collider ball = ind::sphere(R);
-    ball.staticFriction = ball.kineticFriction = 0.0;
-    ball.pose.translation() = Eigen::Vector3d(0, 0, top + R);
-    s.setCollider("ball", ball);
-    s.recordContacts("ball", true);
-    const int pressSteps = 30, holdSteps = 30;
-    for (int i = 0; i < pressSteps + holdSteps; ++i) {
-      Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-      pose.translation() = Eigen::Vector3d(0, 0, top + R - depth * std::min(1.0, double(i) / pressSteps));
-      const double speed = i < pressSteps ? depth / (pressSteps * p.timeStep) : 0.0;
-      s.moveCollider("ball", pose, Eigen::Vector3d(0, 0, -speed), Eigen::Vector3d::Zero());
-      s.step();
-    }
-    const auto& contacts = s.recordedContacts("ball");
+    ind::lower(s, vox, ind::sphere(R), R, depth, p, true);
+    const auto& contacts = s.recordedContacts("indenter");
     const auto& rest = s.lattice().restPositions();
     double force = 0.0, moment = 0.0, peak = 0.0;
     std::vector<std::pair<double, double>> rings;  // (radius, pressure) per particle

@@ -65,18 +65,19 @@ inline void holdBase(Solver& s, const Voxelization& vox) {
   s.pinBox(Eigen::Vector3d::Constant(-1e3), Eigen::Vector3d(1e3, 1e3, 0.6 * vox.spacing), true);
 }
 
-/// The block (voxels with their base on z = 0) held by its bottom layer of particles, gravity
-/// off, the frictionless indenter `shape` with its lowest point `bottom` below its frame origin,
-/// starting at the block's top face and lowered by `depth` (m), then held.
-inline PressResult press(const Voxelization& vox, const Collider& shape, double bottom, double depth,
-                         const Press& how) {
-  Solver s(std::make_shared<const Lattice>(vox, how.density, how.w), solverParams(how));
-  holdBase(s, vox);
+/// Into the block (voxels with their base on z = 0) that solver `s` holds as its caller set it
+/// up, the frictionless indenter `shape` (collider "indenter") with its lowest point `bottom`
+/// below its frame origin, starting at the block's top face, lowered by `depth` (m) over
+/// how.pressSeconds, then held how.holdSeconds; its contacts recorded
+/// (s.recordedContacts("indenter")) when `record`.
+inline void lower(Solver& s, const Voxelization& vox, const Collider& shape, double bottom, double depth,
+                  const Press& how, bool record = false) {
   const double top = topOf(vox);
   Collider c = shape;
   c.staticFriction = c.kineticFriction = 0.0;
   c.pose.translation() = Eigen::Vector3d(0, 0, top + bottom);
   s.setCollider("indenter", c);
+  if (record) s.recordContacts("indenter", true);
   const int pressSteps = std::max(1, static_cast<int>(std::lround(how.pressSeconds / how.timeStep)));
   const int holdSteps = static_cast<int>(std::lround(how.holdSeconds / how.timeStep));
   for (int i = 0; i < pressSteps + holdSteps; ++i) {
@@ -87,6 +88,15 @@ inline PressResult press(const Voxelization& vox, const Collider& shape, double 
     s.moveCollider("indenter", pose, Eigen::Vector3d(0, 0, -speed), Eigen::Vector3d::Zero());
     s.step();
   }
+}
+
+/// The block held by its bottom layer of particles, gravity off, the indenter lowered into it
+/// (lower()).
+inline PressResult press(const Voxelization& vox, const Collider& shape, double bottom, double depth,
+                         const Press& how) {
+  Solver s(std::make_shared<const Lattice>(vox, how.density, how.w), solverParams(how));
+  holdBase(s, vox);
+  lower(s, vox, shape, bottom, depth, how);
   return {s.contactWrench("indenter").force.z(), s.contactWrench("indenter").contacts, s.stiffnessSaturated()};
 }
 
@@ -108,17 +118,28 @@ inline Collider sphere(double radius) {
   return c;
 }
 
-/// The oracle's punch: the same block, its nodes held up to the centres of the pinned layer, the
-/// top nodes over the k x k cells the punch meets lowered by `depth` (frictionless: z only), one
-/// element per cell (two per edge read 3 % less on 13 cells at nu 0, but take minutes to
+/// The oracle's press on the same block: its nodes held up to the centres of the pinned layer
+/// (with one element per cell, only the base face has nodes there), the top nodes within
+/// `halfWidth` of the z axis lowered by `depth` (frictionless: z only). The solution, and in
+/// `force` the tool's force (N, upwards).
+inline FemSolution femPress(FemOracle& fem, const Voxelization& vox, double halfWidth, double depth,
+                            double& force) {
+  const double dx = vox.spacing, top = topOf(vox), half = halfWidth;
+  fem.fixNodesInBox(Eigen::Vector3d::Constant(-1e3), Eigen::Vector3d(1e3, 1e3, 0.5 * dx + 1e-9));
+  fem.prescribeInBox(Eigen::Vector3d(-half, -half, top - 1e-9), Eigen::Vector3d(half, half, top + 1e-9), 2, -depth);
+  FemSolution u = fem.solveStatic(Eigen::Vector3d::Zero());
+  force = -fem.reactionInBox(u, Eigen::Vector3d(-1e3, -1e3, top - 1e-9), Eigen::Vector3d::Constant(1e3)).z();
+  return u;
+}
+
+/// The oracle's punch: the top nodes over the k x k cells the punch meets pressed (femPress()),
+/// one element per cell (two per edge read 3 % less on 13 cells at nu 0, but take minutes to
 /// factorize). The punch's force (N).
 inline double femPunch(const Voxelization& vox, int k, double depth, const FemMaterial& material) {
   FemOracle fem(vox, material, 1);
-  const double dx = vox.spacing, top = topOf(vox), half = 0.5 * k * dx + 1e-9;
-  fem.fixNodesInBox(Eigen::Vector3d::Constant(-1e3), Eigen::Vector3d(1e3, 1e3, 0.5 * dx + 1e-9));
-  fem.prescribeInBox(Eigen::Vector3d(-half, -half, top - 1e-9), Eigen::Vector3d(half, half, top + 1e-9), 2, -depth);
-  const FemSolution u = fem.solveStatic(Eigen::Vector3d::Zero());
-  return -fem.reactionInBox(u, Eigen::Vector3d(-1e3, -1e3, top - 1e-9), Eigen::Vector3d::Constant(1e3)).z();
+  double force = 0.0;
+  femPress(fem, vox, 0.5 * k * vox.spacing + 1e-9, depth, force);
+  return force;
 }
 
 }  // namespace indentation
