@@ -31,7 +31,7 @@ import time
 import numpy as np
 import yaml
 
-from deformable_flsm.fit import Cluster, FitError, _bar, package_config
+from deformable_flsm.fit import Cluster, FitError, _bar, package_config, tool_path
 from deformable_flsm.recording import Recording, RecordingError
 from deformable_flsm.scene import ParamError, Simulation, _angular_velocity, load_params
 
@@ -85,9 +85,7 @@ def run_sample(index, values, base, seconds, record_every, tool, path, out_dir):
     times, states, vels, wrenches = [], {o: [] for o in sim.objects}, {o: [] for o in sim.objects}, []
     poses = None
     if tool:
-        ts = np.arange(steps + 1) * sim.time_step
-        poses = np.column_stack([np.interp(ts, path.times, path.poses[:, j]) for j in range(7)])
-        poses[:, 3:] /= np.linalg.norm(poses[:, 3:], axis=1, keepdims=True)
+        _, poses = tool_path(path, sim.time_step, steps)
     for k in range(steps):
         if poses is not None:
             v = (poses[k + 1, :3] - poses[k, :3]) / sim.time_step

@@ -50,10 +50,11 @@ def scene_with(base, values, tool):
     return tree
 
 
-def tool_path(recording, dt):
-    """The tool's poses at the simulation's steps 0, dt, 2 dt, ... up to the recording's end:
-    positions interpolated linearly, orientations normalised linearly (small turns a step)."""
-    n = int(math.ceil(recording.times[-1] / dt - 1e-9))
+def tool_path(recording, dt, steps=None):
+    """The tool's poses at the simulation's steps 0, dt, 2 dt, ... up to the recording's end (or
+    `steps` steps, the last pose held beyond it): positions interpolated linearly, orientations
+    normalised linearly (small turns a step)."""
+    n = int(math.ceil(recording.times[-1] / dt - 1e-9)) if steps is None else steps
     ts = np.arange(n + 1) * dt
     out = np.column_stack([np.interp(ts, recording.times, recording.poses[:, j]) for j in range(7)])
     out[:, 3:] /= np.linalg.norm(out[:, 3:], axis=1, keepdims=True)

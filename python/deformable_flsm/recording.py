@@ -51,20 +51,15 @@ class Recording:
     def from_csv(cls, path, forces=True):
         """Columns by header: time, x, y, z, optionally qx, qy, qz, qw, then fx, fy, fz (zero when
         `forces` is False: a tool path); lines starting with # are comments."""
-        with open(path) as f:
-            rows = [r for r in csv.reader(line for line in f if not line.lstrip().startswith("#")) if r]
-        if not rows:
+        header, rows = _read_csv(path)
+        if not header:
             raise RecordingError(f"{path}: empty")
-        header = [h.strip() for h in rows[0]]
         need = ["time", "x", "y", "z"] + (["fx", "fy", "fz"] if forces else [])
         missing = [h for h in need if h not in header]
         if missing:
             raise RecordingError(f"{path}: the header has no column {', '.join(missing)} "
                                  f"(it needs {', '.join(need)}, optionally qx, qy, qz, qw)")
-        try:
-            data = np.array([[float(v) for v in r] for r in rows[1:]])
-        except ValueError as e:
-            raise RecordingError(f"{path}: a value is not a number ({e})") from None
+        data = _numbers(path, rows)
         if data.ndim != 2 or data.shape[1] != len(header):
             raise RecordingError(f"{path}: every row must have the header's {len(header)} columns")
         col = {h: data[:, header.index(h)] for h in header}
@@ -143,6 +138,21 @@ class Recording:
         return cls(times, poses, forces, path)
 
 
+def _read_csv(path):
+    """(header, rows) of a CSV file whose lines starting with # are comments; header [] when empty."""
+    with open(path) as f:
+        rows = [r for r in csv.reader(line for line in f if not line.lstrip().startswith("#")) if r]
+    return ([h.strip() for h in rows[0]] if rows else []), rows[1:]
+
+
+def _numbers(path, rows, columns=None):
+    """The rows' first `columns` values (all when None) as an array of floats."""
+    try:
+        return np.array([[float(v) for v in r[:columns]] for r in rows])
+    except ValueError as e:
+        raise RecordingError(f"{path}: a value is not a number ({e})") from None
+
+
 def _quat_mul(a, b):
     ax, ay, az, aw = a
     bx, by, bz, bw = b
@@ -217,15 +227,10 @@ class Markers:
     @classmethod
     def from_csv(cls, path):
         """Columns time, marker, x, y, z: every marker at every time; the first time is the rest."""
-        with open(path) as f:
-            rows = [r for r in csv.reader(line for line in f if not line.lstrip().startswith("#")) if r]
-        header = [h.strip() for h in rows[0]] if rows else []
+        header, rows = _read_csv(path)
         if header[:5] != ["time", "marker", "x", "y", "z"]:
             raise RecordingError(f"{path}: the header must be time,marker,x,y,z")
-        try:
-            data = np.array([[float(v) for v in r[:5]] for r in rows[1:]])
-        except ValueError as e:
-            raise RecordingError(f"{path}: a value is not a number ({e})") from None
+        data = _numbers(path, rows, 5)
         if data.ndim != 2 or len(data) == 0:
             raise RecordingError(f"{path}: no markers")
         times = np.unique(data[:, 0])
