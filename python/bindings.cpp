@@ -88,11 +88,8 @@ class Simulation {
   const std::vector<std::string>& unknownParams() const { return unknown_; }
   std::vector<std::string> objectNames() const { return scene_.world->objectNames(); }
 
-  const Solver& object(const std::string& name) const {
-    const Solver* solver = scene_.world->object(name.empty() ? scene_.world->objectNames().front() : name);
-    if (!solver) throw py::key_error("no object '" + name + "'");
-    return *solver;
-  }
+  /// object `name` ("" the first), its solver and what renders it
+  const Solver& object(const std::string& name) const { return *scene_.world->object(sceneObject(name).name); }
   const SceneObject& sceneObject(const std::string& name) const {
     const std::string& wanted = name.empty() ? scene_.world->objectNames().front() : name;
     for (const SceneObject& o : scene_.objects)
@@ -155,7 +152,7 @@ class Simulation {
 
   py::dict info(const std::string& name) const {
     const SceneObject& o = sceneObject(name);
-    const Solver& s = object(o.name);
+    const Solver& s = object(name);
     py::dict out;
     out["particles"] = o.info.particles;
     out["spacing"] = o.info.spacing;
