@@ -33,7 +33,7 @@ import yaml
 
 from deformable_flsm.fit import Cluster, FitError, _bar, package_config, tool_path
 from deformable_flsm.recording import Recording, RecordingError
-from deformable_flsm.scene import ParamError, Simulation, _angular_velocity, load_params
+from deformable_flsm.scene import ParamError, Simulation, load_params
 
 
 class BatchError(ValueError):
@@ -83,15 +83,13 @@ def run_sample(index, values, base, seconds, record_every, tool, path, out_dir):
     steps = int(round(seconds / sim.time_step))
     colliders = sim.colliders
     times, states, vels, wrenches = [], {o: [] for o in sim.objects}, {o: [] for o in sim.objects}, []
-    poses = None
-    if tool:
-        _, poses = tool_path(path, sim.time_step, steps)
+    # the tool moved a step at a time towards the path's next pose (Simulation.follow)
+    moves = sim.follow(tool, tool_path(path, sim.time_step, steps)[1]) if tool else None
     for k in range(steps):
-        if poses is not None:
-            v = (poses[k + 1, :3] - poses[k, :3]) / sim.time_step
-            w = _angular_velocity(poses[k, 3:], poses[k + 1, 3:], sim.time_step)
-            sim.move_collider(tool, poses[k, :3], poses[k, 3:], v, w)
-        sim.step()
+        if moves is not None:
+            next(moves)
+        else:
+            sim.step()
         if (k + 1) % record_every == 0 or k + 1 == steps:
             times.append(sim.time)
             for o in sim.objects:
