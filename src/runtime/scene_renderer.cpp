@@ -15,9 +15,6 @@ namespace deformable_flsm {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-/// A plane is drawn as a square of this half size (m) in its frame: far beyond any camera's
-/// far plane here, small enough for float vertices to keep depth within a micrometre at metres.
-constexpr float kPlaneHalfSize = 200.0f;
 /// Segments around a tessellated circle: a chord deviates from the arc by r (1 - cos(pi / n)),
 /// 0.05 % of the radius.
 constexpr int kRound = 96;
@@ -117,13 +114,6 @@ Tessellation capsule(double r, double h) {
   return t;
 }
 
-Tessellation plane() {
-  Tessellation t;
-  const double s = kPlaneHalfSize;
-  t.quad(t.add({-s, -s, 0}), t.add({s, -s, 0}), t.add({s, s, 0}), t.add({-s, s, 0}));
-  return t;
-}
-
 Tessellation meshOf(const TriMesh& mesh) {
   Tessellation t;
   for (const Eigen::Vector3d& v : mesh.vertices) t.add(v);
@@ -160,6 +150,26 @@ RTCGeometry triangleGeometry(RTCDevice device, const std::vector<Eigen::Vector3f
   return g;
 }
 
+/// Whether any ray of a packet (from `o`, up to its tfar) may meet the box `b`: packets that
+/// see only the planes (most of a view of the ground) skip Embree's call and its traversal.
+bool mayHit(const RTCBounds& b, const Eigen::Vector3f& o, const RTCRay16& ray) {
+  if (!(b.lower_x <= b.upper_x)) return false;  // nothing in the scene
+  const float lo[3] = {b.lower_x - o.x(), b.lower_y - o.y(), b.lower_z - o.z()};
+  const float hi[3] = {b.upper_x - o.x(), b.upper_y - o.y(), b.upper_z - o.z()};
+  bool any = false;
+  for (int i = 0; i < 16; ++i) {
+    const float d[3] = {ray.dir_x[i], ray.dir_y[i], ray.dir_z[i]};
+    float enter = ray.tnear[i], leave = ray.tfar[i];
+    for (int a = 0; a < 3; ++a) {
+      const float t1 = lo[a] / d[a], t2 = hi[a] / d[a];  // a NaN (0 / 0) compares false: kept
+      enter = std::max(enter, std::min(t1, t2));
+      leave = std::min(leave, std::max(t1, t2));
+    }
+    any |= !(enter > leave);
+  }
+  return any;
+}
+
 }  // namespace
 
 struct SceneRenderer::Impl {
@@ -174,8 +184,16 @@ struct SceneRenderer::Impl {
     const Triangles* triangles = nullptr;
     std::size_t vertexCount = 0;
   };
+  /// A plane (the ground, a wall) is intersected by the rays directly, not through Embree: every
+  /// ray would otherwise traverse to its two triangles, most of a frame's cost.
+  struct Plane {
+    Eigen::Vector3f normal;  // the plane's z axis
+    float offset = 0.0f;     // normal . x on the plane
+    Hit hit;
+  };
   /// A collider's geometry in the top scene, in the simulation frame: moved by rewriting its
-  /// vertices (a second level of instances costs every ray more than this costs a frame).
+  /// vertices (a second level of instances costs every ray more than this costs a frame). A
+  /// plane has none (see Plane).
   struct ColliderGeometry {
     ColliderShape shape;
     Tessellation local;  // in the collider's frame (a sphere: none)
@@ -190,7 +208,9 @@ struct SceneRenderer::Impl {
   std::vector<ObjectGeometry> objects;
   std::map<std::string, ColliderGeometry> colliders;
   std::vector<Hit> hits;  // by geometry id in the top scene
-  std::vector<float> xs, ys;  // render(): the rays' slopes by column and row
+  std::vector<Plane> planes;
+  std::vector<float> heights;  // render(): each plane's offset from the camera along its normal
+  std::vector<Eigen::Vector3f> columns, rows;  // render(): the rays' directions by column and row
 
   Hit& hitOf(unsigned id) {
     if (hits.size() <= id) hits.resize(id + 1);
@@ -202,6 +222,7 @@ struct SceneRenderer::Impl {
     rtcReleaseGeometry(o.geometry);
   }
   void dropCollider(ColliderGeometry& c) {
+    if (c.geometry == nullptr) return;  // a plane
     rtcDetachGeometry(top, c.id);
     rtcReleaseGeometry(c.geometry);
   }
@@ -209,6 +230,9 @@ struct SceneRenderer::Impl {
   /// Puts collider `c`'s geometry at `pose`.
   void place(ColliderGeometry& c, const Eigen::Isometry3d& pose) {
     if (c.placed && c.pose.isApprox(pose, 0.0)) return;
+    c.pose = pose;
+    c.placed = true;
+    if (c.geometry == nullptr) return;  // a plane: its pose is all
     auto* p = static_cast<float*>(rtcGetGeometryBufferData(c.geometry, RTC_BUFFER_TYPE_VERTEX, 0));
     if (c.shape.type == ColliderType::Sphere) {
       for (int d = 0; d < 3; ++d) p[d] = static_cast<float>(pose.translation()[d]);
@@ -223,20 +247,19 @@ struct SceneRenderer::Impl {
     }
     rtcUpdateGeometryBuffer(c.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
     rtcCommitGeometry(c.geometry);
-    c.pose = pose;
-    c.placed = true;
   }
 
   ColliderGeometry build(const ColliderShape& shape) {
     ColliderGeometry c;
     c.shape = shape;
+    if (shape.type == ColliderType::HalfSpace) return c;
     if (shape.type == ColliderType::Sphere) {
       c.geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
       rtcSetNewGeometryBuffer(c.geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1);
       check(device, "make a sphere");
     } else {
       switch (shape.type) {
-        case ColliderType::HalfSpace: c.local = plane(); break;
+        case ColliderType::HalfSpace: break;
         case ColliderType::Box: c.local = box(shape.halfExtents); break;
         case ColliderType::Capsule: c.local = capsule(shape.radius, shape.halfLength); break;
         case ColliderType::Cylinder: c.local = cylinder(shape.radius, shape.halfLength); break;
@@ -280,9 +303,9 @@ void SceneRenderer::setObjects(const std::vector<Object>& objects) {
   }
   for (std::size_t k = 0; k < objects.size(); ++k) {
     const Object& o = objects[k];
-    std::vector<Eigen::Vector3f> v(o.vertices->size());
-    for (std::size_t i = 0; i < v.size(); ++i) v[i] = (*o.vertices)[i].cast<float>();
     if (!same) {
+      std::vector<Eigen::Vector3f> v(o.vertices->size());
+      for (std::size_t i = 0; i < v.size(); ++i) v[i] = (*o.vertices)[i].cast<float>();
       Impl::ObjectGeometry g;
       g.geometry = triangleGeometry(m.device, v, *o.triangles, RTC_BUILD_QUALITY_REFIT);
       g.id = rtcAttachGeometry(m.top, g.geometry);
@@ -290,10 +313,12 @@ void SceneRenderer::setObjects(const std::vector<Object>& objects) {
       g.vertexCount = v.size();
       m.objects.push_back(g);
     } else {
+      // straight into Embree's buffer: no copy of the mesh per frame
       RTCGeometry g = m.objects[k].geometry;
       auto* p = static_cast<float*>(rtcGetGeometryBufferData(g, RTC_BUFFER_TYPE_VERTEX, 0));
-      for (std::size_t i = 0; i < v.size(); ++i)
-        for (int d = 0; d < 3; ++d) p[3 * i + d] = v[i][d];
+      const std::vector<Eigen::Vector3d>& x = *o.vertices;
+      for (std::size_t i = 0; i < x.size(); ++i)
+        for (int d = 0; d < 3; ++d) p[3 * i + d] = static_cast<float>(x[i][d]);
       rtcUpdateGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0);
       rtcCommitGeometry(g);
     }
@@ -316,14 +341,25 @@ void SceneRenderer::setColliders(const std::map<std::string, Collider>& collider
     }
   }
   std::size_t i = 0;
+  m.planes.clear();
   for (const auto& entry : colliders) {
     auto it = m.colliders.find(entry.first);
     if (it == m.colliders.end()) it = m.colliders.emplace(entry.first, m.build(entry.second.shape)).first;
     Impl::ColliderGeometry& c = it->second;
     m.place(c, entry.second.pose);
+    const std::uint16_t label = colliderLabel(i++);
+    if (c.geometry == nullptr) {
+      Impl::Plane plane;
+      plane.normal = c.pose.linear().col(2).cast<float>();
+      plane.offset = plane.normal.dot(c.pose.translation().cast<float>());
+      plane.hit.label = label;
+      plane.hit.color = kPlaneColor;
+      m.planes.push_back(plane);
+      continue;
+    }
     Impl::Hit& h = m.hitOf(c.id);
-    h.label = colliderLabel(i++);
-    h.color = entry.second.shape.type == ColliderType::HalfSpace ? kPlaneColor : kColliderColor;
+    h.label = label;
+    h.color = kColliderColor;
   }
   check(m.device, "update the colliders");
 }
@@ -336,59 +372,88 @@ void SceneRenderer::render(const CameraIntrinsics& camera, const Eigen::Isometry
   const int w = camera.width, h = camera.height;
   out.width = w;
   out.height = h;
-  out.depth.assign(static_cast<std::size_t>(w) * h, std::numeric_limits<float>::quiet_NaN());
-  out.rgb.assign(static_cast<std::size_t>(w) * h * 3, 0);
-  out.label.assign(static_cast<std::size_t>(w) * h, kNothing);
+  // every pixel is written below, hit or not: no clearing pass
+  out.depth.resize(static_cast<std::size_t>(w) * h);
+  out.rgb.resize(static_cast<std::size_t>(w) * h * 3);
+  out.label.resize(static_cast<std::size_t>(w) * h);
   const Eigen::Matrix3f R = cameraPose.linear().cast<float>();
   const Eigen::Vector3f o = cameraPose.translation().cast<float>();
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-  // Tiles of 4 x 4 pixels as one packet of 16 rays: neighbouring rays share their way through
-  // the BVH.
-  // the rays' slopes, once per column and row
-  m.xs.resize(w);
-  m.ys.resize(h);
-  for (int u = 0; u < w; ++u) m.xs[u] = static_cast<float>((u - camera.cx) / camera.fx);
-  for (int v = 0; v < h; ++v) m.ys[v] = static_cast<float>((v - camera.cy) / camera.fy);
+  // A ray's direction R (x, y, 1) (z = 1 in the optical frame: the ray's parameter is the
+  // depth) is a column's part plus a row's, each computed once.
+  m.columns.resize(w);
+  m.rows.resize(h);
+  for (int u = 0; u < w; ++u) m.columns[u] = R.col(0) * static_cast<float>((u - camera.cx) / camera.fx);
+  for (int v = 0; v < h; ++v) m.rows[v] = R.col(1) * static_cast<float>((v - camera.cy) / camera.fy) + R.col(2);
   const float tnear = static_cast<float>(camera.near), tfar = static_cast<float>(camera.far);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  RTCBounds bounds;  // of what Embree holds (empty: lower above upper)
+  rtcGetSceneBounds(m.top, &bounds);
+  // the planes' distance along their normal from the camera
+  const std::size_t planes = m.planes.size();
+  m.heights.resize(planes);
+  for (std::size_t k = 0; k < planes; ++k) m.heights[k] = m.planes[k].offset - m.planes[k].normal.dot(o);
   alignas(64) RTCRayHit16 rh;
   alignas(64) int valid[16];
-  std::array<Eigen::Vector3f, 16> dirs;
+  alignas(64) int plane[16];  // the plane a ray meets first, or -1
+  for (int i = 0; i < 16; ++i) {
+    rh.ray.org_x[i] = o.x();
+    rh.ray.org_y[i] = o.y();
+    rh.ray.org_z[i] = o.z();
+    rh.ray.mask[i] = 0xFFFFFFFFu;
+    rh.ray.flags[i] = 0;
+    rh.ray.time[i] = 0.0f;
+  }
+  // Tiles of 4 x 4 pixels as one packet of 16 rays: neighbouring rays share their way through
+  // the BVH. The planes come first: Embree then looks only for what lies nearer.
   for (int v0 = 0; v0 < h; v0 += kTile) {
     for (int u0 = 0; u0 < w; u0 += kTile) {
       for (int i = 0; i < 16; ++i) {
         const int u = u0 + i % kTile, v = v0 + i / kTile;
         valid[i] = u < w && v < h ? -1 : 0;
-        // z = 1 in the optical frame: the ray's parameter is the depth
-        dirs[i] = R * Eigen::Vector3f(m.xs[std::min(u, w - 1)], m.ys[std::min(v, h - 1)], 1.0f);
-        rh.ray.org_x[i] = o.x();
-        rh.ray.org_y[i] = o.y();
-        rh.ray.org_z[i] = o.z();
-        rh.ray.dir_x[i] = dirs[i].x();
-        rh.ray.dir_y[i] = dirs[i].y();
-        rh.ray.dir_z[i] = dirs[i].z();
+        const Eigen::Vector3f d = m.columns[std::min(u, w - 1)] + m.rows[std::min(v, h - 1)];
+        rh.ray.dir_x[i] = d.x();
+        rh.ray.dir_y[i] = d.y();
+        rh.ray.dir_z[i] = d.z();
         rh.ray.tnear[i] = tnear;
-        rh.ray.tfar[i] = tfar;
-        rh.ray.mask[i] = 0xFFFFFFFFu;
-        rh.ray.flags[i] = 0;
-        rh.ray.time[i] = 0.0f;
+        float t = tfar;
+        plane[i] = -1;
+        for (std::size_t k = 0; k < planes; ++k) {
+          const float along = m.planes[k].normal.dot(d);
+          const float at = m.heights[k] / along;  // +-inf or NaN when parallel: compared false below
+          if (at >= tnear && at < t) {
+            t = at;
+            plane[i] = static_cast<int>(k);
+          }
+        }
+        rh.ray.tfar[i] = t;
         rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
       }
-      rtcIntersect16(valid, m.top, &context, &rh);
+      if (mayHit(bounds, o, rh.ray)) rtcIntersect16(valid, m.top, &context, &rh);
       for (int i = 0; i < 16; ++i) {
-        if (!valid[i] || rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
+        if (!valid[i]) continue;
         const int u = u0 + i % kTile, v = v0 + i / kTile;
-        const Impl::Hit& hit = m.hits[rh.hit.geomID[i]];
         const std::size_t p = static_cast<std::size_t>(v) * w + u;
+        std::uint8_t* rgb = &out.rgb[3 * p];
+        const bool embree = rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
+        if (!embree && plane[i] < 0) {
+          out.depth[p] = nan;
+          out.label[p] = kNothing;
+          rgb[0] = rgb[1] = rgb[2] = 0;
+          continue;
+        }
+        const Impl::Hit& hit = embree ? m.hits[rh.hit.geomID[i]] : m.planes[plane[i]].hit;
+        const Eigen::Vector3f n = embree ? Eigen::Vector3f(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i])
+                                         : m.planes[plane[i]].normal;
+        const Eigen::Vector3f d(rh.ray.dir_x[i], rh.ray.dir_y[i], rh.ray.dir_z[i]);
         out.depth[p] = rh.ray.tfar[i];
         out.label[p] = hit.label;
-        const Eigen::Vector3f n(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]);
-        const float nn = n.squaredNorm() * dirs[i].squaredNorm();
-        const float cosine = nn > 0.0f ? std::abs(n.dot(dirs[i])) / std::sqrt(nn) : 1.0f;
+        const float nn = n.squaredNorm() * d.squaredNorm();
+        const float cosine = nn > 0.0f ? std::abs(n.dot(d)) / std::sqrt(nn) : 1.0f;
         const Eigen::Vector3f c = hit.color * (255.0f * (kAmbient + kHeadlight * cosine));
-        for (int k = 0; k < 3; ++k)
-          out.rgb[3 * p + k] = static_cast<std::uint8_t>(std::min(255.0f, c[k]) + 0.5f);
+        for (int k = 0; k < 3; ++k) rgb[k] = static_cast<std::uint8_t>(std::min(255.0f, c[k]) + 0.5f);
       }
     }
   }
