@@ -1,5 +1,6 @@
 #include "deformable_flsm/ros/collider_topics.h"
 
+#include "deformable_flsm/ros/log_queue.h"
 #include "deformable_flsm/ros/robot_colliders.h"
 
 #include <ros/console.h>
@@ -152,22 +153,26 @@ void ColliderTopics::onFollowTimer(const ros::TimerEvent&) {
       links.push_back(g == robotLinks_.end() ? id : "'" + g->second.frame + "' (" + id + ")");
       send_(RemoveColliderCommand{id});
     }
-    ROS_WARN("flsm_node: robot links left out because they start inside the object: %s (set "
-             "~robot_exclude_overlapping false to keep them, or move the object)",
-             list(links).c_str());
+    postLog(LogLevel::Warn, "flsm_node: robot links left out because they start inside the object: " +
+                                list(links) +
+                                " (set ~robot_exclude_overlapping false to keep them, or move the object)");
   }
   if (!report_.jumped.empty()) {
-    ROS_WARN_THROTTLE(kFrameWarnPeriod,
-                      "flsm_node: the tf frame of collider(s) %s jumped (faster than %.0f m/s "
-                      "between two transforms): placed at the new pose at rest rather than swept "
-                      "through the scene",
-                      list(report_.jumped).c_str(), ColliderFollower::kJumpSpeed);
+    static LogThrottle throttle(kFrameWarnPeriod);
+    if (throttle.ready())
+      postLog(LogLevel::Warn,
+              formatLine("flsm_node: the tf frame of collider(s) %s jumped (faster than %.0f m/s "
+                         "between two transforms): placed at the new pose at rest rather than swept "
+                         "through the scene",
+                         list(report_.jumped).c_str(), ColliderFollower::kJumpSpeed));
   }
   if (!report_.problems.empty()) {
-    ROS_WARN_THROTTLE(kFrameWarnPeriod, "flsm_node: %s (%zu collider(s) affected; %llu misses so "
-                      "far, see ~state collider_frame_misses)",
-                      report_.problems.front().c_str(), report_.problems.size(),
-                      static_cast<unsigned long long>(follower_.misses()));
+    static LogThrottle throttle(kFrameWarnPeriod);
+    if (throttle.ready())
+      postLog(LogLevel::Warn, formatLine("flsm_node: %s (%zu collider(s) affected; %llu misses so far, "
+                                         "see ~state collider_frame_misses)",
+                                         report_.problems.front().c_str(), report_.problems.size(),
+                                         static_cast<unsigned long long>(follower_.misses())));
   }
 }
 

@@ -67,14 +67,17 @@ LoopTime loopTime(NodeParams::Clock clock) {
 
 SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh,
                              const NodeParams& params, WorldScene scene, bool namespaced)
-    : nh_(nh), pnh_(pnh), stateNh_(pnh), commandNh_(pnh), serviceNh_(pnh), reconfigureNh_(pnh),
+    : log_(std::make_unique<LogQueue>(writeToRosconsole)),
+      nh_(nh), pnh_(pnh), stateNh_(pnh), commandNh_(pnh), serviceNh_(pnh), reconfigureNh_(pnh),
       params_(params), objects_(std::make_move_iterator(scene.objects.begin()),
                                 std::make_move_iterator(scene.objects.end())),
       namespaced_(namespaced),
       stats_(std::make_shared<CommandStats>()) {
-  stats_->setRejectHook([](const std::string& reason, const std::string& detail) {
-    ROS_WARN_THROTTLE(kRejectPeriod, "flsm_node: command rejected (%s): %s", reason.c_str(),
-                      detail.c_str());
+  installLogQueue(log_.get());
+  stats_->setRejectHook([throttle = std::make_shared<LogThrottle>(kRejectPeriod)](
+                            const std::string& reason, const std::string& detail) {
+    if (throttle->ready())
+      postLog(LogLevel::Warn, "flsm_node: command rejected (" + reason + "): " + detail);
   });
 
   checkClock();
@@ -92,7 +95,7 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   settings.startPaused = params_.startPaused;
   // Rest (LoopSettings::restFraction, idleHold): the defaults, relative to the object size.
   loop_ = std::make_unique<SimulationLoop>(std::move(scene.world), settings, stats_);
-  loop_->setNotice([](const std::string& what) { ROS_WARN("flsm_node: %s", what.c_str()); });
+  loop_->setNotice([](const std::string& what) { postLog(LogLevel::Warn, "flsm_node: " + what); });
   if (params_.clock == NodeParams::Clock::Sim) {
     clockPub_ = nh_.advertise<rosgraph_msgs::Clock>("/clock", kClockQueue);
     loop_->setTickObserver([this](double time, const Snapshot* state) { onTick(time, state); });
@@ -121,10 +124,7 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   }
   reporter_ = std::make_unique<ProblemReporter>(
       params_, sceneInfo_, *first.lattice, [](ProblemSeverity severity, const std::string& line) {
-        if (severity == ProblemSeverity::Error)
-          ROS_ERROR_STREAM(line);
-        else
-          ROS_WARN_STREAM(line);
+        postLog(severity == ProblemSeverity::Error ? LogLevel::Error : LogLevel::Warn, line);
       });
   reporter_->setResetCause([this] { return loop_->lastResetCause(); });
   advertise();
@@ -181,6 +181,7 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
 }
 
 SimulatorNode::~SimulatorNode() {
+  installLogQueue(nullptr);  // lines from here on go straight to rosconsole; log_ goes last
   cameras_.reset();
   publishTimer_.stop();
   stateTimer_.stop();
@@ -365,7 +366,7 @@ void SimulatorNode::onClock(const rosgraph_msgs::Clock::ConstPtr& clock) {
 
 bool SimulatorNode::onPause(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
   const CommandOutcome o = send(PauseCommand{true}, true);
-  if (!o.accepted) ROS_WARN("flsm_node: ~pause: %s", o.message.c_str());
+  if (!o.accepted) postLog(LogLevel::Warn, "flsm_node: ~pause: " + o.message);
   // ~state says so at once: on simulated time that stands still its timer would not
   pauseState_ = stateNh_.createWallTimer(
       ros::WallDuration(kPublishAtOnce), [this](const ros::WallTimerEvent&) { publishState(); }, true);
@@ -374,7 +375,7 @@ bool SimulatorNode::onPause(std_srvs::Empty::Request&, std_srvs::Empty::Response
 
 bool SimulatorNode::onUnpause(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
   const CommandOutcome o = send(PauseCommand{false}, true);
-  if (!o.accepted) ROS_WARN("flsm_node: ~unpause: %s", o.message.c_str());
+  if (!o.accepted) postLog(LogLevel::Warn, "flsm_node: ~unpause: " + o.message);
   return o.accepted;
 }
 
@@ -453,18 +454,21 @@ bool SimulatorNode::attachedFrame(const std::string& frame, Eigen::Isometry3d& s
     // that named the frame started the listener when it looked the frame up.)
     t = tfBuffer_.lookupTransform(params_.frameId, frame, ros::Time(0));
   } catch (const tf2::TransformException& e) {
-    ROS_WARN_THROTTLE(kAttachWarnPeriod,
-                      "flsm_node: frame '%s', which a drag is attached to, is not known now (%s): "
-                      "the drag holds still until it is",
-                      frame.c_str(), e.what());
+    static LogThrottle throttle(kAttachWarnPeriod);
+    if (throttle.ready())
+      postLog(LogLevel::Warn, formatLine("flsm_node: frame '%s', which a drag is attached to, is not known "
+                                         "now (%s): the drag holds still until it is",
+                                         frame.c_str(), e.what()));
     return false;
   }
   const double age = (ros::Time::now() - t.header.stamp).toSec();
   if (!t.header.stamp.isZero() && age > kAttachStaleAfter) {  // a static transform never is
-    ROS_WARN_THROTTLE(kAttachWarnPeriod,
-                      "flsm_node: the newest transform of frame '%s', which a drag is attached "
-                      "to, is %.2f s old: the drag holds still until the frame moves again",
-                      frame.c_str(), age);
+    static LogThrottle throttle(kAttachWarnPeriod);
+    if (throttle.ready())
+      postLog(LogLevel::Warn, formatLine("flsm_node: the newest transform of frame '%s', which a drag is "
+                                         "attached to, is %.2f s old: the drag holds still until the "
+                                         "frame moves again",
+                                         frame.c_str(), age));
     return false;
   }
   // tf accepts quaternions normalised to within 1 %: the drag needs an exact rotation.
@@ -716,7 +720,7 @@ bool SimulatorNode::onAddObject(AddObject::Request& req, AddObject::Response& re
     std::lock_guard<std::mutex> handlesLock(handlesMutex_);
     handlesToAdd_.emplace_back(k, std::move(handle));
   }
-  ROS_INFO("flsm_node: %s", o.message.c_str());
+  postLog(LogLevel::Info, "flsm_node: " + o.message);
   return true;
 }
 
@@ -752,7 +756,7 @@ bool SimulatorNode::onRemoveObject(RemoveObject::Request& req, RemoveObject::Res
   dragSub.shutdown();
   forceSub.shutdown();
   pinBoxSrv.shutdown();
-  ROS_INFO("flsm_node: %s", o.message.c_str());
+  postLog(LogLevel::Info, "flsm_node: " + o.message);
   return true;
 }
 

@@ -1,6 +1,7 @@
 #include "deformable_flsm/ros/state_publisher.h"
 
 #include "deformable_flsm/core/contact.h"
+#include "deformable_flsm/ros/log_queue.h"
 #include "deformable_flsm/ros/mesh_messages.h"
 
 #include <geometry_msgs/TransformStamped.h>
@@ -79,10 +80,13 @@ class StatePublisher::ObjectTopics {
     const bool verticesOk = !(meshDue || surfaceDue) || verticesFinite_;
     if (!verticesOk) {
       ++nonFiniteSkips_;
-      ROS_ERROR_THROTTLE(kWarnPeriod, "flsm_node: the embedded mesh of object '%s' is not finite; "
-                         "its ~mesh marker and ~surface skipped (%llu times). This is a bug: "
-                         "please report it.", object_.name.c_str(),
-                         static_cast<unsigned long long>(nonFiniteSkips_));
+      static LogThrottle throttle(kWarnPeriod);
+      if (throttle.ready())
+        postLog(LogLevel::Error, formatLine("flsm_node: the embedded mesh of object '%s' is not finite; its "
+                                            "~mesh marker and ~surface skipped (%llu times). This is a "
+                                            "bug: please report it.",
+                                            object_.name.c_str(),
+                                            static_cast<unsigned long long>(nonFiniteSkips_)));
     }
     if (meshDue && verticesOk) {
       mesh_.publish(seq, stamp, marker_, [&](visualization_msgs::Marker& m) {

@@ -3,6 +3,7 @@
 /// core (through SimulationLoop); this class owns the ROS handles and converts at the edges.
 #pragma once
 
+#include "deformable_flsm/ros/log_queue.h"
 #include "deformable_flsm/ros/camera_topics.h"
 #include "deformable_flsm/ros/collider_topics.h"
 #include "deformable_flsm/ros/tactile_topics.h"
@@ -168,6 +169,9 @@ class SimulatorNode {
   /// never waiting; false, with a throttled warning, while the frame is unknown or stale.
   bool attachedFrame(const std::string& frame, Eigen::Isometry3d& simFromFrame);
 
+  /// Log lines of every thread but the main one, written by a thread of its own (declared
+  /// first: destroyed after every thread that posts to it).
+  std::unique_ptr<LogQueue> log_;
   ros::NodeHandle nh_, pnh_;
   ros::NodeHandle stateNh_;  ///< private namespace, served by stateSpinner_ (the state thread)
   ros::CallbackQueue stateQueue_;
