@@ -13,6 +13,13 @@ scene builder); fit.py fits its material to a recording, batch.py runs many scen
 # with this directory first on its path).
 __path__ = __import__("pkgutil").extend_path(__path__, __name__)
 
-from deformable_flsm.scene import ParamError, Simulation, load_params
-
 __all__ = ["ParamError", "Simulation", "load_params"]
+
+
+def __getattr__(name):
+    # The compiled core is loaded on first use: a node that imports only the messages
+    # (deformable_flsm.msg) does not load it.
+    if name in __all__:
+        from deformable_flsm import scene
+        return getattr(scene, name)
+    raise AttributeError("module 'deformable_flsm' has no attribute '%s'" % name)
