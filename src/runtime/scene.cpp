@@ -11,8 +11,6 @@
 #include <map>
 #include <tuple>
 #include <cmath>
-#include <cstdio>
-#include <sstream>
 
 namespace deformable_flsm {
 
@@ -126,6 +124,65 @@ double heightAlong(const Collider& ground) {
   return ground.pose.translation().dot(ground.pose.linear().col(2));
 }
 
+/// Object `spec` (its mesh at its pose) added to `world`, pinned by the node's ~pinned boxes.
+SceneObject addWorldObject(World& world, const ObjectSpec& spec, const NodeParams& params,
+                           const TriMesh& mesh) {
+  const NodeParams& p = spec.params;
+  SceneObject object;
+  object.name = spec.name;
+  object.params = p;
+  object.info.stepMeasured = false;
+  SolverParams solverParams;
+  try {
+    object.lattice = buildLattice(p, mesh, object.info, solverParams);
+    Solver& solver = world.addObject(spec.name, object.lattice, solverParams);
+    describeSolver(solver, object.info);
+    for (const Box& box : params.pinned) {
+      object.info.pinnedPerBox.push_back(solver.pinBox(box.lo, box.hi, true));
+    }
+    object.info.pinned = solver.pinnedCount();
+  } catch (const ParamError& e) {
+    throw ParamError("object '" + spec.name + "': " + e.what());
+  } catch (const std::invalid_argument& e) {  // World: objects inside each other
+    throw ParamError("object '" + spec.name + "' cannot be added: " + e.what() +
+                     ". Move the objects apart with their pose.");
+  }
+  buildRender(p, mesh, *object.lattice, object.info, object.renderMesh, object.embedding);
+  return object;
+}
+
+/// The ground below the lowest object and the colliders fixed in the simulation frame, shared by
+/// every object of the world.
+void setWorldColliders(const NodeParams& params, const std::vector<TriMesh>& meshes,
+                       WorldScene& scene) {
+  World& world = *scene.world;
+  try {
+    if (params.ground) {
+      // Below the lowest object: the ground of each object alone, the lowest of them.
+      Collider ground;
+      double lowest = std::numeric_limits<double>::infinity();
+      for (std::size_t k = 0; k < scene.objects.size(); ++k) {
+        const SceneObject& o = scene.objects[k];
+        const Collider g = groundCollider(*o.lattice, meshes[k], params.solver.gravity,
+                                          o.info.contactRadius, params.groundClearance);
+        if (heightAlong(g) < lowest) {
+          lowest = heightAlong(g);
+          ground = g;
+        }
+      }
+      world.setCollider(ColliderLimits::kGroundId, ground);
+      for (SceneObject& o : scene.objects) o.info.groundHeight = lowest;
+    }
+    for (const ColliderSpec& spec : params.colliders) {
+      if (spec.followFrame.empty()) world.setCollider(spec.id, spec.collider);
+    }
+  } catch (const std::exception& e) {  // invalid_argument, MeshError
+    throw ParamError(std::string("a collider cannot be used: ") + e.what());
+  }
+  const std::size_t colliders = world.object(world.objectNames().front())->colliders().size();
+  for (SceneObject& o : scene.objects) o.info.colliders = colliders;
+}
+
 }  // namespace
 
 Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps) {
@@ -221,55 +278,11 @@ WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& o
     TriMesh mesh = it->second;
     for (Eigen::Vector3d& v : mesh.vertices) v = spec.pose * v;
 
-    SceneObject object;
-    object.name = spec.name;
-    object.params = p;
-    object.info.stepMeasured = false;
-    SolverParams solverParams;
-    try {
-      object.lattice = buildLattice(p, mesh, object.info, solverParams);
-      Solver& solver = world.addObject(spec.name, object.lattice, solverParams);
-      describeSolver(solver, object.info);
-      for (const Box& box : params.pinned) {
-        object.info.pinnedPerBox.push_back(solver.pinBox(box.lo, box.hi, true));
-      }
-      object.info.pinned = solver.pinnedCount();
-    } catch (const ParamError& e) {
-      throw ParamError("object '" + spec.name + "': " + e.what());
-    } catch (const std::invalid_argument& e) {  // World: objects inside each other
-      throw ParamError("object '" + spec.name + "' cannot be added: " + e.what() +
-                       ". Move the objects apart with their pose.");
-    }
-    buildRender(p, mesh, *object.lattice, object.info, object.renderMesh, object.embedding);
+    SceneObject object = addWorldObject(world, spec, params, mesh);
     meshes.push_back(std::move(mesh));
     scene.objects.push_back(std::move(object));
   }
-
-  try {
-    if (params.ground) {
-      // Below the lowest object: the ground of each object alone, the lowest of them.
-      Collider ground;
-      double lowest = std::numeric_limits<double>::infinity();
-      for (std::size_t k = 0; k < scene.objects.size(); ++k) {
-        const SceneObject& o = scene.objects[k];
-        const Collider g = groundCollider(*o.lattice, meshes[k], params.solver.gravity,
-                                          o.info.contactRadius, params.groundClearance);
-        if (heightAlong(g) < lowest) {
-          lowest = heightAlong(g);
-          ground = g;
-        }
-      }
-      world.setCollider(ColliderLimits::kGroundId, ground);
-      for (SceneObject& o : scene.objects) o.info.groundHeight = lowest;
-    }
-    for (const ColliderSpec& spec : params.colliders) {
-      if (spec.followFrame.empty()) world.setCollider(spec.id, spec.collider);
-    }
-  } catch (const std::exception& e) {  // invalid_argument, MeshError
-    throw ParamError(std::string("a collider cannot be used: ") + e.what());
-  }
-  const std::size_t colliders = world.object(world.objectNames().front())->colliders().size();
-  for (SceneObject& o : scene.objects) o.info.colliders = colliders;
+  setWorldColliders(params, meshes, scene);
   return scene;
 }
 
@@ -324,147 +337,6 @@ WorldScene worldOfOne(Scene scene, const NodeParams& params) {
   object.info = scene.info;
   world.objects.push_back(std::move(object));
   return world;
-}
-
-std::string describeScene(const SceneInfo& info, const NodeParams& params) {
-  const SolverParams& s = params.solver;
-  char buf[1024];
-  std::ostringstream out;
-  if (info.latticeFrom == "particle_budget") {
-    std::snprintf(buf, sizeof buf,
-                  "lattice: %zu particles (finest within ~particle_budget %d: resolution %d, "
-                  "spacing %.4g m, %d voxelizations in %.0f ms)",
-                  info.particles, params.particleBudget, info.resolution, info.spacing,
-                  info.voxelizations, 1e3 * info.voxelizeSeconds);
-  } else {
-    std::snprintf(buf, sizeof buf,
-                  "lattice: %zu particles from ~%s (spacing %.4g m, voxelized in %.0f ms); "
-                  "~particle_budget not used",
-                  info.particles, info.latticeFrom.c_str(), info.spacing,
-                  1e3 * info.voxelizeSeconds);
-  }
-  out << buf << "\n";
-  std::snprintf(buf, sizeof buf,
-                "regions: %zu (one per particle), half-width w = %d cells (%.4g m)%s; object "
-                "%.4g m across, %.4g kg",
-                info.particles, info.regionHalfWidth, info.regionHalfWidth * info.spacing,
-                params.regionRadius > 0.0
-                    ? (info.regionAskedCells > 0 ? " from ~region_radius, clamped" : " from ~region_radius")
-                    : params.regionHalfWidth > 0 ? " from ~region_half_width" : " (the default)",
-                info.objectSize,
-                info.totalMass);
-  out << buf << "\n";
-  if (info.sectionCells <= 0) {
-    out << "thinnest section: not measured (" << info.sectionNotMeasured << ")"
-        << (params.regionFromSection ? "; ~region_from_section keeps the asked regions" : "") << "\n";
-  } else {
-    std::snprintf(buf, sizeof buf,
-                  "thinnest section: %d%s cells (%.4g m; %.0f %% of the particles lie in thinner "
-                  "ones)%s",
-                  info.sectionCells, info.sectionCells >= kMaxSectionThickness ? " or more" : "",
-                  info.sectionCells * info.spacing, 100.0 * kThinSectionFraction,
-                  info.regionHalfWidth < info.regionHalfWidthAsked
-                      ? (", regions narrowed from w = " + std::to_string(info.regionHalfWidthAsked) +
-                         " to fit it (~region_from_section)").c_str()
-                      : "");
-    out << buf << "\n";
-  }
-  if (s.youngsModulus > 0.0) {
-    std::snprintf(buf, sizeof buf,
-                  "material: Young's modulus %.4g Pa, density %.4g kg/m^3 -> alpha %.3g per "
-                  "sub-step (%s)",
-                  s.youngsModulus, s.density, info.alpha,
-                  info.substepsForModulus > 0 ? "saturated: softer than asked, see the warning"
-                                              : "as asked");
-  } else {
-    std::snprintf(buf, sizeof buf, "material: alpha = ~stiffness = %.3g per sub-step "
-                  "(~material classic), density %.4g kg/m^3", s.stiffness, s.density);
-  }
-  out << buf << "\n";
-  if (info.stepMeasured) {
-    std::snprintf(buf, sizeof buf,
-                  "step: %.3g s in %d sub-steps (%s solver) measured at %.2f ms = %.0f ns per "
-                  "particle-substep; at real-time factor %.3g the solver takes %.0f%% of a core",
-                  s.timeStep, s.substeps, toString(s.kind), 1e3 * info.stepSeconds,
-                  info.nsPerParticleSubstep, params.realTimeFactor, 100.0 * info.cpuFraction);
-    out << buf << "\n";
-  }
-  std::snprintf(buf, sizeof buf, "render mesh: %zu triangles, %zu vertices", info.renderTriangles,
-                info.renderVertices);
-  out << buf;
-  if (info.renderTriangles != info.loadedTriangles) {
-    std::snprintf(buf, sizeof buf,
-                  " (simplified from %zu for ~render_triangle_budget %d, error %.2g%% of the "
-                  "extent)",
-                  info.loadedTriangles, params.renderTriangleBudget, 100.0 * info.simplifyError);
-    out << buf;
-  }
-  std::snprintf(buf, sizeof buf, "\ncolliders: %zu (%s), particles collide as spheres of "
-                "radius %.3g m", params.colliders.size() + (params.ground ? 1 : 0),
-                params.ground ? "with the ground" : "no ground", info.contactRadius);
-  out << buf;
-  out << "\npinned: " << info.pinned << " particles";
-  for (std::size_t b = 0; b < info.pinnedPerBox.size(); ++b) {
-    out << (b == 0 ? " (" : ", ") << "box " << b << ": " << info.pinnedPerBox[b];
-    if (b + 1 == info.pinnedPerBox.size()) out << ")";
-  }
-  return out.str();
-}
-
-std::string saturationWarning(const SceneInfo& info, const NodeParams& params) {
-  if (info.substepsForModulus == 0) return "";
-  const SolverParams& s = params.solver;
-  char buf[768];
-  std::snprintf(buf, sizeof buf,
-                "~youngs_modulus %.4g Pa asks for alpha %.3g per sub-step, more than the %.3g "
-                "the solver allows under ~stiffness %.3g: the material is %.3g times softer "
-                "than asked because the sub-step (%.3g s) is too long. ~substeps %d (instead of %d) "
-                "would fix it, or ~integrator implicit (the modulus as asked at any sub-step).",
-                s.youngsModulus, info.requestedAlpha, info.alpha, s.stiffness,
-                info.requestedAlpha / info.alpha, s.substepLength(), info.substepsForModulus,
-                s.substeps);
-  return buf;
-}
-
-std::string regionClampWarning(const SceneInfo& info, const NodeParams& params) {
-  if (info.regionAskedCells == 0) return "";
-  char buf[512];
-  std::snprintf(buf, sizeof buf,
-                "~region_radius %.4g m is %d cells on this lattice (spacing %.4g m), more than "
-                "the %d the solver allows: using %d cells (%.4g m), the largest that fits. Set "
-                "~region_radius to at most %.4g m, or use a coarser lattice (a larger ~spacing, a "
-                "smaller ~resolution or ~particle_budget), to silence this warning.",
-                params.regionRadius, info.regionAskedCells, info.spacing, kMaxRegionHalfWidth,
-                info.regionHalfWidth, info.regionHalfWidth * info.spacing,
-                kMaxRegionHalfWidth * info.spacing);
-  return buf;
-}
-
-std::string sectionWarning(const SceneInfo& info, const NodeParams& params) {
-  const int w = info.regionHalfWidth;
-  if (params.solver.youngsModulus <= 0.0 || info.sectionCells <= 0 || 2 * w + 1 <= info.sectionCells) return "";
-  const int fits = regionHalfWidthForSection(info.sectionCells, w);
-  char buf[1024];
-  std::snprintf(buf, sizeof buf,
-                "regions of half-width w = %d cells (%d cells wide) are wider than the object's "
-                "thinnest section, %d cells (%.4g m; %.0f %% of the particles lie in thinner ones): "
-                "bending there comes out about %.2g times as stiff as ~youngs_modulus says "
-                "(cantilevers against linear FEM). ",
-                w, 2 * w + 1, info.sectionCells, info.sectionCells * info.spacing,
-                100.0 * kThinSectionFraction, bendingStiffeningEstimate(w, info.sectionCells));
-  std::string text = buf;
-  if (fits < w) {
-    std::snprintf(buf, sizeof buf,
-                  "~region_from_section true would use w = %d (regions within 10 %% of linear FEM "
-                  "in bending; for the same modulus they may need more ~substeps), or use a finer "
-                  "lattice.",
-                  fits);
-  } else {
-    std::snprintf(buf, sizeof buf,
-                  "w = 1 is the narrowest region: only a finer lattice (more cells across the "
-                  "section) fixes it.");
-  }
-  return text + buf;
 }
 
 }  // namespace deformable_flsm
