@@ -95,11 +95,13 @@ int main(int argc, char** argv) {
     std::normal_distribution<double> gauss(0.0, noise * perMetre * depth);
     const int n = static_cast<int>(std::lround((2 * press + hold) * rate));
     if (squeeze)
-      std::printf("# fem_recording: FEM squeeze (a plate over the top), E %g Pa, nu %g, depth %g m, noise %g, seed %u\n",
+      std::printf("# fem_recording: FEM squeeze (a plate over the top), E %g Pa, nu %g, depth %g m, noise %g, seed %u",
                   youngs, nu, depth, noise, seed);
     else
-      std::printf("# fem_recording: FEM punch %d cells, E %g Pa, nu %g, depth %g m, noise %g, seed %u\n", cells,
+      std::printf("# fem_recording: FEM punch %d cells, E %g Pa, nu %g, depth %g m, noise %g, seed %u", cells,
                   youngs, nu, depth, noise, seed);
+    if (subdivision > 1) std::printf(", %d elements per cell edge", subdivision);
+    std::printf("\n");
     // the markers: side-face nodes in the middle third of the height
     std::vector<int> marked;
     const std::vector<Eigen::Vector3d>& nodes = fem.nodePositions();
