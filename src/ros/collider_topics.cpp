@@ -161,7 +161,7 @@ void ColliderTopics::onFollowTimer(const ros::TimerEvent&) {
     static LogThrottle throttle(kFrameWarnPeriod);
     if (throttle.ready())
       postLog(LogLevel::Warn,
-              formatLine("flsm_node: the tf frame of collider(s) %s jumped (faster than %.0f m/s "
+              formatted("flsm_node: the tf frame of collider(s) %s jumped (faster than %.0f m/s "
                          "between two transforms): placed at the new pose at rest rather than swept "
                          "through the scene",
                          list(report_.jumped).c_str(), ColliderFollower::kJumpSpeed));
@@ -169,7 +169,7 @@ void ColliderTopics::onFollowTimer(const ros::TimerEvent&) {
   if (!report_.problems.empty()) {
     static LogThrottle throttle(kFrameWarnPeriod);
     if (throttle.ready())
-      postLog(LogLevel::Warn, formatLine("flsm_node: %s (%zu collider(s) affected; %llu misses so far, "
+      postLog(LogLevel::Warn, formatted("flsm_node: %s (%zu collider(s) affected; %llu misses so far, "
                                          "see ~state collider_frame_misses)",
                                          report_.problems.front().c_str(), report_.problems.size(),
                                          static_cast<unsigned long long>(follower_.misses())));

@@ -4,10 +4,7 @@
 
 #include <ros/console.h>
 
-#include <cstdarg>
-#include <cstdio>
 #include <stdexcept>
-#include <vector>
 
 namespace deformable_flsm {
 
@@ -62,23 +59,6 @@ bool LogThrottle::ready() {
   std::int64_t next = next_.load(std::memory_order_relaxed);
   if (now < next) return false;
   return next_.compare_exchange_strong(next, now + period_.count(), std::memory_order_relaxed);
-}
-
-std::string formatLine(const char* format, ...) {
-  va_list args;
-  va_start(args, format);
-  va_list again;
-  va_copy(again, args);
-  const int n = std::vsnprintf(nullptr, 0, format, args);
-  va_end(args);
-  std::string out;
-  if (n > 0) {
-    std::vector<char> buffer(static_cast<std::size_t>(n) + 1);
-    std::vsnprintf(buffer.data(), buffer.size(), format, again);
-    out.assign(buffer.data(), static_cast<std::size_t>(n));
-  }
-  va_end(again);
-  return out;
 }
 
 namespace {

@@ -456,7 +456,7 @@ bool SimulatorNode::attachedFrame(const std::string& frame, Eigen::Isometry3d& s
   } catch (const tf2::TransformException& e) {
     static LogThrottle throttle(kAttachWarnPeriod);
     if (throttle.ready())
-      postLog(LogLevel::Warn, formatLine("flsm_node: frame '%s', which a drag is attached to, is not known "
+      postLog(LogLevel::Warn, formatted("flsm_node: frame '%s', which a drag is attached to, is not known "
                                          "now (%s): the drag holds still until it is",
                                          frame.c_str(), e.what()));
     return false;
@@ -465,7 +465,7 @@ bool SimulatorNode::attachedFrame(const std::string& frame, Eigen::Isometry3d& s
   if (!t.header.stamp.isZero() && age > kAttachStaleAfter) {  // a static transform never is
     static LogThrottle throttle(kAttachWarnPeriod);
     if (throttle.ready())
-      postLog(LogLevel::Warn, formatLine("flsm_node: the newest transform of frame '%s', which a drag is "
+      postLog(LogLevel::Warn, formatted("flsm_node: the newest transform of frame '%s', which a drag is "
                                          "attached to, is %.2f s old: the drag holds still until the "
                                          "frame moves again",
                                          frame.c_str(), age));

@@ -82,7 +82,7 @@ class StatePublisher::ObjectTopics {
       ++nonFiniteSkips_;
       static LogThrottle throttle(kWarnPeriod);
       if (throttle.ready())
-        postLog(LogLevel::Error, formatLine("flsm_node: the embedded mesh of object '%s' is not finite; its "
+        postLog(LogLevel::Error, formatted("flsm_node: the embedded mesh of object '%s' is not finite; its "
                                             "~mesh marker and ~surface skipped (%llu times). This is a "
                                             "bug: please report it.",
                                             object_.name.c_str(),

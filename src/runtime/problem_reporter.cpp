@@ -1,5 +1,7 @@
 #include "deformable_flsm/runtime/problem_reporter.h"
 
+#include "deformable_flsm/runtime/format.h"
+
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
@@ -13,12 +15,11 @@ namespace {
 constexpr double kSlowFraction = 0.9;
 /// printf into a std::string, prefixed with the node's name as every line of its log is.
 [[gnu::format(printf, 1, 2)]] std::string line(const char* format, ...) {
-  char buffer[2048];
   va_list args;
   va_start(args, format);
-  std::vsnprintf(buffer, sizeof buffer, format, args);
+  std::string text = "flsm_node: " + vformatted(format, args);
   va_end(args);
-  return std::string("flsm_node: ") + buffer;
+  return text;
 }
 
 }  // namespace

@@ -2,33 +2,22 @@
 
 #include "deformable_flsm/core/section.h"
 #include "deformable_flsm/core/solver_params.h"
+#include "deformable_flsm/runtime/format.h"
 
-#include <cstdarg>
-#include <cstdio>
 #include <sstream>
 
 namespace deformable_flsm {
 
 namespace {
 
-/// printf into a std::string, cut at 1023 characters as a line of the log is.
-[[gnu::format(printf, 1, 2)]] std::string printed(const char* format, ...) {
-  char buf[1024];
-  va_list args;
-  va_start(args, format);
-  std::vsnprintf(buf, sizeof buf, format, args);
-  va_end(args);
-  return buf;
-}
-
 std::string latticeLine(const SceneInfo& info, const NodeParams& params) {
   if (info.latticeFrom == "particle_budget") {
-    return printed("lattice: %zu particles (finest within ~particle_budget %d: resolution %d, "
+    return formatted("lattice: %zu particles (finest within ~particle_budget %d: resolution %d, "
                    "spacing %.4g m, %d voxelizations in %.0f ms)",
                    info.particles, params.particleBudget, info.resolution, info.spacing,
                    info.voxelizations, 1e3 * info.voxelizeSeconds);
   }
-  return printed("lattice: %zu particles from ~%s (spacing %.4g m, voxelized in %.0f ms); "
+  return formatted("lattice: %zu particles from ~%s (spacing %.4g m, voxelized in %.0f ms); "
                  "~particle_budget not used",
                  info.particles, info.latticeFrom.c_str(), info.spacing, 1e3 * info.voxelizeSeconds);
 }
@@ -37,7 +26,7 @@ std::string regionsLine(const SceneInfo& info, const NodeParams& params) {
   const char* from = params.regionRadius > 0.0
                          ? (info.regionAskedCells > 0 ? " from ~region_radius, clamped" : " from ~region_radius")
                          : params.regionHalfWidth > 0 ? " from ~region_half_width" : " (the default)";
-  return printed("regions: %zu (one per particle), half-width w = %d cells (%.4g m)%s; object "
+  return formatted("regions: %zu (one per particle), half-width w = %d cells (%.4g m)%s; object "
                  "%.4g m across, %.4g kg",
                  info.particles, info.regionHalfWidth, info.regionHalfWidth * info.spacing, from,
                  info.objectSize, info.totalMass);
@@ -53,7 +42,7 @@ std::string sectionLine(const SceneInfo& info, const NodeParams& params) {
           ? ", regions narrowed from w = " + std::to_string(info.regionHalfWidthAsked) +
                 " to fit it (~region_from_section)"
           : "";
-  return printed("thinnest section: %d%s cells (%.4g m; %.0f %% of the particles lie in thinner "
+  return formatted("thinnest section: %d%s cells (%.4g m; %.0f %% of the particles lie in thinner "
                  "ones)%s",
                  info.sectionCells, info.sectionCells >= kMaxSectionThickness ? " or more" : "",
                  info.sectionCells * info.spacing, 100.0 * kThinSectionFraction, narrowed.c_str());
@@ -62,19 +51,19 @@ std::string sectionLine(const SceneInfo& info, const NodeParams& params) {
 std::string materialLine(const SceneInfo& info, const NodeParams& params) {
   const SolverParams& s = params.solver;
   if (s.youngsModulus > 0.0) {
-    return printed("material: Young's modulus %.4g Pa, density %.4g kg/m^3 -> alpha %.3g per "
+    return formatted("material: Young's modulus %.4g Pa, density %.4g kg/m^3 -> alpha %.3g per "
                    "sub-step (%s)",
                    s.youngsModulus, s.density, info.alpha,
                    info.substepsForModulus > 0 ? "saturated: softer than asked, see the warning"
                                                : "as asked");
   }
-  return printed("material: alpha = ~stiffness = %.3g per sub-step "
+  return formatted("material: alpha = ~stiffness = %.3g per sub-step "
                  "(~material classic), density %.4g kg/m^3", s.stiffness, s.density);
 }
 
 std::string stepLine(const SceneInfo& info, const NodeParams& params) {
   const SolverParams& s = params.solver;
-  return printed("step: %.3g s in %d sub-steps (%s solver) measured at %.2f ms = %.0f ns per "
+  return formatted("step: %.3g s in %d sub-steps (%s solver) measured at %.2f ms = %.0f ns per "
                  "particle-substep; at real-time factor %.3g the solver takes %.0f%% of a core",
                  s.timeStep, s.substeps, toString(s.kind), 1e3 * info.stepSeconds,
                  info.nsPerParticleSubstep, params.realTimeFactor, 100.0 * info.cpuFraction);
@@ -82,9 +71,9 @@ std::string stepLine(const SceneInfo& info, const NodeParams& params) {
 
 std::string renderLine(const SceneInfo& info, const NodeParams& params) {
   std::string line =
-      printed("render mesh: %zu triangles, %zu vertices", info.renderTriangles, info.renderVertices);
+      formatted("render mesh: %zu triangles, %zu vertices", info.renderTriangles, info.renderVertices);
   if (info.renderTriangles != info.loadedTriangles) {
-    line += printed(" (simplified from %zu for ~render_triangle_budget %d, error %.2g%% of the "
+    line += formatted(" (simplified from %zu for ~render_triangle_budget %d, error %.2g%% of the "
                     "extent)",
                     info.loadedTriangles, params.renderTriangleBudget, 100.0 * info.simplifyError);
   }
@@ -92,7 +81,7 @@ std::string renderLine(const SceneInfo& info, const NodeParams& params) {
 }
 
 std::string collidersLine(const SceneInfo& info, const NodeParams& params) {
-  return printed("colliders: %zu (%s), particles collide as spheres of radius %.3g m",
+  return formatted("colliders: %zu (%s), particles collide as spheres of radius %.3g m",
                  params.colliders.size() + (params.ground ? 1 : 0),
                  params.ground ? "with the ground" : "no ground", info.contactRadius);
 }

@@ -94,8 +94,3 @@ TEST(LogThrottle, OnceAPeriod) {
   EXPECT_TRUE(none.ready());
   EXPECT_TRUE(none.ready());
 }
-
-TEST(LogQueue, FormatLine) {
-  EXPECT_EQ(formatLine("%s %d %.2f", "a", 3, 0.5), "a 3 0.50");
-  EXPECT_EQ(formatLine("%s", std::string(1000, 'x').c_str()).size(), 1000u);
-}

@@ -6,6 +6,8 @@
 /// lock of its own.
 #pragma once
 
+#include "deformable_flsm/runtime/format.h"  // formatted(), for the lines posted
+
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -67,9 +69,6 @@ class LogThrottle {
   std::chrono::steady_clock::duration period_;
   std::atomic<std::int64_t> next_{std::numeric_limits<std::int64_t>::min()};
 };
-
-/// printf into a std::string.
-std::string formatLine(const char* format, ...) __attribute__((format(printf, 1, 2)));
 
 /// Writes `line` with rosconsole at `level` (the node's sink).
 void writeToRosconsole(LogLevel level, const std::string& line);
