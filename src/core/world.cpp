@@ -16,17 +16,19 @@
 // Per sub-step: every object's dynamics and collider contact (Solver::advanceSubstep()), then
 // the contact between objects and of objects with themselves (ObjectContactSolver), which
 // also holds the particles it touches against the colliders in the same solve.
+// Objects at rest sleep through steps (SleepParams): Sleeping (sleeping.h) decides which, told of
+// every object and collider change here; step() is its stages, each a member function.
 #include "deformable_flsm/core/world.h"
 
 #include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/core/mesh_distance_field.h"
 #include "deformable_flsm/core/object_contact.h"
+#include "deformable_flsm/core/sleeping.h"
 #include "deformable_flsm/core/slice_stream_summer.h"
 #include "deformable_flsm/core/spatial_hash.h"
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <map>
 #include <sstream>
 #include <stdexcept>
@@ -39,14 +41,6 @@ namespace {
 /// apart) but not closer than r1 + r2 by more than this fraction of it, which round-off of
 /// placing them cannot reach.
 constexpr double kStartOverlapTolerance = 1e-6;
-
-/// Sleeping: a touching object that moved farther than this fraction of its contact radius in a
-/// step (the RMS of |v| T) wakes a sleeping one; so does a change of the other objects' force on
-/// it by this fraction of its weight. A push slower than the motion's bound is the force's. The
-/// bound is above the jiggle of objects woken in a soft pile (1-2 mm/s), which would otherwise
-/// wake their neighbours in turn, most of a pile for one finger (docs/method.md).
-constexpr double kWakeMotion = 0.05;
-constexpr double kWakeLoad = 0.1;
 
 std::string num(double v) {
   std::ostringstream s;
@@ -75,13 +69,6 @@ void ObjectContactParams::validate() const {
     throw std::invalid_argument("object contact: iterations must be >= 1 (got " + std::to_string(iterations) + ")");
 }
 
-void SleepParams::validate() const {
-  if (!std::isfinite(fraction) || fraction < 0.0)
-    throw std::invalid_argument("sleep: fraction must be finite and >= 0 (got " + num(fraction) + "; 0 never sleeps)");
-  if (!std::isfinite(hold) || !(hold > 0.0))
-    throw std::invalid_argument("sleep: hold must be finite and > 0 s (got " + num(hold) + ")");
-}
-
 struct World::Impl {
   std::vector<std::unique_ptr<Solver>> objects;
   std::vector<Solver*> pointers;
@@ -91,47 +78,11 @@ struct World::Impl {
   ObjectContactSolver contact;
   ImplicitCoupling coupling;
   std::vector<char> coupled;  // per object, whether its implicit sub-step is in the coupled solve
+  // per object, asleep this step and implicit (a subset of the asleep): held in the coupled solve
+  std::vector<char> heldAsleep;
   std::vector<ObjectPairWrench> wrenches;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> wrenchObjects;  // per wrench: from, on
-
-  /// Per object, what sleeping (SleepParams) needs.
-  struct Rest {
-    bool asleep = false;
-    double quiet = 0.0;                   // s of simulated time within the limit of `anchor`
-    std::vector<Eigen::Vector3d> anchor;  // where that time began
-    std::uint64_t version = 0;            // Solver::stateVersion() when it fell asleep
-    Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();  // its particles' bounds
-    double step = 0.0;                    // how far it moved in the last step (RMS of |v| T)
-    Eigen::Vector3d load = Eigen::Vector3d::Zero();  // the other objects' force on it when it fell asleep
-  };
-  std::vector<Rest> rest;
-  std::vector<char> frozen;  // per object, asleep through this step
-  std::vector<char> still;   // per object, asleep and implicit: held in the coupled solve
-  std::vector<Eigen::Vector3d> load;  // per object, the other objects' force on it in the last step
-  /// A collider set, moved or removed since the last step, or moving in this one: objects
-  /// within `margin` (plus two contact radii) of it at this pose wake.
-  struct Disturbance {
-    Collider collider;
-    double margin = 0.0;
-  };
-  std::vector<Disturbance> disturbances;
-
-  void wake(std::size_t o) {
-    Rest& r = rest[o];
-    r.asleep = false;
-    r.quiet = 0.0;
-    r.step = 0.0;
-    r.anchor = objects[o]->positions();
-  }
-  void bound(std::size_t o) {
-    const auto& x = objects[o]->positions();
-    Rest& r = rest[o];
-    r.lo = r.hi = x[0];
-    for (const Eigen::Vector3d& p : x) {
-      r.lo = r.lo.cwiseMin(p);
-      r.hi = r.hi.cwiseMax(p);
-    }
-  }
+  Sleeping sleeping;
   /// the slice buffers of every object's region sums: the objects step one after another
   std::shared_ptr<SliceStreamScratch> scratch = std::make_shared<SliceStreamScratch>();
 
@@ -142,15 +93,13 @@ struct World::Impl {
 
 namespace {
 
-/// Why these objects cannot be stepped with these contact settings, or nullptr: an implicit
-/// object with ImplicitScheme::Bdf2 steps alone, and objects that may touch each other (or one
-/// itself) are solved as one backward Euler system.
-const char* bdf2Refusal(const std::vector<const SolverParams*>& objects, const ObjectContactParams& contact) {
-  if (!contact.couples(objects.size())) return nullptr;
-  for (const SolverParams* p : objects)
-    if (p->integrator == Integrator::Implicit && p->implicitScheme == ImplicitScheme::Bdf2)
-      return "the implicit scheme bdf2 steps one object alone: objects in contact with each other or "
-             "themselves are solved together with backward_euler";
+/// Why an object of params `p` cannot be stepped among `objects` objects with these contact
+/// settings, or nullptr: an implicit object with ImplicitScheme::Bdf2 steps alone, and objects
+/// that may touch each other (or one itself) are solved as one backward Euler system.
+const char* bdf2Refusal(const SolverParams& p, std::size_t objects, const ObjectContactParams& contact) {
+  if (contact.couples(objects) && p.integrator == Integrator::Implicit && p.implicitScheme == ImplicitScheme::Bdf2)
+    return "the implicit scheme bdf2 steps one object alone: objects in contact with each other or "
+           "themselves are solved together with backward_euler";
   return nullptr;
 }
 
@@ -175,10 +124,11 @@ Solver& World::addObject(const std::string& name, std::shared_ptr<const Lattice>
                                 std::to_string(params.substeps) + " sub-steps, the world " + num(timeStep_) +
                                 " s in " + std::to_string(substeps_) + ": give it the world's");
   // objects that touch each other are solved as one backward Euler system (step())
-  std::vector<const SolverParams*> all{&params};
-  for (const auto& o : impl_->objects) all.push_back(&o->params());
-  if (const char* why = bdf2Refusal(all, contact_))
-    throw std::invalid_argument("world: object '" + name + "': " + why);
+  const std::size_t count = impl_->objects.size() + 1;
+  const char* why = bdf2Refusal(params, count, contact_);
+  for (std::size_t o = 0; o < impl_->objects.size() && why == nullptr; ++o)
+    why = bdf2Refusal(impl_->objects[o]->params(), count, contact_);
+  if (why != nullptr) throw std::invalid_argument("world: object '" + name + "': " + why);
   auto solver = std::make_unique<Solver>(std::move(lattice), params);
   // refuse a start inside another object: the contact pass would push it out over many sub-steps
   const auto& x = solver->positions();
@@ -225,8 +175,7 @@ Solver& World::addObject(const std::string& name, std::shared_ptr<const Lattice>
   impl_->pointers.push_back(&added);
   names_.push_back(name);
   impl_->contact.invalidate();
-  impl_->rest.emplace_back();
-  impl_->bound(impl_->rest.size() - 1);
+  impl_->sleeping.add(added);
   wakeAll();  // what rested may now be pushed
   return added;
 }
@@ -237,7 +186,7 @@ bool World::removeObject(const std::string& name) {
   impl_->objects.erase(impl_->objects.begin() + static_cast<std::ptrdiff_t>(o));
   impl_->pointers.erase(impl_->pointers.begin() + static_cast<std::ptrdiff_t>(o));
   names_.erase(names_.begin() + static_cast<std::ptrdiff_t>(o));
-  impl_->rest.erase(impl_->rest.begin() + static_cast<std::ptrdiff_t>(o));
+  impl_->sleeping.remove(o);
   impl_->contact.invalidate();
   auto& w = impl_->wrenches;
   w.erase(std::remove_if(w.begin(), w.end(),
@@ -268,11 +217,9 @@ void World::setCollider(const std::string& id, const Collider& collider) {
   if (c.shape.type == ColliderType::Mesh && !c.shape.distanceField)
     c.shape.distanceField = std::make_shared<const MeshDistanceField>(*c.shape.mesh);
   for (auto& object : impl_->objects) object->setCollider(id, c);
-  if (sleep_.fraction > 0.0) {
-    auto old = impl_->colliders.find(id);
-    if (old != impl_->colliders.end()) impl_->disturbances.push_back({old->second, 0.0});
-    impl_->disturbances.push_back({c, 0.0});
-  }
+  auto old = impl_->colliders.find(id);
+  if (old != impl_->colliders.end()) impl_->sleeping.disturb(old->second);
+  impl_->sleeping.disturb(c);
   impl_->colliders[id] = std::move(c);
 }
 
@@ -286,19 +233,19 @@ bool World::moveCollider(const std::string& id, const Eigen::Isometry3d& pose, c
     throw std::invalid_argument("world: collider '" + id +
                                 "' given a pose whose rotation is not orthonormal with determinant +1");
   for (auto& object : impl_->objects) object->moveCollider(id, pose, linearVelocity, angularVelocity);
-  const bool jumped = sleep_.fraction > 0.0 && !pose.isApprox(it->second.pose, 0.0);
-  if (jumped) impl_->disturbances.push_back({it->second, 0.0});  // where it was
+  const bool jumped = impl_->sleeping.enabled() && !pose.isApprox(it->second.pose, 0.0);
+  if (jumped) impl_->sleeping.disturb(it->second);  // where it was
   it->second.pose = pose;
   it->second.linearVelocity = linearVelocity;
   it->second.angularVelocity = angularVelocity;
-  if (jumped) impl_->disturbances.push_back({it->second, 0.0});  // where it is (where it goes: step())
+  if (jumped) impl_->sleeping.disturb(it->second);  // where it is (where it goes: step())
   return true;
 }
 
 bool World::removeCollider(const std::string& id) {
   auto it = impl_->colliders.find(id);
   if (it == impl_->colliders.end()) return false;
-  if (sleep_.fraction > 0.0) impl_->disturbances.push_back({it->second, 0.0});
+  impl_->sleeping.disturb(it->second);
   impl_->colliders.erase(it);
   for (auto& object : impl_->objects) object->removeCollider(id);
   return true;
@@ -330,9 +277,9 @@ void World::recordContacts(const std::string& id, bool on) {
 
 void World::setContactParams(const ObjectContactParams& contact) {
   contact.validate();
-  std::vector<const SolverParams*> all;
-  for (const auto& o : impl_->objects) all.push_back(&o->params());
-  if (const char* why = bdf2Refusal(all, contact)) throw std::invalid_argument(std::string("world: ") + why);
+  for (std::size_t o = 0; o < impl_->objects.size(); ++o)
+    if (const char* why = bdf2Refusal(impl_->objects[o]->params(), impl_->objects.size(), contact))
+      throw std::invalid_argument("world: object '" + names_[o] + "': " + why);
   contact_ = contact;
   wakeAll();  // friction, margins, self-contact: the rest the objects fell asleep in may be no more
 }
@@ -353,33 +300,25 @@ World::ContactTimes World::contactTimes() const {
           s[ObjectContactSolver::kPassSeconds], s[ObjectContactSolver::kRestSeconds]};
 }
 
-void World::setSleepParams(const SleepParams& sleep) {
-  sleep.validate();
-  sleep_ = sleep;
-  if (sleep_.fraction == 0.0) wakeAll();
-}
+const SleepParams& World::sleepParams() const { return impl_->sleeping.params(); }
+
+void World::setSleepParams(const SleepParams& sleep) { impl_->sleeping.setParams(sleep, impl_->pointers); }
 
 bool World::asleep(const std::string& name) const {
   const std::size_t o = impl_->indexOf(names_, name);
-  return o < names_.size() && impl_->rest[o].asleep;
+  return o < names_.size() && impl_->sleeping.asleep(o);
 }
 
-std::size_t World::sleepingCount() const {
-  std::size_t n = 0;
-  for (const Impl::Rest& r : impl_->rest) n += r.asleep ? 1 : 0;
-  return n;
-}
+std::size_t World::sleepingCount() const { return impl_->sleeping.count(); }
 
 bool World::wake(const std::string& name) {
   const std::size_t o = impl_->indexOf(names_, name);
   if (o >= names_.size()) return false;
-  impl_->wake(o);
+  impl_->sleeping.wake(o, *impl_->objects[o]);
   return true;
 }
 
-void World::wakeAll() {
-  for (std::size_t o = 0; o < impl_->objects.size(); ++o) impl_->wake(o);
-}
+void World::wakeAll() { impl_->sleeping.wakeAll(impl_->pointers); }
 
 ContactWrench World::objectWrench(const std::string& from, const std::string& on) const {
   for (const ObjectPairWrench& w : impl_->wrenches)
@@ -388,82 +327,117 @@ ContactWrench World::objectWrench(const std::string& from, const std::string& on
 }
 
 void World::step() {
-  Impl& im = *impl_;
-  const std::size_t N = im.objects.size();
+  checkObjects();
+  gatherColliders();
+  chooseSleepers();
+  beginObjects();
+  const bool couple = planCoupling();
+  for (int s = 0; s < substeps_; ++s) substep(s, couple);
+  advanceClock();
+  endObjects();
+  advanceColliders();
+  collectWrenches();
+  settle();
+}
+
+void World::checkObjects() const {
+  const std::size_t N = impl_->objects.size();
   for (std::size_t o = 0; o < N; ++o) {
-    const SolverParams& p = im.objects[o]->params();
+    const SolverParams& p = impl_->objects[o]->params();
     if (!sameTime(p.timeStep, timeStep_) || p.substeps != substeps_)
       throw std::logic_error("world: object '" + names_[o] + "' was set to a time step of " + num(p.timeStep) +
                              " s in " + std::to_string(p.substeps) + " sub-steps, the world steps " +
                              num(timeStep_) + " s in " + std::to_string(substeps_) + ": give it the world's");
-    if (contact_.couples(N) && p.integrator == Integrator::Implicit &&
-        p.implicitScheme == ImplicitScheme::Bdf2)
-      throw std::logic_error("world: object '" + names_[o] + "' was set to the implicit scheme bdf2, which steps "
-                             "one object alone: objects in contact are solved together with backward_euler");
+    if (const char* why = bdf2Refusal(p, N, contact_))
+      throw std::logic_error("world: object '" + names_[o] + "': " + why);
   }
-  const double h = timeStep_ / substeps_;
+}
+
+void World::gatherColliders() {
+  Impl& im = *impl_;
   im.substepColliders.resize(im.colliders.size());
   im.colliderStart.resize(im.colliders.size());
-  {
-    std::size_t c = 0;
-    for (const auto& entry : im.colliders) {
-      im.substepColliders[c].id = &entry.first;
-      im.substepColliders[c].collider = &entry.second;
-      im.colliderStart[c] = entry.second.pose;
-      ++c;
-    }
+  std::size_t c = 0;
+  for (const auto& entry : im.colliders) {
+    im.substepColliders[c].id = &entry.first;
+    im.substepColliders[c].collider = &entry.second;
+    im.colliderStart[c] = entry.second.pose;
+    ++c;
   }
-  wakeOrKeep();
-  for (std::size_t o = 0; o < N; ++o)
-    if (!im.frozen[o]) im.pointers[o]->beginStep();
-  im.contact.beginStep(N, im.colliders.size());
-  im.contact.setFrozen(&im.frozen);
-  // implicit objects that may touch each other (or themselves) are solved as one system
+}
+
+void World::chooseSleepers() { impl_->sleeping.beforeStep(impl_->pointers, impl_->colliders, timeStep_); }
+
+void World::beginObjects() {
+  Impl& im = *impl_;
+  const std::vector<char>& asleep = im.sleeping.asleepThisStep();
+  for (std::size_t o = 0; o < im.objects.size(); ++o)
+    if (!asleep[o]) im.pointers[o]->beginStep();
+  im.contact.beginStep(im.objects.size(), im.colliders.size());
+  im.contact.setFrozen(&asleep);
+}
+
+bool World::planCoupling() {
+  Impl& im = *impl_;
+  const std::size_t N = im.objects.size();
+  const std::vector<char>& asleep = im.sleeping.asleepThisStep();
   const bool touching = contact_.couples(N);
   im.coupled.assign(N, 0);
   std::size_t implicitCount = 0;
   for (std::size_t o = 0; o < N; ++o)
-    if (touching && !im.frozen[o] && im.objects[o]->params().integrator == Integrator::Implicit) {
+    if (touching && !asleep[o] && im.objects[o]->params().integrator == Integrator::Implicit) {
       im.coupled[o] = 1;
       ++implicitCount;
     }
-  // the sleeping implicit objects keep their springs to the awake ones, held still: what rests
-  // on them is carried within the solve as while they were awake (one awake object with them
-  // is solved with its springs too)
-  im.still.assign(N, 0);
-  bool anyStill = false;
+  // the sleeping implicit objects keep their springs to the awake ones, held in place: what rests
+  // on them is carried within the solve as while they were awake
+  im.heldAsleep.assign(N, 0);
+  bool anyHeld = false;
   for (std::size_t o = 0; o < N; ++o)
-    if (touching && im.frozen[o] && im.objects[o]->params().integrator == Integrator::Implicit) {
-      im.still[o] = 1;
-      anyStill = true;
+    if (touching && asleep[o] && im.objects[o]->params().integrator == Integrator::Implicit) {
+      im.heldAsleep[o] = 1;
+      anyHeld = true;
     }
-  const bool couple = implicitCount >= 2 || (implicitCount == 1 && (contact_.selfContact || anyStill));
-  for (int s = 0; s < substeps_; ++s) {
-    if (couple) {
-      im.contact.refreshList(im.pointers, contact_, h);  // before any object moves
-      for (std::size_t o = 0; o < N; ++o)
-        if (!im.coupled[o] && !im.frozen[o]) im.pointers[o]->advanceSubstep(s);
-      static const std::vector<std::pair<std::uint32_t, std::uint32_t>> kNone;
-      const auto* candidates = im.contact.currentCandidates(im.pointers, contact_);
-      im.coupling.substep(im.pointers, im.coupled, candidates != nullptr ? *candidates : kNone, s, h, &im.still);
-      im.contact.setCouplingImpulses(&im.coupling.impulses());
-    } else {
-      for (std::size_t o = 0; o < N; ++o)
-        if (!im.frozen[o]) im.pointers[o]->advanceSubstep(s);
-      im.contact.setCouplingImpulses(nullptr);
-    }
-    if (N < 2 && !contact_.selfContact) continue;
-    for (std::size_t c = 0; c < im.substepColliders.size(); ++c) {
-      SubstepCollider& sc = im.substepColliders[c];
-      sc.before = advancePose(im.colliderStart[c], sc.collider->linearVelocity, sc.collider->angularVelocity, s * h);
-      sc.now = advancePose(im.colliderStart[c], sc.collider->linearVelocity, sc.collider->angularVelocity, (s + 1) * h);
-    }
-    im.contact.substep(im.pointers, im.substepColliders, contact_, h, s + 1 == substeps_);
+  return implicitCount >= 2 || (implicitCount == 1 && (contact_.selfContact || anyHeld));
+}
+
+void World::substep(int s, bool couple) {
+  Impl& im = *impl_;
+  const std::size_t N = im.objects.size();
+  const std::vector<char>& asleep = im.sleeping.asleepThisStep();
+  const double h = timeStep_ / substeps_;
+  if (couple) {
+    im.contact.refreshList(im.pointers, contact_, h);  // before any object moves
+    for (std::size_t o = 0; o < N; ++o)
+      if (!im.coupled[o] && !asleep[o]) im.pointers[o]->advanceSubstep(s);
+    static const std::vector<std::pair<std::uint32_t, std::uint32_t>> kNone;
+    const auto* candidates = im.contact.currentCandidates(im.pointers, contact_);
+    im.coupling.substep(im.pointers, im.coupled, candidates != nullptr ? *candidates : kNone, s, h, &im.heldAsleep);
+    im.contact.setCouplingImpulses(&im.coupling.impulses());
+  } else {
+    for (std::size_t o = 0; o < N; ++o)
+      if (!asleep[o]) im.pointers[o]->advanceSubstep(s);
+    im.contact.setCouplingImpulses(nullptr);
   }
-  // the clock as each object's: the sum of the sub-steps
+  if (N < 2 && !contact_.selfContact) return;
+  for (std::size_t c = 0; c < im.substepColliders.size(); ++c) {
+    SubstepCollider& sc = im.substepColliders[c];
+    sc.before = advancePose(im.colliderStart[c], sc.collider->linearVelocity, sc.collider->angularVelocity, s * h);
+    sc.now = advancePose(im.colliderStart[c], sc.collider->linearVelocity, sc.collider->angularVelocity, (s + 1) * h);
+  }
+  im.contact.substep(im.pointers, im.substepColliders, contact_, h, s + 1 == substeps_);
+}
+
+void World::advanceClock() {
+  const double h = timeStep_ / substeps_;
   for (int s = 0; s < substeps_; ++s) time_ += h;
-  for (std::size_t o = 0; o < N; ++o) {
-    if (im.frozen[o]) {
+}
+
+void World::endObjects() {
+  Impl& im = *impl_;
+  const std::vector<char>& asleep = im.sleeping.asleepThisStep();
+  for (std::size_t o = 0; o < im.objects.size(); ++o) {
+    if (asleep[o]) {
       im.objects[o]->idleStep();
       continue;
     }
@@ -475,18 +449,23 @@ void World::step() {
     im.objects[o]->endStep();
   }
   im.contact.endStep();
-  {
-    std::size_t c = 0;
-    for (auto& entry : im.colliders) {
-      Collider& col = entry.second;
-      col.pose = advancePose(im.colliderStart[c++], col.linearVelocity, col.angularVelocity, timeStep_);
-    }
+}
+
+void World::advanceColliders() {
+  std::size_t c = 0;
+  for (auto& entry : impl_->colliders) {
+    Collider& col = entry.second;
+    col.pose = advancePose(impl_->colliderStart[c++], col.linearVelocity, col.angularVelocity, timeStep_);
   }
-  // the pair impulses as wrenches, both ways; two sleeping objects keep what they exerted (moved
-  // to the front in place: swaps, no copies of the names)
+}
+
+void World::collectWrenches() {
+  Impl& im = *impl_;
+  const std::vector<char>& asleep = im.sleeping.asleepThisStep();
+  // two sleeping objects keep what they exerted, moved to the front in place (swaps, no copies)
   std::size_t held = 0;
   for (std::size_t i = 0; i < im.wrenches.size(); ++i)
-    if (im.frozen[im.wrenchObjects[i].first] && im.frozen[im.wrenchObjects[i].second]) {
+    if (asleep[im.wrenchObjects[i].first] && asleep[im.wrenchObjects[i].second]) {
       if (i != held) {
         std::swap(im.wrenches[held], im.wrenches[i]);
         std::swap(im.wrenchObjects[held], im.wrenchObjects[i]);
@@ -513,102 +492,11 @@ void World::step() {
     onA.wrench.torque = -onB.wrench.torque;
     onA.wrench.contacts = p.contacts;
   }
-  settle();
 }
 
-// Before the step: what wakes a sleeping object (a command, a change of its state, a collider
-// changed or moving near it) and keeps an awake one from falling asleep; then which objects
-// sleep through the step.
-void World::wakeOrKeep() {
-  Impl& im = *impl_;
-  const std::size_t N = im.objects.size();
-  im.frozen.assign(N, 0);
-  if (!(sleep_.fraction > 0.0)) {
-    im.disturbances.clear();
-    return;
-  }
-  // colliders that move within the step: swept over it
-  for (const auto& entry : im.colliders) {
-    const Collider& c = entry.second;
-    if (c.linearVelocity.isZero(0.0) && c.angularVelocity.isZero(0.0)) continue;
-    double radius = std::numeric_limits<double>::infinity();  // a turning plane reaches everything
-    Eigen::Vector3d lo, hi;
-    if (colliderBounds(c.shape, c.pose, lo, hi)) radius = 0.5 * (hi - lo).norm() + (c.pose.translation() - 0.5 * (lo + hi)).norm();
-    const double sweep = timeStep_ * (c.linearVelocity.norm() + (c.angularVelocity.isZero(0.0) ? 0.0 : c.angularVelocity.norm() * radius));
-    im.disturbances.push_back({c, sweep});
-  }
-  for (std::size_t o = 0; o < N; ++o) {
-    Impl::Rest& r = im.rest[o];
-    const Solver& s = *im.objects[o];
-    bool disturbed = s.hasPendingCommands() || (r.asleep && s.stateVersion() != r.version);
-    const double reach = 2.0 * s.contactRadius();
-    for (std::size_t d = 0; d < im.disturbances.size() && !disturbed; ++d) {
-      const Impl::Disturbance& dist = im.disturbances[d];
-      disturbed = boxNearCollider(dist.collider.shape, dist.collider.pose, r.lo, r.hi, dist.margin + reach);
-    }
-    if (disturbed) im.wake(o);
-    im.frozen[o] = r.asleep ? 1 : 0;
-  }
-  im.disturbances.clear();
-}
-
-// After the step: how far each stepped object moved; a sleeping object is woken for the next
-// step by an object touching it that moved farther than the contact's slop in the step, or when
-// the other objects' force on it changed by a tenth of its weight since it fell asleep (a slow
-// push, an object lifted off it); an object still for `hold` falls asleep.
 void World::settle() {
-  Impl& im = *impl_;
-  const std::size_t N = im.objects.size();
-  if (!(sleep_.fraction > 0.0)) return;
-  for (std::size_t o = 0; o < N; ++o) {
-    if (im.frozen[o]) continue;
-    Impl::Rest& r = im.rest[o];
-    const Solver& s = *im.objects[o];
-    const auto& x = s.positions();
-    const auto& v = s.velocities();
-    const double limit = sleep_.fraction * s.lattice().objectSize();
-    // mass-weighted RMS: a particle's chatter in a contact is not the object's motion
-    const auto& m = s.lattice().masses();
-    double moved = 0.0, speed = 0.0, mass = 0.0;
-    for (std::size_t i = 0; i < x.size(); ++i) {
-      moved += m[i] * (x[i] - r.anchor[i]).squaredNorm();
-      speed += m[i] * v[i].squaredNorm();
-      mass += m[i];
-    }
-    im.bound(o);
-    r.step = timeStep_ * std::sqrt(speed / mass);
-    if (!(moved <= limit * limit * mass) || s.hasPendingCommands()) {  // a non-finite state never rests
-      r.anchor = x;
-      r.quiet = 0.0;
-    } else {
-      r.quiet += timeStep_;
-    }
-  }
-  im.load.assign(N, Eigen::Vector3d::Zero());
-  for (std::size_t i = 0; i < im.wrenches.size(); ++i) im.load[im.wrenchObjects[i].second] += im.wrenches[i].wrench.force;
-  for (const PairImpulse& p : im.contact.pairImpulses()) {
-    if (p.contacts == 0 && p.impulse.isZero(0.0)) continue;
-    const std::uint32_t ends[2][2] = {{p.a, p.b}, {p.b, p.a}};
-    for (const auto& e : ends)
-      if (im.frozen[e[0]] && !im.frozen[e[1]] && im.rest[e[1]].step > kWakeMotion * im.objects[e[1]]->contactRadius())
-        im.wake(e[0]);
-  }
-  for (std::size_t o = 0; o < N; ++o) {
-    Impl::Rest& r = im.rest[o];
-    if (!im.frozen[o] || !r.asleep) continue;
-    const Solver& s = *im.objects[o];
-    const double weight = s.lattice().totalMass() * s.params().gravity.norm();
-    if ((im.load[o] - r.load).norm() > kWakeLoad * weight) im.wake(o);
-  }
-  for (std::size_t o = 0; o < N; ++o) {
-    Impl::Rest& r = im.rest[o];
-    if (im.frozen[o] || r.asleep || r.quiet < sleep_.hold * (1.0 - 1e-9)) continue;
-    r.asleep = true;
-    Solver& s = *im.objects[o];
-    std::fill(s.substepVelocities().begin(), s.substepVelocities().end(), Eigen::Vector3d::Zero());
-    r.version = s.stateVersion();
-    r.load = im.load[o];
-  }
+  impl_->sleeping.afterStep(impl_->pointers, impl_->wrenches, impl_->wrenchObjects, impl_->contact.pairImpulses(),
+                            timeStep_);
 }
 
 }  // namespace deformable_flsm

@@ -14,7 +14,9 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -50,6 +52,100 @@ struct ColliderImpulse {
   Eigen::Vector3d moment = Eigen::Vector3d::Zero();
   std::size_t contacts = 0;
 };
+
+/// A contact as a Gauss-Seidel pass updates it (ObjectContactSolver's passes, and pairUpdate() and
+/// colliderUpdate() below): the constraint gap >= target at the end of the sub-step, linear in the
+/// velocity corrections dv because a correction moves the end position by h dv.
+struct ContactRow {
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();  // unit normal, from particle 2 (or the collider) to particle 1
+  double offset = 0.0;  // the gap is n . (x1 - x2) - offset, or n . x1 - offset against a collider
+  double target = 0.0;  // the least gap at the end of the sub-step: min(start gap, 0)
+  double wsum = 0.0;    // w1 + w2 (w = 1 / m, 0 for a particle held still; w2 = 0 against a collider)
+  double invW = 0.0, invHW = 0.0;  // 1 / wsum, 1 / (h wsum): prepare() sets them once per sub-step
+  double muS = 0.0, muK = 0.0;     // static and kinetic friction coefficients
+  double spring = 0.0;  // the implicit step's spring impulse that bounds friction (contact_update::springBound())
+  double lambda = 0.0;  // accumulated normal impulse on particle 1 (N s, >= 0)
+  Eigen::Vector3d friction = Eigen::Vector3d::Zero();  // accumulated friction impulse on particle 1 (N s)
+  bool sliding = false;  // its friction reached its bound in the last sub-step: bounded by muK, else muS
+
+  /// The divisions of every update, done once for a sub-step of length h.
+  void prepare(double h) {
+    invHW = 1.0 / (h * wsum);
+    invW = 1.0 / wsum;
+  }
+};
+
+/// What one update of a contact changes: its accumulated impulses, and the velocity corrections
+/// of its particles (their end positions move by h dv).
+struct ContactCorrection {
+  bool applies = false;  // false: the contact neither pushes nor holds, and nothing changes
+  double lambda = 0.0;   // the normal impulse after the update
+  Eigen::Vector3d friction = Eigen::Vector3d::Zero();  // the friction impulse after the update
+  Eigen::Vector3d impulse = Eigen::Vector3d::Zero();   // the change of particle 1's impulse, J
+  Eigen::Vector3d dv1 = Eigen::Vector3d::Zero();       // w1 J
+  Eigen::Vector3d dv2 = Eigen::Vector3d::Zero();       // -w2 J (zero against a collider)
+};
+
+namespace contact_update {
+
+/// The normal impulse that brings the gap to the target, never pulling (Signorini).
+inline double normal(const ContactRow& c, double gap) { return std::max(0.0, c.lambda + (c.target - gap) * c.invHW); }
+
+/// A contact that neither pushes nor holds (most of those found within the margin) has nothing to apply.
+inline bool idle(const ContactRow& c, double lambda) {
+  return lambda == 0.0 && c.lambda == 0.0 && c.spring == 0.0 && c.friction.isZero(0.0);
+}
+
+/// Coulomb friction on the relative velocity u after the normal change: what stops u's tangential
+/// part, within the regime's cone mu (lambda + spring), else scaled onto it.
+inline Eigen::Vector3d friction(const ContactRow& c, double lambda, const Eigen::Vector3d& u) {
+  const Eigen::Vector3d ut = u - u.dot(c.n) * c.n;
+  Eigen::Vector3d f = c.friction - ut * c.invW;
+  const double fn2 = f.squaredNorm(), cone = (c.sliding ? c.muK : c.muS) * (lambda + c.spring);
+  if (fn2 > cone * cone) f *= cone / std::sqrt(fn2);
+  return f;
+}
+
+/// The part of the implicit step's spring impulse on a pair that bounds its friction: a pulling
+/// spring (lambda < 0) holds nothing.
+inline double springBound(double lambda) { return std::max(0.0, lambda); }
+
+}  // namespace contact_update
+
+/// One projected Gauss-Seidel update of a contact between particles 1 and 2 (end positions x,
+/// velocities v, inverse masses w): non-penetration, then friction on the relative velocity
+/// after it, applied equal and opposite (momentum is conserved). The masses are read only by a
+/// contact that is not idle (references: no load for most contacts of a pass).
+inline ContactCorrection pairUpdate(const ContactRow& c, const Eigen::Vector3d& x1, const Eigen::Vector3d& v1,
+                                    const double& w1, const Eigen::Vector3d& x2, const Eigen::Vector3d& v2,
+                                    const double& w2) {
+  ContactCorrection r;
+  r.lambda = contact_update::normal(c, c.n.dot(x1 - x2) - c.offset);
+  if (contact_update::idle(c, r.lambda)) return r;
+  Eigen::Vector3d J = (r.lambda - c.lambda) * c.n;
+  r.friction = contact_update::friction(c, r.lambda, v1 + w1 * J - Eigen::Vector3d(v2 - w2 * J));
+  J += r.friction - c.friction;
+  r.applies = true;
+  r.impulse = J;
+  r.dv1 = w1 * J;
+  r.dv2 = -(w2 * J);
+  return r;
+}
+
+/// The same update of a contact between particle 1 and a collider's surface moving at vc.
+inline ContactCorrection colliderUpdate(const ContactRow& c, const Eigen::Vector3d& x1, const Eigen::Vector3d& v1,
+                                        const double& w1, const Eigen::Vector3d& vc) {
+  ContactCorrection r;
+  r.lambda = contact_update::normal(c, c.n.dot(x1) - c.offset);
+  if (contact_update::idle(c, r.lambda)) return r;
+  Eigen::Vector3d J = (r.lambda - c.lambda) * c.n;
+  r.friction = contact_update::friction(c, r.lambda, v1 + w1 * J - vc);
+  J += r.friction - c.friction;
+  r.applies = true;
+  r.impulse = J;
+  r.dv1 = w1 * J;
+  return r;
+}
 
 class ObjectContactSolver {
  public:
@@ -141,42 +237,63 @@ class ObjectContactSolver {
   void endStep();
 
  private:
-  struct Contact {
-    std::uint32_t k1 = 0;  // particle (index into the gathered arrays)
-    std::uint32_t k2 = 0;  // the other particle, or the collider's index
-    bool collider = false;
-    Eigen::Vector3d n = Eigen::Vector3d::Zero();  // from k2 (or the collider) to k1
-    double offset = 0.0;  // the gap is n . (x1 - x2) - offset, or n . x1 - offset (collider)
-    double target = 0.0;  // the least gap at the end of the sub-step: min(start gap, 0)
-    double wsum = 0.0;    // w1 + w2
-    double invW = 0.0, invHW = 0.0;  // 1 / wsum, 1 / (h wsum)
-    double muS = 0.0, muK = 0.0;
-    Eigen::Vector3d vc = Eigen::Vector3d::Zero();  // collider surface velocity
-    double lambda = 0.0;                           // normal impulse (N s)
-    Eigen::Vector3d friction = Eigen::Vector3d::Zero();  // tangential impulse on k1 (N s)
-    double spring = 0.0;  // the implicit step's spring impulse on this pair (N s, >= 0)
-    std::uint32_t slot = 0;  // its candidate pair (a pair contact)
-    bool sliding = false;    // its friction reached its bound in the last sub-step
-  };
-  /// A collider contact's impulses kept for the next sub-step's warm start.
-  struct KeptImpulse {
-    std::uint32_t k = 0, collider = 0;  // the particle's global number
+  using Key = std::pair<std::uint32_t, std::uint32_t>;  // a particle pair by global numbers, the lower first
+  /// A contact's impulses kept for the next sub-step's warm start.
+  struct Impulses {
     double lambda = 0.0;
     Eigen::Vector3d friction = Eigen::Vector3d::Zero();
     bool sliding = false;
   };
+  /// Whether a contact carries an impulse, to warm-start from or to keep.
+  static bool carries(double lambda, const Eigen::Vector3d& friction) { return lambda != 0.0 || !friction.isZero(0.0); }
+  /// A contact of two particles, by their places k1, k2 in the gathered arrays.
+  struct PairContact : ContactRow {
+    std::uint32_t k1 = 0, k2 = 0;
+    std::uint32_t slot = 0;  // its candidate pair
+  };
+  /// A contact of a particle (its place k in the gathered arrays) with a collider.
+  struct ColliderContact : ContactRow {
+    std::uint32_t k = 0;
+    std::uint32_t collider = 0;  // the collider's index
+    Eigen::Vector3d vc = Eigen::Vector3d::Zero();  // the collider's surface velocity at the particle
+  };
+  /// A collider contact's impulses kept for the next sub-step, by the particle's global number.
+  struct KeptImpulse {
+    std::uint32_t g = 0, collider = 0;
+    Impulses impulses;
+  };
+  /// A pair's impulses carried over a build by its particles' pair (see carryFrozenPairImpulses()).
+  struct Carried {
+    Key key;
+    Impulses impulses;
+  };
   enum class Staleness { kNone, kSome, kAll };
+
+  // --- the candidate list (object_contact_list.cpp) ---
   /// Marks in stale_ the objects whose particles left their allowances; kAll when the objects
   /// or the parameters changed since the build.
   /// `ahead`: 0 after the objects' sub-step (positions x, the sub-step began at x - h v); h
   /// before it, for the motion to come (x + h v, x).
   Staleness findStale(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h, double ahead);
+  /// findStale(), then buildList() for what it found, with the same `ahead`; returns what it found.
+  Staleness updateList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h, double ahead);
   /// Builds the list again for the stale objects (all of them with `all`), anchors at the middle
   /// of the motion findStale() checked with the same `ahead`.
   void buildList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h, bool all,
                  double ahead);
-  /// findStale(), then buildList() for what it found, with the same `ahead`; returns what it found.
-  Staleness updateList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h, double ahead);
+  void carryFrozenPairImpulses(bool all);
+  void resetList(const std::vector<Solver*>& objects, const ObjectContactParams& params);
+  void anchorStale(const std::vector<Solver*>& objects, double h, double ahead);
+  void findObjectPairs(const ObjectContactParams& params);
+  std::size_t hashNearParticles(const ObjectContactParams& params);
+  std::size_t keepPairsOfSettledObjects();
+  void searchHash(const std::vector<Solver*>& objects, const ObjectContactParams& params, std::size_t hashed,
+                  double baseReach, double widest);
+  void restoreImpulses(std::size_t kept, bool all);
+  void renumberParticles();
+  bool builtFor(const std::vector<Solver*>& objects, const ObjectContactParams& params) const;
+
+  // --- the passes (object_contact.cpp) ---
   void gather(const std::vector<Solver*>& objects, double h);
   void findPairs(const ObjectContactParams& params);
   void findColliderContacts(const std::vector<SubstepCollider>& colliders, double h);
@@ -184,11 +301,19 @@ class ObjectContactSolver {
   /// @return the passes it ran
   int solve(double h, int iterations);
   void keep();
-  static bool slides(const Contact& c);
+  static bool slides(const ContactRow& c);
+  static Impulses keptOf(const ContactRow& c) { return {c.lambda, c.friction, slides(c)}; }
+  static void resume(ContactRow& c, const Impulses& kept);
+  void move(std::uint32_t k, const Eigen::Vector3d& dv, double h) {
+    v_[k] += dv;
+    x_[k] += h * dv;
+  }
   void pushOut();
   void scatter(const std::vector<Solver*>& objects);
   void accumulate(const std::vector<Solver*>& objects, const std::vector<SubstepCollider>& colliders, bool last);
   PairImpulse& pairSlot(std::uint32_t a, std::uint32_t b);
+  PairImpulse& addPairWrench(std::uint32_t o1, std::uint32_t o2, const Eigen::Vector3d& x1,
+                             const Eigen::Vector3d& x2, double r1, double r2, const Eigen::Vector3d& J);
   /// The coupling impulses into springLambda_ (by candidate slot, when the list was not built
   /// again since they were found; refreshList() makes that rare: in a sub-step with a build the
   /// springs bound no friction) and into the pair sums.
@@ -204,17 +329,11 @@ class ObjectContactSolver {
   std::vector<KeptImpulse> keptScratch_;
   /// over a build (buildList()), the impulses of the pairs of a stale object with a sleeping one,
   /// which its search may find again (the kept pairs carry theirs in place), sorted by pair
-  struct Carried {
-    std::pair<std::uint32_t, std::uint32_t> key;
-    double lambda = 0.0;
-    Eigen::Vector3d friction = Eigen::Vector3d::Zero();
-    std::uint8_t sliding = 0;
-  };
   std::vector<Carried> carried_;
   std::vector<double> springLambda_;  // per candidate slot, this sub-step's spring impulse
-  /// the particle pairs (global, lower first) whose spring pushed in the step's last sub-step,
-  /// sorted: a pair contact of the passes among them is not counted again (accumulate())
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> pushingSprings_;
+  /// the particle pairs whose spring pushed in the step's last sub-step, sorted: a pair contact
+  /// of the passes among them is not counted again (accumulate())
+  std::vector<Key> pushingSprings_;
 
   // the candidate list (a Verlet list): what it was built for, and every particle's anchor
   bool built_ = false;
@@ -231,9 +350,9 @@ class ObjectContactSolver {
   std::vector<Eigen::Vector3d> anchor_;  // every particle's mid-sub-step position at its object's build
   std::vector<double> allowance_;        // how far each particle may move from its anchor
   std::vector<char> stale_;              // per object, whether its anchors are built again
-  // the candidate pairs (anchors closer than reach + allowance, summed): by global numbers
-  // (g1 < g2), and by their places in the gathered arrays
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> keys_, candidates_;
+  // the candidate pairs (anchors closer than reach + allowance, summed): by global numbers, and
+  // by their places in the gathered arrays
+  std::vector<Key> keys_, candidates_;
   std::vector<std::uint32_t> scratch_;   // the buckets of a wide search
   // the particles hashed in a build: global number, object, anchor, reach + allowance
   std::vector<std::uint32_t> hashGlobal_, hashObject_;
@@ -241,9 +360,7 @@ class ObjectContactSolver {
   std::vector<double> hashBall_;
   // the last sub-step's impulses: per candidate pair (over a build, only those of a pair with a
   // sleeping object), and per collider contact in (global number, collider) order
-  std::vector<double> keptLambda_;
-  std::vector<Eigen::Vector3d> keptFriction_;
-  std::vector<char> keptSliding_;
+  std::vector<Impulses> keptPairs_;
   std::vector<KeptImpulse> keptCollider_;
   // per object, at the build
   std::vector<Eigen::Vector3d> lo_, hi_;  // bounds of the anchors inflated by reach_ + the largest allowance
@@ -264,7 +381,8 @@ class ObjectContactSolver {
   SpatialHash hash_;  // of the anchors, at the build
   std::vector<Eigen::Vector3d> colliderLo_, colliderHi_;  // each collider's bounds in the sub-step
   std::vector<char> colliderBounded_;                     // whether it has them (not a half-space)
-  std::vector<Contact> colliderContacts_, contacts_;  // the colliders' first in the solve, then the pairs
+  std::vector<ColliderContact> colliderContacts_;  // solved first: the support below settles before the pairs above
+  std::vector<PairContact> contacts_;
   // the step's sums
   std::size_t colliderCount_ = 0;
   std::vector<ColliderImpulse> colliderImpulses_;  // #objects x #colliders

@@ -170,7 +170,7 @@ class World {
   ContactTimes contactTimes() const;
 
   // --- sleeping objects (SleepParams) ---------------------------------------------------
-  const SleepParams& sleepParams() const { return sleep_; }
+  const SleepParams& sleepParams() const;
   /// @throws std::invalid_argument when sleep.validate() fails (the old parameters stay); a
   ///         fraction of 0 wakes every object
   void setSleepParams(const SleepParams& sleep);
@@ -196,15 +196,34 @@ class World {
 
  private:
   struct Impl;
-  /// sleeping (SleepParams): before a step, which objects wake and which sleep through it
-  void wakeOrKeep();
-  /// after a step: which objects moved, which woke a sleeping one, which fall asleep
+  // the stages of step(), in their order
+  /// an object given a time step or scheme the world cannot step is refused before anything moves
+  void checkObjects() const;
+  /// the colliders' poses at the step's start, from which every sub-step's poses are advanced
+  void gatherColliders();
+  /// which objects sleep through the step: those at rest that nothing has reached (Sleeping)
+  void chooseSleepers();
+  /// the awake objects begin their step; the contact pass learns which objects sleep through it
+  void beginObjects();
+  /// which implicit objects may touch and so are solved as one system (true when any are)
+  bool planCoupling();
+  /// sub-step s: the awake objects' dynamics (the coupled ones in one solve), then object contact
+  void substep(int s, bool couple);
+  /// the world's clock as each object's: the sum of the sub-steps
+  void advanceClock();
+  /// the awake objects end their step with the contact pass's share against the colliders
+  void endObjects();
+  /// the colliders at the poses their velocities carried them to over the step
+  void advanceColliders();
+  /// the pair impulses as wrenches both ways, read by objectWrench(); sleeping pairs keep theirs
+  void collectWrenches();
+  /// which sleeping objects a touching object or a change of load wakes, which fall asleep (Sleeping)
   void settle();
+
   std::unique_ptr<Impl> impl_;
   std::vector<std::string> names_;
   ObjectContactParams contact_;
   std::set<std::string> recordedIds_;  ///< recordContacts()
-  SleepParams sleep_;
   double timeStep_ = 0.0;
   int substeps_ = 1;
   double time_ = 0.0;
