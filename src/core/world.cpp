@@ -91,19 +91,12 @@ struct World::Impl {
   }
 };
 
-namespace {
-
-/// Why an object of params `p` cannot be stepped among `objects` objects with these contact
-/// settings, or nullptr: an implicit object with ImplicitScheme::Bdf2 steps alone, and objects
-/// that may touch each other (or one itself) are solved as one backward Euler system.
-const char* bdf2Refusal(const SolverParams& p, std::size_t objects, const ObjectContactParams& contact) {
+const char* World::bdf2Refusal(const SolverParams& p, std::size_t objects, const ObjectContactParams& contact) {
   if (contact.couples(objects) && p.integrator == Integrator::Implicit && p.implicitScheme == ImplicitScheme::Bdf2)
     return "the implicit scheme bdf2 steps one object alone: objects in contact with each other or "
            "themselves are solved together with backward_euler";
   return nullptr;
 }
-
-}  // namespace
 
 World::World(double timeStep, int substeps, const ObjectContactParams& contact)
     : impl_(std::make_unique<Impl>()), contact_(contact), timeStep_(timeStep), substeps_(substeps) {

@@ -94,6 +94,11 @@ class World {
   World(const World&) = delete;
   World& operator=(const World&) = delete;
 
+  /// Why an object of params `p` cannot be stepped among `objects` objects with these contact
+  /// settings, or nullptr: an implicit object with ImplicitScheme::Bdf2 steps alone, and objects
+  /// that may touch each other (or one itself) are solved as one backward Euler system.
+  static const char* bdf2Refusal(const SolverParams& p, std::size_t objects, const ObjectContactParams& contact);
+
   // --- objects ------------------------------------------------------------------------
   /// Adds object `name` (its lattice already placed where it starts: voxelize the mesh at its
   /// pose and scale). The world's colliders are given to it. The objects' region sums share
