@@ -3,6 +3,7 @@
 #include "deformable_flsm/ros/collider_messages.h"
 #include "deformable_flsm/ros/object_params.h"
 
+#include "simulator_node_internal.h"
 #include "to_eigen.h"
 
 #include <geometry_msgs/TransformStamped.h>
@@ -27,8 +28,6 @@ namespace {
 /// a second of several floods at a few hundred messages per second. Beyond it roscpp would drop
 /// the oldest uncounted; the simulation's own queue (CommandLimits::kQueueCapacity) is counted.
 constexpr std::uint32_t kCommandQueue = 1000;
-/// How long a service waits for the simulation thread to apply its command (s).
-constexpr double kServiceTimeout = 2.0;
 /// Commands do not wait for tf. The tf listener is started by the first command in a frame
 /// other than ~frame_id (so that a node nobody commands in other frames does not receive its
 /// own tf 30 times a second); that first lookup alone waits, for the listener to hear the
@@ -41,18 +40,6 @@ constexpr double kAttachStaleAfter = 0.5;
 constexpr double kAttachWarnPeriod = 5.0;  // s between two warnings about attached frames
 /// /clock carries one tick each; a subscriber that falls behind needs only the newest.
 constexpr std::uint32_t kClockQueue = 10;
-/// How often the first lookup in a foreign frame looks again while it waits, and ~step for the
-/// state it reached to go out (s, wall time).
-constexpr double kFirstTransformPoll = 0.01;
-/// A one-shot wall timer's delay for "on the main thread, now" (s).
-constexpr double kPublishAtOnce = 1e-4;
-
-ros::Time rosTime(std::chrono::system_clock::time_point t) {
-  ros::Time out;
-  out.fromNSec(static_cast<std::uint64_t>(
-      std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count()));
-  return out;
-}
 
 LoopTime loopTime(NodeParams::Clock clock) {
   switch (clock) {
@@ -309,96 +296,6 @@ void SimulatorNode::publishState() {
 }
 
 // --------------------------------------------------------------------------------------------
-// Time
-
-void SimulatorNode::checkClock() const {
-  const bool simTime = ros::Time::isSimTime();
-  if (params_.clock == NodeParams::Clock::Wall && simTime) {
-    throw ParamError("/use_sim_time is true but ~clock is 'wall': the node would stamp its "
-                     "messages with the wall clock among nodes on simulated time. Set ~clock to "
-                     "'sim' (this node serves /clock) or 'follow' (another node serves /clock, "
-                     "e.g. Gazebo or rosbag play --clock)");
-  }
-  if (params_.clock != NodeParams::Clock::Wall && !simTime) {
-    throw ParamError(std::string("~clock is '") + toString(params_.clock) +
-                     "' but /use_sim_time is not true: set it before any node starts "
-                     "(roslaunch deformable_flsm flsm.launch sim_time:=true, or <param "
-                     "name=\"/use_sim_time\" value=\"true\"/> first in your launch file), or "
-                     "set ~clock to 'wall'");
-  }
-}
-
-ros::Time SimulatorNode::stampOf(const Snapshot& s) const {
-  if (params_.clock == NodeParams::Clock::Wall) {
-    // at rest or paused the state holds on: it is the state now
-    return s.diag.idle || s.diag.paused ? ros::Time::now() : rosTime(s.wallTime);
-  }
-  return ros::Time(s.diag.idle && !s.diag.paused ? loop_->clockTime() : s.time);
-}
-
-bool SimulatorNode::aheadOfTheClock(const ros::Time& stamp) const {
-  return params_.clock == NodeParams::Clock::Follow && stamp > ros::Time::now();
-}
-
-void SimulatorNode::onTick(double time, const Snapshot* state) {
-  const ros::Time stamp(time);
-  if (state != nullptr) {
-    colliderTransforms(state->colliders, params_.frameId, stamp, tickTransforms_);
-    for (const ObjectSnapshot& o : state->objects) {
-      geometry_msgs::TransformStamped t = tf2::eigenToTransform(o.objectFrame);
-      t.header.frame_id = params_.frameId;
-      t.child_frame_id = o.name;
-      tickTransforms_.push_back(t);
-    }
-  }
-  for (geometry_msgs::TransformStamped& t : tickTransforms_) t.header.stamp = stamp;
-  // the state's tf first, then the time: a listener that looks a frame up at ros::Time::now()
-  // finds it
-  tickBroadcaster_.sendTransform(tickTransforms_);
-  rosgraph_msgs::Clock clock;
-  clock.clock = stamp;
-  clockPub_.publish(clock);
-}
-
-void SimulatorNode::onClock(const rosgraph_msgs::Clock::ConstPtr& clock) {
-  loop_->followTime(clock->clock.toSec());
-}
-
-bool SimulatorNode::onPause(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
-  const CommandOutcome o = send(PauseCommand{true}, true);
-  if (!o.accepted) postLog(LogLevel::Warn, "flsm_node: ~pause: " + o.message);
-  // ~state says so at once: on simulated time that stands still its timer would not
-  pauseState_ = stateNh_.createWallTimer(
-      ros::WallDuration(kPublishAtOnce), [this](const ros::WallTimerEvent&) { publishState(); }, true);
-  return o.accepted;
-}
-
-bool SimulatorNode::onUnpause(std_srvs::Empty::Request&, std_srvs::Empty::Response&) {
-  const CommandOutcome o = send(PauseCommand{false}, true);
-  if (!o.accepted) postLog(LogLevel::Warn, "flsm_node: ~unpause: " + o.message);
-  return o.accepted;
-}
-
-bool SimulatorNode::onStep(Step::Request& req, Step::Response& res) {
-  // However many steps it takes: the answer says they are done.
-  const CommandOutcome o = sendAndWaitForTheAnswer(StepCommand{req.steps});
-  res.success = o.accepted;
-  res.message = o.message;
-  res.time = loop_->clockTime();
-  if (!o.accepted) return true;
-  // The state the steps reached goes out before the answer: the publish timer's next tick may
-  // lie beyond it, and a paused time would never bring it. On the main thread, as every tick.
-  Snapshot reached;
-  loop_->copySummary(reached);
-  stepPublish_ = pnh_.createWallTimer(
-      ros::WallDuration(kPublishAtOnce), [this](const ros::WallTimerEvent&) { publishNewest(); }, true);
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(kServiceTimeout);
-  while (published_.load() < reached.sequence && ros::WallTime::now() < end && ros::ok())
-    ros::WallDuration(kFirstTransformPoll).sleep();
-  return true;
-}
-
-// --------------------------------------------------------------------------------------------
 // Commands in
 
 void SimulatorNode::rejected(const Rejection& why) { stats_->reject(why.reason, why.detail); }
@@ -644,119 +541,6 @@ bool SimulatorNode::onReconfigure(const FlsmConfig& config) {
     stateTimer_.setPeriod(ros::Duration(1.0 / config.publish_rate));
   }
   if (newPace) loop_->setRealTimeFactor(config.real_time_factor);
-  return true;
-}
-
-// --------------------------------------------------------------------------------------------
-// Objects added and removed at run time (a node with ~objects)
-
-template <class Response>
-bool SimulatorNode::refuseObject(const std::string& reason, const std::string& why, Response& res) {
-  stats_->reject(reason, why);
-  res.success = false;
-  res.message = why;
-  return true;
-}
-
-bool SimulatorNode::onAddObject(AddObject::Request& req, AddObject::Response& res) {
-  if (req.param.empty())
-    return refuseObject("invalid_object", "~add_object: param is empty: name the parameter that "
-                        "holds the object (one ~objects entry, a dictionary)", res);
-  const std::string label = "parameter '" + pnh_.resolveName(req.param) + "'";
-  XmlRpc::XmlRpcValue entry;
-  if (!pnh_.getParam(req.param, entry))
-    return refuseObject("invalid_object", label + " is not set: set it to one ~objects entry "
-                        "(a dictionary with at least a name) before calling ~add_object", res);
-  NodeParams defaults;
-  {
-    std::lock_guard<std::mutex> lock(paramsMutex_);
-    defaults = params_;
-  }
-  ObjectSpec spec;
-  try {
-    spec = parseObjectEntry(entry, defaults, label);
-  } catch (const ParamError& e) {
-    return refuseObject("invalid_object", e.what(), res);
-  }
-  {
-    std::shared_lock<std::shared_mutex> lock(objectsMutex_);
-    for (std::size_t k = 0; k < objects_.size(); ++k)
-      if (!commands_[k].removed && objects_[k].name == spec.name)
-        return refuseObject("invalid_object", label + ": object '" + spec.name + "' is already in "
-                            "the scene: choose another name", res);
-  }
-  // Here, on the service thread: the simulation steps on while the mesh loads and voxelizes.
-  PreparedObject prepared;
-  try {
-    prepared = prepareObject(spec, loadMeshParam);
-  } catch (const ParamError& e) {
-    return refuseObject("invalid_object", e.what(), res);
-  }
-  const std::shared_ptr<const Lattice> lattice = prepared.object.lattice;
-  // its RViz handle too: simplifying the render mesh is no work for the main thread's tick
-  visualization_msgs::InteractiveMarker handle = InteractiveDrag::makeHandle(
-      {spec.name, lattice.get(), &prepared.object.renderMesh}, defaults.frameId);
-  const CommandOutcome o = sendAndWaitForTheAnswer(AddObjectCommand{spec.name, lattice, prepared.solverParams});
-  res.success = o.accepted;
-  res.message = o.message;  // a refusal is counted by the simulation thread
-  if (!o.accepted) return true;
-  res.particles = static_cast<std::uint32_t>(lattice->size());
-
-  std::unique_lock<std::shared_mutex> lock(objectsMutex_);
-  objects_.push_back(std::move(prepared.object));
-  const std::size_t k = objects_.size() - 1;
-  commands_.emplace_back();
-  ObjectCommands& c = commands_.back();
-  const std::string name = spec.name;
-  c.validator = std::make_unique<CommandValidator>(
-      lattice->size(), lattice->objectSize(), defaults.frameId,
-      [this](const std::string& frame, const ros::Time& stamp, Eigen::Isometry3d& T, std::string& why) {
-        return lookupTransform(frame, stamp, T, why);
-      },
-      [this, name] { return loop_->centerOfMass(name); });
-  subscribeCommands(k, "objects/" + name + "/", c.dragSub, c.forceSub, c.pinBoxSrv);
-  publisher_->addObject(objects_.back());
-  {
-    std::lock_guard<std::mutex> handlesLock(handlesMutex_);
-    handlesToAdd_.emplace_back(k, std::move(handle));
-  }
-  postLog(LogLevel::Info, "flsm_node: " + o.message);
-  return true;
-}
-
-bool SimulatorNode::onRemoveObject(RemoveObject::Request& req, RemoveObject::Response& res) {
-  std::size_t k = 0;
-  {
-    std::shared_lock<std::shared_mutex> lock(objectsMutex_);
-    while (k < objects_.size() && (commands_[k].removed || objects_[k].name != req.name)) ++k;
-    if (k == objects_.size())
-      return refuseObject("unknown_object", "~remove_object: object '" + req.name + "' is not in "
-                          "the scene: nothing removed", res);
-  }
-  const CommandOutcome o = sendAndWaitForTheAnswer(RemoveObjectCommand{req.name});
-  res.success = o.accepted;
-  res.message = o.message;  // a refusal is counted by the simulation thread
-  if (!o.accepted) return true;
-  ros::Subscriber dragSub, forceSub;
-  ros::ServiceServer pinBoxSrv;
-  {
-    std::unique_lock<std::shared_mutex> lock(objectsMutex_);
-    ObjectCommands& c = commands_[k];
-    c.removed = true;
-    std::swap(dragSub, c.dragSub);
-    std::swap(forceSub, c.forceSub);
-    std::swap(pinBoxSrv, c.pinBoxSrv);
-    publisher_->removeObject(req.name, ros::Time::now());
-    std::lock_guard<std::mutex> handlesLock(handlesMutex_);
-    handlesToRemove_.push_back(k);
-  }
-  // Shut down outside the lock: roscpp's shutdown waits for the subscription's running callback,
-  // and onDrag / onForce / the pin box service wait for objectsMutex_ (shared): under the lock the
-  // two would wait for each other whenever a command stream to this object was arriving.
-  dragSub.shutdown();
-  forceSub.shutdown();
-  pinBoxSrv.shutdown();
-  postLog(LogLevel::Info, "flsm_node: " + o.message);
   return true;
 }
 
