@@ -1,6 +1,7 @@
 #include "deformable_flsm/ros/camera_topics.h"
 
 #include "deformable_flsm/core/contact.h"
+#include "deformable_flsm/ros/log_queue.h"
 #include "deformable_flsm/ros/mesh_messages.h"
 
 #include "image_fill.h"
@@ -135,7 +136,10 @@ void CameraTopics::onTimer(Camera& camera) {
   try {
     render(camera);
   } catch (const std::exception& e) {  // a frame lost, never the node
-    ROS_ERROR_THROTTLE(kWarnPeriod, "flsm_node: camera '%s' could not render: %s", camera.spec.name.c_str(), e.what());
+    static LogThrottle throttle(kWarnPeriod);
+    if (throttle.ready())
+      postLog(LogLevel::Error,
+              formatted("flsm_node: camera '%s' could not render: %s", camera.spec.name.c_str(), e.what()));
   }
 }
 
@@ -150,8 +154,10 @@ void CameraTopics::render(Camera& camera) {
     const ros::Time when = tfBuffer_.canTransform(simFrame_, spec.frame, stamp) ? stamp : ros::Time(0);
     pose = tf2::transformToEigen(tfBuffer_.lookupTransform(simFrame_, spec.frame, when));
   } catch (const tf2::TransformException& e) {
-    ROS_WARN_THROTTLE(kWarnPeriod, "flsm_node: camera '%s': its frame '%s' is not known in '%s' (%s): no image",
-                      spec.name.c_str(), spec.frame.c_str(), simFrame_.c_str(), e.what());
+    static LogThrottle throttle(kWarnPeriod);
+    if (throttle.ready())
+      postLog(LogLevel::Warn, formatted("flsm_node: camera '%s': its frame '%s' is not known in '%s' (%s): no image",
+                                        spec.name.c_str(), spec.frame.c_str(), simFrame_.c_str(), e.what()));
     return;
   }
   renderer_.render(spec.intrinsics, pose, view_);

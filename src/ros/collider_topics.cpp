@@ -142,9 +142,9 @@ void ColliderTopics::onFollowTimer(const ros::TimerEvent&) {
     for (const auto& w : report_.waiting) ++frames[w.second];
     std::vector<std::string> items;
     for (const auto& f : frames) items.push_back("'" + f.first + "' (" + std::to_string(f.second) + ")");
-    ROS_INFO("flsm_node: %zu collider(s) wait for their tf frames %s: each joins the simulation "
-             "at its frame's first transform",
-             report_.waiting.size(), list(items).c_str());
+    postLog(LogLevel::Info, formatted("flsm_node: %zu collider(s) wait for their tf frames %s: each joins "
+                                      "the simulation at its frame's first transform",
+                                      report_.waiting.size(), list(items).c_str()));
   }
   if (!report_.excluded.empty()) {
     std::vector<std::string> links;

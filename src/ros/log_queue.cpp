@@ -39,18 +39,22 @@ void LogQueue::run() {
   std::unique_lock<std::mutex> lock(mutex_);
   for (;;) {
     wake_.wait(lock, [this] { return stopping_ || !lines_.empty(); });
-    if (lines_.empty()) return;  // stopping, and everything written
+    if (lines_.empty()) return;  // stopping, and everything written (a drop has a line after it)
     std::pair<LogLevel, std::string> line = std::move(lines_.front());
     lines_.pop_front();
     lock.unlock();  // the sink may take long: posting goes on meanwhile
-    const std::uint64_t dropped = dropped_.load(std::memory_order_relaxed);
-    if (dropped > reported_) {
-      sink_(LogLevel::Warn, "flsm_node: " + std::to_string(dropped - reported_) +
-                                " log line(s) dropped while the log was held up");
-      reported_ = dropped;
-    }
+    reportDropped();
     sink_(line.first, line.second);
     lock.lock();
+  }
+}
+
+void LogQueue::reportDropped() {
+  const std::uint64_t dropped = dropped_.load(std::memory_order_relaxed);
+  if (dropped > reported_) {
+    sink_(LogLevel::Warn, "flsm_node: " + std::to_string(dropped - reported_) +
+                              " log line(s) dropped while the log was held up");
+    reported_ = dropped;
   }
 }
 
@@ -75,7 +79,12 @@ void writeToRosconsole(LogLevel level, const std::string& line) {
   }
 }
 
-void installLogQueue(LogQueue* queue) { installed.store(queue); }
+InstalledLogQueue::InstalledLogQueue(LogQueue* queue) : queue_(queue) { installed.store(queue); }
+
+InstalledLogQueue::~InstalledLogQueue() {
+  LogQueue* mine = queue_;
+  installed.compare_exchange_strong(mine, nullptr);
+}
 
 void postLog(LogLevel level, std::string line) {
   if (LogQueue* q = installed.load()) {

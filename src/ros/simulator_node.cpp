@@ -55,12 +55,12 @@ LoopTime loopTime(NodeParams::Clock clock) {
 SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh,
                              const NodeParams& params, WorldScene scene, bool namespaced)
     : log_(std::make_unique<LogQueue>(writeToRosconsole)),
+      logInstalled_(log_.get()),
       nh_(nh), pnh_(pnh), stateNh_(pnh), commandNh_(pnh), serviceNh_(pnh), reconfigureNh_(pnh),
       params_(params), objects_(std::make_move_iterator(scene.objects.begin()),
                                 std::make_move_iterator(scene.objects.end())),
       namespaced_(namespaced),
       stats_(std::make_shared<CommandStats>()) {
-  installLogQueue(log_.get());
   stats_->setRejectHook([throttle = std::make_shared<LogThrottle>(kRejectPeriod)](
                             const std::string& reason, const std::string& detail) {
     if (throttle->ready())
@@ -168,7 +168,6 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
 }
 
 SimulatorNode::~SimulatorNode() {
-  installLogQueue(nullptr);  // lines from here on go straight to rosconsole; log_ goes last
   cameras_.reset();
   publishTimer_.stop();
   stateTimer_.stop();

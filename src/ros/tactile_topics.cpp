@@ -1,6 +1,7 @@
 #include "deformable_flsm/ros/tactile_topics.h"
 
 #include "deformable_flsm/ros/collider_messages.h"
+#include "deformable_flsm/ros/log_queue.h"
 #include "deformable_flsm/runtime/node_params.h"
 
 #include "entry_reader.h"
@@ -82,8 +83,10 @@ void TactileTopics::publish(const Snapshot& snapshot, const ros::Time& stamp) {
     const auto collider = snapshot.colliders.find(s.spec.collider);
     if (collider == snapshot.colliders.end()) continue;  // a followed frame not seen yet
     if (collider->second.shape.type != ColliderType::Box) {  // replaced through ~collider
-      ROS_WARN_THROTTLE(kWarnPeriod, "flsm_node: tactile sensor '%s': collider '%s' is no longer a box: no image",
-                        s.spec.name.c_str(), s.spec.collider.c_str());
+      static LogThrottle throttle(kWarnPeriod);
+      if (throttle.ready())
+        postLog(LogLevel::Warn, formatted("flsm_node: tactile sensor '%s': collider '%s' is no longer a box: no image",
+                                          s.spec.name.c_str(), s.spec.collider.c_str()));
       continue;
     }
     const auto contacts = snapshot.contacts.find(s.spec.collider);

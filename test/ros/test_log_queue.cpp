@@ -67,11 +67,11 @@ TEST(LogQueue, PostingNeverWaitsForAHeldSinkAndCountsWhatItDrops) {
         accepted += q.post(LogLevel::Warn, "after " + std::to_string(k)) ? 1 : 0;
       return accepted;
     });
-    ASSERT_EQ(posting.wait_for(std::chrono::seconds(30)), std::future_status::ready)
-        << "post() waited for the held sink";
+    const bool returned = posting.wait_for(std::chrono::seconds(30)) == std::future_status::ready;
+    sink.release.set_value();  // before any check: a failed one then ends the test, not hangs it
+    ASSERT_TRUE(returned) << "post() waited for the held sink";
     EXPECT_EQ(posting.get(), capacity);
     EXPECT_EQ(q.dropped(), extra);
-    sink.release.set_value();
   }
   // the held line, the count of the dropped ones, then the queued lines in order
   ASSERT_EQ(sink.lines.size(), 2 + capacity);

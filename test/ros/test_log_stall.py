@@ -13,6 +13,7 @@ import errno
 import fcntl
 import math
 import os
+import select
 import subprocess
 import threading
 import time
@@ -42,6 +43,7 @@ class LogStallTest(unittest.TestCase):
                                     stderr=subprocess.STDOUT)
         cls.reading = threading.Event()
         cls.reading.set()
+        cls.paused = threading.Event()
         threading.Thread(target=cls.read, daemon=True).start()
         cls.states = []
         cls.sub = rospy.Subscriber('/flsm_node/state', SimulationState, cls.on_state, queue_size=100)
@@ -55,9 +57,15 @@ class LogStallTest(unittest.TestCase):
 
     @classmethod
     def read(cls):
+        """Reads the node's output while `reading` is set; says when it has stopped (`paused`)."""
+        fd = cls.node.stdout.fileno()
         while True:
-            cls.reading.wait()
-            if not cls.node.stdout.read1(65536):
+            if not cls.reading.is_set():
+                cls.paused.set()
+                cls.reading.wait()
+                cls.paused.clear()
+            ready, _, _ = select.select([fd], [], [], 0.1)
+            if ready and not os.read(fd, 65536):
                 return
 
     @classmethod
@@ -67,7 +75,7 @@ class LogStallTest(unittest.TestCase):
     def hold_the_pipe(self):
         """Stops reading the node's stdout and fills the pipe: its next write blocks."""
         self.reading.clear()
-        time.sleep(0.5)  # a read under way returns
+        self.assertTrue(self.paused.wait(5.0), 'the reader did not stop')
         fcntl.fcntl(self.node.stdout.fileno(), F_SETPIPE_SZ, 4096)
         w = os.open('/proc/%d/fd/1' % self.node.pid, os.O_WRONLY | os.O_NONBLOCK)
         try:
@@ -77,6 +85,17 @@ class LogStallTest(unittest.TestCase):
                         os.write(w, b'-' * chunk)
                 except OSError as e:
                     self.assertEqual(e.errno, errno.EAGAIN)
+        finally:
+            os.close(w)
+
+    def pipe_full(self):
+        """Whether a write of one byte to the node's stdout pipe would block."""
+        w = os.open('/proc/%d/fd/1' % self.node.pid, os.O_WRONLY | os.O_NONBLOCK)
+        try:
+            os.write(w, b'-')
+            return False
+        except OSError as e:
+            return e.errno == errno.EAGAIN
         finally:
             os.close(w)
 
@@ -102,6 +121,7 @@ class LogStallTest(unittest.TestCase):
             f.drag(DragCommand.GRAB, 'refused', particle=-7, target=(0, 0, 0))  # no such particle
             time.sleep(0.02)
         t1 = time.time()
+        self.assertTrue(self.pipe_full(), 'the pipe was not held full: the test held nothing')
         self.reading.set()
         time.sleep(2.0)
         stop.set()

@@ -45,6 +45,8 @@ class LogQueue {
 
  private:
   void run();
+  /// Tells the sink how many lines were dropped since it was last told (queue thread only).
+  void reportDropped();
 
   Sink sink_;
   std::size_t capacity_;
@@ -73,9 +75,22 @@ class LogThrottle {
 /// Writes `line` with rosconsole at `level` (the node's sink).
 void writeToRosconsole(LogLevel level, const std::string& line);
 
-/// The node's log queue: lines posted with postLog() go to it while one is installed (by the
-/// node, for its lifetime) and straight to rosconsole otherwise.
-void installLogQueue(LogQueue* queue);
+/// Lines posted with postLog() go to the installed queue (the node's, for its lifetime) and
+/// straight to rosconsole while none is.
 void postLog(LogLevel level, std::string line);
+
+/// Installs a queue for postLog() while it lives; uninstalls it when destroyed (unless another
+/// was installed since). Declared right after the queue it installs, so that a constructor that
+/// throws leaves no queue installed that is gone.
+class InstalledLogQueue {
+ public:
+  explicit InstalledLogQueue(LogQueue* queue);
+  ~InstalledLogQueue();
+  InstalledLogQueue(const InstalledLogQueue&) = delete;
+  InstalledLogQueue& operator=(const InstalledLogQueue&) = delete;
+
+ private:
+  LogQueue* queue_;
+};
 
 }  // namespace deformable_flsm

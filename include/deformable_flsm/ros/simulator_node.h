@@ -172,6 +172,7 @@ class SimulatorNode {
   /// Log lines of every thread but the main one, written by a thread of its own (declared
   /// first: destroyed after every thread that posts to it).
   std::unique_ptr<LogQueue> log_;
+  InstalledLogQueue logInstalled_;
   ros::NodeHandle nh_, pnh_;
   ros::NodeHandle stateNh_;  ///< private namespace, served by stateSpinner_ (the state thread)
   ros::CallbackQueue stateQueue_;
