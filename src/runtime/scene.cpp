@@ -253,11 +253,12 @@ WorldScene buildWorld(const NodeParams& params, const std::vector<ObjectSpec>& o
     sleep.hold = rest.idleHold;
     world.setSleepParams(sleep);
   }
-  // refused before any lattice is built, with what to set
+  // World::bdf2Refusal()'s rule, refused before any lattice is built, in the parameters' names
   for (const ObjectSpec& spec : objects)
-    if (const char* why = World::bdf2Refusal(spec.params.solver, objects.size(), params.objectContact))
-      throw ParamError("object '" + spec.name + "': " + why + " (~object_contact, ~self_contact): set " +
-                       "~implicit_scheme to backward_euler, or turn object contact off");
+    if (World::bdf2Refusal(spec.params.solver, objects.size(), params.objectContact) != nullptr)
+      throw ParamError("object '" + spec.name + "': ~implicit_scheme bdf2 steps one object alone, and these objects "
+                       "touch each other (~object_contact) or themselves (~self_contact): set ~implicit_scheme to "
+                       "backward_euler, or turn object contact off");
   // Objects of the same mesh file, scale and orientation share one load.
   std::map<std::tuple<std::string, double, double, double, double>, TriMesh> loaded;
   std::vector<TriMesh> meshes;  // each object's mesh at its pose, for the ground

@@ -160,12 +160,17 @@ bool mayHit(const RTCBounds& b, const Eigen::Vector3f& o, const RTCRay16& ray) {
   for (int i = 0; i < 16; ++i) {
     const float d[3] = {ray.dir_x[i], ray.dir_y[i], ray.dir_z[i]};
     float enter = ray.tnear[i], leave = ray.tfar[i];
+    bool outside = false;
     for (int a = 0; a < 3; ++a) {
-      const float t1 = lo[a] / d[a], t2 = hi[a] / d[a];  // a NaN (0 / 0) compares false: kept
+      if (d[a] == 0.0f) {  // parallel to the slab: always in it or never
+        outside = outside || lo[a] > 0.0f || hi[a] < 0.0f;
+        continue;
+      }
+      const float t1 = lo[a] / d[a], t2 = hi[a] / d[a];
       enter = std::max(enter, std::min(t1, t2));
       leave = std::min(leave, std::max(t1, t2));
     }
-    any |= !(enter > leave);
+    any |= !outside && !(enter > leave);
   }
   return any;
 }
@@ -184,8 +189,8 @@ struct SceneRenderer::Impl {
     const Triangles* triangles = nullptr;
     std::size_t vertexCount = 0;
   };
-  /// A plane (the ground, a wall) is intersected by the rays directly, not through Embree: every
-  /// ray would otherwise traverse to its two triangles, most of a frame's cost.
+  /// A plane (the ground, a wall) is intersected by the rays directly, not through Embree, which
+  /// every ray would otherwise traverse to its two triangles.
   struct Plane {
     Eigen::Vector3f normal;  // the plane's z axis
     float offset = 0.0f;     // normal . x on the plane

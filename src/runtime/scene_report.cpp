@@ -118,57 +118,43 @@ std::string describeScene(const SceneInfo& info, const NodeParams& params) {
 std::string saturationWarning(const SceneInfo& info, const NodeParams& params) {
   if (info.substepsForModulus == 0) return "";
   const SolverParams& s = params.solver;
-  char buf[768];
-  std::snprintf(buf, sizeof buf,
-                "~youngs_modulus %.4g Pa asks for alpha %.3g per sub-step, more than the %.3g "
-                "the solver allows under ~stiffness %.3g: the material is %.3g times softer "
-                "than asked because the sub-step (%.3g s) is too long. ~substeps %d (instead of %d) "
-                "would fix it, or ~integrator implicit (the modulus as asked at any sub-step).",
-                s.youngsModulus, info.requestedAlpha, info.alpha, s.stiffness,
-                info.requestedAlpha / info.alpha, s.substepLength(), info.substepsForModulus,
-                s.substeps);
-  return buf;
+  return formatted("~youngs_modulus %.4g Pa asks for alpha %.3g per sub-step, more than the %.3g "
+                   "the solver allows under ~stiffness %.3g: the material is %.3g times softer "
+                   "than asked because the sub-step (%.3g s) is too long. ~substeps %d (instead of %d) "
+                   "would fix it, or ~integrator implicit (the modulus as asked at any sub-step).",
+                   s.youngsModulus, info.requestedAlpha, info.alpha, s.stiffness,
+                   info.requestedAlpha / info.alpha, s.substepLength(), info.substepsForModulus,
+                   s.substeps);
 }
 
 std::string regionClampWarning(const SceneInfo& info, const NodeParams& params) {
   if (info.regionAskedCells == 0) return "";
-  char buf[512];
-  std::snprintf(buf, sizeof buf,
-                "~region_radius %.4g m is %d cells on this lattice (spacing %.4g m), more than "
-                "the %d the solver allows: using %d cells (%.4g m), the largest that fits. Set "
-                "~region_radius to at most %.4g m, or use a coarser lattice (a larger ~spacing, a "
-                "smaller ~resolution or ~particle_budget), to silence this warning.",
-                params.regionRadius, info.regionAskedCells, info.spacing, kMaxRegionHalfWidth,
-                info.regionHalfWidth, info.regionHalfWidth * info.spacing,
-                kMaxRegionHalfWidth * info.spacing);
-  return buf;
+  return formatted("~region_radius %.4g m is %d cells on this lattice (spacing %.4g m), more than "
+                   "the %d the solver allows: using %d cells (%.4g m), the largest that fits. Set "
+                   "~region_radius to at most %.4g m, or use a coarser lattice (a larger ~spacing, a "
+                   "smaller ~resolution or ~particle_budget), to silence this warning.",
+                   params.regionRadius, info.regionAskedCells, info.spacing, kMaxRegionHalfWidth,
+                   info.regionHalfWidth, info.regionHalfWidth * info.spacing,
+                   kMaxRegionHalfWidth * info.spacing);
 }
 
 std::string sectionWarning(const SceneInfo& info, const NodeParams& params) {
   const int w = info.regionHalfWidth;
   if (params.solver.youngsModulus <= 0.0 || info.sectionCells <= 0 || 2 * w + 1 <= info.sectionCells) return "";
   const int fits = regionHalfWidthForSection(info.sectionCells, w);
-  char buf[1024];
-  std::snprintf(buf, sizeof buf,
-                "regions of half-width w = %d cells (%d cells wide) are wider than the object's "
-                "thinnest section, %d cells (%.4g m; %.0f %% of the particles lie in thinner ones): "
-                "bending there comes out about %.2g times as stiff as ~youngs_modulus says "
-                "(cantilevers against linear FEM). ",
-                w, 2 * w + 1, info.sectionCells, info.sectionCells * info.spacing,
-                100.0 * kThinSectionFraction, bendingStiffeningEstimate(w, info.sectionCells));
-  std::string text = buf;
+  const std::string text = formatted("regions of half-width w = %d cells (%d cells wide) are wider than the object's "
+                                     "thinnest section, %d cells (%.4g m; %.0f %% of the particles lie in thinner ones): "
+                                     "bending there comes out about %.2g times as stiff as ~youngs_modulus says "
+                                     "(cantilevers against linear FEM). ",
+                                     w, 2 * w + 1, info.sectionCells, info.sectionCells * info.spacing,
+                                     100.0 * kThinSectionFraction, bendingStiffeningEstimate(w, info.sectionCells));
   if (fits < w) {
-    std::snprintf(buf, sizeof buf,
-                  "~region_from_section true would use w = %d (regions within 10 %% of linear FEM "
-                  "in bending; for the same modulus they may need more ~substeps), or use a finer "
-                  "lattice.",
-                  fits);
-  } else {
-    std::snprintf(buf, sizeof buf,
-                  "w = 1 is the narrowest region: only a finer lattice (more cells across the "
-                  "section) fixes it.");
+    return text + formatted("~region_from_section true would use w = %d (regions within 10 %% of linear FEM "
+                            "in bending; for the same modulus they may need more ~substeps), or use a finer "
+                            "lattice.",
+                            fits);
   }
-  return text + buf;
+  return text + "w = 1 is the narrowest region: only a finer lattice (more cells across the section) fixes it.";
 }
 
 }  // namespace deformable_flsm

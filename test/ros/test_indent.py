@@ -8,8 +8,8 @@ oracle's on the same block (the punch: punch_oracle.csv, written by the benchmar
                 --punch-cells 7 --rate 10 --press 1 --hold 0.5 --noise 0 --subdivision 2 \
                 > test/ros/punch_oracle.csv
 
-a linear hexahedral FEM, two elements per lattice cell edge, the punch's nodes prescribed; 17
-minutes on one core; one element per cell reads 2.3 % more) (indent.test)."""
+a linear hexahedral FEM, two elements per lattice cell edge, the punch's nodes prescribed)
+(indent.test)."""
 
 import csv
 import math

@@ -182,5 +182,42 @@ TEST(SceneRenderer, NothingWithinRangeIsNaNAndLabelledNothing) {
   }
 }
 
+// A box over the ground seen straight down (rays along the axes: direction components exactly 0,
+// the camera inside the box's x and y slabs): the box's top where the box is, the ground around
+// it, pixel by pixel, both with their labels; then the same id turned into a plane and back.
+TEST(SceneRenderer, ABoxOverThePlaneAndTheSameIdAsAPlaneAndABoxAgain) {
+  SceneRenderer r;
+  Collider box = shape(ColliderType::Box, Eigen::Vector3d(0, 0, 0.25));
+  box.shape.halfExtents = Eigen::Vector3d(0.2, 0.2, 0.25);  // top at z = 0.5
+  const Collider ground = shape(ColliderType::HalfSpace, Eigen::Vector3d::Zero());
+  const CameraIntrinsics c = smallCamera();
+  const Eigen::Isometry3d T = lookingDown(Eigen::Vector3d(0, 0, 1.5));
+  RenderedView view;
+  const auto check = [&](bool boxThere) {
+    r.render(c, T, view);
+    for (int v = 0; v < c.height; ++v) {
+      for (int u = 0; u < c.width; ++u) {
+        const Eigen::Vector3d d = rayOf(c, T, u, v);
+        const Eigen::Vector3d onTop = T.translation() + d * (1.0 / -d.z());  // z = 0.5
+        const bool onBox = boxThere && std::abs(onTop.x()) < 0.2 && std::abs(onTop.y()) < 0.2;
+        const std::size_t p = static_cast<std::size_t>(v) * c.width + u;
+        // pixels whose ray passes within a hair of the box's edge may go either way
+        if (boxThere && std::abs(std::max(std::abs(onTop.x()), std::abs(onTop.y())) - 0.2) < 1e-4) continue;
+        ASSERT_NEAR(view.depth[p], onBox ? 1.0 : 1.5, 1e-5) << u << ", " << v;
+        const std::uint16_t label = view.label[p];
+        ASSERT_EQ(label, onBox ? SceneRenderer::colliderLabel(0) : SceneRenderer::colliderLabel(boxThere ? 1 : 0))
+            << u << ", " << v;
+      }
+    }
+  };
+  // colliders in id order: "a" (the box) then "b" (the ground)
+  r.setColliders({{"a", box}, {"b", ground}});
+  check(true);
+  r.setColliders({{"a", ground}, {"b", ground}});  // "a" a plane now, at the same place as "b"
+  check(false);
+  r.setColliders({{"a", box}, {"b", ground}});
+  check(true);
+}
+
 }  // namespace
 }  // namespace deformable_flsm
