@@ -1,19 +1,14 @@
 #include "deformable_flsm/core/collider.h"
 
+#include "number_text.h"
+
 #include <cmath>
-#include <sstream>
 #include <string>
 #include <stdexcept>
 
 namespace deformable_flsm {
 
 namespace {
-
-std::string str(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
 
 [[noreturn]] void fail(const std::string& what) { throw std::invalid_argument("collider: " + what); }
 
@@ -49,21 +44,21 @@ void ColliderShape::validate() const {
       break;
     case ColliderType::Box:
       if (!halfExtents.allFinite() || (halfExtents.array() <= 0.0).any())
-        fail("box half extents [" + str(halfExtents.x()) + ", " + str(halfExtents.y()) + ", " +
-             str(halfExtents.z()) + "]: expected three finite lengths > 0 (m)");
+        fail("box half extents [" + numberText(halfExtents.x()) + ", " + numberText(halfExtents.y()) + ", " +
+             numberText(halfExtents.z()) + "]: expected three finite lengths > 0 (m)");
       break;
     case ColliderType::Sphere:
     case ColliderType::Capsule:
       if (!std::isfinite(radius) || radius <= 0.0)
-        fail(name + " radius " + str(radius) + ": expected a finite radius > 0 (m)");
+        fail(name + " radius " + numberText(radius) + ": expected a finite radius > 0 (m)");
       if (type == ColliderType::Capsule && (!std::isfinite(halfLength) || halfLength < 0.0))
-        fail("capsule half length " + str(halfLength) + ": expected a finite length >= 0 (m)");
+        fail("capsule half length " + numberText(halfLength) + ": expected a finite length >= 0 (m)");
       break;
     case ColliderType::Cylinder:
       if (!std::isfinite(radius) || radius <= 0.0)
-        fail("cylinder radius " + str(radius) + ": expected a finite radius > 0 (m)");
+        fail("cylinder radius " + numberText(radius) + ": expected a finite radius > 0 (m)");
       if (!std::isfinite(halfLength) || halfLength <= 0.0)
-        fail("cylinder half length " + str(halfLength) + ": expected a finite length > 0 (m)");
+        fail("cylinder half length " + numberText(halfLength) + ": expected a finite length > 0 (m)");
       break;
     case ColliderType::Mesh:
       if (!mesh) fail("mesh collider without a mesh: load one (loadMesh) and set shape.mesh");
@@ -91,11 +86,11 @@ void Collider::validate() const {
   if (!linearVelocity.allFinite()) fail("linear velocity has non-finite entries");
   if (!angularVelocity.allFinite()) fail("angular velocity has non-finite entries");
   if (!std::isfinite(staticFriction) || staticFriction < 0.0)
-    fail("static friction " + str(staticFriction) + ": expected a finite coefficient >= 0");
+    fail("static friction " + numberText(staticFriction) + ": expected a finite coefficient >= 0");
   if (!std::isfinite(kineticFriction) || kineticFriction < 0.0)
-    fail("kinetic friction " + str(kineticFriction) + ": expected a finite coefficient >= 0");
+    fail("kinetic friction " + numberText(kineticFriction) + ": expected a finite coefficient >= 0");
   if (kineticFriction > staticFriction)
-    fail("kinetic friction " + str(kineticFriction) + " exceeds static friction " + str(staticFriction) +
+    fail("kinetic friction " + numberText(kineticFriction) + " exceeds static friction " + numberText(staticFriction) +
          ": expected kinetic <= static");
 }
 

@@ -3,30 +3,20 @@
 #include "deformable_flsm/core/sleeping.h"
 
 #include "deformable_flsm/core/contact.h"
+#include "number_text.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <sstream>
 #include <stdexcept>
 
 namespace deformable_flsm {
 
-namespace {
-
-std::string num(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
-
-}  // namespace
-
 void SleepParams::validate() const {
   if (!std::isfinite(fraction) || fraction < 0.0)
-    throw std::invalid_argument("sleep: fraction must be finite and >= 0 (got " + num(fraction) + "; 0 never sleeps)");
+    throw std::invalid_argument("sleep: fraction must be finite and >= 0 (got " + numberText(fraction) + "; 0 never sleeps)");
   if (!std::isfinite(hold) || !(hold > 0.0))
-    throw std::invalid_argument("sleep: hold must be finite and > 0 s (got " + num(hold) + ")");
+    throw std::invalid_argument("sleep: hold must be finite and > 0 s (got " + numberText(hold) + ")");
 }
 
 void Sleeping::setParams(const SleepParams& params, const std::vector<Solver*>& objects) {

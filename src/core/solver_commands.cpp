@@ -2,12 +2,13 @@
 // the sub-steps, timed forces and impulses, and the accelerations they add in a sub-step.
 #include "deformable_flsm/core/solver.h"
 
+#include "number_text.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <stdexcept>
-#include <sstream>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -31,12 +32,6 @@ Eigen::Vector3d centroidOf(const std::vector<Eigen::Vector3d>& x,
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
   for (std::uint32_t p : particles) c += x[p];
   return c / static_cast<double>(particles.size());
-}
-
-std::string num(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
 }
 
 }  // namespace
@@ -109,10 +104,10 @@ void Solver::addDrag(const std::string& id, const std::vector<std::uint32_t>& pa
     const SpringLimit limit = springLimit(id, particles);
     if (stiffness > limit.stiffness)
       throw std::invalid_argument(
-          "solver: drag '" + id + "': spring stiffness " + num(stiffness) + " N/m is unstable on " +
-          num(limit.mass) + " kg of particles at sub-step " + num(limit.substep) +
-          " s: at most " + num(limit.stiffness) +
-          " N/m (k h^2 / M <= " + num(kMaxSpringRate) +
+          "solver: drag '" + id + "': spring stiffness " + numberText(stiffness) + " N/m is unstable on " +
+          numberText(limit.mass) + " kg of particles at sub-step " + numberText(limit.substep) +
+          " s: at most " + numberText(limit.stiffness) +
+          " N/m (k h^2 / M <= " + numberText(kMaxSpringRate) +
           " summed over the spring drags on a particle; or 0 for a hard drag)");
   }
   Drag drag;

@@ -1,8 +1,9 @@
 #include "deformable_flsm/core/solver_params.h"
 
+#include "number_text.h"
+
 #include <algorithm>
 #include <cmath>
-#include <sstream>
 
 namespace deformable_flsm {
 
@@ -21,12 +22,6 @@ constexpr int kMaxThreads = 256;
                        const std::string& expected) {
   throw std::invalid_argument("invalid solver parameter '" + field + "' = " + value + ": " +
                               expected);
-}
-
-std::string str(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
 }
 
 }  // namespace
@@ -59,15 +54,15 @@ const char* toString(ImplicitScheme scheme) { return scheme == ImplicitScheme::B
 
 int regionHalfWidthForRadius(double radius, double spacing) {
   if (!std::isfinite(radius) || radius <= 0.0)
-    fail("region_radius", str(radius), "expected a finite radius > 0 (m)");
+    fail("region_radius", numberText(radius), "expected a finite radius > 0 (m)");
   if (!std::isfinite(spacing) || spacing <= 0.0)
-    fail("spacing", str(spacing), "expected a finite lattice spacing > 0 (m)");
+    fail("spacing", numberText(spacing), "expected a finite lattice spacing > 0 (m)");
   const double w = std::round(radius / spacing);
   if (w > kMaxRegionHalfWidth)
-    fail("region_radius", str(radius),
-         "is " + str(w) + " cells at spacing " + str(spacing) + " m; at most " +
+    fail("region_radius", numberText(radius),
+         "is " + numberText(w) + " cells at spacing " + numberText(spacing) + " m; at most " +
              std::to_string(kMaxRegionHalfWidth) + " cells: use a radius of at most " +
-             str(kMaxRegionHalfWidth * spacing) + " m on this lattice, or a coarser lattice (a larger "
+             numberText(kMaxRegionHalfWidth * spacing) + " m on this lattice, or a coarser lattice (a larger "
              "spacing, a smaller resolution or particle_budget)");
   return std::max(1, static_cast<int>(w));
 }
@@ -85,24 +80,24 @@ void SolverParams::validate() const {
     fail("region_half_width", std::to_string(regionHalfWidth),
          "expected an integer from 1 to " + std::to_string(kMaxRegionHalfWidth));
   if (!std::isfinite(stiffness) || stiffness <= 0.0 || stiffness > 1.0)
-    fail("stiffness", str(stiffness), "expected a fraction in (0, 1]");
+    fail("stiffness", numberText(stiffness), "expected a fraction in (0, 1]");
   if (!std::isfinite(youngsModulus) || youngsModulus < 0.0)
-    fail("youngs_modulus", str(youngsModulus), "expected a finite modulus >= 0 (Pa; 0 uses stiffness)");
+    fail("youngs_modulus", numberText(youngsModulus), "expected a finite modulus >= 0 (Pa; 0 uses stiffness)");
   if (!std::isfinite(poissonsRatio) || poissonsRatio < 0.0 || poissonsRatio > kMaxPoissonsRatio)
-    fail("poissons_ratio", str(poissonsRatio), "expected a ratio from 0 to " + str(kMaxPoissonsRatio));
+    fail("poissons_ratio", numberText(poissonsRatio), "expected a ratio from 0 to " + numberText(kMaxPoissonsRatio));
   if (youngsModulus <= 0.0 && poissonsRatio != 0.0)
-    fail("poissons_ratio", str(poissonsRatio),
+    fail("poissons_ratio", numberText(poissonsRatio),
          "needs youngs_modulus > 0 (with youngs_modulus 0, alpha = stiffness is a bare shape-matching "
          "fraction with no Poisson effect): set youngs_modulus or poissons_ratio 0");
   if (!std::isfinite(damping) || damping < 0.0)
-    fail("damping", str(damping), "expected a finite rate >= 0 (1/s)");
+    fail("damping", numberText(damping), "expected a finite rate >= 0 (1/s)");
   if (!std::isfinite(ambientDamping) || ambientDamping < 0.0)
-    fail("ambient_damping", str(ambientDamping), "expected a finite rate >= 0 (1/s)");
+    fail("ambient_damping", numberText(ambientDamping), "expected a finite rate >= 0 (1/s)");
   if (!gravity.allFinite())
-    fail("gravity", "[" + str(gravity.x()) + ", " + str(gravity.y()) + ", " + str(gravity.z()) + "]",
+    fail("gravity", "[" + numberText(gravity.x()) + ", " + numberText(gravity.y()) + ", " + numberText(gravity.z()) + "]",
          "expected three finite numbers (m/s^2)");
   if (!std::isfinite(timeStep) || timeStep <= 0.0 || timeStep > kMaxTimeStep)
-    fail("time_step", str(timeStep), "expected a step in (0, " + str(kMaxTimeStep) + "] seconds");
+    fail("time_step", numberText(timeStep), "expected a step in (0, " + numberText(kMaxTimeStep) + "] seconds");
   if (substeps < 1 || substeps > kMaxSubsteps)
     fail("substeps", std::to_string(substeps),
          "expected an integer from 1 to " + std::to_string(kMaxSubsteps));
@@ -110,13 +105,13 @@ void SolverParams::validate() const {
     fail("threads", std::to_string(threads),
          "expected 0 (all hardware threads) or a count from 1 to " + std::to_string(kMaxThreads));
   if (!std::isfinite(density) || density <= 0.0)
-    fail("density", str(density), "expected a finite density > 0 (kg/m^3)");
+    fail("density", numberText(density), "expected a finite density > 0 (kg/m^3)");
   if (integrator != Integrator::Explicit && integrator != Integrator::Implicit)
     fail("integrator", std::to_string(static_cast<int>(integrator)), "expected 'explicit' or 'implicit'");
   if (implicitScheme != ImplicitScheme::BackwardEuler && implicitScheme != ImplicitScheme::Bdf2)
     fail("implicit_scheme", std::to_string(static_cast<int>(implicitScheme)), "expected 'backward_euler' or 'bdf2'");
   if (!std::isfinite(contactRadius) || contactRadius < 0.0)
-    fail("contact_radius", str(contactRadius),
+    fail("contact_radius", numberText(contactRadius),
          "expected a finite radius >= 0 (m; 0 uses half the lattice spacing)");
 }
 

@@ -27,10 +27,11 @@
 #include "deformable_flsm/core/slice_stream_summer.h"
 #include "deformable_flsm/core/spatial_hash.h"
 
+#include "number_text.h"
+
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <sstream>
 #include <stdexcept>
 
 namespace deformable_flsm {
@@ -41,12 +42,6 @@ namespace {
 /// apart) but not closer than r1 + r2 by more than this fraction of it, which round-off of
 /// placing them cannot reach.
 constexpr double kStartOverlapTolerance = 1e-6;
-
-std::string num(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
 
 bool isRotation(const Eigen::Matrix3d& R) {
   return (R.transpose() * R).isIdentity(1e-6) && R.determinant() > 0.0;
@@ -61,10 +56,10 @@ void ObjectContactParams::validate() const {
     throw std::invalid_argument("object contact: self_exclusion must be >= 1 lattice cell (got " +
                                 std::to_string(selfExclusion) + "): neighbours touch at rest");
   if (!std::isfinite(staticFriction) || staticFriction < 0.0)
-    throw std::invalid_argument("object contact: static friction must be finite and >= 0 (got " + num(staticFriction) + ")");
+    throw std::invalid_argument("object contact: static friction must be finite and >= 0 (got " + numberText(staticFriction) + ")");
   if (!std::isfinite(kineticFriction) || kineticFriction < 0.0 || kineticFriction > staticFriction)
     throw std::invalid_argument("object contact: kinetic friction must be in [0, static friction " +
-                                num(staticFriction) + "] (got " + num(kineticFriction) + ")");
+                                numberText(staticFriction) + "] (got " + numberText(kineticFriction) + ")");
   if (iterations < 1)
     throw std::invalid_argument("object contact: iterations must be >= 1 (got " + std::to_string(iterations) + ")");
 }
@@ -101,7 +96,7 @@ const char* World::bdf2Refusal(const SolverParams& p, std::size_t objects, const
 World::World(double timeStep, int substeps, const ObjectContactParams& contact)
     : impl_(std::make_unique<Impl>()), contact_(contact), timeStep_(timeStep), substeps_(substeps) {
   if (!std::isfinite(timeStep) || !(timeStep > 0.0))
-    throw std::invalid_argument("world: the time step must be positive and finite (got " + num(timeStep) + " s)");
+    throw std::invalid_argument("world: the time step must be positive and finite (got " + numberText(timeStep) + " s)");
   if (substeps < 1) throw std::invalid_argument("world: substeps must be >= 1 (got " + std::to_string(substeps) + ")");
   contact_.validate();
 }
@@ -113,8 +108,8 @@ Solver& World::addObject(const std::string& name, std::shared_ptr<const Lattice>
   if (impl_->indexOf(names_, name) < names_.size())
     throw std::invalid_argument("world: there is already an object named '" + name + "'");
   if (!sameTime(params.timeStep, timeStep_) || params.substeps != substeps_)
-    throw std::invalid_argument("world: object '" + name + "' has time step " + num(params.timeStep) + " s in " +
-                                std::to_string(params.substeps) + " sub-steps, the world " + num(timeStep_) +
+    throw std::invalid_argument("world: object '" + name + "' has time step " + numberText(params.timeStep) + " s in " +
+                                std::to_string(params.substeps) + " sub-steps, the world " + numberText(timeStep_) +
                                 " s in " + std::to_string(substeps_) + ": give it the world's");
   // objects that touch each other are solved as one backward Euler system (step())
   const std::size_t count = impl_->objects.size() + 1;
@@ -150,8 +145,8 @@ Solver& World::addObject(const std::string& name, std::shared_ptr<const Lattice>
         const double d = (x[i] - y).norm();
         if (d < limit)
           throw std::invalid_argument("world: object '" + name + "' starts inside object '" + names_[o] +
-                                      "': its particle " + std::to_string(i) + " is " + num(d) + " m from their particle " +
-                                      std::to_string(j) + ", closer than the sum of their contact radii " + num(R) +
+                                      "': its particle " + std::to_string(i) + " is " + numberText(d) + " m from their particle " +
+                                      std::to_string(j) + ", closer than the sum of their contact radii " + numberText(R) +
                                       " m; place it apart");
       });
     }
@@ -338,9 +333,9 @@ void World::checkObjects() const {
   for (std::size_t o = 0; o < N; ++o) {
     const SolverParams& p = impl_->objects[o]->params();
     if (!sameTime(p.timeStep, timeStep_) || p.substeps != substeps_)
-      throw std::logic_error("world: object '" + names_[o] + "' was set to a time step of " + num(p.timeStep) +
+      throw std::logic_error("world: object '" + names_[o] + "' was set to a time step of " + numberText(p.timeStep) +
                              " s in " + std::to_string(p.substeps) + " sub-steps, the world steps " +
-                             num(timeStep_) + " s in " + std::to_string(substeps_) + ": give it the world's");
+                             numberText(timeStep_) + " s in " + std::to_string(substeps_) + ": give it the world's");
     if (const char* why = bdf2Refusal(p, N, contact_))
       throw std::logic_error("world: object '" + names_[o] + "': " + why);
   }
