@@ -11,6 +11,7 @@
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/voxelizer.h"
 #include "fixtures.h"
+#include "support/world_scenes.h"
 
 #include <gtest/gtest.h>
 
@@ -99,16 +100,6 @@ Collider groundBelow(const Solver& s, double gap) {
   Collider ground;
   ground.pose.translation() = Eigen::Vector3d(0, 0, lowestZ(s) - s.contactRadius() - gap);
   return ground;
-}
-
-Collider boxCollider(const Eigen::Vector3d& centre, const Eigen::Vector3d& half, double mu) {
-  Collider c;
-  c.shape.type = ColliderType::Box;
-  c.shape.halfExtents = half;
-  c.pose.translation() = centre;
-  c.staticFriction = mu;
-  c.kineticFriction = mu;
-  return c;
 }
 
 void setVelocity(Solver& s, const std::string& id, const Eigen::Vector3d& v) {
@@ -228,7 +219,7 @@ TEST(Contact, RecordedContactsAddUpToTheWrenchWithBothIntegrators) {
     s.recordContacts("ground", true);  // before the collider: kept by its id
     const Collider ground = groundBelow(s, 0.0);
     s.setCollider("ground", ground);
-    s.setCollider("unrecorded", boxCollider(Eigen::Vector3d(1, 0, 0), Eigen::Vector3d::Constant(0.1), 0.5));
+    s.setCollider("unrecorded", world_scenes::box(Eigen::Vector3d(1, 0, 0), Eigen::Vector3d::Constant(0.1), 0.5));
     for (int i = 0; i < stepsFor(2.0, s); ++i) s.step();
     const std::vector<ParticleContact>& record = s.recordedContacts("ground");
     ASSERT_EQ(record.size(), 24u) << "the bottom layer of 6 x 4 particles";
@@ -360,7 +351,7 @@ TEST(Contact, KinematicColliderPushesAndFollowsItsVelocity) {
   p.ambientDamping = 0.0;
   Solver s(lattice, p);
   // a wall coming from -x at 0.5 m/s, frictionless
-  Collider wall = boxCollider(Eigen::Vector3d(-0.05, 0.02, 0.02), Eigen::Vector3d(0.04, 0.1, 0.1), 0.0);
+  Collider wall = world_scenes::box(Eigen::Vector3d(-0.05, 0.02, 0.02), Eigen::Vector3d(0.04, 0.1, 0.1), 0.0);
   wall.linearVelocity = Eigen::Vector3d(0.5, 0, 0);
   s.setCollider("wall", wall);
   EXPECT_THROW(s.moveCollider("wall", Eigen::Isometry3d(Eigen::Translation3d(std::nan(""), 0, 0)),
@@ -900,8 +891,8 @@ GraspResult grasp(const BunnyScene& scene, double mu) {
     }
   const Eigen::Vector3d half(0.04, 0.01, 0.04);
   const double gap = 0.01, squeeze = 0.015;
-  s.setCollider("left", boxCollider(Eigen::Vector3d(c.x(), yLo - gap - half.y(), c.z()), half, mu));
-  s.setCollider("right", boxCollider(Eigen::Vector3d(c.x(), yHi + gap + half.y(), c.z()), half, mu));
+  s.setCollider("left", world_scenes::box(Eigen::Vector3d(c.x(), yLo - gap - half.y(), c.z()), half, mu));
+  s.setCollider("right", world_scenes::box(Eigen::Vector3d(c.x(), yHi + gap + half.y(), c.z()), half, mu));
   const double closeTime = 0.5;
   const double speed = (gap + squeeze) / closeTime;
   setVelocity(s, "left", Eigen::Vector3d(0, speed, 0));
@@ -1116,8 +1107,8 @@ TEST(ContactScene, AbuseLeavesTheBunnyFiniteAndItRecoversItsShape) {
     s.setCollider("ground", groundBelow(s, 0.0));
     const Eigen::Vector3d c = centreOfMass(s);
     const Eigen::Vector3d half(0.2, 0.02, 0.2);
-    s.setCollider("left", boxCollider(Eigen::Vector3d(c.x(), c.y() - 0.12, c.z()), half, 0.5));
-    s.setCollider("right", boxCollider(Eigen::Vector3d(c.x(), c.y() + 0.12, c.z()), half, 0.5));
+    s.setCollider("left", world_scenes::box(Eigen::Vector3d(c.x(), c.y() - 0.12, c.z()), half, 0.5));
+    s.setCollider("right", world_scenes::box(Eigen::Vector3d(c.x(), c.y() + 0.12, c.z()), half, 0.5));
     setVelocity(s, "left", Eigen::Vector3d(0, 0.09, 0));
     setVelocity(s, "right", Eigen::Vector3d(0, -0.09, 0));
     for (int i = 0; i < stepsFor(1.0, s); ++i) s.step();  // faces 2 cm apart
@@ -1195,7 +1186,7 @@ TEST(ContactScene, AbuseLeavesTheBunnyFiniteAndItRecoversItsShape) {
     const Eigen::Vector3d c = centreOfMass(s);
     const double top = lowestZ(s) + (scene.lattice->restMax() - scene.lattice->restMin()).z() + 0.01;
     const Eigen::Vector3d half(0.2, 0.2, 0.02);
-    s.setCollider("press", boxCollider(Eigen::Vector3d(c.x(), c.y(), top + half.z() + 0.01), half, 0.5));
+    s.setCollider("press", world_scenes::box(Eigen::Vector3d(c.x(), c.y(), top + half.z() + 0.01), half, 0.5));
     const double travel = top + 0.01 - (ground.pose.translation().z() + 0.03);
     setVelocity(s, "press", Eigen::Vector3d(0, 0, -travel));
     for (int i = 0; i < stepsFor(1.0, s); ++i) s.step();
