@@ -729,7 +729,7 @@ TEST(WorldSleep, AnImplicitStackFallsAsleepAndStaysAsleepCarryingItsWeight) {
   EXPECT_GT(least[0], 0.9 * (weight[1] + weight[2])) << "nor the middle onto the bottom";
 }
 
-// A sleeping stack keeps its contacts' impulses while another object, away from it, moves and
+// A sleeping stack keeps its contacts' impulses while another object, away from it, turns and
 // has the contact list built again and again: woken, its contact solve starts from them, as a
 // stack woken with no build in between does (one Gauss-Seidel pass per sub-step: nothing to
 // correct), and holds its weight from the first step. Dropped at a build, a woken object
@@ -743,14 +743,17 @@ static void wakeTheStack(bool moving, double& passes, double& least, double& abo
   Solver& M = *world.object("mover");
   for (int i = 0; i < stepsFor(20.0) && world.sleepingCount() < 4; ++i) world.step();
   ASSERT_EQ(world.sleepingCount(), 4u);
-  // the mover dragged 5 cm back and forth, 30 cm from the stack, for 2 s (or held where it is)
+  // the mover turned 0.5 rad about the vertical back and forth, 30 cm from the stack, for 2 s (or
+  // held where it is): its particles move within it, which builds its list again (a motion of the
+  // whole object alone would not)
   std::vector<std::uint32_t> all(mover->size());
   for (std::uint32_t i = 0; i < all.size(); ++i) all[i] = i;
-  const Eigen::Vector3d home = centreOfMass(M);
-  M.grab("hand", all, home, 0.0);
+  const Eigen::Isometry3d home(Eigen::Translation3d(centreOfMass(M)));
+  M.attach("hand", all, home, 0.0);
   const std::size_t builds = world.contactListBuilds();
   for (int i = 0; i < stepsFor(2.0); ++i) {
-    M.moveDrag("hand", home + Eigen::Vector3d(moving ? 0.05 * std::sin(M_PI * (i + 1) * kStep) : 0.0, 0.0, 0.0));
+    const double angle = moving ? 0.5 * std::sin(M_PI * (i + 1) * kStep) : 0.0;
+    M.moveDrag("hand", home * Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()));
     world.step();
   }
   built = world.contactListBuilds() - builds;

@@ -200,17 +200,18 @@ class ObjectContactSolver {
 
   /// The contact pass after every object's sub-step of length h:
   ///  1. a candidate list of particle pairs (a Verlet list: Verlet 1967), kept over sub-steps
-  ///     and steps while no particle has moved farther than its allowance (a fraction of its
-  ///     radius, more for a fast one) from where it was at its object's build (its anchor);
-  ///     built again for the objects one of whose particles did, the pairs of two other
-  ///     objects kept: a broad phase of each object's bounds (inflated by its contact radius,
-  ///     the margin and the allowance) lets only the particles where a rebuilt object's bounds
-  ///     meet another's (or with self-contact) into a spatial hash of the anchors, which gives
-  ///     the pairs closer than the sum of their reaches and allowances: pairs of different
-  ///     objects, and with params.selfContact pairs of one object farther apart than
-  ///     params.selfExclusion cells in its rest lattice. A resting pile rebuilds seldom, a
-  ///     falling one the objects that move, and far objects cost a pass over their particles
-  ///     only;
+  ///     and steps while every particle stays within its allowance (a fraction of its radius,
+  ///     more for a fast one) of its anchor, measured against its own object's motion (the mean
+  ///     of its particles), and every two objects near each other within their allowance of
+  ///     where they were relative to each other (object_contact_list.cpp): a pile that falls or
+  ///     slides as one keeps its list. Built again for the objects that left them, the pairs of
+  ///     two other objects kept: a broad phase of each object's bounds (a sweep) pairs the
+  ///     objects, and per pair with a rebuilt object only the particles within reach of the
+  ///     other's bounds are swept against each other (an object's own particles are never
+  ///     visited), giving the pairs closer than the sum of their reaches and allowances; with
+  ///     params.selfContact, a spatial hash of a rebuilt object's particles gives its pairs
+  ///     farther apart than params.selfExclusion cells in its rest lattice. The list is kept in
+  ///     the order of its particles' global numbers, whatever builds made it;
   ///  2. of the candidates, the pairs closer than the sum of their radii with the margin at the
   ///     end or at the start of the sub-step (a sphere that passed through another is caught);
   ///     each particle in such a pair also gets a contact with every collider it touches, so
@@ -284,11 +285,21 @@ class ObjectContactSolver {
   void carryFrozenPairImpulses(bool all);
   void resetList(const std::vector<Solver*>& objects, const ObjectContactParams& params);
   void anchorStale(const std::vector<Solver*>& objects, double h, double ahead);
-  void findObjectPairs(const ObjectContactParams& params);
-  std::size_t hashNearParticles(const ObjectContactParams& params);
+  void findObjectPairs(const ObjectContactParams& params, double h);
+  std::size_t hashSelfContact(const ObjectContactParams& params);
   std::size_t keepPairsOfSettledObjects();
-  void searchHash(const std::vector<Solver*>& objects, const ObjectContactParams& params, std::size_t hashed,
-                  double baseReach, double widest);
+  /// A particle in a sweep of one object pair: its anchor shifted to where its object is, its
+  /// reach + allowance + its object's share of the pair's allowance, its global number.
+  struct SweepEntry {
+    Eigen::Vector3d x = Eigen::Vector3d::Zero();
+    double ball = 0.0;
+    std::uint32_t g = 0;
+  };
+  void searchObjectPairs();
+  double selectNear(std::uint32_t o, std::uint32_t other, int axis, std::vector<SweepEntry>& out);
+  void searchSelfContact(const std::vector<Solver*>& objects, const ObjectContactParams& params, std::size_t hashed);
+  void orderNewPairs(std::size_t kept);
+  void mergeKeptAndNew(std::size_t kept);
   void restoreImpulses(std::size_t kept, bool all);
   void renumberParticles();
   bool builtFor(const std::vector<Solver*>& objects, const ObjectContactParams& params) const;
@@ -354,6 +365,10 @@ class ObjectContactSolver {
   // by their places in the gathered arrays
   std::vector<Key> keys_, candidates_;
   std::vector<std::uint32_t> scratch_;   // the buckets of a wide search
+  std::vector<SweepEntry> sweepA_, sweepB_;  // the two sides of an object pair's sweep
+  std::vector<std::uint32_t> firstCount_;  // scratch of orderNewPairs(): a counting sort's counts
+  std::vector<Key> keyScratch_;            // and its output, and mergeKeptAndNew()'s
+  std::vector<Impulses> impulseScratch_;
   // the particles hashed in a build: global number, object, anchor, reach + allowance
   std::vector<std::uint32_t> hashGlobal_, hashObject_;
   std::vector<Eigen::Vector3d> hashX_;
@@ -366,10 +381,19 @@ class ObjectContactSolver {
   std::vector<Eigen::Vector3d> lo_, hi_;  // bounds of the anchors inflated by reach_ + the largest allowance
   std::vector<double> radius_, reach_;    // contact radius, and radius with the margin
   std::vector<double> most_;              // the largest allowance of its particles
-  std::vector<char> near_;                // its bounds meet another object's (or self-contact)
+  std::vector<Eigen::Vector3d> meanV_;  // its particles' mean velocity (at the last check or build)
+  // how far the mean of its particles moved from its anchors', at the end and the start of the
+  // sub-step checked last, and in the middle; the least and most of the end and start
+  std::vector<Eigen::Vector3d> shiftEnd_, shiftStart_, shiftMid_, shiftLo_, shiftHi_;
+  std::vector<double> pad_, zeros_;   // scratch: how far the sweeps inflate the bounds
+  std::vector<double> half_;  // its share of its pairs' allowance for drifting (each particle's ball holds it)
   std::vector<std::uint32_t> order_;  // objects by their lower x bound
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> objectPairs_;  // whose bounds meet
-  std::vector<std::uint32_t> neighborStart_, neighbors_;  // per object, the others its bounds meet
+  // the pairs of objects whose bounds met (a < b, sorted), with the shift of a relative to b when
+  // their pairs were searched and how far it may drift from it (and the last build's, scratch)
+  using ObjectPair = std::pair<std::uint32_t, std::uint32_t>;
+  std::vector<ObjectPair> objectPairs_, oldPairs_, newPairs_;
+  std::vector<Eigen::Vector3d> pairShift_, oldShift_;
+  std::vector<double> pairSlack_, oldSlack_;
   std::vector<std::int32_t> renumber_;  // per particle (global number), its place in the list or -1
   // the particles of the candidate list, object by object, each object's in index order
   std::size_t count_ = 0;
