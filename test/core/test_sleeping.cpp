@@ -637,7 +637,7 @@ static BunnyPress pressTheBunnies(bool sleeping) {
   std::printf("finger pressed into 40 bunnies (%s): up to %.3g N, %zu objects awake in the push, %zu moved farther than "
               "0.03 r; deepest overlap %.3g r\n",
               sleeping ? "sleeping" : "never sleeping", press.push, press.woke, press.moved, overlap);
-  // the squeeze under the finger: 0.25-0.31 r over variants of the passes (order, tolerance), a
+  // the squeeze under the finger: 0.25-0.32 r over variants of the passes (order, tolerance), a
   // third of a radius at most; objects passing through each other would be 2 r
   EXPECT_LT(overlap, 0.35) << "nothing interpenetrates";
   EXPECT_TRUE(allFinite(world));
