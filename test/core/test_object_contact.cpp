@@ -189,6 +189,36 @@ SolverParams paramsFor(const Lattice& lattice) {
   return p;
 }
 
+/// Brute force over every particle pair (of two objects, and of one object more than
+/// selfExclusion cells apart when `self`): those within 1.25 (r1 + r2) at the end or the start of
+/// the sub-step of length h are counted into nearPairs, and those of them missing from the
+/// contact's candidate list into missing.
+void countListed(const std::vector<Solver*>& objects, const std::vector<std::vector<Eigen::Vector3d>>& x,
+                 const std::vector<std::vector<Eigen::Vector3d>>& v, double h, const ObjectContactSolver& contact,
+                 bool self, int selfExclusion, std::size_t& nearPairs, std::size_t& missing) {
+  const std::set<std::pair<std::uint32_t, std::uint32_t>> listed(contact.candidatePairs().begin(),
+                                                                 contact.candidatePairs().end());
+  std::uint32_t g1 = 0;
+  for (std::size_t a = 0; a < objects.size(); ++a)
+    for (std::size_t i = 0; i < x[a].size(); ++i, ++g1) {
+      std::uint32_t g2 = 0;
+      for (std::size_t b = 0; b < objects.size(); ++b)
+        for (std::size_t j = 0; j < x[b].size(); ++j, ++g2) {
+          if (g2 <= g1 || (a == b && !self)) continue;
+          if (a == b) {
+            const Eigen::Vector3i d = objects[a]->lattice().cells()[i] - objects[a]->lattice().cells()[j];
+            if (d.cwiseAbs().maxCoeff() <= selfExclusion) continue;
+          }
+          const double reach = 1.25 * (objects[a]->contactRadius() + objects[b]->contactRadius());
+          const bool atEnd = (x[a][i] - x[b][j]).norm() < reach;
+          const bool atStart = ((x[a][i] - h * v[a][i]) - (x[b][j] - h * v[b][j])).norm() < reach;
+          if (!atEnd && !atStart) continue;
+          ++nearPairs;
+          if (!listed.count({g1, g2})) ++missing;
+        }
+    }
+}
+
 }  // namespace
 
 // The candidate list is built again for the objects whose particles left their allowances only:
@@ -233,28 +263,8 @@ TEST(ObjectContact, TheCandidateListHoldsEveryPairThatComesWithinReach) {
       objects[o]->setVelocities(v[o]);
     }
     contact.substep(objects, {}, params, h, true);
-    std::set<std::pair<std::uint32_t, std::uint32_t>> candidates(contact.candidatePairs().begin(),
-                                                                  contact.candidatePairs().end());
-    listed += candidates.size();
-    std::uint32_t g1 = 0;
-    for (std::size_t a = 0; a < objects.size(); ++a)
-      for (std::size_t i = 0; i < x[a].size(); ++i, ++g1) {
-        std::uint32_t g2 = 0;
-        for (std::size_t b = 0; b < objects.size(); ++b)
-          for (std::size_t j = 0; j < x[b].size(); ++j, ++g2) {
-            if (g2 <= g1) continue;
-            if (a == b) {
-              const Eigen::Vector3i d = objects[a]->lattice().cells()[i] - objects[a]->lattice().cells()[j];
-              if (d.cwiseAbs().maxCoeff() <= params.selfExclusion) continue;
-            }
-            const double reach = 1.25 * (objects[a]->contactRadius() + objects[b]->contactRadius());
-            const bool atEnd = (x[a][i] - x[b][j]).norm() < reach;
-            const bool atStart = ((x[a][i] - h * v[a][i]) - (x[b][j] - h * v[b][j])).norm() < reach;
-            if (!atEnd && !atStart) continue;
-            ++nearPairs;
-            if (!candidates.count({g1, g2})) ++missing;
-          }
-      }
+    listed += contact.candidatePairs().size();
+    countListed(objects, x, v, h, contact, true, params.selfExclusion, nearPairs, missing);
   }
   std::printf("candidate list: %zu builds in %zu sub-steps, %zu pairs within reach, %zu listed, %zu missing\n",
               contact.listBuilds(), substeps, nearPairs, listed, missing);
@@ -309,22 +319,7 @@ TEST(ObjectContact, APileMovingAsOneKeepsItsListAndOneThatSlidesBuildsIt) {
       }
       contact.substep(objects, {}, params, h, true);
       // every particle pair of two blocks within reach at the end or the start of the sub-step is listed
-      std::set<std::pair<std::uint32_t, std::uint32_t>> listed(contact.candidatePairs().begin(),
-                                                               contact.candidatePairs().end());
-      std::uint32_t g1 = 0;
-      for (std::size_t a = 0; a < objects.size(); ++a)
-        for (std::size_t i = 0; i < x[a].size(); ++i, ++g1) {
-          std::uint32_t g2 = static_cast<std::uint32_t>((a + 1) * x[a].size());
-          for (std::size_t b = a + 1; b < objects.size(); ++b)
-            for (std::size_t j = 0; j < x[b].size(); ++j, ++g2) {
-              const double reach = 1.25 * (objects[a]->contactRadius() + objects[b]->contactRadius());
-              const bool atEnd = (x[a][i] - x[b][j]).norm() < reach;
-              const bool atStart = ((x[a][i] - h * v[a][i]) - (x[b][j] - h * v[b][j])).norm() < reach;
-              if (!atEnd && !atStart) continue;
-              ++nearPairs;
-              if (!listed.count({g1, g2})) ++missing;
-            }
-        }
+      countListed(objects, x, v, h, contact, false, 0, nearPairs, missing);
     }
   };
   std::size_t nearCarried = 0, missingCarried = 0, nearSliding = 0, missingSliding = 0;
