@@ -52,14 +52,18 @@ double allowanceOf(double rest, double step, double most) {
 }
 
 /// Calls f(a, b), a < b, for every two boxes that meet, the boxes being lo/hi plus shift, inflated by
-/// pad (per box), by a sweep on the lower x bound with `order` as scratch.
+/// padScale times each object's radius, by a sweep on the lower x bound with `order` as scratch.
 template <typename F>
 void forMeetingBoxes(const std::vector<Eigen::Vector3d>& lo, const std::vector<Eigen::Vector3d>& hi,
                      const std::vector<Eigen::Vector3d>& shiftLo, const std::vector<Eigen::Vector3d>& shiftHi,
-                     const std::vector<double>& pad, std::vector<std::uint32_t>& order, F&& f) {
+                     const std::vector<double>& radius, double padScale, std::vector<std::uint32_t>& order, F&& f) {
   const std::size_t N = lo.size();
-  auto lower = [&](std::uint32_t o) -> Eigen::Vector3d { return lo[o] + shiftLo[o] - Eigen::Vector3d::Constant(pad[o]); };
-  auto upper = [&](std::uint32_t o) -> Eigen::Vector3d { return hi[o] + shiftHi[o] + Eigen::Vector3d::Constant(pad[o]); };
+  auto lower = [&](std::uint32_t o) -> Eigen::Vector3d {
+    return lo[o] + shiftLo[o] - Eigen::Vector3d::Constant(padScale * radius[o]);
+  };
+  auto upper = [&](std::uint32_t o) -> Eigen::Vector3d {
+    return hi[o] + shiftHi[o] + Eigen::Vector3d::Constant(padScale * radius[o]);
+  };
   order.resize(N);
   for (std::size_t o = 0; o < N; ++o) order[o] = static_cast<std::uint32_t>(o);
   std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
@@ -151,7 +155,7 @@ ObjectContactSolver::Staleness ObjectContactSolver::findStale(const std::vector<
       shiftLo_[o] = shiftEnd_[o].cwiseMin(shiftStart_[o]);
       shiftHi_[o] = shiftEnd_[o].cwiseMax(shiftStart_[o]);
     }
-    forMeetingBoxes(lo_, hi_, shiftLo_, shiftHi_, zeros_, order_, [&](std::uint32_t a, std::uint32_t b) {
+    forMeetingBoxes(lo_, hi_, shiftLo_, shiftHi_, radius_, 0.0, order_, [&](std::uint32_t a, std::uint32_t b) {
       if (std::binary_search(objectPairs_.begin(), objectPairs_.end(), std::make_pair(a, b))) return;
       stale_[a] = stale_[b] = 1;
       any = true;
@@ -160,7 +164,7 @@ ObjectContactSolver::Staleness ObjectContactSolver::findStale(const std::vector<
   return any ? Staleness::kSome : Staleness::kNone;
 }
 
-// Builds the stale objects' pairs and keeps the others', in a fixed order (objects, indices, buckets): deterministic.
+// Builds the stale objects' pairs and keeps the others', the list then in the order of its particles: deterministic.
 void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h,
                                     bool all, double ahead) {
   ++listBuilds_;
@@ -212,8 +216,7 @@ void ObjectContactSolver::resetList(const std::vector<Solver*>& objects, const O
   lo_.resize(N);
   hi_.resize(N);
   for (auto* v : {&shiftEnd_, &shiftStart_, &shiftMid_, &shiftLo_, &shiftHi_, &meanV_}) v->assign(N, Eigen::Vector3d::Zero());
-  pad_.assign(N, 0.0);
-  zeros_.assign(N, 0.0);
+  fastest_.assign(N, 0.0);
   half_.assign(N, 0.0);
   objectPairs_.clear();  // of other objects: none carries over
   pairShift_.clear();
@@ -288,21 +291,20 @@ void ObjectContactSolver::findObjectPairs(const ObjectContactParams& params, dou
   pairSlack_.clear();
   newPairs_.clear();
   if (params.enabled) {
-    for (std::size_t o = 0; o < N; ++o) pad_[o] = (kPairPad + 0.5 * (kPairSkin + kSkinMotion)) * radius_[o];
-    forMeetingBoxes(lo_, hi_, shiftMid_, shiftMid_, pad_, order_,
+    // padded by a share of the pairs' allowance at its cap, (kPairSkin + kSkinMotion) / 2 of a radius, and kPairPad
+    forMeetingBoxes(lo_, hi_, shiftMid_, shiftMid_, radius_, kPairPad + 0.5 * (kPairSkin + kSkinMotion), order_,
                     [&](std::uint32_t a, std::uint32_t b) { newPairs_.emplace_back(a, b); });
     std::sort(newPairs_.begin(), newPairs_.end());
   }
   // a stale object's share: its fastest motion relative to an object near it
-  for (std::size_t o = 0; o < N; ++o)
-    if (stale_[o]) pad_[o] = 0.0;  // scratch: the fastest relative motion
+  std::fill(fastest_.begin(), fastest_.end(), 0.0);
   for (const ObjectPair& p : newPairs_) {
     const double step = h * (meanV_[p.first] - meanV_[p.second]).norm();
-    if (stale_[p.first]) pad_[p.first] = std::max(pad_[p.first], step);
-    if (stale_[p.second]) pad_[p.second] = std::max(pad_[p.second], step);
+    fastest_[p.first] = std::max(fastest_[p.first], step);
+    fastest_[p.second] = std::max(fastest_[p.second], step);
   }
   for (std::size_t o = 0; o < N; ++o)
-    if (stale_[o]) half_[o] = 0.5 * allowanceOf(kPairSkin * radius_[o], pad_[o], kSkinMotion * radius_[o]);
+    if (stale_[o]) half_[o] = 0.5 * allowanceOf(kPairSkin * radius_[o], fastest_[o], kSkinMotion * radius_[o]);
   // the kept pairs of two objects that stay, and the new pairs of a stale object, in order
   std::size_t old = 0, fresh = 0;
   while (old < oldPairs_.size() || fresh < newPairs_.size()) {

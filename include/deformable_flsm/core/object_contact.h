@@ -385,7 +385,7 @@ class ObjectContactSolver {
   // how far the mean of its particles moved from its anchors', at the end and the start of the
   // sub-step checked last, and in the middle; the least and most of the end and start
   std::vector<Eigen::Vector3d> shiftEnd_, shiftStart_, shiftMid_, shiftLo_, shiftHi_;
-  std::vector<double> pad_, zeros_;   // scratch: how far the sweeps inflate the bounds
+  std::vector<double> fastest_;  // scratch: its fastest motion relative to an object near it, per sub-step
   std::vector<double> half_;  // its share of its pairs' allowance for drifting (each particle's ball holds it)
   std::vector<std::uint32_t> order_;  // objects by their lower x bound
   // the pairs of objects whose bounds met (a < b, sorted), with the shift of a relative to b when
