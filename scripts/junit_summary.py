@@ -16,15 +16,28 @@ import sys
 import xml.etree.ElementTree as ET
 
 
+def failure_reason(element, limit=400):
+    """What a <failure> or <error> says, on one line: a Python traceback's last line (the
+    assertion), else the message; so that a log that keeps only the summary still says why."""
+    text = (element.text or '').strip()
+    lines = [l.strip() for l in text.splitlines() if l.strip()]
+    reason = lines[-1] if lines and 'Traceback' in text else (element.get('message') or text)
+    reason = ' '.join(reason.split())
+    return reason if len(reason) <= limit else reason[:limit - 3] + '...'
+
+
 def testcases(path):
     """(passed, failed, skipped, failure names) of the <testcase>s in one JUnit XML file."""
     root = ET.parse(path).getroot()
     passed, failed, skipped, names = 0, 0, 0, []
     for case in root.iter('testcase'):
         name = '%s.%s' % (case.get('classname', ''), case.get('name', ''))
-        if case.find('failure') is not None or case.find('error') is not None:
+        bad = case.find('failure')
+        bad = bad if bad is not None else case.find('error')
+        if bad is not None:
             failed += 1
-            names.append(name)
+            reason = failure_reason(bad)
+            names.append(name + ('\n      ' + reason if reason else ''))
         elif case.find('skipped') is not None or case.get('status') == 'notrun':
             skipped += 1
         else:
