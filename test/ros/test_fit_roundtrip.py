@@ -83,8 +83,9 @@ class FitRoundTripTest(unittest.TestCase):
         try:
             recording = Recording.from_bag(bag, 'tool', '/flsm_node/contact_wrenches', 'world', collider='plate')
             depth = TOP - recording.poses[:, 2]
-            self.assertGreater(depth.max(), 0.99 * DEPTH)
-            self.assertGreater(recording.forces[:, 2].max(), 1.0)
+            self.assertGreater(depth.max(), 0.99 * DEPTH, 'the bag\'s deepest tool pose (%d samples)'
+                               % len(recording.times))
+            self.assertGreater(recording.forces[:, 2].max(), 1.0, 'the bag\'s largest plate force (N)')
             spec = F.FitSpec.from_yaml(os.path.join(os.path.dirname(F.package_config()), '..', 'examples', 'fit',
                                                     'squeeze_fit.yaml'), recording=bag,
                                        markers_topic='/flsm_node/particles')
@@ -97,8 +98,10 @@ class FitRoundTripTest(unittest.TestCase):
             rospy.loginfo('fit_roundtrip: %d samples, E %.0f Pa (%.4f of the node\'s), nu %.4f (%.4f), '
                           'error %.4f (force %.4f, markers %.4f)', len(recording.times), e, e / MODULUS, nu,
                           nu / NU, result['cost'], result['force_cost'], result['marker_cost'])
-            self.assertAlmostEqual(e / MODULUS, 1.0, delta=0.03)
-            self.assertAlmostEqual(nu / NU, 1.0, delta=0.03)
+            fitted = 'fitted E %.0f Pa, nu %.4f from %d samples, error %.4f' % (e, nu, len(recording.times),
+                                                                              result['cost'])
+            self.assertAlmostEqual(e / MODULUS, 1.0, delta=0.03, msg='E over the node\'s: ' + fitted)
+            self.assertAlmostEqual(nu / NU, 1.0, delta=0.03, msg='nu over the node\'s: ' + fitted)
         finally:
             shutil.rmtree(out, ignore_errors=True)
 
