@@ -115,6 +115,7 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
   laps.lap(kListSeconds);
   takeCoupling(objects, stale != Staleness::kNone, last);
   if (candidates_.empty()) return;
+  selectAwake();
   gather(objects, h);
   laps.lap(kRestSeconds);
   findPairs(params);
@@ -146,7 +147,7 @@ void ObjectContactSolver::refreshList(const std::vector<Solver*>& objects, const
 
 // The passes work on copies of the listed particles' state, in dense arrays.
 void ObjectContactSolver::gather(const std::vector<Solver*>& objects, double h) {
-  for (std::size_t k = 0; k < count_; ++k) {
+  for (const std::uint32_t k : awakeParticles_) {
     const Solver& s = *objects[object_[k]];
     const std::uint32_t i = index_[k];
     x_[k] = s.positions()[i];
@@ -161,10 +162,9 @@ void ObjectContactSolver::gather(const std::vector<Solver*>& objects, double h) 
 // Candidates within reach at the end or the start of the sub-step: one that passed through another is caught.
 void ObjectContactSolver::findPairs(const ObjectContactParams& params) {
   contacts_.clear();
-  for (std::size_t i = 0; i < candidates_.size(); ++i) {
+  // two objects held still (not among the awake slots): no contact, and the impulses they had kept for when one wakes
+  for (const std::uint32_t i : awakeSlots_) {
     const std::uint32_t k1 = candidates_[i].first, k2 = candidates_[i].second;
-    // two objects held still: no contact, and the impulses they had kept for when one wakes
-    if (frozen(object_[k1]) && frozen(object_[k2])) continue;
     // the last sub-step's impulses, read once (keep() writes this sub-step's contacts' back)
     const Impulses kept = keptPairs_[i];
     keptPairs_[i] = Impulses();
@@ -212,7 +212,7 @@ void ObjectContactSolver::findColliderContacts(const std::vector<SubstepCollider
                            colliderBounds(colliders[ci].collider->shape, colliders[ci].now, colliderLo_[ci],
                                           colliderHi_[ci]);
   std::size_t kept = 0;  // walks keptCollider_, in the same (g, collider) order
-  for (std::size_t k = 0; k < count_; ++k) {
+  for (const std::uint32_t k : awakeParticles_) {
     if (!touched_[k] || w_[k] == 0.0) continue;
     const double r = r_[k];
     for (std::size_t ci = 0; ci < colliders.size(); ++ci) {
@@ -364,7 +364,7 @@ void ObjectContactSolver::pushOut() {
 void ObjectContactSolver::scatter(const std::vector<Solver*>& objects) {
   for (const ColliderContact& c : colliderContacts_) touched_[c.k] = 2;
   for (const PairContact& c : contacts_) touched_[c.k1] = touched_[c.k2] = 2;
-  for (std::size_t k = 0; k < count_; ++k) {
+  for (const std::uint32_t k : awakeParticles_) {
     if (touched_[k] != 2) continue;
     Solver& s = *objects[object_[k]];
     s.substepPositions()[index_[k]] = x_[k];

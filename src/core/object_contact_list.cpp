@@ -117,15 +117,25 @@ ObjectContactSolver::Staleness ObjectContactSolver::findStale(const std::vector<
   if (!builtFor(objects, params)) return Staleness::kAll;
   bool any = false;
   for (std::size_t o = 0; o < objects.size(); ++o) {
+    // a frozen object at rest that was within its allowances still is: nothing of it moved since
+    // (a change from outside moves its state version), and with no velocity h and ahead do not count
+    const bool held = frozen(o);
+    if (held && restChecked_[o] && restVersion_[o] == objects[o]->stateVersion()) {
+      stale_[o] = 0;
+      continue;
+    }
+    restChecked_[o] = 0;
     const auto& x = objects[o]->positions();
     const auto& v = objects[o]->velocities();
     const Eigen::Vector3d* a = anchor_.data() + offset_[o];
     const double* e = allowance_.data() + offset_[o];
     const std::size_t n = x.size();
     Eigen::Vector3d sumX = Eigen::Vector3d::Zero(), sumV = Eigen::Vector3d::Zero();
+    bool still = true;
     for (std::size_t i = 0; i < n; ++i) {
       sumX += x[i] + ahead * v[i] - a[i];
       sumV += v[i];
+      still = still && v[i].isZero(0.0);
     }
     const Eigen::Vector3d meanV = meanV_[o] = sumV / double(n);
     shiftEnd_[o] = sumX / double(n);
@@ -139,6 +149,10 @@ ObjectContactSolver::Staleness ObjectContactSolver::findStale(const std::vector<
         any = true;
         break;
       }
+    }
+    if (held && still && !stale_[o]) {
+      restChecked_[o] = 1;
+      restVersion_[o] = objects[o]->stateVersion();
     }
   }
   for (std::size_t p = 0; p < objectPairs_.size(); ++p) {
@@ -225,6 +239,10 @@ void ObjectContactSolver::resetList(const std::vector<Solver*>& objects, const O
   reach_.resize(N);
   most_.resize(N);
   stale_.assign(N, 1);
+  restChecked_.assign(N, 0);
+  restVersion_.assign(N, 0);
+  awakeValid_ = false;
+  reserveDoubling(awakeFrozen_, N);
   keys_.clear();
   const std::size_t total = offset_[N];
   hash_.reserve(total);
@@ -250,6 +268,7 @@ void ObjectContactSolver::anchorStale(const std::vector<Solver*>& objects, doubl
       shiftMid_[o] = 0.5 * (shiftEnd_[o] + shiftStart_[o]);
       continue;
     }
+    restChecked_[o] = 0;
     const auto& x = objects[o]->positions();
     const auto& v = objects[o]->velocities();
     const std::size_t n = x.size();
@@ -527,6 +546,8 @@ void ObjectContactSolver::renumberParticles() {
   reserveDoubling(r_, count_);
   reserveDoubling(touched_, count_);
   reserveDoubling(candidates_, keys_.size());
+  reserveDoubling(awakeSlots_, keys_.size());
+  reserveDoubling(awakeParticles_, count_);
   // at most a contact per pair, and (mostly) one collider contact per particle
   reserveDoubling(contacts_, keys_.size());
   reserveDoubling(colliderContacts_, count_);
@@ -551,6 +572,30 @@ void ObjectContactSolver::renumberParticles() {
   for (std::size_t i = 0; i < keys_.size(); ++i)
     candidates_[i] = {static_cast<std::uint32_t>(renumber_[keys_[i].first]),
                       static_cast<std::uint32_t>(renumber_[keys_[i].second])};
+}
+
+// The passes leave two frozen objects' pairs alone: a pile asleep around a few awake objects costs what they touch.
+void ObjectContactSolver::selectAwake() {
+  const std::size_t N = builtObjects_.size();
+  bool same = awakeValid_ && awakeBuild_ == listBuilds_;
+  for (std::size_t o = 0; same && o < N; ++o) same = awakeFrozen_[o] == char(frozen(static_cast<std::uint32_t>(o)));
+  if (same) return;
+  awakeValid_ = true;
+  awakeBuild_ = listBuilds_;
+  awakeFrozen_.resize(N);
+  for (std::size_t o = 0; o < N; ++o) awakeFrozen_[o] = frozen(static_cast<std::uint32_t>(o));
+  awakeSlots_.clear();
+  awakeParticles_.clear();
+  std::fill(touched_.begin(), touched_.end(), 0);  // here: marks the particles named
+  for (std::size_t i = 0; i < candidates_.size(); ++i) {
+    const std::uint32_t k1 = candidates_[i].first, k2 = candidates_[i].second;
+    if (awakeFrozen_[object_[k1]] && awakeFrozen_[object_[k2]]) continue;
+    awakeSlots_.push_back(static_cast<std::uint32_t>(i));
+    touched_[k1] = touched_[k2] = 1;
+  }
+  for (std::size_t k = 0; k < count_; ++k)
+    if (touched_[k]) awakeParticles_.push_back(static_cast<std::uint32_t>(k));
+  std::fill(touched_.begin(), touched_.end(), 0);
 }
 
 }  // namespace deformable_flsm

@@ -302,6 +302,9 @@ class ObjectContactSolver {
   void mergeKeptAndNew(std::size_t kept);
   void restoreImpulses(std::size_t kept, bool all);
   void renumberParticles();
+  /// awakeSlots_ and awakeParticles_ for the list and the frozen objects of this sub-step
+  /// (worked out again only when either changed since the last call)
+  void selectAwake();
   bool builtFor(const std::vector<Solver*>& objects, const ObjectContactParams& params) const;
 
   // --- the passes (object_contact.cpp) ---
@@ -402,6 +405,17 @@ class ObjectContactSolver {
   std::vector<double> w_, r_;
   std::vector<Eigen::Vector3d> start_;  // x - h v: where the particles began the sub-step
   std::vector<char> touched_;
+  // the part of the list the passes visit: the candidates with an object not frozen (their slots
+  // in candidates_, ascending), the particles they name (ascending), and what they were chosen for
+  std::vector<std::uint32_t> awakeSlots_, awakeParticles_;
+  std::vector<char> awakeFrozen_;
+  std::size_t awakeBuild_ = 0;
+  bool awakeValid_ = false;
+  // per object, whether its last check found it frozen, at rest (every velocity zero) and within
+  // its allowances, and the state it checked (Solver::stateVersion()): while it stays so, its
+  // particles are not visited again (findStale())
+  std::vector<char> restChecked_;
+  std::vector<std::uint64_t> restVersion_;
   SpatialHash hash_;  // of the anchors, at the build
   std::vector<Eigen::Vector3d> colliderLo_, colliderHi_;  // each collider's bounds in the sub-step
   std::vector<char> colliderBounded_;                     // whether it has them (not a half-space)
