@@ -74,10 +74,9 @@ class Simulation {
   Simulation(const py::dict& params, const std::string& source) {
     const ParamLoader loader(toXmlRpc(params, source), source);
     params_ = loader.loadNodeParams();
-    const std::vector<ObjectSpec> objects = loader.loadObjects(params_);
+    std::vector<ObjectSpec> objects = loader.loadObjects(params_);
     unknown_ = loader.unknownParams();
-    scene_ = objects.empty() ? worldOfOne(buildScene(params_, loadMeshParam(params_), 0), params_)
-                             : buildWorld(params_, objects, loadMeshParam);
+    scene_ = buildNodeScene(params_, objects, loadMeshParam, 0);
     for (const ColliderSpec& spec : params_.colliders)
       if (!spec.followFrame.empty()) followers_[spec.id] = spec;
   }
@@ -162,6 +161,9 @@ class Simulation {
     out["alpha"] = s.alpha();
     out["requested_alpha"] = o.info.requestedAlpha;
     out["stiffness_saturated"] = s.stiffnessSaturated();
+    out["integrator"] = std::string(toString(s.params().integrator));
+    out["substeps"] = s.params().substeps;
+    out["integrator_choice"] = o.info.integratorChoice;
     out["pinned"] = o.info.pinned;
     out["ground_height"] = o.info.groundHeight;
     return out;

@@ -30,13 +30,12 @@ int main(int argc, char** argv) {
   try {
     using namespace deformable_flsm;
     const ParamLoader loader(pnh);
-    const NodeParams params = loader.loadNodeParams();
-    const std::vector<ObjectSpec> objects = loader.loadObjects(params);
+    NodeParams params = loader.loadNodeParams();
+    std::vector<ObjectSpec> objects = loader.loadObjects(params);
     for (const std::string& name : loader.unknownParams()) {
       ROS_WARN("flsm_node: ~%s is not a parameter of flsm_node (misspelt?); ignored", name.c_str());
     }
-    WorldScene scene = objects.empty() ? worldOfOne(buildScene(params, loadMeshParam(params)), params)
-                                       : buildWorld(params, objects, loadMeshParam);
+    WorldScene scene = buildNodeScene(params, objects, loadMeshParam);
     for (const SceneObject& o : scene.objects) {
       const std::string who = objects.empty() ? "" : "object '" + o.name + "': ";
       ROS_INFO_STREAM("flsm_node: " << who << "mesh '" << o.params.mesh << "'\n"

@@ -72,7 +72,7 @@ def simulate(tree, recording, tool, markers=None):
         if info["stiffness_saturated"]:
             # the explicit step caps the modulus: any larger one would read the same
             raise ParamError("the explicit step caps youngs_modulus %.4g at these substeps (alpha %.3g "
-                             "asked, %.3g used): set integrator: implicit, or more substeps"
+                             "asked, %.3g used): set integrator: implicit (or auto), or more substeps"
                              % (tree.get("youngs_modulus", math.nan), info["requested_alpha"], info["alpha"]))
     if tool not in sim.colliders:
         raise ParamError(f"the scene has no collider '{tool}' (its colliders: {', '.join(sim.colliders)})")

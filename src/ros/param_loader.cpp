@@ -108,11 +108,12 @@ NodeParams ParamLoader::loadNodeParams() const {
   }
   const std::string integrator = getString("integrator", toString(s.integrator));
   try {
-    s.integrator = parseIntegrator(integrator);
+    p.integratorAuto = integrator == "auto";
+    s.integrator = p.integratorAuto ? Integrator::Explicit : parseIntegrator(integrator);
   } catch (const std::invalid_argument&) {
     throw ParamError("~integrator is '" + integrator + "': it must be 'explicit' (symplectic Euler, the "
-                     "modulus capped by the sub-step) or 'implicit' (backward Euler, any modulus at one "
-                     "sub-step)");
+                     "modulus capped by the sub-step), 'implicit' (backward Euler, any modulus at one "
+                     "sub-step) or 'auto' (explicit where ~substeps give the modulus, else implicit)");
   }
   const std::string scheme = getString("implicit_scheme", toString(s.implicitScheme));
   try {

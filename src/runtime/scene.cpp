@@ -3,6 +3,7 @@
 #include "deformable_flsm/core/resolution.h"
 #include "deformable_flsm/core/section.h"
 #include "deformable_flsm/core/voxelizer.h"
+#include "deformable_flsm/runtime/format.h"
 #include "deformable_flsm/runtime/render_mesh.h"
 #include "deformable_flsm/runtime/simulation_loop.h"
 
@@ -335,6 +336,56 @@ WorldScene worldOfOne(Scene scene, const NodeParams& params) {
   object.info = scene.info;
   world.objects.push_back(std::move(object));
   return world;
+}
+
+namespace {
+
+void setIntegrator(NodeParams& params, std::vector<ObjectSpec>& objects, Integrator integrator, int substeps) {
+  params.solver.integrator = integrator;
+  params.solver.substeps = substeps;
+  for (ObjectSpec& spec : objects) {
+    spec.params.solver.integrator = integrator;
+    spec.params.solver.substeps = substeps;
+  }
+}
+
+}  // namespace
+
+WorldScene buildNodeScene(NodeParams& params, std::vector<ObjectSpec>& objects, const MeshLoader& loadMesh,
+                          int measureSteps) {
+  auto build = [&](int measure) {
+    return objects.empty() ? worldOfOne(buildScene(params, loadMesh(params), measure), params)
+                           : buildWorld(params, objects, loadMesh);
+  };
+  if (!params.integratorAuto) return build(measureSteps);
+  const int substeps = params.solver.substeps;
+  setIntegrator(params, objects, Integrator::Explicit, substeps);
+  WorldScene scene = build(0);
+  // the object the explicit step would soften most
+  const SceneObject* softest = nullptr;
+  for (const SceneObject& o : scene.objects)
+    if (o.info.substepsForModulus > 0 &&
+        (softest == nullptr || o.info.requestedAlpha / o.info.alpha > softest->info.requestedAlpha / softest->info.alpha))
+      softest = &o;
+  std::string choice;
+  if (softest == nullptr) {
+    choice = formatted("explicit (~integrator auto): it gives the modulus as asked at ~substeps %d", substeps);
+    if (measureSteps > 0 && objects.empty()) scene = build(measureSteps);
+  } else {
+    const std::string who = objects.empty() ? "the object" : "object '" + softest->name + "'";
+    choice = formatted("implicit at 1 sub-step (~integrator auto): the explicit step at ~substeps %d would make %s "
+                       "%.3g times softer than asked (it needs %d)",
+                       substeps, who.c_str(), softest->info.requestedAlpha / softest->info.alpha,
+                       softest->info.substepsForModulus);
+    setIntegrator(params, objects, Integrator::Implicit, 1);
+    scene = build(measureSteps);
+  }
+  for (SceneObject& o : scene.objects) {
+    o.info.integratorChoice = choice;
+    o.params.solver.integrator = params.solver.integrator;
+    o.params.solver.substeps = params.solver.substeps;
+  }
+  return scene;
 }
 
 }  // namespace deformable_flsm

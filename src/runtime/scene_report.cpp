@@ -101,6 +101,7 @@ std::string pinnedLine(const SceneInfo& info) {
 std::vector<std::string> sceneSummaryLines(const SceneInfo& info, const NodeParams& params) {
   std::vector<std::string> lines = {latticeLine(info, params), regionsLine(info, params),
                                     sectionLine(info, params), materialLine(info, params)};
+  if (!info.integratorChoice.empty()) lines.push_back("integrator: " + info.integratorChoice);
   if (info.stepMeasured) lines.push_back(stepLine(info, params));
   lines.push_back(renderLine(info, params));
   lines.push_back(collidersLine(info, params));

@@ -75,21 +75,52 @@ def test_the_ground_carries_the_weight_at_rest():
     assert np.hypot(*wrench["force"][:2]) < 0.01 * weight
 
 
-def test_a_sphere_pressed_in_follows_hertz_on_a_bonded_layer():
-    radius, depth, top = 0.02, 0.002, 0.03
-    sim = block(colliders=[dict(id="finger", type="sphere", radius=radius,
-                                position=[0.0, 0.0, top + radius + 0.0005],
-                                static_friction=0.0, kinetic_friction=0.0)])
-    assert "finger" in sim.colliders
-    # lowered 0.5 mm + depth over 1 s (less than a particle's radius a step), then held 1 s
-    z = top + radius + 0.0005 - np.concatenate([np.linspace(0.0, 0.0005 + depth, 31),
-                                                np.full(30, 0.0005 + depth)])
+SPHERE, DEPTH, TOP = 0.02, 0.002, 0.03  # the finger's radius, how far it goes in, the block's top
+
+
+def sphere_block(**overrides):
+    """block() with a frictionless sphere 'finger' 0.5 mm above its top centre."""
+    return block(colliders=[dict(id="finger", type="sphere", radius=SPHERE,
+                                 position=[0.0, 0.0, TOP + SPHERE + 0.0005],
+                                 static_friction=0.0, kinetic_friction=0.0)], **overrides)
+
+
+def press(sim):
+    """The finger lowered 0.5 mm + DEPTH over 1 s (less than a particle's radius a step), then
+    held 1 s: its last wrench."""
+    z = TOP + SPHERE + 0.0005 - np.concatenate([np.linspace(0.0, 0.0005 + DEPTH, 31),
+                                                np.full(30, 0.0005 + DEPTH)])
     path = np.column_stack([np.zeros_like(z), np.zeros_like(z), z])
     *_, (t, wrench) = sim.follow("finger", path)
     assert t == pytest.approx(61 * sim.time_step)
-    expected = hertz_on_bonded_layer(radius, depth, top, 20000.0, 0.3)
+    return wrench
+
+
+def test_a_sphere_pressed_in_follows_hertz_on_a_bonded_layer():
+    sim = sphere_block()
+    assert "finger" in sim.colliders
+    wrench = press(sim)
+    expected = hertz_on_bonded_layer(SPHERE, DEPTH, TOP, 20000.0, 0.3)
     assert wrench["force"][2] / expected == pytest.approx(1.0, abs=0.15)
     assert wrench["buried"] == 0
+
+
+def test_integrator_auto_gives_the_modulus_at_any_substeps():
+    # At 4 sub-steps the explicit step caps this block's modulus (2.5 mm cells, 20 kPa): asked for
+    # by name it is far softer than Hertz; `auto` takes the implicit step at one sub-step there
+    # and reads Hertz, and keeps the explicit step where its sub-steps give the modulus.
+    expected = hertz_on_bonded_layer(SPHERE, DEPTH, TOP, 20000.0, 0.3)
+    capped = sphere_block(integrator="explicit", substeps=4)
+    assert capped.info()["stiffness_saturated"]
+    assert press(capped)["force"][2] < 0.2 * expected
+    auto = sphere_block(integrator="auto", substeps=4)
+    info = auto.info()
+    assert (info["integrator"], info["substeps"]) == ("implicit", 1)
+    assert not info["stiffness_saturated"]
+    assert "~substeps 4" in info["integrator_choice"], info["integrator_choice"]
+    assert press(auto)["force"][2] / expected == pytest.approx(1.0, abs=0.15)
+    kept = block(integrator="auto", substeps=100).info()
+    assert (kept["integrator"], kept["substeps"], kept["stiffness_saturated"]) == ("explicit", 100, False)
 
 
 def test_a_collider_that_follows_a_frame_joins_at_its_first_pose():

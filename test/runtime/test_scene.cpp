@@ -296,6 +296,76 @@ TEST(BuildScene, SeveralObjectsWithTheImplicitStepAreBuilt) {
     for (const auto& x : scene.world->object(name)->positions()) ASSERT_TRUE(x.allFinite()) << name;
 }
 
+// ~integrator auto keeps the explicit step where ~substeps give the modulus, and otherwise builds
+// the whole scene with the implicit step at one sub-step (the modulus as asked), saying why; the
+// parameters come back with the choice, for the loop and for objects added later.
+TEST(BuildNodeScene, AutoTakesTheImplicitStepWhereTheExplicitOneWouldSoften) {
+  const auto cube = [](const NodeParams&) { return test::boxMesh(Eigen::Vector3d::Ones()); };
+  NodeParams soft = cubeParams();
+  soft.integratorAuto = true;
+  soft.solver.youngsModulus = 1e3;
+  std::vector<ObjectSpec> none;
+  WorldScene scene = buildNodeScene(soft, none, cube, 0);
+  const Solver& explicitOne = *scene.world->object(scene.world->objectNames().front());
+  EXPECT_EQ(explicitOne.params().integrator, Integrator::Explicit);
+  EXPECT_EQ(explicitOne.params().substeps, 4);
+  EXPECT_FALSE(explicitOne.stiffnessSaturated());
+  EXPECT_EQ(soft.solver.integrator, Integrator::Explicit);
+  EXPECT_NE(scene.objects.front().info.integratorChoice.find("explicit"), std::string::npos);
+
+  NodeParams stiff = soft;
+  stiff.solver.youngsModulus = 1e9;  // far stiffer than 4 sub-steps of 1/60 s allow
+  scene = buildNodeScene(stiff, none, cube, 0);
+  const Solver& implicitOne = *scene.world->object(scene.world->objectNames().front());
+  EXPECT_EQ(implicitOne.params().integrator, Integrator::Implicit);
+  EXPECT_EQ(implicitOne.params().substeps, 1);
+  EXPECT_FALSE(implicitOne.stiffnessSaturated());
+  EXPECT_DOUBLE_EQ(implicitOne.alpha(), implicitOne.params().requestedAlpha(implicitOne.lattice().spacing()));
+  EXPECT_EQ(stiff.solver.integrator, Integrator::Implicit);
+  EXPECT_EQ(stiff.solver.substeps, 1);
+  EXPECT_EQ(scene.world->substeps(), 1);
+  const std::string why = scene.objects.front().info.integratorChoice;
+  EXPECT_NE(why.find("implicit at 1 sub-step"), std::string::npos) << why;
+  EXPECT_NE(why.find("~substeps 4"), std::string::npos) << why;
+  bool reported = false;
+  for (const std::string& line : sceneSummaryLines(scene.objects.front().info, stiff))
+    reported = reported || line.rfind("integrator: implicit", 0) == 0;
+  EXPECT_TRUE(reported);
+
+  // Asked for by name, the explicit step stays, softened (and warned about), as before.
+  NodeParams named = stiff;
+  named.integratorAuto = false;
+  named.solver.integrator = Integrator::Explicit;
+  named.solver.substeps = 4;
+  scene = buildNodeScene(named, none, cube, 0);
+  EXPECT_TRUE(scene.world->object(scene.world->objectNames().front())->stiffnessSaturated());
+  EXPECT_EQ(scene.objects.front().info.integratorChoice, "");
+}
+
+// With several objects, one object the explicit step would soften takes the whole scene to the
+// implicit step (one World, one sub-step count), and the reason names it.
+TEST(BuildNodeScene, AutoWithSeveralObjectsFollowsTheStiffestNeed) {
+  const auto cube = [](const NodeParams&) { return test::boxMesh(Eigen::Vector3d::Ones()); };
+  NodeParams params = cubeParams();
+  params.integratorAuto = true;
+  params.solver.youngsModulus = 1e3;
+  std::vector<ObjectSpec> objects = twoCubesApart(params);
+  WorldScene scene = buildNodeScene(params, objects, cube, 0);
+  for (const std::string& name : scene.world->objectNames())
+    EXPECT_EQ(scene.world->object(name)->params().integrator, Integrator::Explicit) << name;
+  objects[1].params.solver.youngsModulus = 1e9;
+  scene = buildNodeScene(params, objects, cube, 0);
+  for (const std::string& name : scene.world->objectNames())
+    EXPECT_EQ(scene.world->object(name)->params().integrator, Integrator::Implicit) << name;
+  EXPECT_EQ(objects[0].params.solver.integrator, Integrator::Implicit);
+  EXPECT_EQ(objects[1].params.solver.substeps, 1);
+  EXPECT_NE(scene.objects.front().info.integratorChoice.find("object 'b'"), std::string::npos)
+      << scene.objects.front().info.integratorChoice;
+  for (int i = 0; i < 5; ++i) scene.world->step();
+  for (const std::string& name : scene.world->objectNames())
+    for (const auto& x : scene.world->object(name)->positions()) ASSERT_TRUE(x.allFinite()) << name;
+}
+
 // The implicit scheme bdf2 steps one object alone: objects that touch each other are refused at
 // start-up with what to change; with object contact off they are built.
 TEST(BuildScene, Bdf2ObjectsThatTouchAreRefusedWithWhatToChange) {

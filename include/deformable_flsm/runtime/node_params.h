@@ -98,6 +98,10 @@ struct NodeParams {
   /// ~youngs_modulus and ~poissons_ratio (see applyMaterial()); regionHalfWidth is set by
   /// resolveRegionHalfWidth()
   SolverParams solver;
+  /// ~integrator auto: buildNodeScene() chooses solver.integrator for the whole scene at start-up,
+  /// the explicit step where it gives every object its modulus at solver.substeps, else the
+  /// implicit step at one sub-step (solver.integrator and solver.substeps then hold the choice)
+  bool integratorAuto = false;
 
   // --- running and publishing -------------------------------------------------------------
   /// ~publish_rate: rate of every published topic and of tf (Hz, (0, kMaxPublishRate])

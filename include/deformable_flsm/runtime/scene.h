@@ -91,6 +91,17 @@ struct PreparedObject {
 ///         lattice or solver that cannot be built)
 PreparedObject prepareObject(const ObjectSpec& spec, const MeshLoader& loadMesh);
 
+/// The node's scene from its parameters: the object of ~mesh (buildScene(), worldOfOne()) or
+/// those of ~objects (buildWorld()). With ~integrator auto (NodeParams::integratorAuto) it is built
+/// with the explicit step first; if that step would make any object softer than asked at
+/// ~substeps, the scene is built again with the implicit step at one sub-step. `params` and
+/// `objects` come back with the integrator and sub-steps chosen (what the simulation loop and
+/// objects added later use), and each object's SceneInfo::integratorChoice says why.
+/// @param[in] measureSteps  as for buildScene() (the object of ~mesh only)
+/// @throws ParamError as buildScene() and buildWorld() do
+WorldScene buildNodeScene(NodeParams& params, std::vector<ObjectSpec>& objects, const MeshLoader& loadMesh,
+                          int measureSteps = 10);
+
 /// The single object of a node without ~objects: a World of one object named
 /// ~object_frame_id holding the built scene's solver at rest (lattice, parameters, pins,
 /// colliders).

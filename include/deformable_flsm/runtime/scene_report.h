@@ -51,6 +51,8 @@ struct SceneInfo {
   /// would bring the asked alpha under the cap when it is saturated (0 otherwise)
   double requestedAlpha = 0.0, alpha = 0.0;
   int substepsForModulus = 0;
+  /// what ~integrator auto chose and why (empty when the integrator was asked for by name)
+  std::string integratorChoice;
   /// false for an object of ~objects: the objects step together (~state's step_time)
   bool stepMeasured = true;
   /// measured: wall time of one step (s) and ns per particle per sub-step
@@ -60,7 +62,8 @@ struct SceneInfo {
 };
 
 /// The start-up summary, one entry per line (no newlines inside): lattice, regions, thinnest
-/// section, material, step cost (when measured), render mesh, colliders, pins.
+/// section, material, the integrator ~integrator auto chose, step cost (when measured), render mesh,
+/// colliders, pins.
 std::vector<std::string> sceneSummaryLines(const SceneInfo& info, const NodeParams& params);
 
 /// A few lines for the start-up log: sceneSummaryLines() joined by newlines (none at the end).
