@@ -360,7 +360,7 @@ WorldScene buildNodeScene(NodeParams& params, std::vector<ObjectSpec>& objects, 
   if (!params.integratorAuto) return build(measureSteps);
   const int substeps = params.solver.substeps;
   setIntegrator(params, objects, Integrator::Explicit, substeps);
-  WorldScene scene = build(0);
+  WorldScene scene = build(measureSteps);
   // the object the explicit step would soften most
   const SceneObject* softest = nullptr;
   for (const SceneObject& o : scene.objects)
@@ -370,7 +370,6 @@ WorldScene buildNodeScene(NodeParams& params, std::vector<ObjectSpec>& objects, 
   std::string choice;
   if (softest == nullptr) {
     choice = formatted("explicit (~integrator auto): it gives the modulus as asked at ~substeps %d", substeps);
-    if (measureSteps > 0 && objects.empty()) scene = build(measureSteps);
   } else {
     const std::string who = objects.empty() ? "the object" : "object '" + softest->name + "'";
     choice = formatted("implicit at 1 sub-step (~integrator auto): the explicit step at ~substeps %d would make %s "
@@ -380,11 +379,7 @@ WorldScene buildNodeScene(NodeParams& params, std::vector<ObjectSpec>& objects, 
     setIntegrator(params, objects, Integrator::Implicit, 1);
     scene = build(measureSteps);
   }
-  for (SceneObject& o : scene.objects) {
-    o.info.integratorChoice = choice;
-    o.params.solver.integrator = params.solver.integrator;
-    o.params.solver.substeps = params.solver.substeps;
-  }
+  for (SceneObject& o : scene.objects) o.info.integratorChoice = choice;
   return scene;
 }
 

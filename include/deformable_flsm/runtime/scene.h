@@ -93,8 +93,8 @@ PreparedObject prepareObject(const ObjectSpec& spec, const MeshLoader& loadMesh)
 
 /// The node's scene from its parameters: the object of ~mesh (buildScene(), worldOfOne()) or
 /// those of ~objects (buildWorld()). With ~integrator auto (NodeParams::integratorAuto) it is built
-/// with the explicit step first; if that step would make any object softer than asked at
-/// ~substeps, the scene is built again with the implicit step at one sub-step. `params` and
+/// with the explicit step; if that step would make any object softer than asked at ~substeps, the
+/// scene is built again with the implicit step at one sub-step. `params` and
 /// `objects` come back with the integrator and sub-steps chosen (what the simulation loop and
 /// objects added later use), and each object's SceneInfo::integratorChoice says why.
 /// @param[in] measureSteps  as for buildScene() (the object of ~mesh only)
