@@ -2,6 +2,9 @@
 other node would (topics and services of /flsm_node) and reads the state back."""
 
 import math
+import os
+import signal
+import subprocess
 import threading
 import time
 
@@ -14,6 +17,25 @@ from std_srvs.srv import Trigger
 
 from deformable_flsm.msg import ColliderCommand, DragCommand, ForceCommand, SimulationState
 from deformable_flsm.srv import PinBox
+
+
+def stop_recording(record, path, timeout=60.0):
+    """Stops `rosbag record` (started as subprocess.Popen) and waits until its bag is closed at
+    `path`; False if it was not within `timeout` s. `rosbag record` is a Python wrapper around the
+    recorder: on SIGINT it passes the signal on and exits at once, while the recorder still writes
+    the bag's index and renames `path`.active to `path` (on a busy machine, seconds later). So
+    the wait is for the bag, not for the process."""
+    record.send_signal(signal.SIGINT)
+    try:
+        record.wait(timeout)
+    except subprocess.TimeoutExpired:
+        record.kill()
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        if os.path.isfile(path) and not os.path.exists(path + '.active'):
+            return True
+        time.sleep(0.1)
+    return False
 
 
 class Counter(object):

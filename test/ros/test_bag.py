@@ -6,7 +6,6 @@ the node's clock), the played messages carry the stamps recorded, and a tf liste
 played clock finds the object's frame at each played state's stamp."""
 
 import os
-import signal
 import subprocess
 import tempfile
 import threading
@@ -21,6 +20,7 @@ import tf2_ros
 from std_srvs.srv import Empty
 
 from deformable_flsm.msg import SimulationState
+from flsm_testing import stop_recording
 
 PKG = 'deformable_flsm'
 TIMEOUT_S = 60.0
@@ -39,8 +39,7 @@ class BagTest(unittest.TestCase):
         rec = subprocess.Popen(['rosbag', 'record', '-O', path, '__name:=flsm_recorder'] + TOPICS,
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         time.sleep(RECORD_S)
-        rec.send_signal(signal.SIGINT)
-        rec.wait(timeout=TIMEOUT_S)
+        self.assertTrue(stop_recording(rec, path, TIMEOUT_S), 'rosbag record did not close its bag')
         # paused, the node serves no /clock and no tf: the bag's are the only ones from here on
         rospy.ServiceProxy('/flsm_node/pause', Empty)()
         time.sleep(1.0)

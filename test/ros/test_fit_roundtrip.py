@@ -6,7 +6,6 @@ modulus and Poisson's ratio within 3 %."""
 
 import os
 import shutil
-import signal
 import subprocess
 import tempfile
 import time
@@ -21,7 +20,7 @@ from geometry_msgs.msg import TransformStamped
 
 from deformable_flsm import fit as F
 from deformable_flsm.recording import Recording
-from flsm_testing import FlsmClient
+from flsm_testing import FlsmClient, stop_recording
 
 PKG = 'deformable_flsm'
 MODULUS, NU = 35000.0, 0.35   # fit_roundtrip.test
@@ -77,9 +76,8 @@ class FitRoundTripTest(unittest.TestCase):
                 rate.sleep()
             rospy.sleep(0.5)
         finally:
-            record.send_signal(signal.SIGINT)
-            record.wait(60)
-        self.assertTrue(os.path.isfile(bag), 'rosbag record wrote no bag')
+            closed = stop_recording(record, bag)
+        self.assertTrue(closed, 'rosbag record did not close its bag within 60 s of being stopped')
         try:
             recording = Recording.from_bag(bag, 'tool', '/flsm_node/contact_wrenches', 'world', collider='plate')
             depth = TOP - recording.poses[:, 2]
