@@ -17,11 +17,16 @@ import xml.etree.ElementTree as ET
 
 
 def failure_reason(element, limit=400):
-    """What a <failure> or <error> says, on one line: a Python traceback's last line (the
-    assertion), else the message; so that a log that keeps only the summary still says why."""
+    """What a <failure> or <error> says, on one line, so that a log that keeps only the summary
+    still says why."""
     text = (element.text or '').strip()
     lines = [l.strip() for l in text.splitlines() if l.strip()]
-    reason = lines[-1] if lines and 'Traceback' in text else (element.get('message') or text)
+    if lines and 'Traceback' in text:  # a Python traceback: the assertion is its last line
+        reason = lines[-1]
+    elif element.get('message'):  # gtest: the message, over a few lines
+        reason = element.get('message')
+    else:  # rosunit: the message on the first line, the stack below it
+        reason = lines[0] if lines else ''
     reason = ' '.join(reason.split())
     return reason if len(reason) <= limit else reason[:limit - 3] + '...'
 
