@@ -2,6 +2,7 @@
 /// LogQueue: log lines written by a thread of their own.
 #include "deformable_flsm/ros/log_queue.h"
 
+#include <pthread.h>
 #include <ros/console.h>
 
 #include <stdexcept>
@@ -11,6 +12,7 @@ namespace deformable_flsm {
 LogQueue::LogQueue(Sink sink, std::size_t capacity) : sink_(std::move(sink)), capacity_(capacity) {
   if (!sink_ || capacity_ == 0) throw std::invalid_argument("LogQueue: a sink and a capacity > 0 are needed");
   thread_ = std::thread([this] { run(); });
+  pthread_setname_np(thread_.native_handle(), "flsm_log");
 }
 
 LogQueue::~LogQueue() {

@@ -4,6 +4,8 @@
 /// guard are in simulation_loop_{commands,snapshots,colliders,guard}.cpp.
 #include "deformable_flsm/runtime/simulation_loop.h"
 
+#include <pthread.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -62,6 +64,8 @@ void SimulationLoop::start() {
   ensureFinite();
   writeSnapshot();  // the rest state, so that readers have something before the first step
   thread_ = std::thread(&SimulationLoop::run, this);
+  // named, so that a thread listing (top -H, /proc/<pid>/task/*/comm, gdb) tells the simulation apart
+  pthread_setname_np(thread_.native_handle(), "flsm_simulation");
 }
 
 void SimulationLoop::stop() {
