@@ -131,7 +131,7 @@ ObjectContactSolver::Staleness ObjectContactSolver::findStale(const std::vector<
     const double* e = allowance_.data() + offset_[o];
     const std::size_t n = x.size();
     Eigen::Vector3d sumX = Eigen::Vector3d::Zero(), sumV = Eigen::Vector3d::Zero();
-    bool still = true;
+    bool still = held;  // every velocity zero (looked at only for a frozen object)
     for (std::size_t i = 0; i < n; ++i) {
       sumX += x[i] + ahead * v[i] - a[i];
       sumV += v[i];
@@ -241,7 +241,6 @@ void ObjectContactSolver::resetList(const std::vector<Solver*>& objects, const O
   stale_.assign(N, 1);
   restChecked_.assign(N, 0);
   restVersion_.assign(N, 0);
-  awakeValid_ = false;
   reserveDoubling(awakeFrozen_, N);
   keys_.clear();
   const std::size_t total = offset_[N];
@@ -577,10 +576,10 @@ void ObjectContactSolver::renumberParticles() {
 // The passes leave two frozen objects' pairs alone: a pile asleep around a few awake objects costs what they touch.
 void ObjectContactSolver::selectAwake() {
   const std::size_t N = builtObjects_.size();
-  bool same = awakeValid_ && awakeBuild_ == listBuilds_;
+  // chosen after the list's latest build (every build counts in listBuilds_) and for the same frozen objects
+  bool same = awakeBuild_ == listBuilds_;
   for (std::size_t o = 0; same && o < N; ++o) same = awakeFrozen_[o] == char(frozen(static_cast<std::uint32_t>(o)));
   if (same) return;
-  awakeValid_ = true;
   awakeBuild_ = listBuilds_;
   awakeFrozen_.resize(N);
   for (std::size_t o = 0; o < N; ++o) awakeFrozen_[o] = frozen(static_cast<std::uint32_t>(o));

@@ -409,8 +409,7 @@ class ObjectContactSolver {
   // in candidates_, ascending), the particles they name (ascending), and what they were chosen for
   std::vector<std::uint32_t> awakeSlots_, awakeParticles_;
   std::vector<char> awakeFrozen_;
-  std::size_t awakeBuild_ = 0;
-  bool awakeValid_ = false;
+  std::size_t awakeBuild_ = 0;  // listBuilds_ when they were chosen (the passes run after a build: 1 or more)
   // per object, whether its last check found it frozen, at rest (every velocity zero) and within
   // its allowances, and the state it checked (Solver::stateVersion()): while it stays so, its
   // particles are not visited again (findStale())
