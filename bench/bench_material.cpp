@@ -147,7 +147,7 @@ struct Row {
   int maxIterations = 0;
 };
 
-void print(const char* name, int across, const Setting& s, const Row& r, const char* unit, double scale) {
+void print(const char* name, int across, const Setting& s, const Row& r, double scale) {
   char iterations[64] = "";
   if (s.integrator == Integrator::Implicit)
     std::snprintf(iterations, sizeof iterations, "  implicit, CG %.1f / %d", r.meanIterations, r.maxIterations);
@@ -374,17 +374,17 @@ int main(int argc, char** argv) {
           // minutes of settling; 4 sub-steps show the trend
           if (across == 8 && sub == 16 && onlySubsteps == 0) continue;
           for (const Setting& s : settings(w, sub, nu))
-            print("cantilever", across, s, cantilever(0.1, 0.8, across, s), "mm", 1e3);
+            print("cantilever", across, s, cantilever(0.1, 0.8, across, s), 1e3);
         }
     if (onlyAcross > 0) continue;
     for (int w = 1; w <= 3; ++w)
       for (int sub : substeps) {
         for (const Setting& s : settings(w, sub, nu)) {
-          print("stubby", 4, s, cantilever(0.2, 0.4, 4, s), "mm", 1e3);
-          print("column", 4, s, column(0.1, 4, s), "mm", 1e3);
+          print("stubby", 4, s, cantilever(0.2, 0.4, 4, s), 1e3);
+          print("column", 4, s, column(0.1, 4, s), 1e3);
           const auto [axial, lateral] = stretch(0.1, 4, s);
-          print("axial", 4, s, axial, "1e-3", 1e3);
-          print("lateral", 4, s, lateral, "1e-3", 1e3);
+          print("axial", 4, s, axial, 1e3);
+          print("lateral", 4, s, lateral, 1e3);
           std::printf("%-12s %40s lateral/axial %.3f (nu %.2f)\n", "", "", lateral.lattice / axial.lattice, nu);
         }
       }

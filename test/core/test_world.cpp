@@ -250,7 +250,9 @@ TEST(World, ContactPassesAreCountedInTheSubstepsWithContacts) {
     EXPECT_LE(during.substeps, 30u * kSubsteps);
     EXPECT_GE(during.passes, during.substeps);
     EXPECT_LE(during.passes, during.substeps * static_cast<std::size_t>(iterations));
-    if (iterations == 1) EXPECT_EQ(during.perSubstep(), 1.0);
+    if (iterations == 1) {
+      EXPECT_EQ(during.perSubstep(), 1.0);
+    }
   }
 }
 

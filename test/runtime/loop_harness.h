@@ -21,7 +21,7 @@ namespace test {
 /// Submits `body` and waits (at most 5 s, a failure beyond) for its outcome; the loop must be
 /// running.
 inline CommandOutcome runCommand(SimulationLoop& loop, CommandBody body) {
-  Command c{std::move(body), std::make_shared<std::promise<CommandOutcome>>()};
+  Command c{std::move(body), std::make_shared<std::promise<CommandOutcome>>(), std::string()};
   auto f = c.outcome->get_future();
   loop.submit(std::move(c));
   EXPECT_EQ(f.wait_for(std::chrono::seconds(5)), std::future_status::ready);

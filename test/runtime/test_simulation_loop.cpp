@@ -387,7 +387,7 @@ TEST(SimulationLoop, FullQueueRejectsAndAnswers) {
   Rig rig;  // not started: nothing drains the queue
   std::vector<std::future<CommandOutcome>> answers;
   for (std::size_t i = 0; i < CommandLimits::kQueueCapacity + 10; ++i) {
-    Command c{ResetCommand{}, std::make_shared<std::promise<CommandOutcome>>()};
+    Command c{ResetCommand{}, std::make_shared<std::promise<CommandOutcome>>(), std::string()};
     answers.push_back(c.outcome->get_future());
     rig.loop->submit(std::move(c));
   }
