@@ -119,11 +119,76 @@ def evaluate(values, base, recording, tool, fit_mask, markers=None, marker_mask=
 
 
 def marker_rms(carried, markers, mask):
-    """RMS of the markers' position error over the masked times, relative to the RMS of their
-    recorded displacement from rest there."""
+    """Ordered markers: the RMS of their position error over the masked times, relative to the
+    RMS of their recorded displacement from rest there. An unordered cloud: the RMS of the
+    distances between the recorded cloud and the carried rest points along the surface's normals
+    (cloud_residuals), relative to the same between the recorded cloud and the rest."""
+    if not markers.ordered:
+        error = np.mean(cloud_residuals(carried[mask], markers.positions[mask], markers.rest) ** 2)
+        scale = np.mean(cloud_residuals(np.broadcast_to(markers.rest, carried[mask].shape),
+                                        markers.positions[mask], markers.rest) ** 2)
+        return math.sqrt(error / scale) if scale > 0 else math.sqrt(error)
     error = np.sum((carried[mask] - markers.positions[mask]) ** 2, axis=2).mean()
     scale = np.sum((markers.positions[mask] - markers.rest) ** 2, axis=2).mean()
     return math.sqrt(error / scale) if scale > 0 else math.sqrt(error)
+
+
+def nearest(a, b):
+    """For each point of a (N, 3), the index of its nearest point of b (K, 3)."""
+    d2 = np.sum(a * a, axis=1)[:, None] - 2.0 * (a @ b.T) + np.sum(b * b, axis=1)[None, :]
+    return np.argmin(d2, axis=1)
+
+
+def surface_normals(points, neighbours):
+    """Unit normals (P, 3) of a surface sampled by points (P, 3), turned away from the points'
+    centroid, and how far from flat each point's neighbourhood (indices (P, k)) is: the least of
+    its spread's three variances over their sum (0 on a plane, 1/3 for a ball of points)."""
+    near = points[neighbours]
+    d = near - near.mean(axis=1, keepdims=True)
+    values, vectors = np.linalg.eigh(np.einsum("pki,pkj->pij", d, d))
+    n = vectors[:, :, 0]
+    n *= np.where(np.sum(n * (points - points.mean(axis=0)), axis=1) < 0.0, -1.0, 1.0)[:, None]
+    return n, values[:, 0] / np.maximum(values.sum(axis=1), 1e-300)
+
+
+#: neighbours of a point for its normal; the flatness (surface_normals) below which a point is
+#: on a face (above it, on an edge or a corner, where no one normal holds), raised to three times
+#: the cloud's median flatness for a noisy cloud; the least cosine between the normals of a pair
+CLOUD_NEIGHBOURS, CLOUD_FLAT, CLOUD_COSINE = 12, 0.002, 0.9
+
+
+def _neighbours(points):
+    d2 = np.sum((points[:, None, :] - points[None, :, :]) ** 2, axis=2)
+    return np.argsort(d2, axis=1)[:, :CLOUD_NEIGHBOURS]
+
+
+def _on_a_face(flatness):
+    return flatness < max(CLOUD_FLAT, 3.0 * float(np.median(flatness)))
+
+
+def cloud_residuals(simulated, recorded, rest):
+    """For clouds at the same times ((M, P, 3) each), the simulated being the rest points (P, 3)
+    carried by the simulation: every recorded point's distance from the nearest simulated point
+    along that point's surface normal, and every simulated point's from the nearest recorded one
+    along its own normal, all times together (2 M P,), signed (m). Point to plane, as in ICP: a
+    recorded point on the simulated surface between its sampled points counts zero, whatever
+    points either cloud happened to sample. A pair counts zero where either point is on an edge or
+    a corner (of the rest, of the recorded cloud) or their normals differ by more than 25 degrees:
+    there a point's nearest may lie on another face."""
+    neighbours = _neighbours(rest)
+    face = _on_a_face(surface_normals(rest, neighbours)[1])
+    out = []
+    for c, r in zip(simulated, recorded):
+        n, _ = surface_normals(c, neighbours)
+        nr, flatness = surface_normals(r, _neighbours(r))
+        face_r = _on_a_face(flatness)
+        j = nearest(r, c)
+        keep = face[j] & face_r & (np.abs(np.sum(nr * n[j], axis=1)) >= CLOUD_COSINE)
+        out.append(np.where(keep, np.sum((r - c[j]) * n[j], axis=1), 0.0))
+        i = nearest(c, r)
+        keep = face & face_r[i] & (np.abs(np.sum(nr[i] * n, axis=1)) >= CLOUD_COSINE)
+        out.append(np.where(keep, np.sum((r[i] - c) * n, axis=1), 0.0))
+    return np.concatenate(out)
 
 
 def relative_rms(simulated, measured, mask):
@@ -140,10 +205,15 @@ class FitSpec:
     bounds, the held-out share of the recording."""
 
     def __init__(self, recording, scene, tool, bounds, holdout=0.25, generations=30, population=0,
-                 seed=1, base=None, markers=None, markers_topic=None, frame_id="world"):
+                 seed=1, base=None, markers=None, markers_topic=None, frame_id="world", cloud=None,
+                 cloud_topic=None, cloud_box=None, cloud_points=600):
         self.recording = recording
         self.markers = markers
         self.markers_topic = markers_topic
+        self.cloud = cloud
+        self.cloud_topic = cloud_topic
+        self.cloud_box = cloud_box
+        self.cloud_points = int(cloud_points)
         self.frame_id = frame_id
         self.scene_files = list(scene)
         self.tool = tool
@@ -168,6 +238,9 @@ class FitSpec:
         args = dict(recording=rel(spec["recording"]) if "recording" in spec else None,
                     markers=rel(spec["markers"]) if spec.get("markers") else None,
                     markers_topic=spec.get("markers_topic"), frame_id=spec.get("frame_id", "world"),
+                    cloud=rel(spec["cloud"]) if spec.get("cloud") else None,
+                    cloud_topic=spec.get("cloud_topic"), cloud_box=spec.get("cloud_box"),
+                    cloud_points=spec.get("cloud_points", 600),
                     scene=[rel(s) for s in scene], tool=spec.get("tool"), bounds=spec.get("fit", {}),
                     holdout=spec.get("holdout", 0.25), generations=spec.get("generations", 30),
                     population=spec.get("population", 0), seed=spec.get("seed", 1))
@@ -194,6 +267,16 @@ class FitSpec:
             raise FitError(f"holdout {self.holdout}: the held-out share must be in [0, 0.9)")
         if self.generations < 1:
             raise FitError("generations must be 1 or more")
+        if sum(bool(x) for x in (self.markers, self.markers_topic, self.cloud, self.cloud_topic)) > 1:
+            raise FitError("give one of markers, markers_topic, cloud and cloud_topic")
+        box = self.cloud_box
+        if box is not None and not (isinstance(box, (list, tuple)) and len(box) == 6
+                                    and all(isinstance(v, (int, float)) and math.isfinite(v) for v in box)
+                                    and all(box[k] < box[k + 3] for k in range(3))):
+            raise FitError(f"cloud_box {box!r}: give [x0, y0, z0, x1, y1, z1] (m, the simulation frame) "
+                           "with x0 < x1, y0 < y1, z0 < z1")
+        if not 10 <= self.cloud_points <= 20000:
+            raise FitError(f"cloud_points {self.cloud_points}: sample 10 to 20000 points of each cloud")
 
     def base_tree(self):
         tree = load_params(self.base_file, *self.scene_files)
@@ -238,8 +321,20 @@ def _key(spec, base, recording, markers):
 
 
 def load_markers(spec, recording):
-    """The spec's markers (None without), their times on the recording's clock from its start: a
-    CSV, or a PointCloud2 topic of the recording's bag (markers_topic: the node's ~particles)."""
+    """The spec's markers or cloud (None without), their times on the recording's clock from its
+    start: a CSV, or a PointCloud2 topic of the recording's bag (markers_topic: the node's
+    ~particles; cloud_topic: a depth camera's points, cropped to cloud_box)."""
+    if spec.cloud_topic:
+        if not spec.recording.endswith(".bag"):
+            raise FitError("cloud_topic needs the recording to be a bag")
+        return Markers.cloud_from_bag(spec.recording, spec.cloud_topic, spec.frame_id, recording.start,
+                                      recording.start + recording.times[-1], points=spec.cloud_points,
+                                      box=spec.cloud_box, seed=spec.seed)
+    if spec.cloud:
+        if not os.path.isfile(spec.cloud):
+            raise FitError(f"the cloud {spec.cloud} does not exist")
+        m = Markers.cloud_from_csv(spec.cloud, points=spec.cloud_points, box=spec.cloud_box, seed=spec.seed)
+        return _on_the_recordings_clock(m, recording, spec.cloud)
     if spec.markers_topic:
         if not spec.recording.endswith(".bag"):
             raise FitError("markers_topic needs the recording to be a bag")
@@ -249,10 +344,13 @@ def load_markers(spec, recording):
         return None
     if not os.path.isfile(spec.markers):
         raise FitError(f"the markers {spec.markers} do not exist")
-    m = Markers.from_csv(spec.markers)
+    return _on_the_recordings_clock(Markers.from_csv(spec.markers), recording, spec.markers)
+
+
+def _on_the_recordings_clock(m, recording, path):
     m.times = m.times - recording.start
     if m.times[0] < -1e-9 or m.times[-1] > recording.times[-1] + 1e-9:
-        raise FitError(f"{spec.markers}: the markers' times must lie within the recording's "
+        raise FitError(f"{path}: its times must lie within the recording's "
                        f"(0 to {recording.times[-1]:.3f} s from its start)")
     return m
 
@@ -414,9 +512,15 @@ def uncertainty(cluster, best, base, recording, tool, mask, markers=None, marker
 
     def residual(res):
         out = (res["forces"][mask] - recording.forces[mask]) @ axis / fscale
-        if markers is not None:
+        if markers is not None and markers.ordered:
             mscale = math.sqrt(np.sum((markers.positions[marker_mask] - markers.rest) ** 2, axis=2).mean()) or 1.0
             out = np.concatenate([out, ((res["markers"][marker_mask] - markers.positions[marker_mask]) / mscale).ravel()])
+        elif markers is not None:
+            recorded = markers.positions[marker_mask]
+            mscale = math.sqrt(np.mean(cloud_residuals(np.broadcast_to(markers.rest, recorded.shape),
+                                                       recorded, markers.rest) ** 2)) or 1.0
+            out = np.concatenate([out, cloud_residuals(res["markers"][marker_mask], recorded,
+                                                       markers.rest) / mscale])
         return out
 
     J = np.column_stack([(residual(results[2 * i]) - residual(results[2 * i + 1])) / (2 * h[i])
@@ -474,7 +578,17 @@ def plot(path, recording, forces, mask, result, markers=None):
     ax[2].axhline(0.0, color="k", lw=0.5)
     ax[2].set_xlabel("time (s)")
     ax[2].set_ylabel("residual (N)")
-    if markers:
+    if markers and not markers[0].ordered:
+        m, carried = markers
+        rest = np.broadcast_to(m.rest, m.positions.shape)
+        rms = lambda a, b: np.array([1e3 * math.sqrt(np.mean(cloud_residuals(a[k:k + 1], b[k:k + 1], m.rest) ** 2))  # noqa: E731
+                                     for k in range(len(m.times))])
+        ax[3].plot(m.times, rms(rest, m.positions), ".", ms=4, label="recorded cloud from the rest")
+        ax[3].plot(m.times, rms(carried, m.positions), "-", label="recorded cloud from the simulated")
+        ax[3].set_xlabel("time (s)")
+        ax[3].set_ylabel("RMS distance along the normals (mm)")
+        ax[3].legend(fontsize="small")
+    elif markers:
         m, carried = markers
         for k, name in ((0, "x"), (1, "y"), (2, "z")):
             ax[3].plot(m.times, 1e3 * np.sqrt(np.mean((m.positions[:, :, k] - m.rest[:, k]) ** 2, axis=1)), ".",
@@ -498,6 +612,10 @@ def main(argv=None):
     parser.add_argument("--frame-id", help="(bag) the simulation frame (default world)")
     parser.add_argument("--markers-topic", help="(bag) a PointCloud2 of the same points in every message "
                                                 "(the node's ~particles) to follow as markers")
+    parser.add_argument("--cloud-topic", help="(bag) a PointCloud2 of the object from a depth camera "
+                                              "(any points, any order) to compare by nearest neighbours")
+    parser.add_argument("--cloud-box", type=float, nargs=6, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
+                        help="crop the cloud to this box (m, the simulation frame): the object only")
     parser.add_argument("--scheduler", help="a Dask scheduler (tcp://HOST:8786); default: a local cluster")
     parser.add_argument("--workers", type=int, help="local cluster's worker processes (default: the cores)")
     parser.add_argument("--generations", type=int)
@@ -506,7 +624,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
     try:
         spec = FitSpec.from_yaml(args.spec, recording=args.recording, generations=args.generations, seed=args.seed,
-                                 markers_topic=args.markers_topic, frame_id=args.frame_id)
+                                 markers_topic=args.markers_topic, frame_id=args.frame_id,
+                                 cloud_topic=args.cloud_topic, cloud_box=args.cloud_box)
         recording = load_recording(spec, args.tool_frame, args.wrench_topic, spec.frame_id)
         cluster = Cluster(args.scheduler, args.workers)
         try:

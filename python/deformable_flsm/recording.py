@@ -207,15 +207,19 @@ def _lookup(edges, root, frame, stamp, path):
 
 
 class Markers:
-    """Points on the object followed over time (markers, a tracked cloud): times (M,) s from the
-    recording's start, rest (P, 3) where they are at rest (the first time), positions (M, P, 3)
-    (m, simulation frame)."""
+    """Points on the object over time: times (M,) s from the recording's start, rest (P, 3) where
+    they are at rest (the first time), positions (M, P, 3) (m, simulation frame). Ordered (markers,
+    a tracked cloud): point p is the same material point at every time. Unordered (a depth
+    camera's cloud, cropped to the object): P points sampled from each cloud, no point the same
+    material point at two times; the rest's points are followed as material points, and compared
+    with each later cloud along the surface's normals (fit.cloud_residuals)."""
 
-    def __init__(self, times, rest, positions, source="markers"):
+    def __init__(self, times, rest, positions, source="markers", ordered=True):
         self.times = np.asarray(times, dtype=float)
         self.rest = np.asarray(rest, dtype=float)
         self.positions = np.asarray(positions, dtype=float)
         self.source = source
+        self.ordered = bool(ordered)
         m, p = len(self.times), len(self.rest)
         if m < 2 or p < 1 or self.positions.shape != (m, p, 3) or self.rest.shape != (p, 3):
             raise RecordingError(f"{source}: markers need two or more times of the same points")
@@ -243,6 +247,54 @@ class Markers:
         return cls(times, positions[0], positions, path)
 
     @classmethod
+    def cloud_from_csv(cls, path, points=600, box=None, seed=0):
+        """An unordered cloud from columns time, x, y, z (any number of points at each time; the
+        first time is the rest), cropped to `box` ([x0, y0, z0, x1, y1, z1], m) when given and
+        sampled to `points` points per time (see sample_cloud)."""
+        header, rows = _read_csv(path)
+        if header[:4] != ["time", "x", "y", "z"]:
+            raise RecordingError(f"{path}: the header must be time,x,y,z")
+        data = _numbers(path, rows, 4)
+        if data.ndim != 2 or len(data) == 0:
+            raise RecordingError(f"{path}: no points")
+        times = np.unique(data[:, 0])
+        rng = np.random.default_rng(seed)
+        clouds = [sample_cloud(data[data[:, 0] == t, 1:4], points, box, rng, f"{path} at {t} s")
+                  for t in times]
+        return cls(times, clouds[0], np.stack(clouds), path, ordered=False)
+
+    @classmethod
+    def cloud_from_bag(cls, path, topic, frame_id, start, end, interval=0.1, points=600, box=None,
+                       seed=0):
+        """An unordered cloud from a bag's sensor_msgs/PointCloud2 (a depth camera's points,
+        organized or not; NaN points skipped): the last cloud at or before `start` is the rest,
+        then one every `interval` s or more up to `end`, each cropped to `box` and sampled to
+        `points` points (see sample_cloud); times from `start`."""
+        import rosbag
+
+        rng = np.random.default_rng(seed)
+        with rosbag.Bag(path) as bag:
+            _check_cloud_topic(bag, path, topic)
+            rest, times, clouds = None, [], []
+            for _, m, _ in bag.read_messages(topics=[topic]):
+                t = m.header.stamp.to_sec()
+                if m.header.frame_id.lstrip("/") != frame_id:
+                    raise RecordingError(f"{path}: {topic} is in '{m.header.frame_id}': the cloud must be "
+                                         f"in the simulation frame '{frame_id}'")
+                at = f"{path} {topic} at {t:.3f} s"
+                if t <= start + 1e-9:
+                    rest = sample_cloud(_cloud_xyz(m, path, topic), points, box, rng, at)
+                elif t <= end + 1e-9 and rest is not None and t - start - (times[-1] if times else 0.0) >= interval - 1e-9:
+                    times.append(t - start)
+                    clouds.append(sample_cloud(_cloud_xyz(m, path, topic), points, box, rng, at))
+        if rest is None:
+            raise RecordingError(f"{path}: {topic} has no cloud at or before the recording's start (the rest)")
+        if not clouds:
+            raise RecordingError(f"{path}: {topic} has no cloud during the recording")
+        return cls(np.concatenate([[0.0], times]), rest, np.stack([rest] + clouds), f"{path} {topic}",
+                   ordered=False)
+
+    @classmethod
     def from_bag(cls, path, topic, frame_id, start, end, interval=0.1):
         """Markers from a bag's sensor_msgs/PointCloud2 whose points are the same material points
         in the same order in every message (the node's ~particles): the last cloud at or before
@@ -251,11 +303,7 @@ class Markers:
         import rosbag
 
         with rosbag.Bag(path) as bag:
-            topics = bag.get_type_and_topic_info().topics
-            if topic not in topics:
-                raise RecordingError(f"{path}: no topic {topic} (it has {', '.join(sorted(topics))})")
-            if topics[topic].msg_type != "sensor_msgs/PointCloud2":
-                raise RecordingError(f"{path}: {topic} is {topics[topic].msg_type}, not sensor_msgs/PointCloud2")
+            _check_cloud_topic(bag, path, topic)
             rest, times, clouds = None, [], []
             for _, m, _ in bag.read_messages(topics=[topic]):
                 t = m.header.stamp.to_sec()
@@ -272,6 +320,29 @@ class Markers:
         if not clouds or any(c.shape != rest.shape for c in clouds):
             raise RecordingError(f"{path}: {topic} needs clouds of the same points during the recording")
         return cls(np.concatenate([[0.0], times]), rest, np.stack([rest] + clouds), f"{path} {topic}")
+
+
+def sample_cloud(xyz, points, box, rng, source):
+    """`points` rows of the finite points of xyz (N, 3) inside `box` ([x0, y0, z0, x1, y1, z1] or
+    None): drawn without replacement when there are enough, else every one and the rest drawn
+    again (a nearest-neighbour distance does not mind a repeated point)."""
+    xyz = xyz[np.all(np.isfinite(xyz), axis=1)]
+    if box is not None:
+        lo, hi = np.asarray(box[:3], dtype=float), np.asarray(box[3:], dtype=float)
+        xyz = xyz[np.all((xyz >= lo) & (xyz <= hi), axis=1)]
+    if len(xyz) == 0:
+        raise RecordingError(f"{source}: no finite point" + (" inside the box" if box is not None else ""))
+    if len(xyz) >= points:
+        return xyz[rng.choice(len(xyz), points, replace=False)]
+    return np.concatenate([xyz, xyz[rng.choice(len(xyz), points - len(xyz), replace=True)]])
+
+
+def _check_cloud_topic(bag, path, topic):
+    topics = bag.get_type_and_topic_info().topics
+    if topic not in topics:
+        raise RecordingError(f"{path}: no topic {topic} (it has {', '.join(sorted(topics))})")
+    if topics[topic].msg_type != "sensor_msgs/PointCloud2":
+        raise RecordingError(f"{path}: {topic} is {topics[topic].msg_type}, not sensor_msgs/PointCloud2")
 
 
 def _cloud_xyz(msg, path, topic):

@@ -61,6 +61,72 @@ def test_a_squeeze_with_markers_gives_the_fem_oracles_modulus_and_poissons_ratio
     assert os.path.getsize(tmp_path / "fit.png") > 0
 
 
+def camera_like_cloud(path, out, points=700, seed=3):
+    """The FEM oracle's side nodes (squeeze_markers.csv) as a depth camera would see them: at each
+    time `points` new random points on the sides, each inside a triangle of a node and two of its
+    neighbours on the same face (the element's own displacement there, as the nodes' weighted
+    mean), in a random order; no point the same material point at two times. Written as an
+    unordered cloud CSV (time, x, y, z)."""
+    from deformable_flsm.recording import Markers
+    m = Markers.from_csv(path)
+    rng = np.random.default_rng(seed)
+    rest = m.rest
+    face = np.where(np.isclose(np.abs(rest[:, 0]), np.abs(rest[:, 0]).max()), 0, 1)
+    d2 = np.sum((rest[:, None] - rest[None]) ** 2, axis=2)
+    d2[face[:, None] != face[None, :]] = np.inf  # neighbours on the same face only
+    near = np.argsort(d2, axis=1)[:, 1:7]
+    rows = []
+    for k, t in enumerate(m.times):
+        a = rng.integers(0, len(rest), points)
+        pick = np.sort(rng.choice(6, (points, 2), replace=True), axis=1)
+        b, c = near[a, pick[:, 0]], near[a, pick[:, 1]]
+        w = rng.dirichlet([1.0, 1.0, 1.0], points)
+        x = w[:, :1] * m.positions[k, a] + w[:, 1:2] * m.positions[k, b] + w[:, 2:] * m.positions[k, c]
+        rows += [(t, *p) for p in x[rng.permutation(points)]]
+    with open(out, "w") as f:
+        f.write("time,x,y,z\n")
+        for r in rows:
+            f.write("%.6f,%.8f,%.8f,%.8f\n" % r)
+
+
+def test_a_cloud_is_compared_along_its_surface_whatever_points_it_sampled():
+    # a block's faces sampled twice at random: along the normals the clouds lie on each other;
+    # the sides pushed out 0.25 mm read 0.25 mm there, however the points fall
+    rng = np.random.default_rng(0)
+
+    def block(n, bulge=0.0):
+        p = rng.uniform(-0.025, 0.025, (n, 3))
+        face = rng.integers(0, 3, n)
+        p[np.arange(n), face] = rng.choice([-1.0, 1.0], n) * 0.025
+        p[:, :2] *= 1.0 + bulge / 0.025
+        return p
+
+    rest = block(1000)
+    same = F.cloud_residuals(rest[None], block(1000)[None], rest)
+    pushed = F.cloud_residuals(rest[None], block(1000, bulge=0.00025)[None], rest)
+    assert np.sqrt(np.mean(same ** 2)) < 0.05e-3
+    assert np.sqrt(np.mean(pushed ** 2)) > 0.1e-3
+    # carried as the recorded sides moved, the residual falls back
+    carried = F.cloud_residuals((rest * [1.01, 1.01, 1.0])[None], block(1000, bulge=0.00025)[None], rest)
+    assert np.sqrt(np.mean(carried ** 2)) < 0.5 * np.sqrt(np.mean(pushed ** 2))
+
+
+def test_a_camera_like_cloud_of_the_squeeze_gives_the_fem_oracles_poissons_ratio(local, tmp_path):
+    # the squeeze example with its tracked side nodes replaced by an unordered cloud of new
+    # points at each time (camera_like_cloud): compared along the surface's normals, the bulge
+    # still tells nu
+    cloud = str(tmp_path / "cloud.csv")
+    camera_like_cloud(os.path.join(EXAMPLE, "squeeze_markers.csv"), cloud)
+    spec = F.FitSpec.from_yaml(os.path.join(EXAMPLE, "squeeze_fit.yaml"), markers="", cloud=cloud)
+    assert spec.markers == "" and spec.cloud == cloud
+    result = F.fit(spec, str(tmp_path / "out"), local, log=lambda m: None)
+    p = result["parameters"]
+    assert p["youngs_modulus"] / FEM_MODULUS == pytest.approx(1.0, abs=0.10), p
+    assert p["poissons_ratio"] == pytest.approx(0.3, abs=0.05), p
+    assert result["not_determined"] == [] and result["at_bound"] == [], result
+    assert os.path.getsize(tmp_path / "out" / "fit.png") > 0
+
+
 def poke_recording(youngs, nu=0.3, depth=0.002):
     """The example's scene with a known material, poked along the FEM recording's path: the
     force on the punch, as a robot's wrist sensor would record it."""
@@ -274,6 +340,11 @@ def test_bad_input_is_refused_before_any_simulation(local, tmp_path):
         F.FitSpec("x.csv", [], "punch", {"stiffnes": [1, 2]})
     with pytest.raises(F.FitError, match="low < high"):
         F.FitSpec("x.csv", [], "punch", {"youngs_modulus": [5e4, 1e3]})
+    with pytest.raises(F.FitError, match="one of markers, markers_topic, cloud"):
+        F.FitSpec("x.csv", [], "punch", {"youngs_modulus": [1e3, 5e4]}, markers="m.csv", cloud="c.csv")
+    with pytest.raises(F.FitError, match="cloud_box"):
+        F.FitSpec("x.csv", [], "punch", {"youngs_modulus": [1e3, 5e4]}, cloud="c.csv",
+                  cloud_box=[0.0, 0.0, 0.0, 0.1, -0.1, 0.1])
     bad_csv = tmp_path / "bad.csv"
     bad_csv.write_text("time,x,y,z,fx\n0,0,0,0,0\n")
     with pytest.raises(RecordingError, match="no column fy, fz"):
