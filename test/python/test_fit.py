@@ -240,6 +240,46 @@ def test_markers_read_from_a_bags_point_clouds(tmp_path):
         Markers.from_bag(path, "/flsm_node/particles", "world", start=5.0, end=10.5)
 
 
+def test_a_depth_cameras_cloud_read_from_a_bag(tmp_path):
+    # an organized cloud with NaN where nothing is seen and points beyond the object (the ground):
+    # NaN skipped, cropped to the box, sampled to the asked count; the last before the start is
+    # the rest
+    import rosbag
+    import rospy
+    from sensor_msgs import point_cloud2
+    from sensor_msgs.msg import PointField
+    from std_msgs.msg import Header
+    from deformable_flsm.recording import Markers
+
+    fields = [PointField("x", 0, PointField.FLOAT32, 1), PointField("y", 4, PointField.FLOAT32, 1),
+              PointField("z", 8, PointField.FLOAT32, 1)]
+    rng = np.random.default_rng(1)
+    path = str(tmp_path / "camera.bag")
+    with rosbag.Bag(path, "w") as bag:
+        for k in range(31):  # 30 Hz from t = 9.5 s to 10.5 s; the recording starts at 10 s
+            t = 9.5 + k / 30.0
+            top = 0.05 - max(0.0, t - 10.0) * 0.002  # the object's top, pressed down
+            obj = np.column_stack([rng.uniform(-0.02, 0.02, (300, 2)), np.full(300, top)])
+            ground = np.column_stack([rng.uniform(-0.2, 0.2, (200, 2)), np.zeros(200)])
+            pts = np.concatenate([obj, ground, np.full((100, 3), np.nan)])[rng.permutation(600)]
+            header = Header(stamp=rospy.Time.from_sec(t), frame_id="world")
+            cloud = point_cloud2.create_cloud(header, fields, [tuple(p) for p in pts])
+            cloud.height, cloud.width, cloud.row_step = 20, 30, 30 * cloud.point_step  # organized
+            bag.write("/camera/depth/points", cloud, header.stamp)
+    box = [-0.05, -0.05, 0.01, 0.05, 0.05, 0.1]
+    m = Markers.cloud_from_bag(path, "/camera/depth/points", "world", start=10.0, end=10.5, points=250,
+                               box=box, seed=2)
+    assert not m.ordered and m.rest.shape == (250, 3) and m.positions.shape[1:] == (250, 3)
+    assert m.times[0] == 0.0 and np.all(np.diff(m.times) >= 0.1 - 1e-6) and m.times[-1] <= 0.5 + 1e-6
+    np.testing.assert_allclose(m.rest[:, 2], 0.05, atol=1e-6)  # no ground, no NaN
+    np.testing.assert_allclose(m.positions[:, :, 2], (0.05 - 0.002 * m.times)[:, None] * np.ones(250), atol=1e-6)
+    with pytest.raises(RecordingError, match="no finite point inside the box"):
+        Markers.cloud_from_bag(path, "/camera/depth/points", "world", start=10.0, end=10.5,
+                               box=[1.0, 1.0, 1.0, 2.0, 2.0, 2.0])
+    with pytest.raises(RecordingError, match="simulation frame"):
+        Markers.cloud_from_bag(path, "/camera/depth/points", "map", start=10.0, end=10.5)
+
+
 def test_a_simulated_poke_read_back_from_a_bag_gives_its_modulus_within_three_percent(local, tmp_path):
     truth = 35000.0
     recorded = poke_recording(truth)
