@@ -270,23 +270,10 @@ class Markers:
         organized or not; NaN points skipped): the last cloud at or before `start` is the rest,
         then one every `interval` s or more up to `end`, each cropped to `box` and sampled to
         `points` points (see sample_cloud); times from `start`."""
-        import rosbag
-
         rng = np.random.default_rng(seed)
-        with rosbag.Bag(path) as bag:
-            _check_cloud_topic(bag, path, topic)
-            rest, times, clouds = None, [], []
-            for _, m, _ in bag.read_messages(topics=[topic]):
-                t = m.header.stamp.to_sec()
-                if m.header.frame_id.lstrip("/") != frame_id:
-                    raise RecordingError(f"{path}: {topic} is in '{m.header.frame_id}': the cloud must be "
-                                         f"in the simulation frame '{frame_id}'")
-                at = f"{path} {topic} at {t:.3f} s"
-                if t <= start + 1e-9:
-                    rest = sample_cloud(_cloud_xyz(m, path, topic), points, box, rng, at)
-                elif t <= end + 1e-9 and rest is not None and t - start - (times[-1] if times else 0.0) >= interval - 1e-9:
-                    times.append(t - start)
-                    clouds.append(sample_cloud(_cloud_xyz(m, path, topic), points, box, rng, at))
+        rest, times, clouds = _read_clouds(
+            path, topic, frame_id, start, end, interval,
+            lambda xyz, t: sample_cloud(xyz, points, box, rng, f"{path} {topic} at {t:.3f} s"))
         if rest is None:
             raise RecordingError(f"{path}: {topic} has no cloud at or before the recording's start (the rest)")
         if not clouds:
@@ -300,21 +287,7 @@ class Markers:
         in the same order in every message (the node's ~particles): the last cloud at or before
         `start` (the recording's clock) is the rest, then one cloud every `interval` s or more up
         to `end`; times from `start`."""
-        import rosbag
-
-        with rosbag.Bag(path) as bag:
-            _check_cloud_topic(bag, path, topic)
-            rest, times, clouds = None, [], []
-            for _, m, _ in bag.read_messages(topics=[topic]):
-                t = m.header.stamp.to_sec()
-                if m.header.frame_id.lstrip("/") != frame_id:
-                    raise RecordingError(f"{path}: {topic} is in '{m.header.frame_id}': markers must be in "
-                                         f"the simulation frame '{frame_id}'")
-                if t <= start + 1e-9:
-                    rest = _cloud_xyz(m, path, topic)
-                elif t <= end + 1e-9 and rest is not None and t - start - (times[-1] if times else 0.0) >= interval - 1e-9:
-                    times.append(t - start)
-                    clouds.append(_cloud_xyz(m, path, topic))
+        rest, times, clouds = _read_clouds(path, topic, frame_id, start, end, interval, lambda xyz, t: xyz)
         if rest is None:
             raise RecordingError(f"{path}: {topic} has no cloud at or before the recording's start (the rest)")
         if not clouds or any(c.shape != rest.shape for c in clouds):
@@ -337,12 +310,30 @@ def sample_cloud(xyz, points, box, rng, source):
     return np.concatenate([xyz, xyz[rng.choice(len(xyz), points - len(xyz), replace=True)]])
 
 
-def _check_cloud_topic(bag, path, topic):
-    topics = bag.get_type_and_topic_info().topics
-    if topic not in topics:
-        raise RecordingError(f"{path}: no topic {topic} (it has {', '.join(sorted(topics))})")
-    if topics[topic].msg_type != "sensor_msgs/PointCloud2":
-        raise RecordingError(f"{path}: {topic} is {topics[topic].msg_type}, not sensor_msgs/PointCloud2")
+def _read_clouds(path, topic, frame_id, start, end, interval, convert):
+    """A bag's sensor_msgs/PointCloud2 on `topic`, each as convert(xyz (N, 3), stamp): the last at
+    or before `start` (the rest; None without), then one every `interval` s or more up to `end`
+    with its time from `start`. Returns (rest, times, clouds)."""
+    import rosbag
+
+    with rosbag.Bag(path) as bag:
+        topics = bag.get_type_and_topic_info().topics
+        if topic not in topics:
+            raise RecordingError(f"{path}: no topic {topic} (it has {', '.join(sorted(topics))})")
+        if topics[topic].msg_type != "sensor_msgs/PointCloud2":
+            raise RecordingError(f"{path}: {topic} is {topics[topic].msg_type}, not sensor_msgs/PointCloud2")
+        rest, times, clouds = None, [], []
+        for _, m, _ in bag.read_messages(topics=[topic]):
+            t = m.header.stamp.to_sec()
+            if m.header.frame_id.lstrip("/") != frame_id:
+                raise RecordingError(f"{path}: {topic} is in '{m.header.frame_id}': it must be in the "
+                                     f"simulation frame '{frame_id}'")
+            if t <= start + 1e-9:
+                rest = convert(_cloud_xyz(m, path, topic), t)
+            elif t <= end + 1e-9 and rest is not None and t - start - (times[-1] if times else 0.0) >= interval - 1e-9:
+                times.append(t - start)
+                clouds.append(convert(_cloud_xyz(m, path, topic), t))
+    return rest, times, clouds
 
 
 def _cloud_xyz(msg, path, topic):
