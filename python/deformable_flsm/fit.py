@@ -613,7 +613,7 @@ def main(argv=None):
     parser.add_argument("--markers-topic", help="(bag) a PointCloud2 of the same points in every message "
                                                 "(the node's ~particles) to follow as markers")
     parser.add_argument("--cloud-topic", help="(bag) a PointCloud2 of the object from a depth camera "
-                                              "(any points, any order) to compare by nearest neighbours")
+                                              "(any points, any order) to compare point to plane")
     parser.add_argument("--cloud-box", type=float, nargs=6, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"),
                         help="crop the cloud to this box (m, the simulation frame): the object only")
     parser.add_argument("--scheduler", help="a Dask scheduler (tcp://HOST:8786); default: a local cluster")
