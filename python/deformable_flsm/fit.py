@@ -124,9 +124,9 @@ def marker_rms(carried, markers, mask):
     distances between the recorded cloud and the carried rest points along the surface's normals
     (cloud_residuals), relative to the same between the recorded cloud and the rest."""
     if not markers.ordered:
-        error = np.mean(cloud_residuals(carried[mask], markers.positions[mask], markers.rest) ** 2)
-        scale = np.mean(cloud_residuals(np.broadcast_to(markers.rest, carried[mask].shape),
-                                        markers.positions[mask], markers.rest) ** 2)
+        reference, frames = cloud_reference(markers), np.flatnonzero(mask)
+        error = np.mean(reference.residuals(carried[mask], frames) ** 2)
+        scale = np.mean(reference.residuals(np.broadcast_to(markers.rest, carried[mask].shape), frames) ** 2)
         return math.sqrt(error / scale) if scale > 0 else math.sqrt(error)
     error = np.sum((carried[mask] - markers.positions[mask]) ** 2, axis=2).mean()
     scale = np.sum((markers.positions[mask] - markers.rest) ** 2, axis=2).mean()
@@ -166,6 +166,38 @@ def _on_a_face(flatness):
     return flatness < max(CLOUD_FLAT, 3.0 * float(np.median(flatness)))
 
 
+class CloudReference:
+    """What comparing a recorded cloud with the carried rest points needs that no candidate
+    changes: the rest's neighbours and which of its points lie on a face, each recorded frame's
+    normals and which of its points lie on a face. Made once for a fit (load_markers), not in
+    every evaluation."""
+
+    def __init__(self, rest, recorded):
+        self.neighbours = _neighbours(rest)
+        self.face = _on_a_face(surface_normals(rest, self.neighbours)[1])
+        self.recorded = np.asarray(recorded)
+        self.normals, self.faces = [], []
+        for r in self.recorded:
+            n, flatness = surface_normals(r, _neighbours(r))
+            self.normals.append(n)
+            self.faces.append(_on_a_face(flatness))
+
+    def residuals(self, simulated, frames):
+        """cloud_residuals of the simulated clouds ((len(frames), P, 3)) against the recorded
+        frames of those indices."""
+        out = []
+        for c, k in zip(simulated, frames):
+            r, nr, face_r = self.recorded[k], self.normals[k], self.faces[k]
+            n, _ = surface_normals(c, self.neighbours)
+            j = nearest(r, c)
+            keep = self.face[j] & face_r & (np.abs(np.sum(nr * n[j], axis=1)) >= CLOUD_COSINE)
+            out.append(np.where(keep, np.sum((r - c[j]) * n[j], axis=1), 0.0))
+            i = nearest(c, r)
+            keep = self.face & face_r[i] & (np.abs(np.sum(nr[i] * n, axis=1)) >= CLOUD_COSINE)
+            out.append(np.where(keep, np.sum((r[i] - c) * n, axis=1), 0.0))
+        return np.concatenate(out)
+
+
 def cloud_residuals(simulated, recorded, rest):
     """For clouds at the same times ((M, P, 3) each), the simulated being the rest points (P, 3)
     carried by the simulation: every recorded point's distance from the nearest simulated point
@@ -175,20 +207,15 @@ def cloud_residuals(simulated, recorded, rest):
     points either cloud happened to sample. A pair counts zero where either point is on an edge or
     a corner (of the rest, of the recorded cloud) or their normals differ by more than 25 degrees:
     there a point's nearest may lie on another face."""
-    neighbours = _neighbours(rest)
-    face = _on_a_face(surface_normals(rest, neighbours)[1])
-    out = []
-    for c, r in zip(simulated, recorded):
-        n, _ = surface_normals(c, neighbours)
-        nr, flatness = surface_normals(r, _neighbours(r))
-        face_r = _on_a_face(flatness)
-        j = nearest(r, c)
-        keep = face[j] & face_r & (np.abs(np.sum(nr * n[j], axis=1)) >= CLOUD_COSINE)
-        out.append(np.where(keep, np.sum((r - c[j]) * n[j], axis=1), 0.0))
-        i = nearest(c, r)
-        keep = face & face_r[i] & (np.abs(np.sum(nr[i] * n, axis=1)) >= CLOUD_COSINE)
-        out.append(np.where(keep, np.sum((r[i] - c) * n, axis=1), 0.0))
-    return np.concatenate(out)
+    return CloudReference(rest, recorded).residuals(simulated, range(len(recorded)))
+
+
+def cloud_reference(markers):
+    """The CloudReference of an unordered cloud (recording.Markers), made at its first use and
+    kept with it (sent to the workers with it)."""
+    if getattr(markers, "cloud_reference", None) is None:
+        markers.cloud_reference = CloudReference(markers.rest, markers.positions)
+    return markers.cloud_reference
 
 
 def relative_rms(simulated, measured, mask):
@@ -327,13 +354,16 @@ def load_markers(spec, recording):
     if spec.cloud_topic:
         if not spec.recording.endswith(".bag"):
             raise FitError("cloud_topic needs the recording to be a bag")
-        return Markers.cloud_from_bag(spec.recording, spec.cloud_topic, spec.frame_id, recording.start,
-                                      recording.start + recording.times[-1], points=spec.cloud_points,
-                                      box=spec.cloud_box, seed=spec.seed)
+        m = Markers.cloud_from_bag(spec.recording, spec.cloud_topic, spec.frame_id, recording.start,
+                                   recording.start + recording.times[-1], points=spec.cloud_points,
+                                   box=spec.cloud_box, seed=spec.seed)
+        cloud_reference(m)  # once, before the evaluations take it to the workers
+        return m
     if spec.cloud:
         if not os.path.isfile(spec.cloud):
             raise FitError(f"the cloud {spec.cloud} does not exist")
         m = Markers.cloud_from_csv(spec.cloud, points=spec.cloud_points, box=spec.cloud_box, seed=spec.seed)
+        cloud_reference(m)  # once, before the evaluations take it to the workers
         return _on_the_recordings_clock(m, recording, spec.cloud)
     if spec.markers_topic:
         if not spec.recording.endswith(".bag"):
@@ -516,11 +546,10 @@ def uncertainty(cluster, best, base, recording, tool, mask, markers=None, marker
             mscale = math.sqrt(np.sum((markers.positions[marker_mask] - markers.rest) ** 2, axis=2).mean()) or 1.0
             out = np.concatenate([out, ((res["markers"][marker_mask] - markers.positions[marker_mask]) / mscale).ravel()])
         elif markers is not None:
-            recorded = markers.positions[marker_mask]
-            mscale = math.sqrt(np.mean(cloud_residuals(np.broadcast_to(markers.rest, recorded.shape),
-                                                       recorded, markers.rest) ** 2)) or 1.0
-            out = np.concatenate([out, cloud_residuals(res["markers"][marker_mask], recorded,
-                                                       markers.rest) / mscale])
+            reference, frames = cloud_reference(markers), np.flatnonzero(marker_mask)
+            rest = np.broadcast_to(markers.rest, (len(frames),) + markers.rest.shape)
+            mscale = math.sqrt(np.mean(reference.residuals(rest, frames) ** 2)) or 1.0
+            out = np.concatenate([out, reference.residuals(res["markers"][marker_mask], frames) / mscale])
         return out
 
     J = np.column_stack([(residual(results[2 * i]) - residual(results[2 * i + 1])) / (2 * h[i])
@@ -580,11 +609,12 @@ def plot(path, recording, forces, mask, result, markers=None):
     ax[2].set_ylabel("residual (N)")
     if markers and not markers[0].ordered:
         m, carried = markers
-        rest = np.broadcast_to(m.rest, m.positions.shape)
-        rms = lambda a, b: np.array([1e3 * math.sqrt(np.mean(cloud_residuals(a[k:k + 1], b[k:k + 1], m.rest) ** 2))  # noqa: E731
-                                     for k in range(len(m.times))])
-        ax[3].plot(m.times, rms(rest, m.positions), ".", ms=4, label="recorded cloud from the rest")
-        ax[3].plot(m.times, rms(carried, m.positions), "-", label="recorded cloud from the simulated")
+        reference = cloud_reference(m)
+        rms = lambda a: np.array([1e3 * math.sqrt(np.mean(reference.residuals(a[k:k + 1], [k]) ** 2))  # noqa: E731
+                                  for k in range(len(m.times))])
+        ax[3].plot(m.times, rms(np.broadcast_to(m.rest, m.positions.shape)), ".", ms=4,
+                   label="recorded cloud from the rest")
+        ax[3].plot(m.times, rms(carried), "-", label="recorded cloud from the simulated")
         ax[3].set_xlabel("time (s)")
         ax[3].set_ylabel("RMS distance along the normals (mm)")
         ax[3].legend(fontsize="small")
