@@ -29,6 +29,8 @@ from deformable_flsm.search import Bracket, Cluster, Cma, Space  # noqa: F401 (a
 
 #: what a fit may vary: the node's material parameters, and the tool's friction
 FITTABLE = ("youngs_modulus", "poissons_ratio", "damping", "ambient_damping", "density", "friction")
+# the observations of the object beside the tool's force: at most one is compared
+OBSERVATIONS = ("markers", "markers_topic", "cloud", "cloud_topic")
 
 
 class FitError(ValueError):
@@ -271,7 +273,11 @@ class FitSpec:
                     scene=[rel(s) for s in scene], tool=spec.get("tool"), bounds=spec.get("fit", {}),
                     holdout=spec.get("holdout", 0.25), generations=spec.get("generations", 30),
                     population=spec.get("population", 0), seed=spec.get("seed", 1))
-        args.update({k: v for k, v in overrides.items() if v is not None})
+        overrides = {k: v for k, v in overrides.items() if v is not None}
+        if any(k in overrides for k in OBSERVATIONS):
+            for k in OBSERVATIONS:  # a source given here replaces the file's, as a command line flag does
+                args[k] = None
+        args.update(overrides)
         return cls(**args)
 
     def validate(self):
@@ -294,7 +300,7 @@ class FitSpec:
             raise FitError(f"holdout {self.holdout}: the held-out share must be in [0, 0.9)")
         if self.generations < 1:
             raise FitError("generations must be 1 or more")
-        if sum(bool(x) for x in (self.markers, self.markers_topic, self.cloud, self.cloud_topic)) > 1:
+        if sum(bool(getattr(self, k)) for k in OBSERVATIONS) > 1:
             raise FitError("give one of markers, markers_topic, cloud and cloud_topic")
         box = self.cloud_box
         if box is not None and not (isinstance(box, (list, tuple)) and len(box) == 6

@@ -382,6 +382,9 @@ def test_bad_input_is_refused_before_any_simulation(local, tmp_path):
         F.FitSpec("x.csv", [], "punch", {"youngs_modulus": [5e4, 1e3]})
     with pytest.raises(F.FitError, match="one of markers, markers_topic, cloud"):
         F.FitSpec("x.csv", [], "punch", {"youngs_modulus": [1e3, 5e4]}, markers="m.csv", cloud="c.csv")
+    # a source given beside a spec file replaces the file's (as --markers-topic does), not refused
+    squeeze = F.FitSpec.from_yaml(os.path.join(EXAMPLE, "squeeze_fit.yaml"), markers_topic="/flsm_node/particles")
+    assert (squeeze.markers, squeeze.markers_topic) == (None, "/flsm_node/particles")
     with pytest.raises(F.FitError, match="cloud_box"):
         F.FitSpec("x.csv", [], "punch", {"youngs_modulus": [1e3, 5e4]}, cloud="c.csv",
                   cloud_box=[0.0, 0.0, 0.0, 0.1, -0.1, 0.1])
