@@ -138,43 +138,15 @@ void SimulationLoop::followTime(double time) {
 }
 
 void SimulationLoop::run() {
-  const LoopTime mode = settings_.time;
   running_ = true;
-  Clock::time_point last = clock_->now();
-  restartWindow(last);
-  double owed = 0.0;  // simulated seconds due but not yet stepped (Paced, Served)
-  // the clock's time since `last` owed at `pace`; `last` moves on to now, which it returns
-  const auto accrue = [&](double pace) {
-    const Clock::time_point t = clock_->now();
-    owed += seconds(t - last) * pace;
-    last = t;
-    return t;
-  };
+  paceFrom_ = clock_->now();
+  restartWindow(paceFrom_);
+  owed_ = 0.0;
   std::vector<Command> batch;
   batch.reserve(CommandLimits::kQueueCapacity);
   for (;;) {
-    bool woken = false, followed = false;
-    double target = 0.0;
-    {
-      std::unique_lock<std::mutex> lock(queueMutex_);
-      // Nothing to do until something happens: paused (no steps asked), or at rest where the
-      // time stands still with the state. At rest a served time goes on (below), and a followed
-      // one moves on with the time it follows.
-      const bool waitForWork = paused_ ? stepsRequested_ == 0 : idle_ && mode != LoopTime::Served;
-      if (waitForWork) {
-        wakeUp_.wait(lock, [&] {
-          return stopRequested_ || wakeRequested_ || !queue_.empty() ||
-                 (followMoved_ && !paused_);
-        });
-      }
-      if (stopRequested_) break;
-      batch.swap(queue_);
-      woken = wakeRequested_;
-      wakeRequested_ = false;
-      followed = followSet_;
-      target = followTarget_;
-      followMoved_ = false;
-    }
+    const Arrivals arrived = collect(batch);
+    if (arrived.stop) break;
     bool acted = false;
     for (Command& c : batch) {
       ++appliedKinds_[c.body.index()];
@@ -186,106 +158,147 @@ void SimulationLoop::run() {
       stepOnRequest(dt);
       continue;
     }
-
     const double rtf = realTimeFactor_.load();
-    if (rtf != diag_.requestedRealTimeFactor) {
-      // A new pace: the clock's time until now is owed at the old one (a wait cut short by the
-      // change is not a backlog at the new pace); measure it afresh rather than average it with
-      // the old one.
-      const Clock::time_point changed = accrue(diag_.requestedRealTimeFactor);
-      diag_.requestedRealTimeFactor = rtf;
-      restartWindow(changed);
-    }
-    if (resumed_) {
-      // Unpaused: the time spent paused is not owed.
-      resumed_ = false;
-      last = clock_->now();
-      owed = 0.0;
-      restartWindow(last);
-    }
-    if (idle_ && (acted || woken)) {
-      // Awake: the time spent resting is not owed.
-      idle_ = false;
-      restartStillness();
-      last = clock_->now();
-      owed = 0.0;
-      restartWindow(last);
-      diag_.idle = false;
-      writeSnapshot();
-    } else if (acted) {
-      restartStillness();
-    }
-
-    std::int64_t steps = 0;
-    if (mode == LoopTime::Followed) {
-      if (followed) steps = stepsToFollow(target, dt);
-    } else if (rtf == 0.0) {
-      steps = 1;  // as fast as the machine can
-    } else {
-      accrue(rtf);
-      // whole steps owed (a sum of clock intervals a hair short of k steps is k steps)
-      steps = static_cast<std::int64_t>(std::floor(owed / dt + 1e-9));
-    }
-    if (idle_) {
-      // At rest the state holds: the time moves on (Served, Followed) without stepping.
-      tickAtRest(steps, dt);
-      owed -= static_cast<double>(steps) * dt;
-    } else {
-      if (steps > settings_.maxCatchUpSteps) {
-        // drop the whole steps beyond the batch, each counted; the fraction of a step stays owed
-        const std::int64_t dropped = steps - settings_.maxCatchUpSteps;
-        diag_.droppedSteps += static_cast<std::uint64_t>(dropped);
-        owed -= static_cast<double>(dropped) * dt;
-        // A followed time is kept up with by a jump; a paced one runs slower instead.
-        if (mode == LoopTime::Followed) ticks_ += dropped;
-        steps = settings_.maxCatchUpSteps;
-      }
-      if (steps == 0 && acted && mode != LoopTime::Followed) {
-        // A command took effect between steps (0 <= owed < dt): step now rather than at the next
-        // step's time, up to a whole step later, borrowing that step. The next one then comes a
-        // step later than it would have: simulated time leads the clock by at most one step (until
-        // it is paid back, owed < 0 and steps < 0: no second early step), and the pace is kept.
-        // A followed time is never led.
-        steps = 1;
-      }
-      for (std::int64_t s = 0; s < steps; ++s) {
-        stepScene(dt);
-        owed -= dt;
-        // A served time goes out with every step, each state with it.
-        if (mode == LoopTime::Served) {
-          updateStillness(dt);
-          writeSnapshot();
-        }
-      }
-      if (steps > 0 && mode != LoopTime::Served) {
-        updateStillness(static_cast<double>(steps) * dt);
-        writeSnapshot();
-      }
-    }
-
-    // Sleep until the next step is due, or until a command arrives. The time the steps took is
-    // owed too: a step slower than its share of the clock leaves the next one due at once, and
-    // the loop steps on without sleeping (a sleep of a step after every batch of 4 would run a
-    // step of 1.5 shares at 4/7 of the pace, not 2/3). A followed time wakes the loop when it
-    // moves; as fast as the machine can is no wait at all.
-    if (mode != LoopTime::Followed && rtf == 0.0) {
-      owed = 0.0;  // as fast as it can owes nothing: a pace set later starts from now
-      last = clock_->now();
-      continue;
-    }
-    std::unique_lock<std::mutex> lock(queueMutex_);
-    const auto woke = [&] { return stopRequested_ || wakeRequested_ || !queue_.empty() || followMoved_; };
-    if (mode == LoopTime::Followed) {
-      wakeUp_.wait(lock, woke);
-      continue;
-    }
-    accrue(rtf);
-    const double wait = std::max(0.0, (dt - owed) / rtf);
-    clock_->waitUntil(lock, wakeUp_,
-                      clock_->now() + std::chrono::duration_cast<LoopClock::Duration>(
-                                          std::chrono::duration<double>(wait)),
-                      woke);
+    repace(rtf, acted, arrived.woken);
+    takeSteps(stepsDue(arrived, rtf, dt), acted, dt);
+    waitForNextStep(rtf, dt);
   }
+}
+
+SimulationLoop::Arrivals SimulationLoop::collect(std::vector<Command>& batch) {
+  std::unique_lock<std::mutex> lock(queueMutex_);
+  // Nothing to do until something happens: paused (no steps asked), or at rest where the time
+  // stands still with the state. At rest a served time goes on (takeSteps()), and a followed one
+  // moves on with the time it follows.
+  const bool waitForWork = paused_ ? stepsRequested_ == 0 : idle_ && settings_.time != LoopTime::Served;
+  if (waitForWork) {
+    wakeUp_.wait(lock, [&] {
+      return stopRequested_ || wakeRequested_ || !queue_.empty() || (followMoved_ && !paused_);
+    });
+  }
+  Arrivals a;
+  if (stopRequested_) {
+    a.stop = true;
+    return a;
+  }
+  batch.swap(queue_);
+  a.woken = wakeRequested_;
+  wakeRequested_ = false;
+  a.followed = followSet_;
+  a.target = followTarget_;
+  followMoved_ = false;
+  return a;
+}
+
+std::chrono::steady_clock::time_point SimulationLoop::accrue(double pace) {
+  const Clock::time_point t = clock_->now();
+  owed_ += seconds(t - paceFrom_) * pace;
+  paceFrom_ = t;
+  return t;
+}
+
+void SimulationLoop::repace(double rtf, bool acted, bool woken) {
+  if (rtf != diag_.requestedRealTimeFactor) {
+    // A new pace: the clock's time until now is owed at the old one (a wait cut short by the
+    // change is not a backlog at the new pace); measure it afresh rather than average it with
+    // the old one.
+    const Clock::time_point changed = accrue(diag_.requestedRealTimeFactor);
+    diag_.requestedRealTimeFactor = rtf;
+    restartWindow(changed);
+  }
+  if (resumed_) {
+    // Unpaused: the time spent paused is not owed.
+    resumed_ = false;
+    paceFrom_ = clock_->now();
+    owed_ = 0.0;
+    restartWindow(paceFrom_);
+  }
+  if (idle_ && (acted || woken)) {
+    // Awake: the time spent resting is not owed.
+    idle_ = false;
+    restartStillness();
+    paceFrom_ = clock_->now();
+    owed_ = 0.0;
+    restartWindow(paceFrom_);
+    diag_.idle = false;
+    writeSnapshot();
+  } else if (acted) {
+    restartStillness();
+  }
+}
+
+std::int64_t SimulationLoop::stepsDue(const Arrivals& arrived, double rtf, double dt) {
+  if (settings_.time == LoopTime::Followed) return arrived.followed ? stepsToFollow(arrived.target, dt) : 0;
+  if (rtf == 0.0) return 1;  // as fast as the machine can
+  accrue(rtf);
+  // whole steps owed (a sum of clock intervals a hair short of k steps is k steps)
+  return static_cast<std::int64_t>(std::floor(owed_ / dt + 1e-9));
+}
+
+void SimulationLoop::takeSteps(std::int64_t steps, bool acted, double dt) {
+  const LoopTime mode = settings_.time;
+  if (idle_) {
+    // At rest the state holds: the time moves on (Served, Followed) without stepping.
+    tickAtRest(steps, dt);
+    owed_ -= static_cast<double>(steps) * dt;
+    return;
+  }
+  if (steps > settings_.maxCatchUpSteps) {
+    // drop the whole steps beyond the batch, each counted; the fraction of a step stays owed
+    const std::int64_t dropped = steps - settings_.maxCatchUpSteps;
+    diag_.droppedSteps += static_cast<std::uint64_t>(dropped);
+    owed_ -= static_cast<double>(dropped) * dt;
+    // A followed time is kept up with by a jump; a paced one runs slower instead.
+    if (mode == LoopTime::Followed) ticks_ += dropped;
+    steps = settings_.maxCatchUpSteps;
+  }
+  if (steps == 0 && acted && mode != LoopTime::Followed) {
+    // A command took effect between steps (0 <= owed < dt): step now rather than at the next
+    // step's time, up to a whole step later, borrowing that step. The next one then comes a
+    // step later than it would have: simulated time leads the clock by at most one step (until
+    // it is paid back, owed < 0 and steps < 0: no second early step), and the pace is kept.
+    // A followed time is never led.
+    steps = 1;
+  }
+  for (std::int64_t s = 0; s < steps; ++s) {
+    stepScene(dt);
+    owed_ -= dt;
+    // A served time goes out with every step, each state with it.
+    if (mode == LoopTime::Served) {
+      updateStillness(dt);
+      writeSnapshot();
+    }
+  }
+  if (steps > 0 && mode != LoopTime::Served) {
+    updateStillness(static_cast<double>(steps) * dt);
+    writeSnapshot();
+  }
+}
+
+void SimulationLoop::waitForNextStep(double rtf, double dt) {
+  // Sleep until the next step is due, or until a command arrives. The time the steps took is
+  // owed too: a step slower than its share of the clock leaves the next one due at once, and
+  // the loop steps on without sleeping (a sleep of a step after every batch of 4 would run a
+  // step of 1.5 shares at 4/7 of the pace, not 2/3). A followed time wakes the loop when it
+  // moves; as fast as the machine can is no wait at all.
+  const LoopTime mode = settings_.time;
+  if (mode != LoopTime::Followed && rtf == 0.0) {
+    owed_ = 0.0;  // as fast as it can owes nothing: a pace set later starts from now
+    paceFrom_ = clock_->now();
+    return;
+  }
+  std::unique_lock<std::mutex> lock(queueMutex_);
+  const auto woke = [&] { return stopRequested_ || wakeRequested_ || !queue_.empty() || followMoved_; };
+  if (mode == LoopTime::Followed) {
+    wakeUp_.wait(lock, woke);
+    return;
+  }
+  accrue(rtf);
+  const double wait = std::max(0.0, (dt - owed_) / rtf);
+  clock_->waitUntil(lock, wakeUp_,
+                    clock_->now() + std::chrono::duration_cast<LoopClock::Duration>(
+                                        std::chrono::duration<double>(wait)),
+                    woke);
 }
 
 void SimulationLoop::stepScene(double dt) {

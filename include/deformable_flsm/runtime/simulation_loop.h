@@ -260,7 +260,30 @@ class SimulationLoop {
   const Lattice& lattice(std::size_t object = 0) const { return *startLattices_[object]; }
 
  private:
+  /// The simulation thread: each turn collects what arrived, applies the commands, repaces,
+  /// takes the steps due and sleeps until the next one.
   void run();
+  /// What the loop found when it looked at its queue.
+  struct Arrivals {
+    bool stop = false;      ///< stop() was asked
+    bool woken = false;     ///< a wake-up was asked (a new pace, a collider's motion)
+    bool followed = false;  ///< LoopTime::Followed: a time has been followed
+    double target = 0.0;    ///< the newest followed time
+  };
+  /// Waits while there is nothing to do (paused with no steps asked, or at rest), then takes the
+  /// queued commands into `batch`.
+  Arrivals collect(std::vector<Command>& batch);
+  /// The clock's time since paceFrom_ owed at `pace`; paceFrom_ moves on to now, returned.
+  std::chrono::steady_clock::time_point accrue(double pace);
+  /// A new pace, an unpause or a wake from rest: the time before it is not owed at the new pace.
+  void repace(double rtf, bool acted, bool woken);
+  /// The whole steps due now.
+  std::int64_t stepsDue(const Arrivals& arrived, double rtf, double dt);
+  /// Takes the steps due (beyond maxCatchUpSteps dropped and counted; one early when a command
+  /// acted between steps), or at rest moves the time on without stepping.
+  void takeSteps(std::int64_t steps, bool acted, double dt);
+  /// Sleeps until the next step is due or something arrives.
+  void waitForNextStep(double rtf, double dt);
   /// Applies one command to the object it addresses (target_); returns true when accepted.
   bool apply(Command& command);
   /// The command's body applied to target_.
@@ -380,6 +403,10 @@ class SimulationLoop {
   double observed_ = -std::numeric_limits<double>::infinity();
   bool paused_ = false;
   bool resumed_ = false;  ///< unpaused since the loop last paced itself
+  /// Paced and served times: the clock's time owed up to is paceFrom_, the simulated seconds
+  /// due but not yet stepped owed_
+  std::chrono::steady_clock::time_point paceFrom_;
+  double owed_ = 0.0;
   /// steps StepCommands asked for and not yet taken, and the command to answer when they are
   std::int64_t stepsRequested_ = 0;
   OutcomePromise stepAnswer_;
