@@ -18,6 +18,23 @@ std::string str(const Eigen::Vector3d& v) {
 }  // namespace
 
 void NodeParams::validate() const {
+  const std::string scalar = scalarProblem();
+  if (!scalar.empty()) throw ParamError(scalar);
+  checkPinned();
+  checkColliders();
+  checkFrictions();
+  // The solver's own ranges (stiffness, damping, time step, ...); w is checked once known.
+  SolverParams s = solver;
+  s.youngsModulus = material == Material::Youngs ? youngsModulus : 0.0;
+  s.regionHalfWidth = regionHalfWidth > 0 ? regionHalfWidth : s.regionHalfWidth;
+  try {
+    s.validate();
+  } catch (const std::invalid_argument& e) {
+    throw ParamError(std::string("~") + e.what());
+  }
+}
+
+std::string NodeParams::scalarProblem() const {
   std::ostringstream why;
   if (mesh.empty()) {
     why << "~mesh is empty: set it to a mesh file (e.g. " << kDefaultMesh
@@ -81,69 +98,67 @@ void NodeParams::validate() const {
   } else if (renderTriangleBudget < 0) {
     why << "~render_triangle_budget is " << renderTriangleBudget
         << ": it must be a number of triangles >= 1, or 0 to render the mesh as loaded";
-  } else {
-    for (std::size_t b = 0; b < pinned.size(); ++b) {
-      const Box& box = pinned[b];
-      if (!box.lo.allFinite() || !box.hi.allFinite() || (box.lo.array() > box.hi.array()).any()) {
-        throw ParamError("~pinned box " + std::to_string(b) + " is [" + str(box.lo) + ", " +
-                         str(box.hi) + "]: each box is [xmin, ymin, zmin, xmax, ymax, zmax] of "
-                         "finite numbers (m) with min <= max");
-      }
-    }
-    for (std::size_t c = 0; c < colliders.size(); ++c) {
-      if (ground && colliders[c].id == ColliderLimits::kGroundId) {
-        throw ParamError("~colliders entry " + std::to_string(c) + " ('ground'): the id 'ground' "
-                         "is the ground's (~ground is true): rename the entry or set ~ground "
-                         "to false");
-      }
-    }
-    if (colliders.size() + (ground ? 1 : 0) > ColliderLimits::kMaxColliders) {
-      throw ParamError("~colliders and ~ground make " +
-                       std::to_string(colliders.size() + (ground ? 1 : 0)) +
-                       " colliders: at most " + std::to_string(ColliderLimits::kMaxColliders));
-    }
-    const std::size_t all = colliders.size() + (ground ? 1 : 0) + robot.colliders.size();
-    if (all > ColliderLimits::kMaxColliders) {
-      throw ParamError("the robot's " + std::to_string(robot.colliders.size()) +
-                       " collision elements with ~colliders and ~ground make " +
-                       std::to_string(all) + " colliders: at most " +
-                       std::to_string(ColliderLimits::kMaxColliders) +
-                       "; leave links out with ~robot_links or ~robot_exclude_links");
-    }
-    for (const RobotCollider& r : robot.colliders) {
-      for (const ColliderSpec& c : colliders) {
-        if (c.id == r.spec.id)
-          throw ParamError("~colliders entry '" + c.id + "': the id is the robot's collider of "
-                           "link '" + r.link + "': rename the entry");
-      }
-    }
-    if (!std::isfinite(objectContact.kineticFriction) || objectContact.kineticFriction < 0.0 ||
-        !std::isfinite(objectContact.staticFriction) ||
-        objectContact.staticFriction < objectContact.kineticFriction) {
-      throw ParamError("~object_static_friction " + std::to_string(objectContact.staticFriction) +
-                       ", ~object_kinetic_friction " +
-                       std::to_string(objectContact.kineticFriction) +
-                       ": they must satisfy 0 <= kinetic <= static");
-    }
-    const RobotColliderOptions& ro = robot.options;
-    if (!std::isfinite(ro.kineticFriction) || ro.kineticFriction < 0.0 ||
-        !std::isfinite(ro.staticFriction) || ro.staticFriction < ro.kineticFriction) {
-      throw ParamError("~robot_static_friction " + std::to_string(ro.staticFriction) +
-                       ", ~robot_kinetic_friction " + std::to_string(ro.kineticFriction) +
-                       ": they must satisfy 0 <= kinetic <= static");
-    }
-    // The solver's own ranges (stiffness, damping, time step, ...); w is checked once known.
-    SolverParams s = solver;
-    s.youngsModulus = material == Material::Youngs ? youngsModulus : 0.0;
-    s.regionHalfWidth = regionHalfWidth > 0 ? regionHalfWidth : s.regionHalfWidth;
-    try {
-      s.validate();
-    } catch (const std::invalid_argument& e) {
-      throw ParamError(std::string("~") + e.what());
-    }
-    return;
   }
-  throw ParamError(why.str());
+  return why.str();
+}
+
+void NodeParams::checkPinned() const {
+  for (std::size_t b = 0; b < pinned.size(); ++b) {
+    const Box& box = pinned[b];
+    if (!box.lo.allFinite() || !box.hi.allFinite() || (box.lo.array() > box.hi.array()).any()) {
+      throw ParamError("~pinned box " + std::to_string(b) + " is [" + str(box.lo) + ", " +
+                       str(box.hi) + "]: each box is [xmin, ymin, zmin, xmax, ymax, zmax] of "
+                       "finite numbers (m) with min <= max");
+    }
+  }
+}
+
+void NodeParams::checkColliders() const {
+  for (std::size_t c = 0; c < colliders.size(); ++c) {
+    if (ground && colliders[c].id == ColliderLimits::kGroundId) {
+      throw ParamError("~colliders entry " + std::to_string(c) + " ('ground'): the id 'ground' "
+                       "is the ground's (~ground is true): rename the entry or set ~ground "
+                       "to false");
+    }
+  }
+  if (colliders.size() + (ground ? 1 : 0) > ColliderLimits::kMaxColliders) {
+    throw ParamError("~colliders and ~ground make " +
+                     std::to_string(colliders.size() + (ground ? 1 : 0)) +
+                     " colliders: at most " + std::to_string(ColliderLimits::kMaxColliders));
+  }
+  const std::size_t all = colliders.size() + (ground ? 1 : 0) + robot.colliders.size();
+  if (all > ColliderLimits::kMaxColliders) {
+    throw ParamError("the robot's " + std::to_string(robot.colliders.size()) +
+                     " collision elements with ~colliders and ~ground make " +
+                     std::to_string(all) + " colliders: at most " +
+                     std::to_string(ColliderLimits::kMaxColliders) +
+                     "; leave links out with ~robot_links or ~robot_exclude_links");
+  }
+  for (const RobotCollider& r : robot.colliders) {
+    for (const ColliderSpec& c : colliders) {
+      if (c.id == r.spec.id)
+        throw ParamError("~colliders entry '" + c.id + "': the id is the robot's collider of "
+                         "link '" + r.link + "': rename the entry");
+    }
+  }
+}
+
+void NodeParams::checkFrictions() const {
+  if (!std::isfinite(objectContact.kineticFriction) || objectContact.kineticFriction < 0.0 ||
+      !std::isfinite(objectContact.staticFriction) ||
+      objectContact.staticFriction < objectContact.kineticFriction) {
+    throw ParamError("~object_static_friction " + std::to_string(objectContact.staticFriction) +
+                     ", ~object_kinetic_friction " +
+                     std::to_string(objectContact.kineticFriction) +
+                     ": they must satisfy 0 <= kinetic <= static");
+  }
+  const RobotColliderOptions& ro = robot.options;
+  if (!std::isfinite(ro.kineticFriction) || ro.kineticFriction < 0.0 ||
+      !std::isfinite(ro.staticFriction) || ro.staticFriction < ro.kineticFriction) {
+    throw ParamError("~robot_static_friction " + std::to_string(ro.staticFriction) +
+                     ", ~robot_kinetic_friction " + std::to_string(ro.kineticFriction) +
+                     ": they must satisfy 0 <= kinetic <= static");
+  }
 }
 
 int NodeParams::resolveRegionHalfWidth(double latticeSpacing, int* askedCells) const {

@@ -173,6 +173,14 @@ struct NodeParams {
   /// `askedCells`, when given, receives the cells asked for (else 0), so that the caller can
   /// warn: a radius that suits one mesh must not stop another from starting.
   int resolveRegionHalfWidth(double latticeSpacing, int* askedCells = nullptr) const;
+
+ private:
+  /// validate()'s parts: the first scalar out of range in words ("" when none is), the pinned
+  /// boxes, the colliders' ids and count, the friction pairs (each throws ParamError)
+  std::string scalarProblem() const;
+  void checkPinned() const;
+  void checkColliders() const;
+  void checkFrictions() const;
 };
 
 /// "youngs" or "classic".
