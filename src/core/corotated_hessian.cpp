@@ -1,19 +1,12 @@
 #include "deformable_flsm/core/corotated_hessian.h"
 
+#include "inertia.h"
+
 #include <Eigen/Eigenvalues>
 
 #include <array>
 
 namespace deformable_flsm {
-
-namespace {
-
-/// Rest-inertia eigenvalues below this fraction of the largest are treated as zero: a collinear
-/// region has no rotation about its own line to project out, so its inverse is the
-/// pseudo-inverse (as solveInertia() in the explicit step's damping).
-constexpr double kInertiaRankTolerance = 1e-10;
-
-}  // namespace
 
 CorotatedHessian::CorotatedHessian(RegionSummer& summer, const std::vector<double>& massFractions,
                                    const std::vector<Eigen::Vector3d>& restCentered,
@@ -39,21 +32,14 @@ CorotatedHessian::CorotatedHessian(RegionSummer& summer, const std::vector<doubl
   }
   summer.gather(second, 6, secondSum);
   restInertiaInverse_.resize(n);
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
   for (std::size_t r = 0; r < n; ++r) {
     const double* S = &secondSum[6 * r];
     const Eigen::Vector3d& c0 = regionRestCenter[r];
     Eigen::Matrix3d P;
     P << S[0], S[3], S[4], S[3], S[1], S[5], S[4], S[5], S[2];
     P -= regionMass[r] * c0 * c0.transpose();
-    const Eigen::Matrix3d I = P.trace() * Eigen::Matrix3d::Identity() - P;
-    eig.computeDirect(I);
-    const Eigen::Vector3d& lambda = eig.eigenvalues();
-    const double cutoff = kInertiaRankTolerance * lambda.cwiseAbs().maxCoeff();
-    Eigen::Vector3d inv;
-    for (int k = 0; k < 3; ++k) inv[k] = lambda[k] > cutoff ? 1.0 / lambda[k] : 0.0;
-    const Eigen::Matrix3d& V = eig.eigenvectors();
-    restInertiaInverse_[r] = V * inv.asDiagonal() * V.transpose();
+    // a collinear region has no rotation about its own line to project out: the pseudo-inverse
+    restInertiaInverse_[r] = InertiaInverse(P.trace() * Eigen::Matrix3d::Identity() - P).matrix();
   }
   rotation_.assign(n, Eigen::Matrix3d::Identity());
   rotatedCenter_ = regionRestCenter;

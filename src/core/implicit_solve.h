@@ -37,5 +37,17 @@ constexpr double kCgContactTolerance = 3e-3;
 /// after the last is released by the next sub-step's prediction).
 constexpr int kContactPasses = 4;
 
+/// A free particle joins the contacts when the solution carries it deeper into a collider than
+/// this fraction of the contact radius (the contact pass after the solve takes what is less).
+/// At the start of a sub-step a particle predicted within it of a surface, outside as well as
+/// inside, is a contact: the solve ends a resting contact on the surface, where round-off (and
+/// the contact pass's push-out) leaves it a hair outside or inside. Counted only inside, resting
+/// contacts fell out of the set every other sub-step, and out of it a contact is held only by the
+/// contact pass's friction, at most mu times a normal change of about the slop over h: two pads
+/// gripping the bunny lifted it 2 cm of 10, then lost it (test_solver_implicit).
+constexpr double kContactSlop = 1e-3;
+/// The contact states kept from one sub-step to the next (Solver::implicitContactState_).
+constexpr char kNoContact = 0, kSticking = 1, kSliding = 2, kReleased = 3;
+
 }  // namespace implicit_solve
 }  // namespace deformable_flsm

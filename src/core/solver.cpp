@@ -3,6 +3,7 @@
 #include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/core/polar.h"
 #include "deformable_flsm/core/small_matrix.h"
+#include "inertia.h"
 #include "lanes.h"
 
 #include <Eigen/Eigenvalues>
@@ -28,20 +29,9 @@ constexpr int kDampingChannels = 12;
 /// Channels per region of the rigid velocity fields scattered back after the transforms: u (3) and
 /// omega (3), the field being u + omega x p.
 constexpr int kVelocityFieldChannels = 6;
-/// Inertia eigenvalues below this fraction of the largest are treated as zero (a collinear
-/// region cannot spin about its own line), so that omega = I^+ L stays finite and exact.
-constexpr double kInertiaRankTolerance = 1e-10;
-
 /// omega = I^+ L through the eigen-decomposition: the general case of solveInertia().
 [[gnu::noinline]] Eigen::Vector3d solveInertiaByEigen(const Eigen::Matrix3d& I, const Eigen::Vector3d& L) {
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-  eig.computeDirect(I);
-  const Eigen::Vector3d& lambda = eig.eigenvalues();
-  const double cutoff = kInertiaRankTolerance * lambda.cwiseAbs().maxCoeff();
-  Eigen::Vector3d inv;
-  for (int k = 0; k < 3; ++k) inv[k] = lambda[k] > cutoff ? 1.0 / lambda[k] : 0.0;
-  const Eigen::Matrix3d& V = eig.eigenvectors();
-  return V * inv.asDiagonal() * (V.transpose() * L);
+  return InertiaInverse(I).solve(L);
 }
 
 /// omega = I^+ L for a symmetric positive semi-definite inertia tensor.
@@ -500,12 +490,7 @@ void Solver::computeRigidMotion() {
 // The update of each particle is the last step of the region pass (particleResult()), done as
 // soon as its goal is known: the state is read and written in one sweep over the lattice.
 void Solver::substep(double h) {
-  const std::size_t n = x_.size();
-  if (impulsePending_) {
-    for (std::size_t i = 0; i < n; ++i) v_[i] += impulseDv_[i];
-    std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
-    impulsePending_ = false;
-  }
+  applyPendingImpulses();
   accumulateForces(h);
   step_.integrate = true;
   step_.h = h;
@@ -565,76 +550,6 @@ void Solver::computeGoals(std::vector<Eigen::Vector3d>& goals) {
   goalsOut_ = &goals;
   regionPass(false);
   goalsOut_ = nullptr;
-}
-
-std::vector<std::uint32_t> Solver::nearestParticles(const Eigen::Vector3d& point, std::size_t count) const {
-  std::vector<std::uint32_t> idx(x_.size());
-  std::iota(idx.begin(), idx.end(), 0u);
-  count = std::min(count, idx.size());
-  auto closer = [&](std::uint32_t a, std::uint32_t b) {
-    return (x_[a] - point).squaredNorm() < (x_[b] - point).squaredNorm();
-  };
-  std::partial_sort(idx.begin(), idx.begin() + static_cast<std::ptrdiff_t>(count), idx.end(), closer);
-  idx.resize(count);
-  return idx;
-}
-
-std::vector<std::uint32_t> Solver::particlesWithin(const Eigen::Vector3d& point, double radius) const {
-  std::vector<std::uint32_t> out;
-  const double r2 = radius * radius;
-  for (std::size_t i = 0; i < x_.size(); ++i)
-    if ((x_[i] - point).squaredNorm() <= r2) out.push_back(static_cast<std::uint32_t>(i));
-  return out;
-}
-
-double Solver::kineticEnergy() const {
-  const auto& m = lattice_->masses();
-  double e = 0.0;
-  for (std::size_t i = 0; i < v_.size(); ++i) e += 0.5 * m[i] * v_[i].squaredNorm();
-  return e;
-}
-
-Eigen::Vector3d Solver::linearMomentum() const {
-  const auto& m = lattice_->masses();
-  Eigen::Vector3d P = Eigen::Vector3d::Zero();
-  for (std::size_t i = 0; i < v_.size(); ++i) P += m[i] * v_[i];
-  return P;
-}
-
-Eigen::Vector3d Solver::angularMomentum() const {
-  const auto& m = lattice_->masses();
-  Eigen::Vector3d L = Eigen::Vector3d::Zero();
-  for (std::size_t i = 0; i < v_.size(); ++i) L += m[i] * x_[i].cross(v_[i]);
-  return L;
-}
-
-double Solver::maxDisplacement() const {
-  const auto& x0 = lattice_->restPositions();
-  double d = 0.0;
-  for (std::size_t i = 0; i < x_.size(); ++i) d = std::max(d, (x_[i] - x0[i]).squaredNorm());
-  return std::sqrt(d);
-}
-
-Eigen::Isometry3d Solver::rigidFrame() const {
-  const auto& m = lattice_->masses();
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (std::size_t i = 0; i < x_.size(); ++i) c += m[i] * x_[i];
-  c /= lattice_->totalMass();
-  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-  for (std::size_t i = 0; i < x_.size(); ++i) A.noalias() += m[i] * (x_[i] - c) * restCentered_[i].transpose();
-  const Eigen::Matrix3d R = extractRotation(A, frameRotation_);
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = R;
-  T.translation() = c - R * restCom_;
-  return T;
-}
-
-double Solver::shapeError() const {
-  const Eigen::Isometry3d T = rigidFrame();
-  const auto& x0 = lattice_->restPositions();
-  double e = 0.0;
-  for (std::size_t i = 0; i < x_.size(); ++i) e += (x_[i] - T * x0[i]).squaredNorm();
-  return std::sqrt(e / static_cast<double>(x_.size()));
 }
 
 }  // namespace deformable_flsm

@@ -276,6 +276,13 @@ void Solver::accumulateForces(double h) {
   }
 }
 
+void Solver::applyPendingImpulses() {
+  if (!impulsePending_) return;
+  for (std::size_t i = 0; i < v_.size(); ++i) v_[i] += impulseDv_[i];
+  std::fill(impulseDv_.begin(), impulseDv_.end(), Eigen::Vector3d::Zero());
+  impulsePending_ = false;
+}
+
 bool Solver::hasPendingCommands() const { return !drags_.empty() || !forces_.empty() || impulsePending_; }
 
 }  // namespace deformable_flsm

@@ -204,6 +204,29 @@ void Solver::contactPass(double h, double elapsed) {
   ++contactPasses_;  // the counts of older passes no longer match (countedContact())
   if (contactBodies_.empty()) return;
   contactTime_ += elapsed;
+  placeContactBodies(elapsed);
+  if (activeBodies_.empty()) return;
+  const double r = contactRadius();
+  ContactPassFrame pass;
+  pass.h = h;
+  pass.r = r;
+  // the goals of this sub-step's region pass (the implicit step's linearisation point)
+  pass.goals = params_.integrator == Integrator::Implicit ? &implicitGoal_ : &goal_;
+  // held: a pinned or hard-dragged particle keeps the object from leaving a collider as a body;
+  // it cannot leave one whose surface is farther than its size from a particle (above)
+  pass.held = pinnedCount_ > 0;
+  for (const auto& entry : drags_) pass.held = pass.held || entry.second.stiffness <= 0.0;
+  pass.enclosed = -lattice_->objectSize() - r;  // a depth phi - r below which all the object is inside
+  const std::size_t n = x_.size();
+  const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + kContactChunk - 1) / kContactChunk);
+  // the thread count the governor gave this step (the sums do not depend on it)
+  const int threads = singleSummer_ && activeSummer_ == singleSummer_.get() ? 1 : threads_;
+#pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
+  for (std::ptrdiff_t chunk = 0; chunk < chunks; ++chunk) contactChunk(chunk, pass);
+  sumContactPartials(chunks);
+}
+
+void Solver::placeContactBodies(double elapsed) {
   const double r = contactRadius();
   Eigen::Vector3d lo = x_[0], hi = x_[0];
   for (const Eigen::Vector3d& x : x_) {
@@ -226,100 +249,99 @@ void Solver::contactPass(double h, double elapsed) {
     }
     if (boxNearCollider(c.shape, body.now, lo, hi, r)) activeBodies_.push_back(static_cast<int>(b));
   }
-  if (activeBodies_.empty()) return;
+}
 
+void Solver::contactChunk(std::ptrdiff_t chunk, const ContactPassFrame& pass) {
   const std::size_t n = x_.size();
   const std::size_t bodies = contactBodies_.size();
-  const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + kContactChunk - 1) / kContactChunk);
   const auto& m = lattice_->masses();
-  // the goals of this sub-step's region pass (the implicit step's linearisation point)
-  const bool implicitStep = params_.integrator == Integrator::Implicit;
-  const std::vector<Eigen::Vector3d>& goals = implicitStep ? implicitGoal_ : goal_;
-  // held: a pinned or hard-dragged particle keeps the object from leaving a collider as a body;
-  // it cannot leave one whose surface is farther than its size from a particle (above)
-  bool held = pinnedCount_ > 0;
-  for (const auto& entry : drags_) held = held || entry.second.stiffness <= 0.0;
-  const double enclosed = -lattice_->objectSize() - r;  // a depth phi - r below which all the object is inside
-  // the thread count the governor gave this step (the sums do not depend on it)
-  const int threads = singleSummer_ && activeSummer_ == singleSummer_.get() ? 1 : threads_;
-#pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
-  for (std::ptrdiff_t chunk = 0; chunk < chunks; ++chunk) {
-    ContactPartial* partial = contactPartials_.data() + static_cast<std::size_t>(chunk) * bodies;
-    for (int a : activeBodies_) partial[a] = ContactPartial();
-    const std::size_t begin = static_cast<std::size_t>(chunk) * kContactChunk;
-    const std::size_t end = std::min(n, begin + kContactChunk);
-    // The chunk's own broad phase: particles are sorted by (k, j, i), so a chunk is a slab of the
-    // lattice, and most colliders (the ground, under the bottom slabs) miss most slabs.
-    Eigen::Vector3d chunkLo = x_[begin], chunkHi = x_[begin];
-    for (std::size_t i = begin + 1; i < end; ++i) {
-      chunkLo = chunkLo.cwiseMin(x_[i]);
-      chunkHi = chunkHi.cwiseMax(x_[i]);
-    }
-    int* near = chunkBodies_.data() + static_cast<std::size_t>(chunk) * bodies;
-    int nearCount = 0;
-    for (int a : activeBodies_) {
+  const double h = pass.h, r = pass.r, enclosed = pass.enclosed;
+  const bool held = pass.held;
+  const std::vector<Eigen::Vector3d>& goals = *pass.goals;
+  ContactPartial* partial = contactPartials_.data() + static_cast<std::size_t>(chunk) * bodies;
+  for (int a : activeBodies_) partial[a] = ContactPartial();
+  const std::size_t begin = static_cast<std::size_t>(chunk) * kContactChunk;
+  const std::size_t end = std::min(n, begin + kContactChunk);
+  int* near = chunkBodies_.data() + static_cast<std::size_t>(chunk) * bodies;
+  const int nearCount = bodiesNear(begin, end, r, near);
+  if (nearCount == 0) return;
+  for (std::size_t i = begin; i < end; ++i) {
+    if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
+    Eigen::Vector3d x = x_[i], v = v_[i];
+    const Eigen::Vector3d start = x - h * v;  // where the sub-step began: x* = x + h v
+    bool touched = false, buried = false;
+    for (int k = 0; k < nearCount; ++k) {
+      const int a = near[k];
       const ContactBody& body = contactBodies_[a];
-      if (boxNearCollider(body.collider->shape, body.now, chunkLo, chunkHi, r)) near[nearCount++] = a;
-    }
-    if (nearCount == 0) continue;
-    for (std::size_t i = begin; i < end; ++i) {
-      if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
-      Eigen::Vector3d x = x_[i], v = v_[i];
-      const Eigen::Vector3d start = x - h * v;  // where the sub-step began: x* = x + h v
-      bool touched = false, buried = false;
-      for (int k = 0; k < nearCount; ++k) {
-        const int a = near[k];
-        const ContactBody& body = contactBodies_[a];
-        if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
-        const Collider& c = *body.collider;
-        Eigen::Vector3d normal;
-        const double depth = colliderDistance(c.shape, body.now, x, normal) - r;
-        if (!(depth < 0.0)) continue;
-        Eigen::Vector3d startNormal;
-        const double startDepth = colliderDistance(c.shape, body.before, start, startNormal) - r;
-        // buried deeper than its radius since before the sub-step (above)
-        if (startDepth < -r) {
-          buried = true;
-          ++partial[a].buried;
-          if ((held && depth < enclosed) || startNormal.dot(normal) < kTurnedNormal) {  // no velocity response (above)
-            touched = true;
-            continue;
-          }
+      if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
+      const Collider& c = *body.collider;
+      Eigen::Vector3d normal;
+      const double depth = colliderDistance(c.shape, body.now, x, normal) - r;
+      if (!(depth < 0.0)) continue;
+      Eigen::Vector3d startNormal;
+      const double startDepth = colliderDistance(c.shape, body.before, start, startNormal) - r;
+      // buried deeper than its radius since before the sub-step (above)
+      if (startDepth < -r) {
+        buried = true;
+        ++partial[a].buried;
+        if ((held && depth < enclosed) || startNormal.dot(normal) < kTurnedNormal) {  // no velocity response (above)
+          touched = true;
+          continue;
         }
-        const Eigen::Vector3d origin = body.now.translation();
-        const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - origin);
-        const Eigen::Vector3d dv = contactVelocityChange(depth, startDepth, normal, v, vc, h, c.staticFriction,
-                                                         c.kineticFriction);
-        v += dv;
-        x += h * dv;
-        const Eigen::Vector3d J = m[i] * dv;
-        ContactPartial& p = partial[a];
-        p.impulse += J;
-        p.moment += (x - r * normal - origin).cross(J);
-        // (particle i is this chunk's alone: no other thread writes its entries)
-        record(contactBodies_[a], i, J, x - r * normal);
-        // counted once: the implicit solve may have counted it on this body (sumContactImpulses())
-        if (markCounted(i, a, contactPasses_)) ++p.contacts;
-        touched = true;
       }
-      if (!touched) continue;
-      const Eigen::Vector3d& goal = goals[i];
-      for (int k = 0; k < nearCount; ++k) {
-        const ContactBody& body = contactBodies_[near[k]];
-        if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
-        Eigen::Vector3d normal;
-        const double depth = colliderDistance(body.collider->shape, body.now, x, normal) - r;
-        if (!(depth < 0.0)) continue;
-        // at most r per sub-step; a buried particle of a held object all inside the collider no
-        // farther than r beyond its goal
-        const double most =
-            buried && held && depth < enclosed ? std::min(r, std::max(0.0, r - normal.dot(x - goal))) : r;
-        x += std::min(-depth, most) * normal;
-      }
-      x_[i] = x;
-      v_[i] = v;
+      const Eigen::Vector3d origin = body.now.translation();
+      const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - origin);
+      const Eigen::Vector3d dv = contactVelocityChange(depth, startDepth, normal, v, vc, h, c.staticFriction,
+                                                       c.kineticFriction);
+      v += dv;
+      x += h * dv;
+      const Eigen::Vector3d J = m[i] * dv;
+      ContactPartial& p = partial[a];
+      p.impulse += J;
+      p.moment += (x - r * normal - origin).cross(J);
+      // (particle i is this chunk's alone: no other thread writes its entries)
+      record(contactBodies_[a], i, J, x - r * normal);
+      // counted once: the implicit solve may have counted it on this body (sumContactImpulses())
+      if (markCounted(i, a, contactPasses_)) ++p.contacts;
+      touched = true;
     }
+    if (!touched) continue;
+    const Eigen::Vector3d& goal = goals[i];
+    for (int k = 0; k < nearCount; ++k) {
+      const ContactBody& body = contactBodies_[near[k]];
+      if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
+      Eigen::Vector3d normal;
+      const double depth = colliderDistance(body.collider->shape, body.now, x, normal) - r;
+      if (!(depth < 0.0)) continue;
+      // at most r per sub-step; a buried particle of a held object all inside the collider no
+      // farther than r beyond its goal
+      const double most =
+          buried && held && depth < enclosed ? std::min(r, std::max(0.0, r - normal.dot(x - goal))) : r;
+      x += std::min(-depth, most) * normal;
+    }
+    x_[i] = x;
+    v_[i] = v;
   }
+}
+
+int Solver::bodiesNear(std::size_t begin, std::size_t end, double r, int* near) const {
+  // The chunk's own broad phase: particles are sorted by (k, j, i), so a chunk is a slab of the
+  // lattice, and most colliders (the ground, under the bottom slabs) miss most slabs.
+  Eigen::Vector3d lo = x_[begin], hi = x_[begin];
+  for (std::size_t i = begin + 1; i < end; ++i) {
+    lo = lo.cwiseMin(x_[i]);
+    hi = hi.cwiseMax(x_[i]);
+  }
+  int count = 0;
+  for (int a : activeBodies_) {
+    const ContactBody& body = contactBodies_[a];
+    if (boxNearCollider(body.collider->shape, body.now, lo, hi, r)) near[count++] = a;
+  }
+  return count;
+}
+
+void Solver::sumContactPartials(std::ptrdiff_t chunks) {
+  const std::size_t bodies = contactBodies_.size();
   for (int a : activeBodies_) {
     ContactBody& body = contactBodies_[a];
     std::size_t buried = 0;  // this pass's

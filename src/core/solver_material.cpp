@@ -79,66 +79,8 @@ void Solver::computeRegionWeights() {
   // D_ra = m_r dx^2 sigma^2 - beta_r P_r,aa: what region r lacks of an interior region's second
   // moment along lattice axis a (nu > 0 only, see above)
   std::vector<double> deficit(volumetric_ ? 3 * n : 0, 0.0);
-  if (physical) {
-    const auto& mt = L.regionMassFractions();
-    std::vector<double> second(6 * n), secondSum;
-    for (std::size_t i = 0; i < n; ++i) {
-      const Eigen::Vector3d& q = restCentered_[i];
-      double* d = &second[6 * i];
-      d[0] = mt[i] * q.x() * q.x();
-      d[1] = mt[i] * q.y() * q.y();
-      d[2] = mt[i] * q.z() * q.z();
-      d[3] = mt[i] * q.x() * q.y();
-      d[4] = mt[i] * q.x() * q.z();
-      d[5] = mt[i] * q.y() * q.z();
-    }
-    summer_->gather(second, 6, secondSum);
-    const double w = params_.regionHalfWidth;
-    const double interior = L.spacing() * L.spacing() * w * (w + 1.0) / 3.0;
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-    for (std::size_t r = 0; r < n; ++r) {
-      const double* S = &secondSum[6 * r];
-      const Eigen::Vector3d& c0 = regionRestCenter_[r];
-      const double M = regionMass_[r];
-      Eigen::Matrix3d P;
-      P << S[0], S[3], S[4], S[3], S[1], S[5], S[4], S[5], S[2];
-      P -= M * c0 * c0.transpose();
-      eig.computeDirect(P);
-      const double pmax = eig.eigenvalues().maxCoeff();
-      const double target = L.masses()[r] * interior;
-      // pmax <= 0 only for a region of one particle, which has no shape to keep.
-      if (pmax > 1e-12 * target) regionWeight_[r] = std::min(kMaxRegionWeight, target / pmax);
-      if (volumetric_)
-        for (int a = 0; a < 3; ++a) deficit[3 * r + a] = std::max(0.0, target - regionWeight_[r] * P(a, a));
-    }
-  }
-  if (volumetric_) {
-    stencil_.resize(n);
-    stencilForce_.resize(n);
-    volumetricAccel_.assign(n, Eigen::Vector3d::Zero());
-    for (std::size_t i = 0; i < n; ++i) {
-      VolumetricStencil& st = stencil_[i];
-      for (int a = 0; a < 3; ++a) {
-        const std::int32_t p = L.neighbor(i, a, true), m = L.neighbor(i, a, false);
-        const auto self = static_cast<std::uint32_t>(i);
-        st.plus[a] = p != Lattice::kNone ? static_cast<std::uint32_t>(p) : self;
-        st.minus[a] = m != Lattice::kNone ? static_cast<std::uint32_t>(m) : self;
-        const int span = (p != Lattice::kNone) + (m != Lattice::kNone);
-        st.invDistance[a] = span == 0 ? 0.0 : 1.0 / (span * L.spacing());
-      }
-      // A stencil acts on its members with a force proportional to its weight, and a member's
-      // acceleration is that over its own mass: a full cell's stencil would shake a neighbour
-      // that is a sliver of a cell (fill fraction ~0.01 at a curved surface) and force the cap
-      // on alpha down by as much. So each stencil weighs with its lightest member's mass: the
-      // stiffness per unit mass stays an interior cell's, and the energy (and with it momentum
-      // and rotation invariance) stays exact; only the cells next to slivers are softer.
-      double lightest = L.masses()[i];
-      for (int a = 0; a < 3; ++a)
-        lightest = std::min({lightest, L.masses()[st.plus[a]], L.masses()[st.minus[a]]});
-      st.mass = lightest;
-      for (int a = 0; a < 3; ++a) deficit[3 * i + a] *= lightest / L.masses()[i];
-    }
-  }
+  if (physical) weighRegions(deficit);
+  if (volumetric_) buildStencils(deficit);
   std::vector<double> weightSum;
   summer_->scatter(regionWeight_, 1, weightSum);
   invWeightSum_.resize(n);
@@ -156,6 +98,84 @@ void Solver::computeRegionWeights() {
     alpha_ = std::min(alphaCap_, requested);
     return;
   }
+  capPhysicalAlpha(requested, deficit);
+}
+
+// beta_r: each region's weight that gives it an interior region's second moment (see above);
+// with nu > 0, D_ra into `deficit`.
+void Solver::weighRegions(std::vector<double>& deficit) {
+  const Lattice& L = *lattice_;
+  const std::size_t n = L.size();
+  const auto& mt = L.regionMassFractions();
+  std::vector<double> second(6 * n), secondSum;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d& q = restCentered_[i];
+    double* d = &second[6 * i];
+    d[0] = mt[i] * q.x() * q.x();
+    d[1] = mt[i] * q.y() * q.y();
+    d[2] = mt[i] * q.z() * q.z();
+    d[3] = mt[i] * q.x() * q.y();
+    d[4] = mt[i] * q.x() * q.z();
+    d[5] = mt[i] * q.y() * q.z();
+  }
+  summer_->gather(second, 6, secondSum);
+  const double w = params_.regionHalfWidth;
+  const double interior = L.spacing() * L.spacing() * w * (w + 1.0) / 3.0;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+  for (std::size_t r = 0; r < n; ++r) {
+    const double* S = &secondSum[6 * r];
+    const Eigen::Vector3d& c0 = regionRestCenter_[r];
+    const double M = regionMass_[r];
+    Eigen::Matrix3d P;
+    P << S[0], S[3], S[4], S[3], S[1], S[5], S[4], S[5], S[2];
+    P -= M * c0 * c0.transpose();
+    eig.computeDirect(P);
+    const double pmax = eig.eigenvalues().maxCoeff();
+    const double target = L.masses()[r] * interior;
+    // pmax <= 0 only for a region of one particle, which has no shape to keep.
+    if (pmax > 1e-12 * target) regionWeight_[r] = std::min(kMaxRegionWeight, target / pmax);
+    if (volumetric_)
+      for (int a = 0; a < 3; ++a) deficit[3 * r + a] = std::max(0.0, target - regionWeight_[r] * P(a, a));
+  }
+}
+
+// The Poisson term's stencils: each particle's neighbours along the lattice axes and its
+// stencil's mass; `deficit` scaled to it.
+void Solver::buildStencils(std::vector<double>& deficit) {
+  const Lattice& L = *lattice_;
+  const std::size_t n = L.size();
+  stencil_.resize(n);
+  stencilForce_.resize(n);
+  volumetricAccel_.assign(n, Eigen::Vector3d::Zero());
+  for (std::size_t i = 0; i < n; ++i) {
+    VolumetricStencil& st = stencil_[i];
+    for (int a = 0; a < 3; ++a) {
+      const std::int32_t p = L.neighbor(i, a, true), m = L.neighbor(i, a, false);
+      const auto self = static_cast<std::uint32_t>(i);
+      st.plus[a] = p != Lattice::kNone ? static_cast<std::uint32_t>(p) : self;
+      st.minus[a] = m != Lattice::kNone ? static_cast<std::uint32_t>(m) : self;
+      const int span = (p != Lattice::kNone) + (m != Lattice::kNone);
+      st.invDistance[a] = span == 0 ? 0.0 : 1.0 / (span * L.spacing());
+    }
+    // A stencil acts on its members with a force proportional to its weight, and a member's
+    // acceleration is that over its own mass: a full cell's stencil would shake a neighbour
+    // that is a sliver of a cell (fill fraction ~0.01 at a curved surface) and force the cap
+    // on alpha down by as much. So each stencil weighs with its lightest member's mass: the
+    // stiffness per unit mass stays an interior cell's, and the energy (and with it momentum
+    // and rotation invariance) stays exact; only the cells next to slivers are softer.
+    double lightest = L.masses()[i];
+    for (int a = 0; a < 3; ++a)
+      lightest = std::min({lightest, L.masses()[st.plus[a]], L.masses()[st.minus[a]]});
+    st.mass = lightest;
+    for (int a = 0; a < 3; ++a) deficit[3 * i + a] *= lightest / L.masses()[i];
+  }
+}
+
+// The cap on alpha with the material's modulus (the Poisson term and the surface term in the
+// bound), alpha_, and the stencils' weights at alpha_.
+void Solver::capPhysicalAlpha(double requested, const std::vector<double>& deficit) {
+  const Lattice& L = *lattice_;
+  const std::size_t n = L.size();
   // Gershgorin row sums of the Poisson term's h^2 M^-1 K at rest, per unit alpha: with
   // lambda_eff = lambda alpha / requested (the cap softens both terms alike, nu is kept),
   // h^2 lambda_eff V_i' |dE/dx| sums to alpha Lambda_j, Lambda_j = lambda h^2 / (requested m_j)

@@ -588,7 +588,7 @@ PadGrasp padGrasp(double squeeze, double mu) {
 // The robot scene's grasp at one sub-step of 1/60 s: with friction 1 the pads lift the bunny 10 cm
 // and hold it, their vertical force its weight; with friction 0.05 it slips out. Resting contacts
 // that the solve ended on the pads' surface and round-off left a hair outside fell out of the
-// contact set, and the pads lifted it 0 and 2 cm of 10 (kContactSlop in solver_implicit.cpp).
+// contact set, and the pads lifted it 0 and 2 cm of 10 (kContactSlop in implicit_solve.h).
 TEST(ImplicitStep, PadsLiftTheBunnyWithFrictionAndLoseItWithout) {
   for (double squeeze : {0.015, 0.035}) {
     const PadGrasp g = padGrasp(squeeze, 1.0);

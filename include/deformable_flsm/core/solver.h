@@ -1,10 +1,12 @@
 /// @file solver.h
 /// The FastLSM dynamics (Rivers & James 2007): shape matching over lattice regions, region
 /// damping, external forces, pins and drags, advanced at a fixed time step.
-/// Its rooms: solver.cpp (rest state, the step, the region pass, integration and damping,
-/// queries and diagnostics), solver_material.cpp (region weights, the Poisson term, the cap on
-/// alpha), solver_commands.cpp (pins, drags and their frames, forces, impulses, the spring
-/// limit), solver_contact.cpp (colliders and the contact pass).
+/// Its rooms: solver.cpp (rest state, the step, the region pass, integration and damping),
+/// solver_queries.cpp (what an observer reads: nearby particles, energy, momenta, rigid frame),
+/// solver_material.cpp (region weights, the Poisson term, the cap on alpha), solver_commands.cpp
+/// (pins, drags and their frames, forces, impulses, the spring limit), solver_contact.cpp
+/// (colliders and the contact pass), solver_implicit.cpp (the implicit and BDF2 sub-steps) and
+/// solver_implicit_contact.cpp (the implicit step's contact set).
 #pragma once
 
 #include "deformable_flsm/core/collider.h"
@@ -324,17 +326,40 @@ class Solver : private RegionKernel {
   void particleResult(std::size_t begin, std::size_t end, const double* sums) override;
   /// forceAccel_ from the timed forces and spring drags for a sub-step (solver_commands.cpp)
   void accumulateForces(double h);
+  /// The impulses applied since the last sub-step added to v_ (solver_commands.cpp)
+  void applyPendingImpulses();
   // --- contact (solver_contact.cpp) ---
   /// Collider poses at the start of a step, wrench accumulators cleared.
   void beginContactStep();
   /// The contact response of the free particles after the region pass of a sub-step of length h.
   void contactPass(double h, double elapsed);
+  /// What a contact pass's chunks share: the sub-step, the contact radius, whether the world holds
+  /// the object, the depth below which all of it is inside, the region pass's goals.
+  struct ContactPassFrame {
+    double h = 0.0, r = 0.0, enclosed = 0.0;
+    bool held = false;
+    const std::vector<Eigen::Vector3d>* goals = nullptr;
+  };
+  /// contactPass()'s stages: each body's poses before and after the sub-step and bounds, the
+  /// bodies near the object (activeBodies_); one chunk of particles against the bodies near it,
+  /// its impulses in its ContactPartial; the partials summed on the bodies.
+  void placeContactBodies(double elapsed);
+  void contactChunk(std::ptrdiff_t chunk, const ContactPassFrame& pass);
+  /// The active bodies near particles [begin, end) (within r of their bounding box), into `near`;
+  /// returns their count.
+  int bodiesNear(std::size_t begin, std::size_t end, double r, int* near) const;
+  void sumContactPartials(std::ptrdiff_t chunks);
   /// Wrenches averaged over the step; colliders left at their end-of-step poses.
   void endContactStep();
   /// contactBodies_ and the reduction buffers after a change of colliders_.
   void rebuildContactBodies();
   /// beta_r, the Poisson stencil and the cap on alpha (solver_material.cpp)
   void computeRegionWeights();
+  /// computeRegionWeights()'s stages: beta_r (and the Poisson term's deficits D_ra), the Poisson
+  /// stencils, the cap on alpha with a modulus.
+  void weighRegions(std::vector<double>& deficit);
+  void buildStencils(std::vector<double>& deficit);
+  void capPhysicalAlpha(double requested, const std::vector<double>& deficit);
   /// summer_ (and singleSummer_) for params_.kind and threads_.
   void makeSummers();
   /// accumulateForces()'s capacity, reserved when a command arrives (solver_commands.cpp)
@@ -480,6 +505,12 @@ class Solver : private RegionKernel {
   /// The sub-step's system (right-hand side, diagonal, preconditioner, collider contacts, the
   /// warm start) and the solve's floor (implicitFloor_).
   void implicitBegin(double h);
+  /// implicitBegin()'s parts: the Poisson term's Hessian at x_n (volumetricLinear_), the drags in
+  /// the system (a spring's stiffness on the diagonal, a hard drag's velocity prescribed), the
+  /// Poisson term's diagonal added to the preconditioner.
+  void linearizeVolumetric();
+  void addDragsToSystem(double h);
+  void addVolumetricPreconditioner(double h);
   /// After the solve (its residual b - A v at residual[offset + i]): the contacts' impulses, the
   /// rigid modes of a free object, v+ and x+, the contact pass.
   /// elapsed: the simulated time the sub-step advances, when it is not h (BDF2's solve of 2h/3);
