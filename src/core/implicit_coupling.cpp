@@ -200,6 +200,29 @@ void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::v
                                const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairCandidates, int s,
                                double h, const std::vector<char>* still) {
   h_ = h;
+  placeMembers(objects, coupled);
+  const auto t0 = std::chrono::steady_clock::now();
+  const double floor = beginMembers(objects, s, h);
+  buildSprings(objects, pairCandidates, h, still);
+  const PcgResult result = solve(objects, h, floor);
+  sumSpringImpulses(objects, h);
+  for (std::size_t m = 0; m < members_.size(); ++m) {
+    Solver& sv = *objects[members_[m]];
+    sv.implicitSolve_ = result;
+    sv.implicitEnd(h, pcg_.residual(), start_[m]);
+    sv.implicitCouplingImpulse_.clear();
+  }
+  // each member's thread governor gets its share of the solve's time (as advanceSubstep() times
+  // an object's own sub-step)
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  for (std::uint32_t o : members_) {
+    Solver& sv = *objects[o];
+    if (sv.singleSummer_ != nullptr)
+      sv.stepSeconds_ += seconds * static_cast<double>(sv.x_.size()) / static_cast<double>(std::max<std::size_t>(size_, 1));
+  }
+}
+
+void ImplicitCoupling::placeMembers(const std::vector<Solver*>& objects, const std::vector<char>& coupled) {
   // the coupled objects and their places in the solve's vectors
   members_.clear();
   start_.clear();
@@ -239,8 +262,9 @@ void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::v
       segment->resize(n);
     }
   }
+}
 
-  const auto t0 = std::chrono::steady_clock::now();
+double ImplicitCoupling::beginMembers(const std::vector<Solver*>& objects, int s, double h) {
   // every object's system at the start of the sub-step
   double rhsNorm2 = 0.0, gravityNorm2 = 0.0;
   std::size_t free = 0;
@@ -252,9 +276,14 @@ void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::v
     gravityNorm2 += sv.implicitGravityNorm2_;
     free += sv.implicitFreeCount_;
   }
-  const double floor = kCouplingCgFloor * std::max({std::sqrt(rhsNorm2), std::sqrt(gravityNorm2), 1e-300}) /
-                       std::sqrt(static_cast<double>(std::max<std::size_t>(free, 1)));
+  return kCouplingCgFloor * std::max({std::sqrt(rhsNorm2), std::sqrt(gravityNorm2), 1e-300}) /
+         std::sqrt(static_cast<double>(std::max<std::size_t>(free, 1)));
+}
 
+void ImplicitCoupling::buildSprings(const std::vector<Solver*>& objects,
+                                    const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairCandidates,
+                                    double h, const std::vector<char>* still) {
+  const std::vector<std::int64_t>& place = place_;
   // a spring per candidate pair of coupled objects, active where predicted within the skin (and
   // one per pair of a coupled and a still object: holdSpring())
   springs_.clear();
@@ -289,7 +318,9 @@ void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::v
     sp.active = predicted < 0.0;
     springs_.push_back(sp);
   }
+}
 
+PcgResult ImplicitCoupling::solve(const std::vector<Solver*>& objects, double h, double floor) {
   // one solve, with the objects' collider contacts and the springs in one active set
   Pcg& pcg = pcg_;
   const auto apply = [&](const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
@@ -298,10 +329,10 @@ void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::v
   const auto precond = [&](const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
     precondition(objects, r, z);
   };
-  int iterations = 0;
   double passFloor = floor;
   bool guessChanged = true;
   PcgResult result;
+  int iterations = 0;
   for (int pass = 0;; ++pass) {
     gather(objects);
     result = pcg.solveWith(apply, precond, constraint_, normal_, rhs_, velocity_, passFloor, kCouplingCgTolerance,
@@ -330,6 +361,11 @@ void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::v
     }
     if (!changed) break;
   }
+  result.iterations = iterations;
+  return result;
+}
+
+void ImplicitCoupling::sumSpringImpulses(const std::vector<Solver*>& objects, double h) {
   // the springs' impulses, on the objects' momentum and for the contact pass
   impulses_.clear();
   for (std::uint32_t o : members_) {
@@ -354,21 +390,6 @@ void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::v
     if (lambda == 0.0) continue;
     objects[sp.o1]->implicitCouplingImpulse_[sp.i1] += lambda * sp.n;  // the sleeping object takes none
     recordImpulse(sp, lambda);
-  }
-  for (std::size_t m = 0; m < members_.size(); ++m) {
-    Solver& sv = *objects[members_[m]];
-    sv.implicitSolve_ = result;
-    sv.implicitSolve_.iterations = iterations;
-    sv.implicitEnd(h, pcg.residual(), start_[m]);
-    sv.implicitCouplingImpulse_.clear();
-  }
-  // each member's thread governor gets its share of the solve's time (as advanceSubstep() times
-  // an object's own sub-step)
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  for (std::uint32_t o : members_) {
-    Solver& sv = *objects[o];
-    if (sv.singleSummer_ != nullptr)
-      sv.stepSeconds_ += seconds * static_cast<double>(sv.x_.size()) / static_cast<double>(std::max<std::size_t>(size_, 1));
   }
 }
 

@@ -70,6 +70,20 @@ class ImplicitCoupling {
     double k = 0.0;      // h^2 times the stiffness
     bool active = false;
   };
+  // substep()'s stages:
+  /// members_, start_, globalStart_ and place_ for the coupled objects; the vectors sized
+  void placeMembers(const std::vector<Solver*>& objects, const std::vector<char>& coupled);
+  /// each member's system (Solver::implicitBegin()); returns the joint solve's floor
+  double beginMembers(const std::vector<Solver*>& objects, int s, double h);
+  /// springs_ (and held_) for the candidate pairs, active where predicted within the skin
+  void buildSprings(const std::vector<Solver*>& objects,
+                    const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairCandidates, double h,
+                    const std::vector<char>* still);
+  /// the joint solve with the members' contacts and the springs in one active set; each member's
+  /// implicitVelocity_ set; the last pass's result with the iterations of all passes
+  PcgResult solve(const std::vector<Solver*>& objects, double h, double floor);
+  /// the active springs' impulses on the members (implicitCouplingImpulse_) and in impulses_
+  void sumSpringImpulses(const std::vector<Solver*>& objects, double h);
   void gather(const std::vector<Solver*>& objects);
   void product(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& p,
                std::vector<Eigen::Vector3d>& y);
