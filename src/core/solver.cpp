@@ -262,13 +262,8 @@ void Solver::idleStep() {
   }
   std::fill(v_.begin(), v_.end(), Eigen::Vector3d::Zero());
   bdf2Ready_ = false;  // its history is of before it stopped
-  const double T = params_.timeStep;
-  for (ContactBody& body : contactBodies_) {
-    Collider& c = *body.collider;
-    body.start = c.pose;
-    c.pose = advancePose(body.start, c.linearVelocity, c.angularVelocity, T);
-    body.now = c.pose;
-  }
+  for (ContactBody& body : contactBodies_) body.start = body.collider->pose;
+  poseCollidersAtStepEnd();
 }
 
 // One pass over the regions computes the goal positions and, when damping is on, the damping

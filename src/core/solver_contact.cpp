@@ -233,21 +233,27 @@ void Solver::placeContactBodies(double elapsed) {
     lo = lo.cwiseMin(x);
     hi = hi.cwiseMax(x);
   }
+  poseContactBodies(contactTime_ - elapsed, contactTime_, r);
   activeBodies_.clear();
   for (std::size_t b = 0; b < contactBodies_.size(); ++b) {
     ContactBody& body = contactBodies_[b];
-    const Collider& c = *body.collider;
-    body.before = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_ - elapsed);
-    body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_);
     // the implicit solve's contacts, then the particles this pass moves out of the collider
     body.contacts = body.solved;
     body.solved = 0;
+    if (boxNearCollider(body.collider->shape, body.now, lo, hi, r)) activeBodies_.push_back(static_cast<int>(b));
+  }
+}
+
+void Solver::poseContactBodies(double from, double to, double pad) {
+  for (ContactBody& body : contactBodies_) {
+    const Collider& c = *body.collider;
+    body.before = advancePose(body.start, c.linearVelocity, c.angularVelocity, from);
+    body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, to);
     body.bounded = colliderBounds(c.shape, body.now, body.lo, body.hi);
     if (body.bounded) {
-      body.lo.array() -= r;
-      body.hi.array() += r;
+      body.lo.array() -= pad;
+      body.hi.array() += pad;
     }
-    if (boxNearCollider(c.shape, body.now, lo, hi, r)) activeBodies_.push_back(static_cast<int>(b));
   }
 }
 
@@ -401,8 +407,14 @@ void Solver::endContactStep() {
         if (!body.particleImpulse[i].isZero(0.0))
           body.recorded.push_back({static_cast<std::uint32_t>(i), body.particlePoint[i], -body.particleImpulse[i] / T});
     }
+  }
+  poseCollidersAtStepEnd();
+}
+
+void Solver::poseCollidersAtStepEnd() {
+  for (ContactBody& body : contactBodies_) {
     Collider& c = *body.collider;
-    c.pose = advancePose(body.start, c.linearVelocity, c.angularVelocity, T);
+    c.pose = advancePose(body.start, c.linearVelocity, c.angularVelocity, params_.timeStep);
     body.now = c.pose;
   }
 }

@@ -49,16 +49,7 @@ bool Solver::constrainContacts(double h) {
   const double slipFloor = std::max(h * params_.gravity.norm(), slop / h);
   // every collider where the contact pass will see it at the end of this sub-step (the contact
   // pass sets the same pose and bounds again)
-  for (ContactBody& body : contactBodies_) {
-    const Collider& c = *body.collider;
-    body.before = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_);
-    body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, contactTime_ + elapsed);
-    body.bounded = colliderBounds(c.shape, body.now, body.lo, body.hi);
-    if (body.bounded) {
-      body.lo.array() -= r + slop;
-      body.hi.array() += r + slop;
-    }
-  }
+  poseContactBodies(contactTime_, contactTime_ + elapsed, r + slop);
   bool any = false;
   for (std::size_t i = 0; i < x_.size(); ++i) {
     if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
@@ -157,6 +148,33 @@ int Solver::deepestContact(const Eigen::Vector3d& x, double within, Eigen::Vecto
   return deepest;
 }
 
+// A free particle the solution carries deeper than the slop into a collider joins the contact set:
+// sticking, or sliding if it was let go of and comes back slipping. Returns whether it joined.
+bool Solver::joinContact(std::size_t i, double h, double slop) {
+  Eigen::Vector3d normal, vc;
+  double depth = 0.0;
+  const int b = deepestContact(x_[i] + h * implicitVelocity_[i], 0.0, normal, depth, vc);
+  if (b < 0 || depth > -slop) return false;
+  const Eigen::Vector3d v = implicitVelocity_[i];
+  const double undo = (std::min(startDepth(i, b), 0.0) - depth) / h;
+  const Eigen::Vector3d rel = v - vc;
+  implicitNormal_[i] = normal;
+  implicitContactBody_[i] = b;
+  if (implicitContactState_[i] != kReleased || (rel - rel.dot(normal) * normal).isZero(0.0)) {
+    implicitVelocity_[i] = vc + (v.dot(normal) + undo - vc.dot(normal)) * normal;
+    implicitConstraint_[i] = PcgConstraint::Fixed;
+    implicitContactState_[i] = kSticking;
+  } else {
+    // a contact let go of (it pulled) that comes back slipping joins sliding, its kinetic
+    // friction set by the next pass: added sticking, the uphill edge of a block sliding down
+    // a slope came back into the plane, held the block, pulled, was let go, ... every pass
+    implicitVelocity_[i] = v + undo * normal;
+    implicitConstraint_[i] = PcgConstraint::Normal;
+    implicitContactState_[i] = kSliding;
+  }
+  return true;
+}
+
 // The active set after a solve, from the constraint impulse on each contact particle, what its
 // equation lacks: J = (A v+ - b)_i, the solve's residual with the sign turned. A contact with
 // J.n < 0 pulls the particle towards the collider: let go. A sticking contact with |J_t| > mu_s J.n
@@ -182,29 +200,7 @@ bool Solver::updateContactSet(double h, bool& guessChanged, Pcg& pcg, std::size_
   for (std::size_t i = 0; i < x_.size(); ++i) {
     if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
     if (implicitContactBody_[i] < 0) {
-      Eigen::Vector3d normal, vc;
-      double depth = 0.0;
-      const int b = deepestContact(x_[i] + h * implicitVelocity_[i], 0.0, normal, depth, vc);
-      if (b < 0 || depth > -slop) continue;
-      const Eigen::Vector3d v = implicitVelocity_[i];
-      const double undo = (std::min(startDepth(i, b), 0.0) - depth) / h;
-      const Eigen::Vector3d rel = v - vc;
-      implicitNormal_[i] = normal;
-      implicitContactBody_[i] = b;
-      if (implicitContactState_[i] != kReleased || (rel - rel.dot(normal) * normal).isZero(0.0)) {
-        implicitVelocity_[i] = vc + (v.dot(normal) + undo - vc.dot(normal)) * normal;
-        implicitConstraint_[i] = PcgConstraint::Fixed;
-        implicitContactState_[i] = kSticking;
-      } else {
-        // a contact let go of (it pulled) that comes back slipping joins sliding, its kinetic
-        // friction set by the next pass: added sticking, the uphill edge of a block sliding down
-        // a slope came back into the plane, held the block, pulled, was let go, ... every pass
-        implicitVelocity_[i] = v + undo * normal;
-        implicitConstraint_[i] = PcgConstraint::Normal;
-        implicitContactState_[i] = kSliding;
-      }
-      changed = true;
-      guessChanged = true;
+      if (joinContact(i, h, slop)) changed = guessChanged = true;
       continue;
     }
     const Collider& c = *contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])].collider;

@@ -344,6 +344,12 @@ class Solver : private RegionKernel {
   /// bodies near the object (activeBodies_); one chunk of particles against the bodies near it,
   /// its impulses in its ContactPartial; the partials summed on the bodies.
   void placeContactBodies(double elapsed);
+  /// Each contact body at `from` (before) and `to` (now) seconds into the step along its
+  /// velocities, with its bounds at `to` padded by `pad`: the one place a sub-step's collider
+  /// poses are worked out (the contact pass, the implicit solve's contacts).
+  void poseContactBodies(double from, double to, double pad);
+  /// Each collider (and its body's `now`) at the end of the step, from its pose at the start.
+  void poseCollidersAtStepEnd();
   void contactChunk(std::ptrdiff_t chunk, const ContactPassFrame& pass);
   /// The active bodies near particles [begin, end) (within r of their bounding box), into `near`;
   /// returns their count.
@@ -578,8 +584,11 @@ class Solver : private RegionKernel {
   std::vector<Eigen::Vector3d> bdf2LastGap_;
   Eigen::Vector3d bdf2P_, bdf2Spin_;  // its linear momentum and spin (about the centre of mass) at x_n
   /// Constrains the free particles that v_n + h g would carry into a collider (see
-  /// solver_implicit.cpp); returns whether any is.
+  /// solver_implicit_contact.cpp); returns whether any is.
   bool constrainContacts(double h);
+  /// A free particle the solution carries into a collider joins the contact set (sticking, or
+  /// sliding when it was let go of and comes back slipping); returns whether it joined.
+  bool joinContact(std::size_t i, double h, double slop);
   /// The contact active set after a solve: lets go of pulling contacts, turns sticking ones out
   /// of the friction cone into sliding ones, adds particles the solution carries into a
   /// collider; returns whether it changed. Sets guessChanged when it prescribed a velocity (the
