@@ -73,6 +73,12 @@ bool pointInTriangle2d(double x0, double y0, double x1, double y1, double x2, do
   return true;
 }
 
+/// Distance from p to triangle t of the mesh.
+double triangleDistance(const TriMesh& mesh, const Eigen::Vector3d& p, std::int32_t t) {
+  const auto& tri = mesh.triangles[static_cast<std::size_t>(t)];
+  return (p - closestPointOnTriangle(p, mesh.vertices[tri[0]], mesh.vertices[tri[1]], mesh.vertices[tri[2]])).norm();
+}
+
 }  // namespace
 
 MeshDistanceField::MeshDistanceField(const TriMesh& mesh, int resolution) {
@@ -93,15 +99,15 @@ MeshDistanceField::MeshDistanceField(const TriMesh& mesh, int resolution) {
   const double far = (n_.cast<double>() * dx_).norm();
   phi_.assign(nodes, far);
   std::vector<std::int32_t> closest(nodes, -1);
-  auto index = [&](int i, int j, int k) { return (static_cast<std::size_t>(k) * n_.y() + j) * n_.x() + i; };
-  auto node = [&](int i, int j, int k) { return Eigen::Vector3d(origin_ + dx_ * Eigen::Vector3i(i, j, k).cast<double>()); };
-  auto triDistance = [&](const Eigen::Vector3d& p, std::int32_t t) {
-    const auto& tri = mesh.triangles[static_cast<std::size_t>(t)];
-    return (p - closestPointOnTriangle(p, mesh.vertices[tri[0]], mesh.vertices[tri[1]], mesh.vertices[tri[2]])).norm();
-  };
-
-  // 1. Exact distances near each triangle; crossing counts of the rows along x.
   std::vector<std::int32_t> crossings(nodes, 0);
+  exactBand(mesh, closest, crossings);
+  sweep(mesh, closest);
+  applySign(crossings);
+}
+
+void MeshDistanceField::exactBand(const TriMesh& mesh, std::vector<std::int32_t>& closest,
+                                  std::vector<std::int32_t>& crossings) {
+  // 1. Exact distances near each triangle; crossing counts of the rows along x.
   for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
     const auto& tri = mesh.triangles[t];
     Eigen::Vector3d g[3];
@@ -115,8 +121,8 @@ MeshDistanceField::MeshDistanceField(const TriMesh& mesh, int resolution) {
     for (int k = lo.z(); k <= hi.z(); ++k)
       for (int j = lo.y(); j <= hi.y(); ++j)
         for (int i = lo.x(); i <= hi.x(); ++i) {
-          const double d = triDistance(node(i, j, k), static_cast<std::int32_t>(t));
-          const std::size_t id = index(i, j, k);
+          const double d = triangleDistance(mesh, nodeAt(i, j, k), static_cast<std::int32_t>(t));
+          const std::size_t id = nodeIndex(i, j, k);
           if (d < phi_[id]) {
             phi_[id] = d;
             closest[id] = static_cast<std::int32_t>(t);
@@ -135,31 +141,33 @@ MeshDistanceField::MeshDistanceField(const TriMesh& mesh, int resolution) {
         const double ix = a * g[0].x() + b * g[1].x() + c * g[2].x();
         const int first = static_cast<int>(std::ceil(ix));
         if (first < 0)
-          ++crossings[index(0, j, k)];
+          ++crossings[nodeIndex(0, j, k)];
         else if (first < n_.x())
-          ++crossings[index(first, j, k)];
+          ++crossings[nodeIndex(first, j, k)];
       }
   }
+}
 
+void MeshDistanceField::sweep(const TriMesh& mesh, std::vector<std::int32_t>& closest) {
   // 2. Fast sweeping: a node takes a neighbour's closest triangle when it is closer.
   auto check = [&](std::size_t id, const Eigen::Vector3d& p, int i, int j, int k) {
-    const std::int32_t t = closest[index(i, j, k)];
+    const std::int32_t t = closest[nodeIndex(i, j, k)];
     if (t < 0 || t == closest[id]) return;
-    const double d = triDistance(p, t);
+    const double d = triangleDistance(mesh, p, t);
     if (d < phi_[id]) {
       phi_[id] = d;
       closest[id] = t;
     }
   };
-  auto sweep = [&](int di, int dj, int dk) {
+  auto sweepOnce = [&](int di, int dj, int dk) {
     const int i0 = di > 0 ? 1 : n_.x() - 2, i1 = di > 0 ? n_.x() : -1;
     const int j0 = dj > 0 ? 1 : n_.y() - 2, j1 = dj > 0 ? n_.y() : -1;
     const int k0 = dk > 0 ? 1 : n_.z() - 2, k1 = dk > 0 ? n_.z() : -1;
     for (int k = k0; k != k1; k += dk)
       for (int j = j0; j != j1; j += dj)
         for (int i = i0; i != i1; i += di) {
-          const std::size_t id = index(i, j, k);
-          const Eigen::Vector3d p = node(i, j, k);
+          const std::size_t id = nodeIndex(i, j, k);
+          const Eigen::Vector3d p = nodeAt(i, j, k);
           check(id, p, i - di, j, k);
           check(id, p, i, j - dj, k);
           check(id, p, i - di, j - dj, k);
@@ -170,22 +178,24 @@ MeshDistanceField::MeshDistanceField(const TriMesh& mesh, int resolution) {
         }
   };
   for (int pass = 0; pass < 2; ++pass) {
-    sweep(+1, +1, +1);
-    sweep(-1, -1, -1);
-    sweep(+1, +1, -1);
-    sweep(-1, -1, +1);
-    sweep(+1, -1, +1);
-    sweep(-1, +1, -1);
-    sweep(+1, -1, -1);
-    sweep(-1, +1, +1);
+    sweepOnce(+1, +1, +1);
+    sweepOnce(-1, -1, -1);
+    sweepOnce(+1, +1, -1);
+    sweepOnce(-1, -1, +1);
+    sweepOnce(+1, -1, +1);
+    sweepOnce(-1, +1, -1);
+    sweepOnce(+1, -1, -1);
+    sweepOnce(-1, +1, +1);
   }
+}
 
+void MeshDistanceField::applySign(const std::vector<std::int32_t>& crossings) {
   // 3. Sign: inside where an odd number of crossings precede the node along its row.
   for (int k = 0; k < n_.z(); ++k)
     for (int j = 0; j < n_.y(); ++j) {
       int total = 0;
       for (int i = 0; i < n_.x(); ++i) {
-        const std::size_t id = index(i, j, k);
+        const std::size_t id = nodeIndex(i, j, k);
         total += crossings[id];
         if (total % 2 == 1) phi_[id] = -phi_[id];
       }

@@ -122,14 +122,27 @@ inline void quaternionToMatrix(const Lanes& w, const Lanes& x, const Lanes& y, c
   r[8] = 1.0 - 2.0 * (xx + yy);
 }
 
+/// S = R^T A, per lane (row-major 3 x 3).
+[[gnu::always_inline]] inline void transposeTimes(const Lanes* R, const Lanes* A, Lanes* S) {
+  const Lanes r0 = R[0], r1 = R[1], r2 = R[2], r3 = R[3], r4 = R[4], r5 = R[5], r6 = R[6], r7 = R[7], r8 = R[8];
+  S[0] = r0 * A[0] + r3 * A[3] + r6 * A[6];
+  S[1] = r0 * A[1] + r3 * A[4] + r6 * A[7];
+  S[2] = r0 * A[2] + r3 * A[5] + r6 * A[8];
+  S[3] = r1 * A[0] + r4 * A[3] + r7 * A[6];
+  S[4] = r1 * A[1] + r4 * A[4] + r7 * A[7];
+  S[5] = r1 * A[2] + r4 * A[5] + r7 * A[8];
+  S[6] = r2 * A[0] + r5 * A[3] + r8 * A[6];
+  S[7] = r2 * A[1] + r5 * A[4] + r8 * A[7];
+  S[8] = r2 * A[2] + r5 * A[5] + r8 * A[8];
+}
+
 }  // namespace
 
 static_assert(kRotationBatch == kLanes, "one matrix per SIMD lane");
 
 void extractRotationBatch(int count, const double* a, Eigen::Quaterniond* quat, double* r) {
   constexpr int L = kRotationBatch;
-  const Lanes zero = {};
-  const Lanes one = zero + 1.0;
+  const Lanes zero = {}, one = zero + 1.0;
   // structure of arrays, lane l = matrix l; unused lanes hold the identity (converged at once)
   Lanes A[9], qw = one, qx = zero, qy = zero, qz = zero, tol = zero;
   LaneMask fallback = {}, done = {};
@@ -160,17 +173,9 @@ void extractRotationBatch(int count, const double* a, Eigen::Quaterniond* quat, 
     const Lanes w = qw, x = qx, y = qy, z = qz;
     Lanes rm[9];
     quaternionToMatrix(w, x, y, z, rm);
-    const Lanes r0 = rm[0], r1 = rm[1], r2 = rm[2], r3 = rm[3], r4 = rm[4], r5 = rm[5], r6 = rm[6], r7 = rm[7], r8 = rm[8];
-    // S = R^T A
-    const Lanes s0 = r0 * A[0] + r3 * A[3] + r6 * A[6];
-    const Lanes s1 = r0 * A[1] + r3 * A[4] + r6 * A[7];
-    const Lanes s2 = r0 * A[2] + r3 * A[5] + r6 * A[8];
-    const Lanes s3 = r1 * A[0] + r4 * A[3] + r7 * A[6];
-    const Lanes s4 = r1 * A[1] + r4 * A[4] + r7 * A[7];
-    const Lanes s5 = r1 * A[2] + r4 * A[5] + r7 * A[8];
-    const Lanes s6 = r2 * A[0] + r5 * A[3] + r8 * A[6];
-    const Lanes s7 = r2 * A[1] + r5 * A[4] + r8 * A[7];
-    const Lanes s8 = r2 * A[2] + r5 * A[5] + r8 * A[8];
+    Lanes S[9];
+    transposeTimes(rm, A, S);
+    const Lanes s0 = S[0], s1 = S[1], s2 = S[2], s3 = S[3], s4 = S[4], s5 = S[5], s6 = S[6], s7 = S[7], s8 = S[8];
     const Lanes gx = s7 - s5, gy = s2 - s6, gz = s3 - s1;
     const Lanes tr = s0 + s4 + s8;
     const Lanes h00 = tr - s0, h11 = tr - s4, h22 = tr - s8;

@@ -110,6 +110,64 @@ void dilateAlongRuns(const Grid& g, const std::vector<char>& occupied, const std
   });
 }
 
+/// Stage 1 of measureSectionThickness(): the squared distance to the nearest empty cell centre
+/// on `fine`, the half-cell grid of g (set here).
+std::vector<float> squaredDistanceToEmpty(const Grid& g, const std::vector<char>& occupied, Grid& fine) {
+  // 1. Squared distance to the nearest empty cell centre from every point of the half-cell grid
+  // (cell centres, face centres, edge midpoints and corners: point r along an axis is at r / 2
+  // in cell units, cell g's centre at r = 2 g + 1), three 1-D passes, in half cells.
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  fine.n = 2 * g.n + Eigen::Vector3i::Ones();
+  fine.stride[0] = 1;
+  fine.stride[1] = static_cast<std::size_t>(fine.n.x());
+  fine.stride[2] = fine.stride[1] * static_cast<std::size_t>(fine.n.y());
+  std::vector<float> d2(fine.size(), kInf);
+  for (int k = 0; k < g.n.z(); ++k)
+    for (int j = 0; j < g.n.y(); ++j)
+      for (int i = 0; i < g.n.x(); ++i) {
+        const std::size_t c = static_cast<std::size_t>(i) + g.stride[1] * static_cast<std::size_t>(j) +
+                              g.stride[2] * static_cast<std::size_t>(k);
+        if (!occupied[c])
+          d2[static_cast<std::size_t>(2 * i + 1) + fine.stride[1] * static_cast<std::size_t>(2 * j + 1) +
+             fine.stride[2] * static_cast<std::size_t>(2 * k + 1)] = 0.0f;
+      }
+  const int longest = fine.n.maxCoeff();
+  std::vector<int> v(static_cast<std::size_t>(longest));
+  std::vector<double> z(static_cast<std::size_t>(longest) + 1);
+  std::vector<float> line(static_cast<std::size_t>(longest));
+  for (int axis = 0; axis < 3; ++axis) {
+    const std::size_t step = fine.stride[axis];
+    const std::size_t count = static_cast<std::size_t>(fine.n[axis]);
+    forEachLine(fine, axis, [&](std::size_t first) {
+      for (std::size_t q = 0; q < count; ++q) line[q] = d2[first + step * q];
+      distanceTransform1d(line.data(), d2.data() + first, count, step, v.data(), z.data());
+    });
+  }
+  return d2;
+}
+
+/// Stage 2: each cell's section, the largest ball whose fitting region reaches it.
+std::vector<int> coverage(const Grid& g, const std::vector<char>& occupied, const std::vector<int>& ball,
+                          const std::vector<std::size_t>& at, int thickest) {
+  const std::size_t size = g.size();
+  const std::size_t P = at.size();
+  // 2. Coverage: a cell reads the largest ball whose fitting region reaches it. Region of
+  // half-width k around the cells of balls >= t: dilation along z, then y, then x within runs.
+  std::vector<int> section(size, 0);
+  for (std::size_t p = 0; p < P; ++p) section[at[p]] = ball[at[p]];
+  std::vector<char> seeds(size), a(size), b(size);
+  for (int t = 3; t <= thickest; ++t) {
+    const int reach = (t - 1) / 2;
+    for (std::size_t i = 0; i < size; ++i) seeds[i] = ball[i] >= t ? 1 : 0;
+    dilateAlongRuns(g, occupied, seeds, 2, reach, a);
+    dilateAlongRuns(g, occupied, a, 1, reach, b);
+    dilateAlongRuns(g, occupied, b, 0, reach, a);
+    for (std::size_t p = 0; p < P; ++p)
+      if (a[at[p]]) section[at[p]] = std::max(section[at[p]], t);
+  }
+  return section;
+}
+
 }  // namespace
 
 SectionThickness measureSectionThickness(const Voxelization& voxels, double thinFraction) {
@@ -143,37 +201,8 @@ SectionThickness measureSectionThickness(const Voxelization& voxels, double thin
     occupied[at[p]] = 1;
   }
 
-  // 1. Squared distance to the nearest empty cell centre from every point of the half-cell grid
-  // (cell centres, face centres, edge midpoints and corners: point r along an axis is at r / 2
-  // in cell units, cell g's centre at r = 2 g + 1), three 1-D passes, in half cells.
-  constexpr float kInf = std::numeric_limits<float>::infinity();
   Grid fine;
-  fine.n = 2 * g.n + Eigen::Vector3i::Ones();
-  fine.stride[0] = 1;
-  fine.stride[1] = static_cast<std::size_t>(fine.n.x());
-  fine.stride[2] = fine.stride[1] * static_cast<std::size_t>(fine.n.y());
-  std::vector<float> d2(fine.size(), kInf);
-  for (int k = 0; k < g.n.z(); ++k)
-    for (int j = 0; j < g.n.y(); ++j)
-      for (int i = 0; i < g.n.x(); ++i) {
-        const std::size_t c = static_cast<std::size_t>(i) + g.stride[1] * static_cast<std::size_t>(j) +
-                              g.stride[2] * static_cast<std::size_t>(k);
-        if (!occupied[c])
-          d2[static_cast<std::size_t>(2 * i + 1) + fine.stride[1] * static_cast<std::size_t>(2 * j + 1) +
-             fine.stride[2] * static_cast<std::size_t>(2 * k + 1)] = 0.0f;
-      }
-  const int longest = fine.n.maxCoeff();
-  std::vector<int> v(static_cast<std::size_t>(longest));
-  std::vector<double> z(static_cast<std::size_t>(longest) + 1);
-  std::vector<float> line(static_cast<std::size_t>(longest));
-  for (int axis = 0; axis < 3; ++axis) {
-    const std::size_t step = fine.stride[axis];
-    const std::size_t count = static_cast<std::size_t>(fine.n[axis]);
-    forEachLine(fine, axis, [&](std::size_t first) {
-      for (std::size_t q = 0; q < count; ++q) line[q] = d2[first + step * q];
-      distanceTransform1d(line.data(), d2.data() + first, count, step, v.data(), z.data());
-    });
-  }
+  const std::vector<float> d2 = squaredDistanceToEmpty(g, occupied, fine);
 
   // Ball diameter at every occupied cell: the largest ball centred on a point of the cell (its
   // centre, a face, an edge or a corner) clear of every empty cell. At distance d (cells) from
@@ -197,20 +226,7 @@ SectionThickness measureSectionThickness(const Voxelization& voxels, double thin
     thickest = std::max(thickest, ball[at[p]]);
   }
 
-  // 2. Coverage: a cell reads the largest ball whose fitting region reaches it. Region of
-  // half-width k around the cells of balls >= t: dilation along z, then y, then x within runs.
-  std::vector<int> section(size, 0);
-  for (std::size_t p = 0; p < P; ++p) section[at[p]] = ball[at[p]];
-  std::vector<char> seeds(size), a(size), b(size);
-  for (int t = 3; t <= thickest; ++t) {
-    const int reach = (t - 1) / 2;
-    for (std::size_t i = 0; i < size; ++i) seeds[i] = ball[i] >= t ? 1 : 0;
-    dilateAlongRuns(g, occupied, seeds, 2, reach, a);
-    dilateAlongRuns(g, occupied, a, 1, reach, b);
-    dilateAlongRuns(g, occupied, b, 0, reach, a);
-    for (std::size_t p = 0; p < P; ++p)
-      if (a[at[p]]) section[at[p]] = std::max(section[at[p]], t);
-  }
+  const std::vector<int> section = coverage(g, occupied, ball, at, thickest);
 
   SectionThickness out;
   out.thinFraction = thinFraction;

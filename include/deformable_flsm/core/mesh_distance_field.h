@@ -7,6 +7,8 @@
 
 #include <Eigen/Core>
 
+#include <cstddef>
+#include <cstdint>
 #include <vector>
 
 namespace deformable_flsm {
@@ -49,7 +51,15 @@ class MeshDistanceField {
   const Eigen::Vector3d& meshMax() const { return meshMax_; }
 
  private:
-  double at(int i, int j, int k) const { return phi_[(static_cast<std::size_t>(k) * n_.y() + j) * n_.x() + i]; }
+  double at(int i, int j, int k) const { return phi_[nodeIndex(i, j, k)]; }
+  std::size_t nodeIndex(int i, int j, int k) const { return (static_cast<std::size_t>(k) * n_.y() + j) * n_.x() + i; }
+  Eigen::Vector3d nodeAt(int i, int j, int k) const { return origin_ + dx_ * Eigen::Vector3i(i, j, k).cast<double>(); }
+  /// The build's stages: exact distances within a band of each triangle (with each node's closest
+  /// triangle) and the crossing counts of the rows along x; fast sweeping (a node takes a
+  /// neighbour's closest triangle when it is closer); the sign from the crossings.
+  void exactBand(const TriMesh& mesh, std::vector<std::int32_t>& closest, std::vector<std::int32_t>& crossings);
+  void sweep(const TriMesh& mesh, std::vector<std::int32_t>& closest);
+  void applySign(const std::vector<std::int32_t>& crossings);
 
   Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();  // node (0, 0, 0)
   double dx_ = 0.0;
