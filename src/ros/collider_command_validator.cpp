@@ -36,6 +36,66 @@ bool toPose(const ColliderCommand& msg, Eigen::Isometry3d& pose, Rejection& why)
   return true;
 }
 
+/// The command's shape (type, sizes, mesh), or false with why it is refused; every numeric field
+/// must be finite.
+bool toShape(const ColliderCommand& msg, ColliderShape& shape, Rejection& why) {
+  try {
+    shape.type = parseColliderType(msg.type);
+  } catch (const std::invalid_argument&) {
+    return refuse(why, "bad_type", "collider '" + msg.id + "': type '" + msg.type +
+                                       "' unknown: use plane, box, sphere, capsule, cylinder or mesh");
+  }
+  const Eigen::Vector3d size = toEigen(msg.size);
+  if (!size.allFinite() || !std::isfinite(msg.radius) || !std::isfinite(msg.length) ||
+      !std::isfinite(msg.mesh_scale) || !std::isfinite(msg.static_friction) ||
+      !std::isfinite(msg.kinetic_friction))
+    return refuse(why, "non_finite", "collider '" + msg.id + "': size " + str(size) +
+                                         ", radius " + str(msg.radius) + ", length " +
+                                         str(msg.length) + ", mesh_scale " + str(msg.mesh_scale) +
+                                         ", friction " + str(msg.static_friction) + " / " +
+                                         str(msg.kinetic_friction) + ": every field must be finite");
+  switch (shape.type) {
+    case ColliderType::HalfSpace:
+      break;
+    case ColliderType::Box:
+      if ((size.array() <= 0.0).any())
+        return refuse(why, "bad_size", "collider '" + msg.id + "': box size " + str(size) +
+                                           ": the full edge lengths must be > 0 (m)");
+      shape.halfExtents = 0.5 * size;
+      break;
+    case ColliderType::Cylinder:
+      if (msg.length <= 0.0)
+        return refuse(why, "bad_size", "collider '" + msg.id + "': cylinder length " +
+                                           str(msg.length) + " must be > 0 (m)");
+      shape.halfLength = 0.5 * msg.length;
+      if (msg.radius <= 0.0)
+        return refuse(why, "bad_size", "collider '" + msg.id + "': radius " + str(msg.radius) +
+                                           " must be > 0 (m)");
+      shape.radius = msg.radius;
+      break;
+    case ColliderType::Capsule:
+      if (msg.length < 0.0)
+        return refuse(why, "bad_size", "collider '" + msg.id + "': capsule length " +
+                                           str(msg.length) + " must be >= 0 (m)");
+      shape.halfLength = 0.5 * msg.length;
+      [[fallthrough]];
+    case ColliderType::Sphere:
+      if (msg.radius <= 0.0)
+        return refuse(why, "bad_size", "collider '" + msg.id + "': radius " + str(msg.radius) +
+                                           " must be > 0 (m)");
+      shape.radius = msg.radius;
+      break;
+    case ColliderType::Mesh:
+      try {
+        loadColliderMesh(msg.mesh, msg.mesh_scale == 0.0 ? 1.0 : msg.mesh_scale, shape);
+      } catch (const std::invalid_argument& e) {
+        return refuse(why, "bad_mesh", "collider '" + msg.id + "': " + e.what());
+      }
+      break;
+  }
+  return true;
+}
+
 }  // namespace
 
 ColliderCommandValidator::ColliderCommandValidator(std::string simFrame,
@@ -91,61 +151,7 @@ bool ColliderCommandValidator::check(const ColliderCommand& msg, CommandBody& ou
   add.id = msg.id;
   add.followFrame = follows ? msg.follow_frame : std::string();
   add.collider.pose = simFromHeader * pose;
-  ColliderShape& shape = add.collider.shape;
-  try {
-    shape.type = parseColliderType(msg.type);
-  } catch (const std::invalid_argument&) {
-    return refuse(why, "bad_type", "collider '" + msg.id + "': type '" + msg.type +
-                                       "' unknown: use plane, box, sphere, capsule, cylinder or mesh");
-  }
-  const Eigen::Vector3d size = toEigen(msg.size);
-  if (!size.allFinite() || !std::isfinite(msg.radius) || !std::isfinite(msg.length) ||
-      !std::isfinite(msg.mesh_scale) || !std::isfinite(msg.static_friction) ||
-      !std::isfinite(msg.kinetic_friction))
-    return refuse(why, "non_finite", "collider '" + msg.id + "': size " + str(size) +
-                                         ", radius " + str(msg.radius) + ", length " +
-                                         str(msg.length) + ", mesh_scale " + str(msg.mesh_scale) +
-                                         ", friction " + str(msg.static_friction) + " / " +
-                                         str(msg.kinetic_friction) + ": every field must be finite");
-  switch (shape.type) {
-    case ColliderType::HalfSpace:
-      break;
-    case ColliderType::Box:
-      if ((size.array() <= 0.0).any())
-        return refuse(why, "bad_size", "collider '" + msg.id + "': box size " + str(size) +
-                                           ": the full edge lengths must be > 0 (m)");
-      shape.halfExtents = 0.5 * size;
-      break;
-    case ColliderType::Cylinder:
-      if (msg.length <= 0.0)
-        return refuse(why, "bad_size", "collider '" + msg.id + "': cylinder length " +
-                                           str(msg.length) + " must be > 0 (m)");
-      shape.halfLength = 0.5 * msg.length;
-      if (msg.radius <= 0.0)
-        return refuse(why, "bad_size", "collider '" + msg.id + "': radius " + str(msg.radius) +
-                                           " must be > 0 (m)");
-      shape.radius = msg.radius;
-      break;
-    case ColliderType::Capsule:
-      if (msg.length < 0.0)
-        return refuse(why, "bad_size", "collider '" + msg.id + "': capsule length " +
-                                           str(msg.length) + " must be >= 0 (m)");
-      shape.halfLength = 0.5 * msg.length;
-      [[fallthrough]];
-    case ColliderType::Sphere:
-      if (msg.radius <= 0.0)
-        return refuse(why, "bad_size", "collider '" + msg.id + "': radius " + str(msg.radius) +
-                                           " must be > 0 (m)");
-      shape.radius = msg.radius;
-      break;
-    case ColliderType::Mesh:
-      try {
-        loadColliderMesh(msg.mesh, msg.mesh_scale == 0.0 ? 1.0 : msg.mesh_scale, shape);
-      } catch (const std::invalid_argument& e) {
-        return refuse(why, "bad_mesh", "collider '" + msg.id + "': " + e.what());
-      }
-      break;
-  }
+  if (!toShape(msg, add.collider.shape, why)) return false;
   if (msg.kinetic_friction < 0.0 || msg.static_friction < msg.kinetic_friction)
     return refuse(why, "bad_friction", "collider '" + msg.id + "': static_friction " +
                                            str(msg.static_friction) + ", kinetic_friction " +

@@ -42,30 +42,36 @@ std::size_t ColliderFollower::waiting() const {
   return n;
 }
 
+std::string ColliderFollower::lookup(const ros::Time& now, const std::string& id, const Entry& e,
+                                     geometry_msgs::TransformStamped& t) const {
+  std::string problem;
+  // Latest transform, no timeout: BufferCore never waits.
+  std::string error;
+  if (!buffer_.canTransform(simFrame_, e.frame, ros::Time(0), &error)) {
+    problem = "collider '" + id + "': frame '" + e.frame + "' unknown (" + error + ")";
+  } else {
+    try {
+      t = buffer_.lookupTransform(simFrame_, e.frame, ros::Time(0));
+    } catch (const tf2::TransformException& ex) {
+      problem = "collider '" + id + "': frame '" + e.frame + "': " + ex.what();
+    }
+  }
+  // A static transform has stamp 0 and never goes stale.
+  if (problem.empty() && !t.header.stamp.isZero() &&
+      (now - t.header.stamp).toSec() > kStaleAfter) {
+    problem = "collider '" + id + "': the newest transform of frame '" + e.frame + "' is " +
+              std::to_string((now - t.header.stamp).toSec()) + " s old";
+  }
+  return problem;
+}
+
 void ColliderFollower::sample(const ros::Time& now, const Post& post, Report& report) {
   std::lock_guard<std::mutex> lock(mutex_);
   for (auto it = entries_.begin(); it != entries_.end();) {
     const std::string& id = it->first;
     Entry& e = it->second;
-    std::string problem;
     geometry_msgs::TransformStamped t;
-    // Latest transform, no timeout: BufferCore never waits.
-    std::string error;
-    if (!buffer_.canTransform(simFrame_, e.frame, ros::Time(0), &error)) {
-      problem = "collider '" + id + "': frame '" + e.frame + "' unknown (" + error + ")";
-    } else {
-      try {
-        t = buffer_.lookupTransform(simFrame_, e.frame, ros::Time(0));
-      } catch (const tf2::TransformException& ex) {
-        problem = "collider '" + id + "': frame '" + e.frame + "': " + ex.what();
-      }
-    }
-    // A static transform has stamp 0 and never goes stale.
-    if (problem.empty() && !t.header.stamp.isZero() &&
-        (now - t.header.stamp).toSec() > kStaleAfter) {
-      problem = "collider '" + id + "': the newest transform of frame '" + e.frame + "' is " +
-                std::to_string((now - t.header.stamp).toSec()) + " s old";
-    }
+    const std::string problem = lookup(now, id, e, t);
     if (!problem.empty() && !e.seen) {
       // Not a miss: the frame has not appeared yet (a publisher still starting).
       if (!e.announced) {

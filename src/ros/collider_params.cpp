@@ -99,6 +99,66 @@ void loadColliderMesh(const std::string& url, const Eigen::Vector3d& scale, Coll
   }
 }
 
+namespace {
+
+/// An entry's shape: the sizes its type needs (each checked), a mesh loaded.
+void readShape(EntryReader& r, ColliderSpec& spec) {
+  ColliderShape& shape = spec.collider.shape;
+  const auto needs = [&](const char* field) {
+    if (!r.has(field)) r.fail(std::string("a ") + toString(shape.type) + " needs " + field);
+  };
+  switch (shape.type) {
+    case ColliderType::HalfSpace:
+      break;
+    case ColliderType::Box: {
+      needs("size");
+      const Eigen::Vector3d size = r.numbers("size", 3, Eigen::Vector3d::Zero());
+      if ((size.array() <= 0.0).any())
+        r.fail("size is [" + std::to_string(size.x()) + ", " + std::to_string(size.y()) + ", " +
+               std::to_string(size.z()) + "]: a box's full edge lengths must be > 0 (m)");
+      shape.halfExtents = 0.5 * size;
+      break;
+    }
+    case ColliderType::Cylinder:
+      needs("length");
+      needs("radius");
+      shape.halfLength = 0.5 * r.number("length", 0.0);
+      shape.radius = r.number("radius", 0.0);
+      if (shape.halfLength <= 0.0)
+        r.fail("length is " + std::to_string(2 * shape.halfLength) + ": it must be > 0 (m)");
+      if (shape.radius <= 0.0)
+        r.fail("radius is " + std::to_string(shape.radius) + ": it must be > 0 (m)");
+      break;
+    case ColliderType::Capsule:
+      needs("length");
+      shape.halfLength = 0.5 * r.number("length", 0.0);
+      if (shape.halfLength < 0.0)
+        r.fail("length is " + std::to_string(2 * shape.halfLength) + ": it must be >= 0 (m)");
+      [[fallthrough]];
+    case ColliderType::Sphere:
+      needs("radius");
+      shape.radius = r.number("radius", 0.0);
+      if (shape.radius <= 0.0)
+        r.fail("radius is " + std::to_string(shape.radius) + ": it must be > 0 (m)");
+      break;
+    case ColliderType::Mesh: {
+      needs("mesh");
+      spec.meshUrl = r.string("mesh", "");
+      const double scale = r.number("mesh_scale", 1.0);
+      if (scale <= 0.0)
+        r.fail("mesh_scale is " + std::to_string(scale) + ": it must be > 0");
+      try {
+        loadColliderMesh(spec.meshUrl, scale, shape);
+      } catch (const std::invalid_argument& e) {
+        r.fail(e.what());
+      }
+      break;
+    }
+  }
+}
+
+}  // namespace
+
 std::vector<ColliderSpec> parseColliderList(XmlRpc::XmlRpcValue& value,
                                             const std::string& simFrame) {
   if (value.getType() != XmlRpc::XmlRpcValue::TypeArray)
@@ -142,57 +202,7 @@ std::vector<ColliderSpec> parseColliderList(XmlRpc::XmlRpcValue& value,
     const Eigen::Quaterniond rotation(q[3], q[0], q[1], q[2]);
     spec.collider.pose = Eigen::Translation3d(position) * rotation.normalized();
 
-    const auto needs = [&](const char* field) {
-      if (!r.has(field)) r.fail(std::string("a ") + toString(shape.type) + " needs " + field);
-    };
-    switch (shape.type) {
-      case ColliderType::HalfSpace:
-        break;
-      case ColliderType::Box: {
-        needs("size");
-        const Eigen::Vector3d size = r.numbers("size", 3, Eigen::Vector3d::Zero());
-        if ((size.array() <= 0.0).any())
-          r.fail("size is [" + std::to_string(size.x()) + ", " + std::to_string(size.y()) + ", " +
-                 std::to_string(size.z()) + "]: a box's full edge lengths must be > 0 (m)");
-        shape.halfExtents = 0.5 * size;
-        break;
-      }
-      case ColliderType::Cylinder:
-        needs("length");
-        needs("radius");
-        shape.halfLength = 0.5 * r.number("length", 0.0);
-        shape.radius = r.number("radius", 0.0);
-        if (shape.halfLength <= 0.0)
-          r.fail("length is " + std::to_string(2 * shape.halfLength) + ": it must be > 0 (m)");
-        if (shape.radius <= 0.0)
-          r.fail("radius is " + std::to_string(shape.radius) + ": it must be > 0 (m)");
-        break;
-      case ColliderType::Capsule:
-        needs("length");
-        shape.halfLength = 0.5 * r.number("length", 0.0);
-        if (shape.halfLength < 0.0)
-          r.fail("length is " + std::to_string(2 * shape.halfLength) + ": it must be >= 0 (m)");
-        [[fallthrough]];
-      case ColliderType::Sphere:
-        needs("radius");
-        shape.radius = r.number("radius", 0.0);
-        if (shape.radius <= 0.0)
-          r.fail("radius is " + std::to_string(shape.radius) + ": it must be > 0 (m)");
-        break;
-      case ColliderType::Mesh: {
-        needs("mesh");
-        spec.meshUrl = r.string("mesh", "");
-        const double scale = r.number("mesh_scale", 1.0);
-        if (scale <= 0.0)
-          r.fail("mesh_scale is " + std::to_string(scale) + ": it must be > 0");
-        try {
-          loadColliderMesh(spec.meshUrl, scale, shape);
-        } catch (const std::invalid_argument& e) {
-          r.fail(e.what());
-        }
-        break;
-      }
-    }
+    readShape(r, spec);
     spec.collider.staticFriction = r.number("static_friction", spec.collider.staticFriction);
     spec.collider.kineticFriction = r.number("kinetic_friction", spec.collider.kineticFriction);
     if (spec.collider.kineticFriction < 0.0 ||

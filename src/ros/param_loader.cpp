@@ -66,22 +66,7 @@ void ParamLoader::throwWrongType(const std::string& name, const char* expected) 
                    describe(found) + hint);
 }
 
-NodeParams ParamLoader::loadNodeParams() const {
-  NodeParams p;
-  p.mesh = getString("mesh", p.mesh);
-  p.meshScale = getDouble("mesh_scale", p.meshScale);
-  p.meshRpy = getVector3("mesh_rpy", p.meshRpy);
-  p.frameId = getString("frame_id", p.frameId);
-  p.objectFrameId = getString("object_frame_id", p.objectFrameId);
-
-  p.spacing = getDouble("spacing", p.spacing);
-  p.resolution = getInt("resolution", p.resolution);
-  p.particleBudget = getInt("particle_budget", p.particleBudget);
-  p.maxParticles = getInt("max_particles", p.maxParticles);
-
-  p.regionRadius = getDouble("region_radius", p.regionRadius);
-  p.regionHalfWidth = getInt("region_half_width", p.regionHalfWidth);
-  p.regionFromSection = getBool("region_from_section", p.regionFromSection);
+void ParamLoader::readMaterialAndSolver(NodeParams& p) const {
   SolverParams& s = p.solver;
   s.stiffness = getDouble("stiffness", s.stiffness);
   p.youngsModulus = getDouble("youngs_modulus", p.youngsModulus);
@@ -122,6 +107,25 @@ NodeParams ParamLoader::loadNodeParams() const {
     throw ParamError("~implicit_scheme is '" + scheme + "': it must be 'backward_euler' (first order, damps "
                      "the object's own vibration) or 'bdf2' (second order, keeps it; one object alone)");
   }
+}
+
+NodeParams ParamLoader::loadNodeParams() const {
+  NodeParams p;
+  p.mesh = getString("mesh", p.mesh);
+  p.meshScale = getDouble("mesh_scale", p.meshScale);
+  p.meshRpy = getVector3("mesh_rpy", p.meshRpy);
+  p.frameId = getString("frame_id", p.frameId);
+  p.objectFrameId = getString("object_frame_id", p.objectFrameId);
+
+  p.spacing = getDouble("spacing", p.spacing);
+  p.resolution = getInt("resolution", p.resolution);
+  p.particleBudget = getInt("particle_budget", p.particleBudget);
+  p.maxParticles = getInt("max_particles", p.maxParticles);
+
+  p.regionRadius = getDouble("region_radius", p.regionRadius);
+  p.regionHalfWidth = getInt("region_half_width", p.regionHalfWidth);
+  p.regionFromSection = getBool("region_from_section", p.regionFromSection);
+  readMaterialAndSolver(p);
 
   p.publishRate = getDouble("publish_rate", p.publishRate);
   p.republishAtRest = getBool("republish_at_rest", p.republishAtRest);

@@ -123,6 +123,9 @@ class ColliderFollower {
     bool velocityKnown = false;
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // collider pose at `stamp`
   };
+  /// The newest transform of e's frame into `t`, or why there is none (unknown, stale) in words.
+  std::string lookup(const ros::Time& now, const std::string& id, const Entry& e,
+                     geometry_msgs::TransformStamped& t) const;
 
   const tf2::BufferCore& buffer_;
   std::string simFrame_;

@@ -66,6 +66,9 @@ class ParamLoader {
                                       const std::vector<std::string>& fallback) const;
   /// ~robot_description (the URDF read from the parameter it names) and ~robot_*.
   RobotColliders getRobot() const;
+  /// The material (modulus, Poisson's ratio, damping, density), the step (time step, sub-steps,
+  /// threads, summation, integrator and scheme) and the contact radius into p.
+  void readMaterialAndSolver(NodeParams& p) const;
 
   /// whether ~name is set, and its value (from the server or the tree)
   bool has(const std::string& name) const;
