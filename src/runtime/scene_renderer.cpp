@@ -277,6 +277,10 @@ struct SceneRenderer::Impl {
     check(device, "build a collider");
     return c;
   }
+  /// A packet's pixels from what its rays met (an Embree hit, a plane in plane[i], or nothing):
+  /// depth, label and the headlight-shaded colour of tile (u0, v0) in an image w wide.
+  void shade(const RTCRayHit16& rh, const int* valid, const int* plane, int u0, int v0, int w,
+             RenderedView& out) const;
 };
 
 SceneRenderer::SceneRenderer() : impl_(std::make_unique<Impl>()) {
@@ -369,6 +373,34 @@ void SceneRenderer::setColliders(const std::map<std::string, Collider>& collider
   check(m.device, "update the colliders");
 }
 
+void SceneRenderer::Impl::shade(const RTCRayHit16& rh, const int* valid, const int* plane, int u0, int v0, int w,
+                                RenderedView& out) const {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (int i = 0; i < 16; ++i) {
+    if (!valid[i]) continue;
+    const int u = u0 + i % kTile, v = v0 + i / kTile;
+    const std::size_t p = static_cast<std::size_t>(v) * w + u;
+    std::uint8_t* rgb = &out.rgb[3 * p];
+    const bool embree = rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
+    if (!embree && plane[i] < 0) {
+      out.depth[p] = nan;
+      out.label[p] = kNothing;
+      rgb[0] = rgb[1] = rgb[2] = 0;
+      continue;
+    }
+    const Impl::Hit& hit = embree ? hits[rh.hit.geomID[i]] : planes[plane[i]].hit;
+    const Eigen::Vector3f n = embree ? Eigen::Vector3f(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i])
+                                     : planes[plane[i]].normal;
+    const Eigen::Vector3f d(rh.ray.dir_x[i], rh.ray.dir_y[i], rh.ray.dir_z[i]);
+    out.depth[p] = rh.ray.tfar[i];
+    out.label[p] = hit.label;
+    const float nn = n.squaredNorm() * d.squaredNorm();
+    const float cosine = nn > 0.0f ? std::abs(n.dot(d)) / std::sqrt(nn) : 1.0f;
+    const Eigen::Vector3f c = hit.color * (255.0f * (kAmbient + kHeadlight * cosine));
+    for (int k = 0; k < 3; ++k) rgb[k] = static_cast<std::uint8_t>(std::min(255.0f, c[k]) + 0.5f);
+  }
+}
+
 void SceneRenderer::render(const CameraIntrinsics& camera, const Eigen::Isometry3d& cameraPose,
                            RenderedView& out) {
   Impl& m = *impl_;
@@ -393,7 +425,6 @@ void SceneRenderer::render(const CameraIntrinsics& camera, const Eigen::Isometry
   for (int u = 0; u < w; ++u) m.columns[u] = R.col(0) * static_cast<float>((u - camera.cx) / camera.fx);
   for (int v = 0; v < h; ++v) m.rows[v] = R.col(1) * static_cast<float>((v - camera.cy) / camera.fy) + R.col(2);
   const float tnear = static_cast<float>(camera.near), tfar = static_cast<float>(camera.far);
-  const float nan = std::numeric_limits<float>::quiet_NaN();
   RTCBounds bounds;  // of what Embree holds (empty: lower above upper)
   rtcGetSceneBounds(m.top, &bounds);
   // the planes' distance along their normal from the camera
@@ -438,29 +469,7 @@ void SceneRenderer::render(const CameraIntrinsics& camera, const Eigen::Isometry
       }
       // without planes a packet that meets nothing costs Embree no more than the test would
       if (planes == 0 || mayHit(bounds, o, rh.ray)) rtcIntersect16(valid, m.top, &context, &rh);
-      for (int i = 0; i < 16; ++i) {
-        if (!valid[i]) continue;
-        const int u = u0 + i % kTile, v = v0 + i / kTile;
-        const std::size_t p = static_cast<std::size_t>(v) * w + u;
-        std::uint8_t* rgb = &out.rgb[3 * p];
-        const bool embree = rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
-        if (!embree && plane[i] < 0) {
-          out.depth[p] = nan;
-          out.label[p] = kNothing;
-          rgb[0] = rgb[1] = rgb[2] = 0;
-          continue;
-        }
-        const Impl::Hit& hit = embree ? m.hits[rh.hit.geomID[i]] : m.planes[plane[i]].hit;
-        const Eigen::Vector3f n = embree ? Eigen::Vector3f(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i])
-                                         : m.planes[plane[i]].normal;
-        const Eigen::Vector3f d(rh.ray.dir_x[i], rh.ray.dir_y[i], rh.ray.dir_z[i]);
-        out.depth[p] = rh.ray.tfar[i];
-        out.label[p] = hit.label;
-        const float nn = n.squaredNorm() * d.squaredNorm();
-        const float cosine = nn > 0.0f ? std::abs(n.dot(d)) / std::sqrt(nn) : 1.0f;
-        const Eigen::Vector3f c = hit.color * (255.0f * (kAmbient + kHeadlight * cosine));
-        for (int k = 0; k < 3; ++k) rgb[k] = static_cast<std::uint8_t>(std::min(255.0f, c[k]) + 0.5f);
-      }
+      m.shade(rh, valid, plane, u0, v0, w, out);
     }
   }
 }
