@@ -30,7 +30,9 @@ struct Ticks {
   SimulationLoop::TickObserver observer() {
     return [this](double time, const Snapshot* state) {
       // the state handed over is the one the tick is of
-      if (state != nullptr) EXPECT_EQ(state->time, time);
+      if (state != nullptr) {
+        EXPECT_EQ(state->time, time);
+      }
       std::lock_guard<std::mutex> lock(mutex);
       seen.emplace_back(time, state != nullptr);
     };
@@ -258,7 +260,7 @@ TEST(SimulationLoopTime, UnpausingAnswersTheStepsAskedFor) {
   settings.idleHold = 0.0;
   TimeRig rig(settings, 0.02);
   rig.loop->start();
-  Command step{StepCommand{CommandLimits::kMaxSteps}, std::make_shared<std::promise<CommandOutcome>>()};
+  Command step{StepCommand{CommandLimits::kMaxSteps}, std::make_shared<std::promise<CommandOutcome>>(), ""};
   auto answer = step.outcome->get_future();
   rig.loop->submit(std::move(step));
   std::this_thread::sleep_for(std::chrono::milliseconds(20));  // some steps taken
