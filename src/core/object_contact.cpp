@@ -121,7 +121,7 @@ void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std
   findPairs(params);
   laps.lap(kPairSeconds);
   if (contacts_.empty()) {
-    keepFrozenColliderImpulses();  // nothing else to warm-start the next sub-step's collider contacts from
+    keepAsleepColliderImpulses();  // nothing else to warm-start the next sub-step's collider contacts from
     return;
   }
   findColliderContacts(colliders, h);
@@ -153,7 +153,7 @@ void ObjectContactSolver::gather(const std::vector<Solver*>& objects, double h) 
     x_[k] = s.positions()[i];
     v_[k] = s.velocities()[i];
     start_[k] = x_[k] - h * v_[k];
-    w_[k] = frozen(object_[k]) || s.isPrescribed(i) ? 0.0 : 1.0 / s.lattice().masses()[i];
+    w_[k] = asleep(object_[k]) || s.isPrescribed(i) ? 0.0 : 1.0 / s.lattice().masses()[i];
     r_[k] = radius_[object_[k]];
     touched_[k] = 0;
   }
@@ -280,18 +280,18 @@ bool ObjectContactSolver::slides(const ContactRow& c) {
   return normal > 0.0 && c.friction.squaredNorm() >= bound * bound * (1.0 - 1e-9);
 }
 
-// The impulses for the next sub-step's warm start; a frozen object's collider impulses are carried for when it wakes.
+// The impulses for the next sub-step's warm start; a sleeping object's collider impulses are carried for when it wakes.
 void ObjectContactSolver::keep() {
   for (const PairContact& c : contacts_) keptPairs_[c.slot] = keptOf(c);
   keptScratch_.swap(keptCollider_);
   keptCollider_.clear();
-  reserveDoubling(keptCollider_, colliderContacts_.size() + (frozen_ != nullptr ? keptScratch_.size() : 0));
+  reserveDoubling(keptCollider_, colliderContacts_.size() + (asleep_ != nullptr ? keptScratch_.size() : 0));
   std::size_t old = 0;
   auto carryBefore = [&](std::uint32_t g, std::size_t ci) {
     for (; old < keptScratch_.size() &&
            (keptScratch_[old].g < g || (keptScratch_[old].g == g && keptScratch_[old].collider < ci));
          ++old)
-      if (frozen(owner_[keptScratch_[old].g])) keptCollider_.push_back(keptScratch_[old]);
+      if (asleep(owner_[keptScratch_[old].g])) keptCollider_.push_back(keptScratch_[old]);
   };
   for (const ColliderContact& c : colliderContacts_) {
     if (!carries(c.lambda, c.friction)) continue;
@@ -301,11 +301,11 @@ void ObjectContactSolver::keep() {
   carryBefore(std::numeric_limits<std::uint32_t>::max(), std::numeric_limits<std::size_t>::max());
 }
 
-// A frozen object's collider impulses outlive the sub-steps in which it has no contacts.
-void ObjectContactSolver::keepFrozenColliderImpulses() {
+// A sleeping object's collider impulses outlive the sub-steps in which it has no contacts.
+void ObjectContactSolver::keepAsleepColliderImpulses() {
   std::size_t n = 0;
   for (const KeptImpulse& k : keptCollider_)
-    if (frozen(owner_[k.g])) keptCollider_[n++] = k;
+    if (asleep(owner_[k.g])) keptCollider_[n++] = k;
   keptCollider_.resize(n);
 }
 

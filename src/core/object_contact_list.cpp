@@ -117,9 +117,9 @@ ObjectContactSolver::Staleness ObjectContactSolver::findStale(const std::vector<
   if (!builtFor(objects, params)) return Staleness::kAll;
   bool any = false;
   for (std::size_t o = 0; o < objects.size(); ++o) {
-    // a frozen object at rest that was within its allowances still is: nothing of it moved since
+    // a sleeping object at rest that was within its allowances still is: nothing of it moved since
     // (a change from outside moves its state version), and with no velocity h and ahead do not count
-    const bool held = frozen(o);
+    const bool held = asleep(o);
     if (held && restChecked_[o] && restVersion_[o] == objects[o]->stateVersion()) {
       stale_[o] = 0;
       continue;
@@ -131,7 +131,7 @@ ObjectContactSolver::Staleness ObjectContactSolver::findStale(const std::vector<
     const double* e = allowance_.data() + offset_[o];
     const std::size_t n = x.size();
     Eigen::Vector3d sumX = Eigen::Vector3d::Zero(), sumV = Eigen::Vector3d::Zero();
-    bool still = held;  // every velocity zero (looked at only for a frozen object)
+    bool still = held;  // every velocity zero (looked at only for a sleeping object)
     for (std::size_t i = 0; i < n; ++i) {
       sumX += x[i] + ahead * v[i] - a[i];
       sumV += v[i];
@@ -182,7 +182,7 @@ ObjectContactSolver::Staleness ObjectContactSolver::findStale(const std::vector<
 void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h,
                                     bool all, double ahead) {
   ++listBuilds_;
-  carryFrozenPairImpulses(all);
+  carryAsleepPairImpulses(all);
   if (all) resetList(objects, params);
   anchorStale(objects, h, ahead);
   findObjectPairs(params, h);
@@ -198,12 +198,12 @@ void ObjectContactSolver::buildList(const std::vector<Solver*>& objects, const O
 }
 
 // A sleeping object's pairs with a stale one keep their impulses for when it wakes, carried by key.
-void ObjectContactSolver::carryFrozenPairImpulses(bool all) {
+void ObjectContactSolver::carryAsleepPairImpulses(bool all) {
   carried_.clear();
-  if (all || frozen_ == nullptr) return;
+  if (all || asleep_ == nullptr) return;
   for (std::size_t i = 0; i < keys_.size(); ++i) {
     const std::uint32_t o1 = owner_[keys_[i].first], o2 = owner_[keys_[i].second];
-    if ((!stale_[o1] && !stale_[o2]) || (!frozen(o1) && !frozen(o2))) continue;
+    if ((!stale_[o1] && !stale_[o2]) || (!asleep(o1) && !asleep(o2))) continue;
     if (!carries(keptPairs_[i].lambda, keptPairs_[i].friction)) continue;
     carried_.push_back({keys_[i], keptPairs_[i]});
   }
@@ -241,7 +241,7 @@ void ObjectContactSolver::resetList(const std::vector<Solver*>& objects, const O
   stale_.assign(N, 1);
   restChecked_.assign(N, 0);
   restVersion_.assign(N, 0);
-  reserveDoubling(awakeFrozen_, N);
+  reserveDoubling(slotsAsleep_, N);
   keys_.clear();
   const std::size_t total = offset_[N];
   hash_.reserve(total);
@@ -378,7 +378,7 @@ std::size_t ObjectContactSolver::keepPairsOfSettledObjects() {
   for (std::size_t i = 0; i < keys_.size(); ++i) {
     const std::uint32_t o1 = owner_[keys_[i].first], o2 = owner_[keys_[i].second];
     if (stale_[o1] || stale_[o2]) continue;
-    const bool sleeping = frozen_ != nullptr && (frozen(o1) || frozen(o2));
+    const bool sleeping = asleep_ != nullptr && (asleep(o1) || asleep(o2));
     const bool carry = sleeping && carries(keptPairs_[i].lambda, keptPairs_[i].friction);
     keptPairs_[kept] = carry ? keptPairs_[i] : Impulses();
     keys_[kept++] = keys_[i];
@@ -525,10 +525,10 @@ void ObjectContactSolver::restoreImpulses(std::size_t kept, bool all) {
     if (it == carried_.end() || it->key != keys_[i]) continue;
     keptPairs_[i] = it->impulses;
   }
-  if (all || frozen_ == nullptr)
+  if (all || asleep_ == nullptr)
     keptCollider_.clear();
   else
-    keepFrozenColliderImpulses();  // global numbers: valid over a build of some objects
+    keepAsleepColliderImpulses();  // global numbers: valid over a build of some objects
 }
 
 // The passes work on dense arrays of the listed particles only, in the order of their global numbers.
@@ -573,22 +573,22 @@ void ObjectContactSolver::renumberParticles() {
                       static_cast<std::uint32_t>(renumber_[keys_[i].second])};
 }
 
-// The passes leave two frozen objects' pairs alone: a pile asleep around a few awake objects costs what they touch.
+// The passes leave two sleeping objects' pairs alone: a pile asleep around a few awake objects costs what they touch.
 void ObjectContactSolver::selectAwake() {
   const std::size_t N = builtObjects_.size();
-  // chosen after the list's latest build (every build counts in listBuilds_) and for the same frozen objects
+  // chosen after the list's latest build (every build counts in listBuilds_) and for the same sleeping objects
   bool same = awakeBuild_ == listBuilds_;
-  for (std::size_t o = 0; same && o < N; ++o) same = awakeFrozen_[o] == char(frozen(static_cast<std::uint32_t>(o)));
+  for (std::size_t o = 0; same && o < N; ++o) same = slotsAsleep_[o] == char(asleep(static_cast<std::uint32_t>(o)));
   if (same) return;
   awakeBuild_ = listBuilds_;
-  awakeFrozen_.resize(N);
-  for (std::size_t o = 0; o < N; ++o) awakeFrozen_[o] = frozen(static_cast<std::uint32_t>(o));
+  slotsAsleep_.resize(N);
+  for (std::size_t o = 0; o < N; ++o) slotsAsleep_[o] = asleep(static_cast<std::uint32_t>(o));
   awakeSlots_.clear();
   awakeParticles_.clear();
   std::fill(touched_.begin(), touched_.end(), 0);  // here: marks the particles named
   for (std::size_t i = 0; i < candidates_.size(); ++i) {
     const std::uint32_t k1 = candidates_[i].first, k2 = candidates_[i].second;
-    if (awakeFrozen_[object_[k1]] && awakeFrozen_[object_[k2]]) continue;
+    if (slotsAsleep_[object_[k1]] && slotsAsleep_[object_[k2]]) continue;
     awakeSlots_.push_back(static_cast<std::uint32_t>(i));
     touched_[k1] = touched_[k2] = 1;
   }

@@ -362,7 +362,7 @@ void World::beginObjects() {
   for (std::size_t o = 0; o < im.objects.size(); ++o)
     if (!asleep[o]) im.pointers[o]->beginStep();
   im.contact.beginStep(im.objects.size(), im.colliders.size());
-  im.contact.setFrozen(&asleep);
+  im.contact.setAsleep(&asleep);
 }
 
 bool World::planCoupling() {

@@ -338,14 +338,14 @@ TEST(ObjectContact, APileMovingAsOneKeepsItsListAndOneThatSlidesBuildsIt) {
   EXPECT_GT(slidingBuilds, 3u) << "a block sliding along the others has the list built again";
 }
 
-// Sleeping objects (setFrozen) cost the passes nothing among themselves, yet nothing is missed:
-// two frozen blocks overlapping each other are left as they are; a frozen block woken beside one
+// Sleeping objects (setAsleep) cost the passes nothing among themselves, yet nothing is missed:
+// two sleeping blocks overlapping each other are left as they are; a sleeping block woken beside one
 // it overlaps is pushed out in the next sub-step, though nothing moved and the list was not
-// built again; a frozen block moved from outside (setPositions) into an awake one has its pairs
+// built again; a sleeping block moved from outside (setPositions) into an awake one has its pairs
 // listed and pushes the awake one out while it stays put.
-TEST(ObjectContact, FrozenObjectsAreLeftAloneUntilMovedOrWoken) {
+TEST(ObjectContact, SleepingObjectsAreLeftAloneUntilMovedOrWoken) {
   const double h = kStep / kSubsteps;
-  // A awake; B and C frozen, 2 mm into each other; D and E frozen, 2 mm into each other, far off
+  // A awake; B and C asleep, 2 mm into each other; D and E asleep, 2 mm into each other, far off
   const std::vector<Eigen::Vector3d> lo = {{0.0, 0.0, 0.0}, {0.0302, 0.0, 0.0}, {0.0582, 0.0, 0.0},
                                            {0.0, 0.2, 0.0}, {0.028, 0.2, 0.0}};
   std::vector<std::unique_ptr<Solver>> solvers;
@@ -355,10 +355,10 @@ TEST(ObjectContact, FrozenObjectsAreLeftAloneUntilMovedOrWoken) {
     solvers.push_back(std::make_unique<Solver>(lattice, paramsFor(*lattice)));
     objects.push_back(solvers.back().get());
   }
-  std::vector<char> frozen = {0, 1, 1, 1, 1};
+  std::vector<char> asleep = {0, 1, 1, 1, 1};
   ObjectContactParams params;
   ObjectContactSolver contact;
-  contact.setFrozen(&frozen);
+  contact.setAsleep(&asleep);
   auto positions = [&] {
     std::vector<std::vector<Eigen::Vector3d>> x;
     for (const Solver* s : objects) x.push_back(s->positions());
@@ -374,13 +374,13 @@ TEST(ObjectContact, FrozenObjectsAreLeftAloneUntilMovedOrWoken) {
   const auto start = positions();
   for (int s = 0; s < 20; ++s) contact.substep(objects, {}, params, h, true);
   for (std::size_t o = 1; o < objects.size(); ++o)
-    EXPECT_EQ(positions()[o], start[o]) << "frozen object " << o << " moved";
+    EXPECT_EQ(positions()[o], start[o]) << "sleeping object " << o << " moved";
   EXPECT_TRUE(listedAll());
 
   // D woken: nothing moved, the list stays, and D is pushed out of E
   const std::size_t builds = contact.listBuilds();
   const std::vector<Eigen::Vector3d> d = objects[3]->positions(), e = objects[4]->positions();
-  frozen[3] = 0;
+  asleep[3] = 0;
   contact.substep(objects, {}, params, h, true);
   EXPECT_EQ(contact.listBuilds(), builds);
   auto most = [](const std::vector<Eigen::Vector3d>& x) {
@@ -389,9 +389,9 @@ TEST(ObjectContact, FrozenObjectsAreLeftAloneUntilMovedOrWoken) {
     return m;
   };
   EXPECT_LT(most(objects[3]->positions()), most(d) - 1e-5) << "D's +x face is pushed back out of E";
-  EXPECT_EQ(positions()[4], e) << "E, frozen, stays put";
+  EXPECT_EQ(positions()[4], e) << "E, asleep, stays put";
 
-  // C, still frozen, set 2 mm into A's other side
+  // C, still asleep, set 2 mm into A's other side
   std::vector<Eigen::Vector3d> c = objects[2]->positions();
   for (Eigen::Vector3d& x : c) x.x() -= 0.0582 + 0.0282;
   objects[2]->setPositions(c);
@@ -402,7 +402,7 @@ TEST(ObjectContact, FrozenObjectsAreLeftAloneUntilMovedOrWoken) {
   };
   const double aLeft = least(objects[0]->positions());
   contact.substep(objects, {}, params, h, true);
-  EXPECT_TRUE(listedAll()) << "the moved frozen object's pairs are listed";
-  EXPECT_GT(least(objects[0]->positions()), aLeft + 1e-5) << "A is pushed out of the frozen block";
-  EXPECT_EQ(positions()[2], c) << "the frozen block stays put";
+  EXPECT_TRUE(listedAll()) << "the moved sleeping object's pairs are listed";
+  EXPECT_GT(least(objects[0]->positions()), aLeft + 1e-5) << "A is pushed out of the sleeping block";
+  EXPECT_EQ(positions()[2], c) << "the sleeping block stays put";
 }

@@ -196,7 +196,7 @@ class ObjectContactSolver {
   /// particles take part as immovable (infinite mass), so the others rest on it or bounce off
   /// it and nothing of it moves. nullptr (or a shorter list): none. The list must live until
   /// the next substep().
-  void setFrozen(const std::vector<char>* frozen) { frozen_ = frozen; }
+  void setAsleep(const std::vector<char>* asleep) { asleep_ = asleep; }
 
   /// The contact pass after every object's sub-step of length h:
   ///  1. a candidate list of particle pairs (a Verlet list: Verlet 1967), kept over sub-steps
@@ -263,7 +263,7 @@ class ObjectContactSolver {
     std::uint32_t g = 0, collider = 0;
     Impulses impulses;
   };
-  /// A pair's impulses carried over a build by its particles' pair (see carryFrozenPairImpulses()).
+  /// A pair's impulses carried over a build by its particles' pair (see carryAsleepPairImpulses()).
   struct Carried {
     Key key;
     Impulses impulses;
@@ -282,7 +282,7 @@ class ObjectContactSolver {
   /// of the motion findStale() checked with the same `ahead`.
   void buildList(const std::vector<Solver*>& objects, const ObjectContactParams& params, double h, bool all,
                  double ahead);
-  void carryFrozenPairImpulses(bool all);
+  void carryAsleepPairImpulses(bool all);
   void resetList(const std::vector<Solver*>& objects, const ObjectContactParams& params);
   void anchorStale(const std::vector<Solver*>& objects, double h, double ahead);
   void findObjectPairs(const ObjectContactParams& params, double h);
@@ -302,7 +302,7 @@ class ObjectContactSolver {
   void mergeKeptAndNew(std::size_t kept);
   void restoreImpulses(std::size_t kept, bool all);
   void renumberParticles();
-  /// awakeSlots_ and awakeParticles_ for the list and the frozen objects of this sub-step
+  /// awakeSlots_ and awakeParticles_ for the list and the sleeping objects of this sub-step
   /// (worked out again only when either changed since the last call)
   void selectAwake();
   bool builtFor(const std::vector<Solver*>& objects, const ObjectContactParams& params) const;
@@ -334,12 +334,12 @@ class ObjectContactSolver {
   void takeCoupling(const std::vector<Solver*>& objects, bool rebuilt, bool last);
 
   const std::vector<CouplingImpulse>* coupling_ = nullptr;
-  const std::vector<char>* frozen_ = nullptr;
-  bool frozen(std::uint32_t object) const {
-    return frozen_ != nullptr && object < frozen_->size() && (*frozen_)[object] != 0;
+  const std::vector<char>* asleep_ = nullptr;
+  bool asleep(std::uint32_t object) const {
+    return asleep_ != nullptr && object < asleep_->size() && (*asleep_)[object] != 0;
   }
-  /// keptCollider_ without the entries of objects that are not frozen (scratch: keptScratch_)
-  void keepFrozenColliderImpulses();
+  /// keptCollider_ without the entries of objects that are not asleep (scratch: keptScratch_)
+  void keepAsleepColliderImpulses();
   std::vector<KeptImpulse> keptScratch_;
   /// over a build (buildList()), the impulses of the pairs of a stale object with a sleeping one,
   /// which its search may find again (the kept pairs carry theirs in place), sorted by pair
@@ -405,12 +405,12 @@ class ObjectContactSolver {
   std::vector<double> w_, r_;
   std::vector<Eigen::Vector3d> start_;  // x - h v: where the particles began the sub-step
   std::vector<char> touched_;
-  // the part of the list the passes visit: the candidates with an object not frozen (their slots
+  // the part of the list the passes visit: the candidates with an object not asleep (their slots
   // in candidates_, ascending), the particles they name (ascending), and what they were chosen for
   std::vector<std::uint32_t> awakeSlots_, awakeParticles_;
-  std::vector<char> awakeFrozen_;
+  std::vector<char> slotsAsleep_;
   std::size_t awakeBuild_ = 0;  // listBuilds_ when they were chosen (the passes run after a build: 1 or more)
-  // per object, whether its last check found it frozen, at rest (every velocity zero) and within
+  // per object, whether its last check found it asleep, at rest (every velocity zero) and within
   // its allowances, and the state it checked (Solver::stateVersion()): while it stays so, its
   // particles are not visited again (findStale())
   std::vector<char> restChecked_;
