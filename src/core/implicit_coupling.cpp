@@ -10,7 +10,7 @@
 // within the sub-step, as a collider contact does one object's.
 //
 // The contact is a one-sided spring per touching particle pair, about as stiff as the material
-// about it (kSpringStiffness), at rest at a skin (kSpringSkin of r_1 + r_2) outside the spheres'
+// about it (coupling_spring::kStiffness), at rest at a skin (kSkin of r_1 + r_2) outside the spheres'
 // touching distance, so that the weight it
 // carries leaves the spheres apart by a little less than the skin and the object contact pass
 // after the solve finds nothing to push; that pass still keeps every pair apart (the springs'
@@ -29,22 +29,10 @@
 namespace deformable_flsm {
 
 using namespace implicit_solve;
+namespace spring = coupling_spring;
 
 namespace {
 
-/// A contact spring's stiffness, h^2 k, is kSpringStiffness times the reduced diagonal of its
-/// particles' systems (mass, damping and the material's stiffness bound: as stiff as the material
-/// about it, a little more), at most kSpringMassCap times their reduced mass. Stiffer than the
-/// material, the springs spread the system's spectrum: CG took 250 iterations a sub-step instead
-/// of 21 on a stack of firm blocks (springs of 100 masses against 3 diagonals); the cap keeps a
-/// stiff material's springs (10 MPa: the diagonal is thousands of masses) from pushing a pair
-/// that strayed inside the skin out at more than the speed that closes it in one sub-step
-/// (docs/method.md). With 100 masses, the column of n particles resting on one pair deflects it
-/// by about 2 n g h^2 / 100 (n = 6 at 1/60 s: 0.3 mm).
-constexpr double kSpringStiffness = 3.0;
-constexpr double kSpringMassCap = 100.0;
-/// The spring is at rest this fraction of r_1 + r_2 outside the spheres' touching distance.
-constexpr double kSpringSkin = 0.05;
 /// CG's tolerance and floor for the coupled solve, against each object's own 1e-2 and 1e-3: a
 /// pile's slow modes (objects rocking on each other's springs) are where CG leaves its error. At
 /// 1e-2 a stack of three 10 MPa cubes began to rock after 3 s and its top slid a centimetre by
@@ -54,19 +42,6 @@ constexpr double kSpringSkin = 0.05;
 /// left the bin rocking at 1.2 and 0.14 cm/s with the tolerance at 1e-3).
 constexpr double kCouplingCgTolerance = 1e-4;
 constexpr double kCouplingCgFloor = 3e-5;
-
-/// The spring's normal (from particle 2 to 1) and its gap less the skin at the start of the
-/// sub-step; false when the centres met (the contact pass sorts that out).
-bool springGeometry(const Eigen::Vector3d& x1, double r1, const Eigen::Vector3d& x2, double r2, Eigen::Vector3d& n,
-                    double& gap) {
-  const Eigen::Vector3d d = x1 - x2;
-  const double len = d.norm();
-  const double R = r1 + r2;
-  if (!(len > 1e-9 * R)) return false;
-  n = d / len;
-  gap = len - R * (1.0 + kSpringSkin);
-  return true;
-}
 
 }  // namespace
 
@@ -85,16 +60,16 @@ void ImplicitCoupling::gather(const std::vector<Solver*>& objects) {
   for (const Spring& sp : springs_) {
     if (!sp.active) continue;
     const Eigen::Vector3d f = (-sp.k * sp.gap / h_) * sp.n;
-    rhs_[sp.g1] += f;
-    rhs_[sp.g2] -= f;
+    rhs_[sp.row1] += f;
+    rhs_[sp.row2] -= f;
     const Eigen::Vector3d d = sp.k * sp.n.cwiseAbs2();
-    springDiagonal_[sp.g1] += d;
-    springDiagonal_[sp.g2] += d;
+    springDiagonal_[sp.row1] += d;
+    springDiagonal_[sp.row2] += d;
   }
   for (const Spring& sp : held_) {
     if (!sp.active) continue;
-    rhs_[sp.g1] += (-sp.k * sp.gap / h_) * sp.n;
-    springDiagonal_[sp.g1] += sp.k * sp.n.cwiseAbs2();
+    rhs_[sp.row1] += (-sp.k * sp.gap / h_) * sp.n;
+    springDiagonal_[sp.row1] += sp.k * sp.n.cwiseAbs2();
   }
   for (std::size_t m = 0; m < members_.size(); ++m) {
     const Solver& s = *objects[members_[m]];
@@ -120,12 +95,12 @@ void ImplicitCoupling::product(const std::vector<Solver*>& objects, const std::v
   perMember(objects, p, y, [this](Solver& s, std::size_t m) { s.implicitProduct(in_[m], out_[m]); });
   for (const Spring& sp : springs_) {
     if (!sp.active) continue;
-    const Eigen::Vector3d f = (sp.k * sp.n.dot(p[sp.g1] - p[sp.g2])) * sp.n;
-    y[sp.g1] += f;
-    y[sp.g2] -= f;
+    const Eigen::Vector3d f = (sp.k * sp.n.dot(p[sp.row1] - p[sp.row2])) * sp.n;
+    y[sp.row1] += f;
+    y[sp.row2] -= f;
   }
   for (const Spring& sp : held_)
-    if (sp.active) y[sp.g1] += (sp.k * sp.n.dot(p[sp.g1])) * sp.n;
+    if (sp.active) y[sp.row1] += (sp.k * sp.n.dot(p[sp.row1])) * sp.n;
 }
 
 void ImplicitCoupling::precondition(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& r,
@@ -136,30 +111,27 @@ void ImplicitCoupling::precondition(const std::vector<Solver*>& objects, const s
 // A candidate pair of a coupled object's particle and a sleeping object's: a spring as while both
 // were awake (the sleeping particle's diagonal from its last sub-step, so that the equilibrium
 // the pile fell asleep in stays one), the sleeping particle held still.
-void ImplicitCoupling::holdSpring(const std::vector<Solver*>& objects, const std::vector<char>& still, Spring sp,
+void ImplicitCoupling::holdSpring(const std::vector<Solver*>& objects, const std::vector<char>& asleep, Spring sp,
                                   std::size_t slot, double h) {
-  const auto isStill = [&](std::uint32_t o) { return o < still.size() && still[o] != 0; };
-  if (place_[sp.o1] < 0 && place_[sp.o2] >= 0 && isStill(sp.o1)) {  // the coupled particle first
+  const auto isAsleep = [&](std::uint32_t o) { return o < asleep.size() && asleep[o] != 0; };
+  if (place_[sp.o1] < 0 && place_[sp.o2] >= 0 && isAsleep(sp.o1)) {  // the coupled particle first
     std::swap(sp.o1, sp.o2);
     std::swap(sp.i1, sp.i2);
   }
-  if (place_[sp.o1] < 0 || !isStill(sp.o2)) return;
+  if (place_[sp.o1] < 0 || !isAsleep(sp.o2)) return;
   const Solver& a = *objects[sp.o1];
   const Solver& b = *objects[sp.o2];
   if (a.isPrescribed(sp.i1)) return;
-  if (!springGeometry(a.x_[sp.i1], a.contactRadius(), b.x_[sp.i2], b.contactRadius(), sp.n, sp.gap)) return;
-  const double predicted = sp.gap + h * sp.n.dot(a.v_[sp.i1]);
+  if (!spring::geometry(a.x_[sp.i1], a.contactRadius(), b.x_[sp.i2], b.contactRadius(), sp.n, sp.gap)) return;
+  const double predicted = spring::gapAfter(sp.gap, sp.n, a.v_[sp.i1], h);
   const double d1 = 3.0 / a.implicitInvPrecond_[sp.i1].sum();
   const double d2 = sp.i2 < b.implicitInvPrecond_.size() ? 3.0 / b.implicitInvPrecond_[sp.i2].sum() : d1;
-  const double m1 = a.lattice_->masses()[sp.i1], m2 = b.lattice_->masses()[sp.i2];
-  const bool fixed2 = b.isPrescribed(sp.i2);
-  const double reducedD = fixed2 ? d1 : d1 * d2 / (d1 + d2);
-  const double reducedM = fixed2 ? m1 : m1 * m2 / (m1 + m2);
-  sp.k = std::min(kSpringStiffness * reducedD, kSpringMassCap * reducedM);
-  sp.g1 = static_cast<std::uint32_t>(start_[static_cast<std::size_t>(place_[sp.o1])] + sp.i1);
-  sp.g2 = 0;
+  sp.k = spring::stiffness(d1, a.lattice_->masses()[sp.i1], false, d2, b.lattice_->masses()[sp.i2],
+                           b.isPrescribed(sp.i2));
+  sp.row1 = static_cast<std::uint32_t>(start_[static_cast<std::size_t>(place_[sp.o1])] + sp.i1);
+  sp.row2 = 0;
   sp.slot = static_cast<std::uint32_t>(slot);
-  sp.active = predicted < 0.0;
+  sp.active = spring::activeAfter(false, predicted);
   held_.push_back(sp);
 }
 
@@ -177,33 +149,26 @@ bool ImplicitCoupling::updateSprings(double h) {
   bool changed = false;
   for (Spring& sp : springs_) {
     // the gap the solution ends the sub-step at, less the skin
-    const double gap = sp.gap + h * sp.n.dot(velocity_[sp.g1] - velocity_[sp.g2]);
-    if (sp.active && gap > 0.0) {
-      sp.active = false;  // it pulls
-      changed = true;
-    } else if (!sp.active && gap < 0.0) {  // carried within the skin
-      sp.active = true;
-      changed = true;
-    }
+    const bool active = spring::activeAfter(sp.active, spring::gapAfter(sp.gap, sp.n, velocity_[sp.row1] - velocity_[sp.row2], h));
+    changed = changed || active != sp.active;
+    sp.active = active;
   }
   for (Spring& sp : held_) {
-    const double gap = sp.gap + h * sp.n.dot(velocity_[sp.g1]);
-    if ((sp.active && gap > 0.0) || (!sp.active && gap < 0.0)) {
-      sp.active = !sp.active;
-      changed = true;
-    }
+    const bool active = spring::activeAfter(sp.active, spring::gapAfter(sp.gap, sp.n, velocity_[sp.row1], h));
+    changed = changed || active != sp.active;
+    sp.active = active;
   }
   return changed;
 }
 
 void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::vector<char>& coupled,
                                const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairCandidates, int s,
-                               double h, const std::vector<char>* still) {
+                               double h, const std::vector<char>* asleep) {
   h_ = h;
   placeMembers(objects, coupled);
   const auto t0 = std::chrono::steady_clock::now();
   const double floor = beginMembers(objects, s, h);
-  buildSprings(objects, pairCandidates, h, still);
+  buildSprings(objects, pairCandidates, h, asleep);
   const PcgResult result = solve(objects, h, floor);
   sumSpringImpulses(objects, h);
   for (std::size_t m = 0; m < members_.size(); ++m) {
@@ -282,10 +247,10 @@ double ImplicitCoupling::beginMembers(const std::vector<Solver*>& objects, int s
 
 void ImplicitCoupling::buildSprings(const std::vector<Solver*>& objects,
                                     const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairCandidates,
-                                    double h, const std::vector<char>* still) {
+                                    double h, const std::vector<char>* asleep) {
   const std::vector<std::int64_t>& place = place_;
   // a spring per candidate pair of coupled objects, active where predicted within the skin (and
-  // one per pair of a coupled and a still object: holdSpring())
+  // one per pair of a coupled and a sleeping object: holdSpring())
   springs_.clear();
   held_.clear();
   const auto locate = [&](std::uint32_t g, std::uint32_t& o, std::uint32_t& i) {
@@ -297,25 +262,22 @@ void ImplicitCoupling::buildSprings(const std::vector<Solver*>& objects,
     locate(pairCandidates[c].first, sp.o1, sp.i1);
     locate(pairCandidates[c].second, sp.o2, sp.i2);
     if (place[sp.o1] < 0 || place[sp.o2] < 0) {
-      if (still != nullptr) holdSpring(objects, *still, sp, c, h);
+      if (asleep != nullptr) holdSpring(objects, *asleep, sp, c, h);
       continue;
     }
     const Solver& a = *objects[sp.o1];
     const Solver& b = *objects[sp.o2];
     const bool fixed1 = a.isPrescribed(sp.i1), fixed2 = b.isPrescribed(sp.i2);
     if (fixed1 && fixed2) continue;
-    if (!springGeometry(a.x_[sp.i1], a.contactRadius(), b.x_[sp.i2], b.contactRadius(), sp.n, sp.gap)) continue;
-    const double predicted = sp.gap + h * sp.n.dot(a.v_[sp.i1] - b.v_[sp.i2]);
+    if (!spring::geometry(a.x_[sp.i1], a.contactRadius(), b.x_[sp.i2], b.contactRadius(), sp.n, sp.gap)) continue;
+    const double predicted = spring::gapAfter(sp.gap, sp.n, a.v_[sp.i1] - b.v_[sp.i2], h);
     // the particles' own diagonals (mass, damping, the material's stiffness bound)
     const double d1 = 3.0 / a.implicitInvPrecond_[sp.i1].sum(), d2 = 3.0 / b.implicitInvPrecond_[sp.i2].sum();
-    const double m1 = a.lattice_->masses()[sp.i1], m2 = b.lattice_->masses()[sp.i2];
-    const double reducedD = fixed1 ? d2 : fixed2 ? d1 : d1 * d2 / (d1 + d2);
-    const double reducedM = fixed1 ? m2 : fixed2 ? m1 : m1 * m2 / (m1 + m2);
-    sp.k = std::min(kSpringStiffness * reducedD, kSpringMassCap * reducedM);
-    sp.g1 = static_cast<std::uint32_t>(start_[static_cast<std::size_t>(place[sp.o1])] + sp.i1);
-    sp.g2 = static_cast<std::uint32_t>(start_[static_cast<std::size_t>(place[sp.o2])] + sp.i2);
+    sp.k = spring::stiffness(d1, a.lattice_->masses()[sp.i1], fixed1, d2, b.lattice_->masses()[sp.i2], fixed2);
+    sp.row1 = static_cast<std::uint32_t>(start_[static_cast<std::size_t>(place[sp.o1])] + sp.i1);
+    sp.row2 = static_cast<std::uint32_t>(start_[static_cast<std::size_t>(place[sp.o2])] + sp.i2);
     sp.slot = static_cast<std::uint32_t>(c);
-    sp.active = predicted < 0.0;
+    sp.active = spring::activeAfter(false, predicted);
     springs_.push_back(sp);
   }
 }
@@ -374,10 +336,9 @@ void ImplicitCoupling::sumSpringImpulses(const std::vector<Solver*>& objects, do
   }
   for (const Spring& sp : springs_) {
     if (!sp.active) continue;
-    const double gap = sp.gap + h * sp.n.dot(velocity_[sp.g1] - velocity_[sp.g2]);
     // h times the force the solve applied on particle 1 (negative: a spring the last pass left
     // pulling), into the momentum correction and the wrench as it acted
-    const double lambda = -sp.k * gap / h;
+    const double lambda = spring::impulse(sp.k, spring::gapAfter(sp.gap, sp.n, velocity_[sp.row1] - velocity_[sp.row2], h), h);
     if (lambda == 0.0) continue;
     const Eigen::Vector3d J = lambda * sp.n;
     objects[sp.o1]->implicitCouplingImpulse_[sp.i1] += J;
@@ -386,7 +347,7 @@ void ImplicitCoupling::sumSpringImpulses(const std::vector<Solver*>& objects, do
   }
   for (const Spring& sp : held_) {
     if (!sp.active) continue;
-    const double lambda = -sp.k * (sp.gap + h * sp.n.dot(velocity_[sp.g1])) / h;
+    const double lambda = spring::impulse(sp.k, spring::gapAfter(sp.gap, sp.n, velocity_[sp.row1], h), h);
     if (lambda == 0.0) continue;
     objects[sp.o1]->implicitCouplingImpulse_[sp.i1] += lambda * sp.n;  // the sleeping object takes none
     recordImpulse(sp, lambda);

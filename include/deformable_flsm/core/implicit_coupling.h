@@ -10,6 +10,7 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <utility>
@@ -29,6 +30,57 @@ struct CouplingImpulse {
   double lambda = 0.0;  // N s
 };
 
+/// The coupling's contact spring between two particles, as pure functions (each tested alone,
+/// test_implicit_coupling): a one-sided spring along n, at rest a skin outside the spheres'
+/// touching distance, as stiff as the material about it.
+namespace coupling_spring {
+
+/// The spring is at rest this fraction of r_1 + r_2 outside the spheres' touching distance.
+constexpr double kSkin = 0.05;
+/// h^2 k is kStiffness times the reduced diagonal of its particles' systems (mass, damping and the
+/// material's stiffness bound: as stiff as the material about it, a little more), at most
+/// kMassCap times their reduced mass. Stiffer springs spread the system's spectrum and cost CG
+/// iterations; the cap keeps a stiff material's springs from pushing a pair that strayed inside
+/// the skin out faster than the speed that closes it in one sub-step (docs/method.md).
+constexpr double kStiffness = 3.0;
+constexpr double kMassCap = 100.0;
+
+/// The normal from particle 2 to particle 1 and the gap less the skin, at centres x1, x2 with
+/// radii r1, r2; false when the centres met (the contact pass sorts that out).
+inline bool geometry(const Eigen::Vector3d& x1, double r1, const Eigen::Vector3d& x2, double r2, Eigen::Vector3d& n,
+                     double& gap) {
+  const Eigen::Vector3d d = x1 - x2;
+  const double len = d.norm();
+  const double R = r1 + r2;
+  if (!(len > 1e-9 * R)) return false;
+  n = d / len;
+  gap = len - R * (1.0 + kSkin);
+  return true;
+}
+
+/// h^2 k of a spring between particles whose systems' diagonals are d1, d2 and masses m1, m2; a
+/// fixed particle (its velocity prescribed) leaves the other's alone.
+inline double stiffness(double d1, double m1, bool fixed1, double d2, double m2, bool fixed2) {
+  const double reducedD = fixed1 ? d2 : fixed2 ? d1 : d1 * d2 / (d1 + d2);
+  const double reducedM = fixed1 ? m2 : fixed2 ? m1 : m1 * m2 / (m1 + m2);
+  return std::min(kStiffness * reducedD, kMassCap * reducedM);
+}
+
+/// The gap (less the skin) at the end of a sub-step h from `gap`, the particles' relative velocity
+/// along n being n . dv (dv = v1 - v2).
+inline double gapAfter(double gap, const Eigen::Vector3d& n, const Eigen::Vector3d& dv, double h) {
+  return gap + h * n.dot(dv);
+}
+
+/// One-sided: an active spring whose gap ends above the skin (it pulls) lets go; an inactive one
+/// that the solution carries within the skin joins.
+inline bool activeAfter(bool active, double gapAfter) { return active ? !(gapAfter > 0.0) : gapAfter < 0.0; }
+
+/// h times the force the spring applies on particle 1 along n (negative: pulling).
+inline double impulse(double k, double gapAfter, double h) { return -k * gapAfter / h; }
+
+}  // namespace coupling_spring
+
 class ImplicitCoupling {
  public:
   /// One implicit sub-step s of length h of the objects marked in `coupled` (Integrator::Implicit;
@@ -43,25 +95,25 @@ class ImplicitCoupling {
   /// direction between the particles at the start of the sub-step. One-sided, by an active set
   /// shared with each object's collider contacts: a spring whose solution gap ends above the
   /// skin (it pulls) is let go of, a pair the solution carries into each other joins.
-  /// A pair of a coupled object and a sleeping one (`still`, World's frozen objects: not
+  /// A pair of a coupled object and a sleeping one (`asleep`, World's sleeping objects: not
   /// stepped) has its spring too, the sleeping particle held where it is (velocity 0), as a
   /// collider contact holds a particle: the sleeping object carries what rests on it within the
   /// solve.
   /// @param pairCandidates  of the object contact pass's list (ObjectContactSolver), valid for
   ///                        the objects' positions now; a pair has a spring when both its
-  ///                        objects are coupled or one is coupled and the other still (none
-  ///                        with an awake object that is not coupled, or two still ones)
-  /// @param still  per object, 1 for a sleeping one (may be null: none)
+  ///                        objects are coupled or one is coupled and the other asleep (none
+  ///                        with an awake object that is not coupled, or two asleep)
+  /// @param asleep  per object, 1 for a sleeping one (may be null: none)
   void substep(const std::vector<Solver*>& objects, const std::vector<char>& coupled,
                const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairCandidates, int s, double h,
-               const std::vector<char>* still = nullptr);
+               const std::vector<char>* asleep = nullptr);
 
   /// The springs that carried an impulse in the last substep().
   const std::vector<CouplingImpulse>& impulses() const { return impulses_; }
 
  private:
   struct Spring {
-    std::uint32_t g1 = 0, g2 = 0;   // coupled numbers (into the solve's vectors)
+    std::uint32_t row1 = 0, row2 = 0;  // rows of the joint system (places in the solve's vectors)
     std::uint32_t o1 = 0, o2 = 0;   // objects
     std::uint32_t i1 = 0, i2 = 0;   // particles of their objects
     std::uint32_t slot = 0;         // candidate index
@@ -78,7 +130,7 @@ class ImplicitCoupling {
   /// springs_ (and held_) for the candidate pairs, active where predicted within the skin
   void buildSprings(const std::vector<Solver*>& objects,
                     const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairCandidates, double h,
-                    const std::vector<char>* still);
+                    const std::vector<char>* asleep);
   /// the joint solve with the members' contacts and the springs in one active set; each member's
   /// implicitVelocity_ set; the last pass's result with the iterations of all passes
   PcgResult solve(const std::vector<Solver*>& objects, double h, double floor);
@@ -95,8 +147,8 @@ class ImplicitCoupling {
   void perMember(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& in,
                  std::vector<Eigen::Vector3d>& out, Apply&& apply);
   /// A spring for candidate `slot` (sp: its objects and particles) when one of its objects is
-  /// coupled and the other still, into held_.
-  void holdSpring(const std::vector<Solver*>& objects, const std::vector<char>& still, Spring sp, std::size_t slot,
+  /// coupled and the other asleep, into held_.
+  void holdSpring(const std::vector<Solver*>& objects, const std::vector<char>& asleep, Spring sp, std::size_t slot,
                   double h);
   /// The spring's impulse lambda n on particle 1 into impulses_ (global numbers).
   void recordImpulse(const Spring& sp, double lambda);
@@ -111,7 +163,7 @@ class ImplicitCoupling {
   std::vector<PcgConstraint> constraint_;
   std::vector<std::vector<Eigen::Vector3d>> in_, out_, inv_;  // per member: its segments
   std::vector<Spring> springs_;
-  /// the springs to sleeping objects: particle 2 (o2, i2) held still, g2 unused
+  /// the springs to sleeping objects: particle 2 (o2, i2) held still, row2 unused
   std::vector<Spring> held_;
   std::vector<CouplingImpulse> impulses_;
   std::vector<std::size_t> globalStart_;  // per object, its first global number
