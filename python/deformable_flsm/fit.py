@@ -87,9 +87,11 @@ def simulate(tree, recording, tool, markers=None):
         if follow is not None:
             carried.append(follow.positions())
     # each the mean of the step's S sub-steps' forces, each at its sub-step's end: on average
-    # dt (S + 1) / (2 S) after the step's start
+    # dt (S + 1) / (2 S) after the step's start; compared with a recording of such means (the
+    # node's) at the step's end, where the recording has it
     s = sim.substeps
-    times = np.concatenate([[0.0], ts + sim.time_step * (s + 1) / (2.0 * s)])
+    at = 1.0 if recording.step_means else (s + 1) / (2.0 * s)
+    times = np.concatenate([[0.0], ts + sim.time_step * at])
     out = np.column_stack([np.interp(recording.times, times, forces[:, j]) for j in range(3)])
     if follow is None:
         return out
@@ -442,9 +444,7 @@ def _generation(state, space, cluster, problem, spec, checkpoint, log):
     search.tell(points, costs)
     k = int(np.argmin(costs))
     if state["best"] is None or costs[k] < state["best"]["cost"]:
-        state["best"] = {"values": space.values(points[k]), "cost": costs[k], "forces": results[k]["forces"],
-                         "markers": results[k].get("markers"), "force_cost": results[k].get("force_cost"),
-                         "marker_cost": results[k].get("marker_cost")}
+        state["best"] = _as_best(space.values(points[k]), results[k])
     state["generation"] += 1
     state["evaluations"] += len(points)
     state["seconds"] += time.time() - t0
@@ -460,6 +460,92 @@ def _generation(state, space, cluster, problem, spec, checkpoint, log):
         best["cost"], " ".join("%s=%.4g" % kv for kv in best["values"].items()), len(points), time.time() - t0))
     if not math.isfinite(best["cost"]):
         raise FitError("the scene refused every candidate: " + refused[0])
+
+
+def residual_vector(res, recording, mask, markers=None, marker_mask=None):
+    """The candidate's errors as one vector whose norm is its cost: the force errors over the fit's
+    samples scaled as relative_rms() scales them, then the markers' as marker_rms() does."""
+    count = max(1, int(np.count_nonzero(mask)))
+    scale = np.sum(recording.forces[mask] ** 2, axis=1).mean()
+    out = (res["forces"][mask] - recording.forces[mask]).ravel() / math.sqrt(count * (scale if scale > 0 else 1.0))
+    if markers is None:
+        return out
+    frames = np.flatnonzero(marker_mask)
+    if markers.ordered:
+        error = (res["markers"][marker_mask] - markers.positions[marker_mask]).ravel()
+        scale = np.sum((markers.positions[marker_mask] - markers.rest) ** 2, axis=2).mean()
+        pairs = len(frames) * len(markers.rest)
+    else:
+        reference = cloud_reference(markers)
+        error = reference.residuals(res["markers"][marker_mask], frames).ravel()
+        rest = np.broadcast_to(markers.rest, (len(frames),) + markers.rest.shape)
+        scale = np.mean(reference.residuals(rest, frames) ** 2)
+        pairs = error.size
+    return np.concatenate([out, error / math.sqrt(max(1, pairs) * (scale if scale > 0 else 1.0))])
+
+
+#: the refinement after the search: at most this many Levenberg-Marquardt iterations, each its
+#: Jacobian by central differences of this step in the unit cube, and these damping factors tried
+#: at once; it stops when an iteration lowers the cost by less than this fraction
+REFINE_ITERATIONS = 8
+REFINE_STEP = 0.002
+REFINE_LAMBDAS = (1e-4, 1e-2, 1.0)
+REFINE_GAIN = 1e-3
+
+
+def refine(best, space, cluster, problem, log):
+    """Levenberg-Marquardt from the search's best, in the unit cube: the search finds the valley,
+    this follows its floor where a weakly determined parameter (a damping, seen only in how a
+    tap's ringing decays) leaves CMA-ES's steps small. Each iteration evaluates the 2n probes of
+    the Jacobian, then one candidate per damping factor, all on the cluster; only a lower cost
+    is taken. Returns {best, evaluations, seconds}."""
+    recording, mask = problem["recording"], problem["fit_mask"]
+    markers, marker_mask = problem["markers"], problem["marker_mask"]
+    n = len(space.names)
+    evaluations, seconds = 0, 0.0
+    for it in range(REFINE_ITERATIONS):
+        t0 = time.time()
+        u = space.unit(best["values"])
+        probes = []
+        for i in range(n):
+            for sign in (+1, -1):
+                v = u.copy()
+                v[i] = np.clip(v[i] + sign * REFINE_STEP, 0.0, 1.0)
+                probes.append(v)
+        results = cluster.map(evaluate, [space.values(v) for v in probes], **problem)
+        evaluations += len(probes)
+        if any(r["forces"] is None for r in results):
+            break
+        r0 = residual_vector(best, recording, mask, markers, marker_mask)
+        J = np.column_stack([(residual_vector(results[2 * i], recording, mask, markers, marker_mask) -
+                              residual_vector(results[2 * i + 1], recording, mask, markers, marker_mask)) /
+                             (probes[2 * i][i] - probes[2 * i + 1][i]) for i in range(n)])
+        A, g = J.T @ J, J.T @ r0
+        steps = []
+        for lam in REFINE_LAMBDAS:
+            try:
+                steps.append(np.clip(u - np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), g), 0.0, 1.0))
+            except np.linalg.LinAlgError:
+                pass
+        tried = cluster.map(evaluate, [space.values(v) for v in steps], **problem)
+        evaluations += len(steps)
+        seconds += time.time() - t0
+        k = int(np.argmin([r["cost"] for r in tried])) if tried else 0
+        if not tried or not tried[k]["cost"] < best["cost"]:
+            break
+        gain = 1.0 - tried[k]["cost"] / best["cost"]
+        best = _as_best(space.values(steps[k]), tried[k])
+        log("fit: refined %d: %.4f %s (%d evaluations, %.1f s)" % (
+            it + 1, best["cost"], " ".join("%s=%.4g" % kv for kv in best["values"].items()),
+            len(probes) + len(steps), time.time() - t0))
+        if gain < REFINE_GAIN:
+            break
+    return {"best": best, "evaluations": evaluations, "seconds": seconds}
+
+
+def _as_best(values, result):
+    return {"values": values, "cost": result["cost"], "forces": result["forces"], "markers": result.get("markers"),
+            "force_cost": result.get("force_cost"), "marker_cost": result.get("marker_cost")}
 
 
 def fit(spec, out_dir, cluster=None, recording=None, log=print):
@@ -483,7 +569,13 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
     try:
         while state["generation"] < spec.generations and not state["search"].should_stop():
             _generation(state, space, cluster, problem, spec, checkpoint, log)
-        best = state["best"]
+        # the refinement of the search's best, again when the search went on since
+        refined = state.get("refined")
+        if refined is None or refined["generation"] != state["generation"]:
+            refined = dict(refine(state["best"], space, cluster, problem, log), generation=state["generation"])
+            state["refined"] = refined
+            _save(checkpoint, state)
+        best = refined["best"]
         sigma = uncertainty(cluster, best, base, recording, spec.tool, mask, markers, marker_mask)
     finally:
         if own:
@@ -509,8 +601,9 @@ def fit(spec, out_dir, cluster=None, recording=None, log=print):
         "held_out_marker_cost": (float(marker_rms(best["markers"], markers, ~marker_mask))
                                  if markers is not None and (~marker_mask).any() else None),
         "generations": state["generation"],
-        "evaluations": state["evaluations"],
-        "seconds": round(state["seconds"], 2),
+        "evaluations": state["evaluations"] + refined["evaluations"],
+        "refine_evaluations": refined["evaluations"],
+        "seconds": round(state["seconds"] + refined["seconds"], 2),
         "at_bound": at_bound,
         "not_determined": vague,
         "refused": state["refused"],

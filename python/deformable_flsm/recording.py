@@ -11,13 +11,16 @@ class RecordingError(ValueError):
 class Recording:
     """times (K,) s from the recording's start; poses (K, 7): position (m) and orientation
     [x, y, z, w] of the tool's frame in the simulation frame; forces (K, 3): the force the object
-    exerts on the tool (N, simulation frame)."""
+    exerts on the tool (N, simulation frame). step_means: each force is the mean over the
+    simulation step that ends at its time (the node's ~contact_wrenches), not a sample at that
+    time (a wrist sensor's)."""
 
-    def __init__(self, times, poses, forces, source="recording"):
+    def __init__(self, times, poses, forces, source="recording", step_means=False):
         self.times = np.asarray(times, dtype=float)
         self.poses = np.asarray(poses, dtype=float)
         self.forces = np.asarray(forces, dtype=float)
         self.source = source
+        self.step_means = bool(step_means)
         k = len(self.times)
         if k < 3:
             raise RecordingError(f"{source}: {k} samples; a fit needs at least 3")
@@ -135,7 +138,7 @@ class Recording:
         if not times:
             raise RecordingError(f"{path}: no transform from '{frame_id}' to '{tool_frame}' on /tf "
                                  f"at the times of {wrench_topic}")
-        return cls(times, poses, forces, path)
+        return cls(times, poses, forces, path, step_means=kind == "deformable_flsm/ContactWrenches")
 
 
 def _read_csv(path):

@@ -14,7 +14,7 @@ import yaml
 
 import deformable_flsm as flsm
 from deformable_flsm import fit as F
-from deformable_flsm.recording import Recording, RecordingError
+from deformable_flsm.recording import Markers, Recording, RecordingError
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(os.path.dirname(HERE))
@@ -295,17 +295,63 @@ def test_a_simulated_poke_read_back_from_a_bag_gives_its_modulus_within_three_pe
 
 
 def test_two_parameters_are_searched_with_cma_es(local, tmp_path):
-    # the simulation's own poke at 35 kPa (damping 10/s): CMA-ES over the modulus and the damping;
-    # a slow poke hardly depends on the damping: the report says so
+    # the simulation's own poke at 35 kPa (damping 10/s) with 2 % noise on the force, as a wrist
+    # sensor's: CMA-ES over the modulus and the damping. A slow poke's force hardly depends on the
+    # damping (1e-4 of it from 10/s to 11/s): under the noise the report says it is not determined.
+    # (Without noise the refinement finds both to 1e-6.)
     truth = 35000.0
     recorded = poke_recording(truth)
+    noise = np.random.default_rng(2).normal(0.0, 0.02 * np.abs(recorded.forces).max(), recorded.forces.shape)
+    recorded = Recording(recorded.times, recorded.poses, recorded.forces + noise, recorded.source)
     spec = F.FitSpec(recorded.source, [os.path.join(EXAMPLE, "punch_scene.yaml")], "punch",
                      {"youngs_modulus": [5000.0, 200000.0], "damping": [1.0, 100.0]}, generations=18)
     result = F.fit(spec, str(tmp_path), local, recorded, log=lambda m: None)
-    assert result["evaluations"] % 6 == 0  # CMA-ES's population for two parameters
+    # CMA-ES's population for two parameters, then the refinement's
+    assert (result["evaluations"] - result["refine_evaluations"]) % 6 == 0
     assert result["parameters"]["youngs_modulus"] / truth == pytest.approx(1.0, abs=0.03)
-    assert result["cost"] < 0.01
+    assert result["cost"] < 0.05
     assert result["not_determined"] == ["damping"]
+
+
+def tap_recording(tree, seconds=3.0, depth=0.002, press=0.1, seed=1):
+    """The squeeze block tapped: the plate pressed `depth` into its top in `press` s, then lifted
+    clear at once, the block left ringing; the force with 2 % noise and every 9th particle tracked
+    each step with 0.01 mm of noise (written as a markers CSV by the caller)."""
+    sim = flsm.Simulation(tree, "tap")
+    t = np.arange(0.0, seconds, sim.time_step)
+    top = 0.05
+    z = np.where(t < 0.1, top, np.where(t < 0.1 + press, top - depth * (t - 0.1) / press, top + 0.01))
+    poses = np.zeros((len(t), 7))
+    poses[:, 2], poses[:, 6] = z, 1.0
+    rest = np.asarray(sim.rest_positions(sim.objects[0]))[::9]
+    still = Markers(t, rest, np.broadcast_to(rest, (len(t),) + rest.shape))
+    forces, carried = F.simulate(tree, Recording(t, poses, np.zeros((len(t), 3))), "plate", still)
+    rng = np.random.default_rng(seed)
+    forces = forces + (forces != 0.0) * rng.normal(0.0, 0.02 * np.abs(forces).max(), forces.shape)
+    carried = carried + rng.normal(0.0, 1e-5, carried.shape)
+    carried[0] = rest
+    return Recording(t, poses, forces, "a simulated tap"), Markers(t, rest, carried)
+
+
+def test_a_taps_ringing_gives_the_damping_with_the_modulus_and_poissons_ratio(local, tmp_path):
+    # A slow poke does not tell the damping (above); the ringing after a tap does, where the step
+    # resolves it (examples/fit/tap_fit.yaml: the squeeze block stepped explicitly in 48 sub-steps
+    # of 1/30 s): the node's own block at 2 kPa, nu 0.35, region damping 10/s, tapped, its force
+    # with 2 % noise and its points with 0.01 mm. CMA-ES finds the valley, the refinement its floor.
+    spec = F.FitSpec.from_yaml(os.path.join(EXAMPLE, "tap_fit.yaml"), recording="a simulated tap",
+                               markers=str(tmp_path / "tap_markers.csv"))
+    truth = {"youngs_modulus": 2000.0, "poissons_ratio": 0.35, "damping": 10.0}
+    recorded, markers = tap_recording(flsm.load_params(spec.base_file, *spec.scene_files, **truth))
+    with open(spec.markers, "w") as f:
+        f.write("time,marker,x,y,z\n")
+        for k, time_k in enumerate(markers.times):
+            for p, x in enumerate(markers.positions[k]):
+                f.write(f"{time_k!r},{p},{x[0]!r},{x[1]!r},{x[2]!r}\n")
+    result = F.fit(spec, str(tmp_path / "out"), local, recorded, log=lambda m: None)
+    for name, value in truth.items():
+        assert result["parameters"][name] / value == pytest.approx(1.0, abs=0.03), name
+    assert result["not_determined"] == []
+    assert result["refine_evaluations"] > 0
 
 
 def free_port():
@@ -368,7 +414,7 @@ def test_a_stopped_fit_resumes_from_its_checkpoint(local, tmp_path):
     spec = F.FitSpec.from_yaml(SPEC, generations=5)
     resumed = F.fit(spec, str(tmp_path), local, log=messages.append)
     assert any("resuming after generation 3" in m for m in messages)
-    assert resumed["generations"] == 5 and resumed["evaluations"] == 5 * 8
+    assert resumed["generations"] == 5 and resumed["evaluations"] - resumed["refine_evaluations"] == 5 * 8
     whole = F.fit(spec, str(tmp_path / "whole"), local, log=lambda m: None)
     assert resumed["parameters"] == whole["parameters"] and resumed["cost"] == whole["cost"]
 
