@@ -18,17 +18,6 @@ using namespace deformable_flsm;
 using namespace deformable_flsm::world_scenes;
 namespace spring = deformable_flsm::coupling_spring;
 
-namespace {
-
-double maxSpeed(const World& world) {
-  double v = 0.0;
-  for (const std::string& name : world.objectNames())
-    for (const auto& vi : world.object(name)->velocities()) v = std::max(v, vi.norm());
-  return v;
-}
-
-}  // namespace
-
 // --- the spring's functions -------------------------------------------------------------------
 
 // Two spheres of radii 3 and 2 mm, centres 5.5 mm apart along (2, 3, 6) / 7: the normal points from

@@ -33,13 +33,6 @@ using namespace deformable_flsm::world_scenes;
 
 namespace {
 
-double maxSpeed(const World& world) {
-  double v = 0.0;
-  for (const std::string& name : world.objectNames())
-    for (const auto& vi : world.object(name)->velocities()) v = std::max(v, vi.norm());
-  return v;
-}
-
 /// The particle pairs of objects a and b (a's particle, b's) closer than `reach` times the sum of
 /// their contact radii.
 std::size_t pairsWithin(const World& world, const std::string& a, const std::string& b, double reach) {

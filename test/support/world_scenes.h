@@ -85,6 +85,14 @@ inline Eigen::Vector3d centreOfMass(const Solver& s) {
   return c / s.lattice().totalMass();
 }
 
+/// The fastest particle of any object of the world (m/s).
+inline double maxSpeed(const World& world) {
+  double v = 0.0;
+  for (const std::string& name : world.objectNames())
+    for (const auto& vi : world.object(name)->velocities()) v = std::max(v, vi.norm());
+  return v;
+}
+
 /// The deepest overlap of two particle spheres of different objects, as a fraction of the
 /// smaller radius (0 when none overlaps); brute force, the test's own oracle.
 inline double deepestOverlap(const World& world) {
