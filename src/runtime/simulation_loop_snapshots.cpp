@@ -25,6 +25,7 @@ void SimulationLoop::copySummary(Snapshot& out) const {
   const Snapshot& s = buffers_[fresh_ ? ready_ : front_];
   out.sequence = s.sequence;
   out.time = s.time;
+  out.timeStarted = s.timeStarted;
   out.wallTime = s.wallTime;
   out.objects.resize(s.objects.size());
   for (std::size_t k = 0; k < s.objects.size(); ++k) {
@@ -46,6 +47,7 @@ void SimulationLoop::copyState(Snapshot& out) const {
   if (out.sequence == s.sequence) return;  // it has this one: no copy under the lock
   out.sequence = s.sequence;
   out.time = s.time;
+  out.timeStarted = s.timeStarted;
   out.wallTime = s.wallTime;
   out.objects = s.objects;  // the sizes of the last copy: no allocation while they stay
   out.colliders = s.colliders;
@@ -157,6 +159,7 @@ void SimulationLoop::writeSnapshot() {
   Snapshot& s = buffers_[back_];
   s.sequence = ++sequence_;
   s.time = clockTime();
+  s.timeStarted = settings_.time != LoopTime::Followed || clockStarted_;
   diag_.simTime = world_->time() - timeOrigin_;
   diag_.idle = idle_;
   diag_.paused = paused_;

@@ -144,6 +144,9 @@ struct Snapshot {
   /// the loop's simulated time of this state (s; SimulationLoop::clockTime()): whole steps since
   /// the loop started (LoopTime::Followed: since the first followed time, which it starts at)
   double time = 0.0;
+  /// false for a state of LoopTime::Followed written before the loop followed a first time: its
+  /// time is not yet one of the followed clock's, and nothing may be stamped with it
+  bool timeStarted = true;
   /// when this state was computed, on the loop clock's calendar (LoopClock::wallNow())
   std::chrono::system_clock::time_point wallTime;
   /// every object, in the World's order; objects[0] is the first (the single object)
