@@ -180,9 +180,18 @@ TEST(SimulationLoopTime, AFollowedTimeIsNeverLedAndAJumpBackResetsTheScene) {
   const auto timeIs = [&](double t) {
     return rig.waitFor([t](const Snapshot& s) { return std::abs(s.time - t) < 1e-9; });
   };
+  // Before the first time to follow the state has no time on that clock: nothing may be stamped
+  // with it (the node publishes nothing from it).
+  EXPECT_FALSE(rig.loop->acquire().timeStarted);
+  Snapshot summary;
+  rig.loop->copySummary(summary);
+  EXPECT_FALSE(summary.timeStarted);
   // Nothing steps before the first time to follow; the loop's time starts there.
   rig.loop->followTime(100.0);
   ASSERT_TRUE(timeIs(100.0));
+  EXPECT_TRUE(rig.loop->acquire().timeStarted);
+  rig.loop->copySummary(summary);
+  EXPECT_TRUE(summary.timeStarted);
   EXPECT_EQ(rig.loop->acquire().diag.steps, 0u);
   // Whole steps up to the followed time, never past it.
   rig.loop->followTime(100.05);
