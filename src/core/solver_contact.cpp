@@ -204,9 +204,9 @@ void Solver::contactPass(double h, double elapsed) {
   ++contactPasses_;  // the counts of older passes no longer match (countedContact())
   if (contactBodies_.empty()) return;
   contactTime_ += elapsed;
-  placeContactBodies(elapsed);
-  if (activeBodies_.empty()) return;
   const double r = contactRadius();
+  placeContactBodies(elapsed, r);
+  if (activeBodies_.empty()) return;
   ContactPassFrame pass;
   pass.h = h;
   pass.r = r;
@@ -226,8 +226,7 @@ void Solver::contactPass(double h, double elapsed) {
   sumContactPartials(chunks);
 }
 
-void Solver::placeContactBodies(double elapsed) {
-  const double r = contactRadius();
+void Solver::placeContactBodies(double elapsed, double r) {
   Eigen::Vector3d lo = x_[0], hi = x_[0];
   for (const Eigen::Vector3d& x : x_) {
     lo = lo.cwiseMin(x);

@@ -343,7 +343,7 @@ class Solver : private RegionKernel {
   /// contactPass()'s stages: each body's poses before and after the sub-step and bounds, the
   /// bodies near the object (activeBodies_); one chunk of particles against the bodies near it,
   /// its impulses in its ContactPartial; the partials summed on the bodies.
-  void placeContactBodies(double elapsed);
+  void placeContactBodies(double elapsed, double r);
   /// Each contact body at `from` (before) and `to` (now) seconds into the step along its
   /// velocities, with its bounds at `to` padded by `pad`: the one place a sub-step's collider
   /// poses are worked out (the contact pass, the implicit solve's contacts).
