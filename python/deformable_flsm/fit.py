@@ -128,13 +128,29 @@ def marker_rms(carried, markers, mask):
     distances between the recorded cloud and the carried rest points along the surface's normals
     (cloud_residuals), relative to the same between the recorded cloud and the rest."""
     if not markers.ordered:
-        reference, frames = cloud_reference(markers), np.flatnonzero(mask)
-        error = np.mean(reference.residuals(carried[mask], frames) ** 2)
-        scale = np.mean(reference.residuals(np.broadcast_to(markers.rest, carried[mask].shape), frames) ** 2)
-        return math.sqrt(error / scale) if scale > 0 else math.sqrt(error)
-    error = np.sum((carried[mask] - markers.positions[mask]) ** 2, axis=2).mean()
-    scale = np.sum((markers.positions[mask] - markers.rest) ** 2, axis=2).mean()
+        error = np.mean(marker_errors(carried, markers, mask) ** 2)
+    else:
+        error = np.sum((carried[mask] - markers.positions[mask]) ** 2, axis=2).mean()
+    scale = marker_scale(markers, mask)
     return math.sqrt(error / scale) if scale > 0 else math.sqrt(error)
+
+
+def marker_errors(carried, markers, mask):
+    """The carried markers' errors over the masked times, flat: ordered, each coordinate's; a
+    cloud, its point-to-plane distances (cloud_residuals)."""
+    if markers.ordered:
+        return (carried[mask] - markers.positions[mask]).ravel()
+    return cloud_reference(markers).residuals(carried[mask], np.flatnonzero(mask)).ravel()
+
+
+def marker_scale(markers, mask):
+    """The mean square the markers' errors are taken relative to: of their recorded displacement
+    from rest (ordered, per marker), of the rest's distances from each recorded cloud (a cloud)."""
+    if markers.ordered:
+        return np.sum((markers.positions[mask] - markers.rest) ** 2, axis=2).mean()
+    frames = np.flatnonzero(mask)
+    rest = np.broadcast_to(markers.rest, (len(frames),) + markers.rest.shape)
+    return np.mean(cloud_reference(markers).residuals(rest, frames) ** 2)
 
 
 def nearest(a, b):
@@ -462,26 +478,19 @@ def _generation(state, space, cluster, problem, spec, checkpoint, log):
         raise FitError("the scene refused every candidate: " + refused[0])
 
 
-def residual_vector(res, recording, mask, markers=None, marker_mask=None):
+def residual_vector(res, recording, mask, markers=None, marker_mask=None, mscale=None):
     """The candidate's errors as one vector whose norm is its cost: the force errors over the fit's
-    samples scaled as relative_rms() scales them, then the markers' as marker_rms() does."""
+    samples scaled as relative_rms() scales them, then the markers' as marker_rms() does (mscale:
+    marker_scale(), when the caller has it)."""
     count = max(1, int(np.count_nonzero(mask)))
     scale = np.sum(recording.forces[mask] ** 2, axis=1).mean()
     out = (res["forces"][mask] - recording.forces[mask]).ravel() / math.sqrt(count * (scale if scale > 0 else 1.0))
     if markers is None:
         return out
-    frames = np.flatnonzero(marker_mask)
-    if markers.ordered:
-        error = (res["markers"][marker_mask] - markers.positions[marker_mask]).ravel()
-        scale = np.sum((markers.positions[marker_mask] - markers.rest) ** 2, axis=2).mean()
-        pairs = len(frames) * len(markers.rest)
-    else:
-        reference = cloud_reference(markers)
-        error = reference.residuals(res["markers"][marker_mask], frames).ravel()
-        rest = np.broadcast_to(markers.rest, (len(frames),) + markers.rest.shape)
-        scale = np.mean(reference.residuals(rest, frames) ** 2)
-        pairs = error.size
-    return np.concatenate([out, error / math.sqrt(max(1, pairs) * (scale if scale > 0 else 1.0))])
+    error = marker_errors(res["markers"], markers, marker_mask)
+    scale = marker_scale(markers, marker_mask) if mscale is None else mscale
+    count = error.size // 3 if markers.ordered else error.size  # markers at their times, or cloud points
+    return np.concatenate([out, error / math.sqrt(max(1, count) * (scale if scale > 0 else 1.0))])
 
 
 #: the refinement after the search: at most this many Levenberg-Marquardt iterations, each its
@@ -501,6 +510,7 @@ def refine(best, space, cluster, problem, log):
     is taken. Returns {best, evaluations, seconds}."""
     recording, mask = problem["recording"], problem["fit_mask"]
     markers, marker_mask = problem["markers"], problem["marker_mask"]
+    mscale = marker_scale(markers, marker_mask) if markers is not None else None
     n = len(space.names)
     evaluations, seconds = 0, 0.0
     for it in range(REFINE_ITERATIONS):
@@ -516,9 +526,9 @@ def refine(best, space, cluster, problem, log):
         evaluations += len(probes)
         if any(r["forces"] is None for r in results):
             break
-        r0 = residual_vector(best, recording, mask, markers, marker_mask)
-        J = np.column_stack([(residual_vector(results[2 * i], recording, mask, markers, marker_mask) -
-                              residual_vector(results[2 * i + 1], recording, mask, markers, marker_mask)) /
+        r0 = residual_vector(best, recording, mask, markers, marker_mask, mscale)
+        J = np.column_stack([(residual_vector(results[2 * i], recording, mask, markers, marker_mask, mscale) -
+                              residual_vector(results[2 * i + 1], recording, mask, markers, marker_mask, mscale)) /
                              (probes[2 * i][i] - probes[2 * i + 1][i]) for i in range(n)])
         A, g = J.T @ J, J.T @ r0
         steps = []
@@ -639,16 +649,12 @@ def uncertainty(cluster, best, base, recording, tool, mask, markers=None, marker
     axis = axis / np.linalg.norm(axis) if np.linalg.norm(axis) > 0 else np.array([0.0, 0.0, 1.0])
     fscale = math.sqrt(np.sum(recording.forces[mask] ** 2, axis=1).mean()) or 1.0
 
+    mscale = (math.sqrt(marker_scale(markers, marker_mask)) or 1.0) if markers is not None else 1.0
+
     def residual(res):
         out = (res["forces"][mask] - recording.forces[mask]) @ axis / fscale
-        if markers is not None and markers.ordered:
-            mscale = math.sqrt(np.sum((markers.positions[marker_mask] - markers.rest) ** 2, axis=2).mean()) or 1.0
-            out = np.concatenate([out, ((res["markers"][marker_mask] - markers.positions[marker_mask]) / mscale).ravel()])
-        elif markers is not None:
-            reference, frames = cloud_reference(markers), np.flatnonzero(marker_mask)
-            rest = np.broadcast_to(markers.rest, (len(frames),) + markers.rest.shape)
-            mscale = math.sqrt(np.mean(reference.residuals(rest, frames) ** 2)) or 1.0
-            out = np.concatenate([out, reference.residuals(res["markers"][marker_mask], frames) / mscale])
+        if markers is not None:
+            out = np.concatenate([out, marker_errors(res["markers"], markers, marker_mask) / mscale])
         return out
 
     J = np.column_stack([(residual(results[2 * i]) - residual(results[2 * i + 1])) / (2 * h[i])
