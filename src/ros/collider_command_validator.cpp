@@ -67,12 +67,7 @@ bool toShape(const ColliderCommand& msg, ColliderShape& shape, Rejection& why) {
       if (msg.length <= 0.0)
         return refuse(why, "bad_size", "collider '" + msg.id + "': cylinder length " +
                                            str(msg.length) + " must be > 0 (m)");
-      shape.halfLength = 0.5 * msg.length;
-      if (msg.radius <= 0.0)
-        return refuse(why, "bad_size", "collider '" + msg.id + "': radius " + str(msg.radius) +
-                                           " must be > 0 (m)");
-      shape.radius = msg.radius;
-      break;
+      [[fallthrough]];  // its length and radius as a capsule's
     case ColliderType::Capsule:
       if (msg.length < 0.0)
         return refuse(why, "bad_size", "collider '" + msg.id + "': capsule length " +

@@ -236,6 +236,18 @@ TEST(ColliderCommandValidator, AddMoveAndRemoveInTheSimulationFrame) {
   EXPECT_TRUE(add.followFrame.empty());
   EXPECT_TRUE(add.collider.pose.translation().isApprox(Eigen::Vector3d(0, 0.5, 1), 1e-12));
   EXPECT_TRUE(add.collider.shape.halfExtents.isApprox(Eigen::Vector3d::Constant(0.05)));
+  {
+    ColliderCommand c = boxCommand();
+    c.type = "cylinder";
+    c.length = 0.2;
+    c.radius = 0.03;
+    CommandBody cylinder;
+    ASSERT_TRUE(v.check(c, cylinder, why)) << why.detail;
+    const ColliderShape& shape = std::get<SetColliderCommand>(cylinder).collider.shape;
+    EXPECT_EQ(shape.type, ColliderType::Cylinder);
+    EXPECT_EQ(shape.halfLength, 0.1);
+    EXPECT_EQ(shape.radius, 0.03);
+  }
 
   // Following a frame: the pose is the offset in it, no lookup now.
   m.header.frame_id = "nowhere";
@@ -292,6 +304,12 @@ TEST(ColliderCommandValidator, RefusesWithAReason) {
   m.type = "capsule";
   m.radius = 0.01;
   m.length = -0.1;
+  EXPECT_EQ(refusal(m), "bad_size");
+  m.type = "cylinder";  // a cylinder needs a length > 0 (a capsule of length 0 is a sphere)
+  m.length = 0.0;
+  EXPECT_EQ(refusal(m), "bad_size");
+  m.length = 0.1;
+  m.radius = 0.0;
   EXPECT_EQ(refusal(m), "bad_size");
   m = boxCommand();
   m.static_friction = 0.1;
