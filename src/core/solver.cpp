@@ -113,6 +113,7 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
   pinnedList_.reserve(n);
   pinPosition_ = x0;
   impulseDv_.assign(n, Eigen::Vector3d::Zero());
+  freeVelocity_.assign(n, Eigen::Vector3d::Zero());
   forceAccel_.assign(n, Eigen::Vector3d::Zero());
   goal_.assign(n, Eigen::Vector3d::Zero());
 }
@@ -231,6 +232,7 @@ void Solver::beginStep() {
   activeSummer_ = timed && !governor_.threaded() ? singleSummer_.get() : summer_.get();
   stepSeconds_ = 0.0;
   beginContactStep();
+  for (auto& entry : drags_) entry.second.impulse = entry.second.moment = Eigen::Vector3d::Zero();
 }
 
 void Solver::advanceSubstep(int s) {
@@ -251,7 +253,13 @@ void Solver::endStep() {
     governor_.record(stepSeconds_);
     activeSummer_ = summer_.get();
   }
-  for (auto& entry : drags_) entry.second.reached = entry.second.pose;
+  const double T = params_.timeStep;
+  for (auto& entry : drags_) {
+    Drag& d = entry.second;
+    d.reached = d.pose;
+    d.force = d.impulse / T;
+    d.torque = d.moment / T;
+  }
 }
 
 void Solver::idleStep() {
@@ -420,8 +428,9 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
     // v <- v_obj + keep (v - v_obj) + alpha s_i (g - x) / h + h (gravity + f / m) + kd (v_rigid - v);
     // x <- x + h v
     goal_[i] = g;  // the contact pass bounds its push-out by it
-    // (a pinned or hard-dragged particle is left to finishSubstep())
-    if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
+    // (a pinned or hard-dragged particle is left to finishSubstep(), the latter's free velocity
+    // kept for its drag's impulse)
+    if (pinned_[i] != 0) continue;
     Eigen::Vector3d a = params_.gravity;
     if (k.forced) a += forceAccel_[i];
     if (volumetric_) a += volumetricAccel_[i];
@@ -432,14 +441,20 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
           (Eigen::Vector3d(s[12], s[13], s[14]) + Eigen::Vector3d(s[15], s[16], s[17]).cross(p)) * invCount_[i];
       dv += k.kd * (target - v_[i]);
     }
+    Eigen::Vector3d v;
     if (k.relative) {
       // ambient damping of the motion relative to the object's rigid motion (computeRigidMotion())
       const Eigen::Vector3d rigid = rigidVelocity_ + rigidSpin_.cross(x_[i] - xref_);
-      v_[i] = rigid + k.keep * (v_[i] - rigid) + dv;
+      v = rigid + k.keep * (v_[i] - rigid) + dv;
     } else {
-      v_[i] = (v_[i] + dv) * k.keep;  // held by the world: drag towards rest
+      v = (v_[i] + dv) * k.keep;  // held by the world: drag towards rest
     }
-    x_[i] += k.h * v_[i];
+    if (hardDragged_[i] != 0) {
+      freeVelocity_[i] = v;
+      continue;
+    }
+    v_[i] = v;
+    x_[i] += k.h * v;
   }
 }
 
@@ -517,8 +532,10 @@ void Solver::endSubstep(double h, double elapsed) {
 // The particles particleResult() leaves alone: hard-dragged ones follow their target (the
 // velocity that reaches it in one sub-step), pinned ones stay.
 void Solver::finishSubstep(double h) {
-  for (const auto& entry : drags_) {
-    const Drag& drag = entry.second;
+  const bool explicitStep = params_.integrator == Integrator::Explicit;
+  const auto& m = lattice_->masses();
+  for (auto& entry : drags_) {
+    Drag& drag = entry.second;
     const Eigen::Isometry3d& frame = drag.frame;
     if (drag.stiffness > 0.0) continue;
     for (std::size_t e = 0; e < drag.particles.size(); ++e) {
@@ -526,6 +543,10 @@ void Solver::finishSubstep(double h) {
       if (pinned_[p] != 0) continue;
       v_[p] = (frame * drag.offsets[e] - x_[p]) / h;
       x_[p] += h * v_[p];
+      // the implicit step counted its impulse from the solve's residual (implicitEnd()); the
+      // explicit one damps the updated velocity, v = keep (v_n + dv) (a dragged object is held
+      // by the world), so the drag's impulse is m (v / keep - (v_n + dv)) = m (v - v_free) / keep
+      if (explicitStep) countDragImpulse(drag, x_[p], m[p] * (v_[p] - freeVelocity_[p]) / step_.keep);
     }
   }
   if (pinnedListStale_) {  // capacity #P, reserved at construction: no allocation here

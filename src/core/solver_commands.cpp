@@ -260,8 +260,8 @@ void Solver::accumulateForces(double h) {
     for (std::uint32_t p : f.particles) forceAccel_[p] += a;
     forcedParticles_.insert(forcedParticles_.end(), f.particles.begin(), f.particles.end());
   }
-  for (const auto& entry : drags_) {
-    const Drag& drag = entry.second;
+  for (auto& entry : drags_) {
+    Drag& drag = entry.second;
     const Eigen::Isometry3d& frame = drag.frame;
     if (drag.stiffness <= 0.0) continue;
     double M = 0.0;
@@ -270,7 +270,9 @@ void Solver::accumulateForces(double h) {
     const double k = drag.stiffness / M;
     for (std::size_t e = 0; e < drag.particles.size(); ++e) {
       const std::uint32_t p = drag.particles[e];
-      forceAccel_[p] += k * (frame * drag.offsets[e] - x_[p]);
+      const Eigen::Vector3d a = k * (frame * drag.offsets[e] - x_[p]);
+      forceAccel_[p] += a;
+      countDragImpulse(drag, x_[p], h * m[p] * a);
     }
     forcedParticles_.insert(forcedParticles_.end(), drag.particles.begin(), drag.particles.end());
   }

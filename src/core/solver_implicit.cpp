@@ -341,6 +341,7 @@ void Solver::implicitEnd(double h, const std::vector<Eigen::Vector3d>& residual,
   const std::size_t n = x_.size();
   if (!contactBodies_.empty()) sumContactImpulses(h, residual, offset);
   if (!heldByWorld()) correctRigidModes(h);
+  sumDragImpulses(h, residual, offset);
 
   // v+ and x+ = x_n + h v+ for the free particles; the pinned and hard-dragged ones are
   // finishSubstep()'s, as in the explicit step.
@@ -351,6 +352,19 @@ void Solver::implicitEnd(double h, const std::vector<Eigen::Vector3d>& residual,
     x_[i] += h * v_[i];
   }
   endSubstep(h, elapsed > 0.0 ? elapsed : h);
+}
+
+// A hard drag's impulse is the solve's reaction on its prescribed rows, -(b - A v); BDF2's solve
+// of 2/3 of the sub-step takes 2/3 of it, as its contacts' (sumContactImpulses()).
+void Solver::sumDragImpulses(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset) {
+  const double perSubstep = bdf2Step_ ? params_.substepLength() / h : 1.0;
+  for (auto& entry : drags_) {
+    Drag& drag = entry.second;
+    if (drag.stiffness > 0.0) continue;
+    for (std::uint32_t p : drag.particles)
+      if (pinned_[p] == 0)
+        countDragImpulse(drag, x_[p] + h * implicitVelocity_[p], -perSubstep * residual[offset + p]);
+  }
 }
 
 // The preconditioner's coarse matrix P^T A P for this sub-step (TwoLevelPreconditioner): the

@@ -55,6 +55,15 @@ struct Drag {
   /// stiffness (N/m) of a spring from each particle to its target, scaled by the particle's mass
   /// share
   double stiffness = 0.0;
+  /// What the drag exerted on the object over the last step, mean over its sub-steps: force (N)
+  /// and torque about the drag frame's origin (N m). A hard drag's is the impulse that held its
+  /// particles on their targets against the rest of the step (m (v_target - v_free)); a spring
+  /// drag's is its springs' force at the start of each sub-step. At rest: what the hand holds.
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();
+  Eigen::Vector3d torque = Eigen::Vector3d::Zero();
+  /// the step's sums behind force and torque (N s, N m s)
+  Eigen::Vector3d impulse = Eigen::Vector3d::Zero();
+  Eigen::Vector3d moment = Eigen::Vector3d::Zero();
 
   /// Where the grabbed particles' centroid is pulled to (m, simulation frame): pose applied to
   /// the centroid of the offsets (for grab(), the pose's translation).
@@ -399,6 +408,14 @@ class Solver : private RegionKernel {
   std::vector<Eigen::Vector3d> pinPosition_;
   mutable Eigen::Quaterniond frameRotation_ = Eigen::Quaterniond::Identity();  // rigidFrame warm start
   std::vector<Eigen::Vector3d> impulseDv_;  // velocity change pending from impulses
+  /// per hard-dragged particle: the velocity the explicit sub-step gave it before its drag held
+  /// it (finishSubstep() counts the difference as the drag's impulse)
+  std::vector<Eigen::Vector3d> freeVelocity_;
+  /// Counts impulse J on particle p (at x_[p]) into drag d's sums.
+  static void countDragImpulse(Drag& d, const Eigen::Vector3d& x, const Eigen::Vector3d& J) {
+    d.impulse += J;
+    d.moment += (x - d.frame.translation()).cross(J);
+  }
   bool impulsePending_ = false;
   std::map<std::string, Drag> drags_;
   std::map<std::string, Collider> colliders_;
@@ -530,6 +547,8 @@ class Solver : private RegionKernel {
   void implicitProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y);
   /// Adds the Poisson term's Gauss-Newton Hessian times p, h^2 H_vol p, to y.
   void addVolumetricProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) const;
+  /// Counts each hard drag's impulse in the solve (its reaction on the prescribed rows) into it.
+  void sumDragImpulses(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset);
   /// Restores the linear and angular momentum the external forces give (free object only).
   void correctRigidModes(double h);
   /// ImplicitScheme::Bdf2 at the start of a sub-step of length h: keeps (x_n, v_n) for the next
