@@ -5,7 +5,8 @@
 
 reads DIR/accuracy.csv and DIR/stability.csv (written by flsm_study) and writes
 DIR/speed_accuracy.png (error against cost, log-log, one curve per method, every point labelled
-resolution/sub-steps) and DIR/stability.md (method x stress scenario).
+resolution/sub-steps) and DIR/stability.md (method x stress scenario); with DIR/indentation.csv,
+DIR/indentation.png (the punch's force against the FEM oracle's, against cost).
 """
 import csv
 import math
@@ -41,6 +42,8 @@ PANELS = [
 STRESS = [("drag-5x", "drag 5x size, release"), ("plane", "collapsed onto a plane"),
           ("scrambled", "scrambled start")]
 CPU = "Intel(R) Xeon(R) Processor, 2 cores"
+# the machine docs/study/indentation.csv was measured on
+INDENTATION_CPU = "AMD EPYC, 2 cores"
 
 
 def read(path):
@@ -115,6 +118,49 @@ def chart(rows, calibration, path):
     fig.savefig(path, dpi=110)
 
 
+def indentation(rows, path):
+    """The punch: force over the FEM oracle's (and its error) against cost, one series per method."""
+    fig, axes = plt.subplots(1, 2, figsize=(16, 6.5))
+    for ax, logy in zip(axes, (True, False)):
+        for key, label, color, marker in METHODS:
+            pts = []
+            for r in rows:
+                ratio = number(r["force_vs_fem"])
+                if r["method"] != key or r["blew_up"] == "1" or not math.isfinite(ratio):
+                    continue
+                err = abs(ratio - 1.0) if logy else ratio
+                pts.append((number(r["cpu_s_per_sim_s"]), err,
+                            "%s/%s" % (r["resolution"], r["substeps"])))
+            if not pts:
+                continue
+            ax.scatter([p[0] for p in pts], [p[1] for p in pts], color=color, marker=marker, s=30,
+                       label=label, zorder=3)
+            if logy:
+                front = pareto(pts)
+                ax.plot([p[0] for p in front], [p[1] for p in front], color=color, lw=1.3, zorder=2)
+            for cost, err, text in pts:
+                ax.annotate(text, (cost, err), textcoords="offset points", xytext=(4, 3), fontsize=6.5,
+                            color=color)
+        ax.set_xscale("log")
+        if logy:
+            ax.set_yscale("log")
+            ax.set_ylabel("|punch force / FEM oracle's - 1|")
+            ax.set_title("(e) Bonded flat punch, 2 % of the side deep: force error against cost",
+                         fontsize=9.5)
+        else:
+            ax.axhline(1.0, color="black", lw=1.0, label="FEM oracle (physics)")
+            ax.set_ylabel("punch force / FEM oracle's")
+            ax.set_title("(f) The same runs: force over the oracle's (1 = physics)", fontsize=9.5)
+        ax.set_xlabel("cost: CPU time per simulated second (s), one thread")
+        ax.grid(True, which="both", lw=0.3, alpha=0.5)
+        ax.legend(fontsize=7.5, loc="best")
+    fig.suptitle("Under a finger, on %s: a 5 cm cube (E 20 kPa, nu 0.3) held by its base, a punch "
+                 "38 %% of its side (labels: cells per side / sub-steps per 1/60 s frame)"
+                 % INDENTATION_CPU, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
 def modulus(pa):
     """Young's modulus in Pa as a person writes it: 5 kPa, 1 MPa."""
     for unit, scale in (("MPa", 1e6), ("kPa", 1e3)):
@@ -180,6 +226,10 @@ def main():
     chart(read(os.path.join(out, "accuracy.csv")), calibration, os.path.join(out, "speed_accuracy.png"))
     stability(read(os.path.join(out, "stability.csv")), os.path.join(out, "stability.md"))
     print("wrote %s/speed_accuracy.png and %s/stability.md" % (out, out))
+    punch = os.path.join(out, "indentation.csv")
+    if os.path.exists(punch):
+        indentation(read(punch), os.path.join(out, "indentation.png"))
+        print("wrote %s/indentation.png" % out)
 
 
 if __name__ == "__main__":

@@ -27,6 +27,7 @@
 #include <cmath>
 #include <cstdint>
 #include <algorithm>
+#include <limits>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -181,6 +182,28 @@ class VoxelBulletBody : public Method {
     grabTarget_ = target;
     refreshInverseMasses();
   }
+  /// Holds only the grabbed cells' corners on their face towards `outward`.
+  void grabFace(const std::vector<std::uint32_t>& particles, const Eigen::Vector3d& target,
+                const Eigen::Vector3d& outward) override {
+    grab(particles, target);
+    std::vector<int> face;
+    std::vector<Eigen::Vector3d> offsets;
+    for (std::size_t e = 0; e < grabbedNodes_.size(); ++e)
+      if (onFace(particles, grabbedNodes_[e], outward)) {
+        face.push_back(grabbedNodes_[e]);
+        offsets.push_back(grabOffsets_[e]);
+      }
+    grabbedNodes_ = face;
+    grabOffsets_ = offsets;
+    refreshInverseMasses();
+  }
+  /// Pins only the cells' corners on their face towards `outward`.
+  void pinFace(const std::vector<std::uint32_t>& particles, const Eigen::Vector3d& outward) override {
+    for (std::uint32_t p : particles)
+      for (int v : mesh_.cellCorners[p])
+        if ((mesh_.nodes[v] - lattice_->restPositions()[p]).dot(outward) > 0.0) pinnedNodes_[v] = 1;
+    refreshInverseMasses();
+  }
   void moveGrab(const Eigen::Vector3d& target) override { grabTarget_ = target; }
   void release() override {
     grabbedNodes_.clear();
@@ -209,6 +232,13 @@ class VoxelBulletBody : public Method {
 
   /// Advances the body by one sub-step h (s).
   virtual void advance(double h) = 0;
+  /// Whether node v is a corner, on the face towards `outward`, of one of the cells `particles`.
+  bool onFace(const std::vector<std::uint32_t>& particles, int v, const Eigen::Vector3d& outward) const {
+    for (std::uint32_t p : particles)
+      for (int c : mesh_.cellCorners[p])
+        if (c == v && (mesh_.nodes[v] - lattice_->restPositions()[p]).dot(outward) > 0.0) return true;
+    return false;
+  }
   /// Called after inverse masses changed (pins, grabs).
   virtual void inverseMassesChanged() {}
 
@@ -241,6 +271,10 @@ class VoxelBulletBody : public Method {
   double frameStep_;
   int substeps_;
   btSoftBody* body_ = nullptr;
+  /// the grabbed nodes (kinematic), their offsets from the grab's target, the target
+  std::vector<int> grabbedNodes_;
+  std::vector<Eigen::Vector3d> grabOffsets_;
+  Eigen::Vector3d grabTarget_ = Eigen::Vector3d::Zero();
 
  private:
   void refreshInverseMasses() {
@@ -261,9 +295,6 @@ class VoxelBulletBody : public Method {
   std::vector<btScalar> inverseMass_;
   std::vector<char> pinnedNodes_;
   std::vector<Eigen::Vector3d> x_;
-  std::vector<int> grabbedNodes_;
-  std::vector<Eigen::Vector3d> grabOffsets_;
-  Eigen::Vector3d grabTarget_ = Eigen::Vector3d::Zero();
   mutable std::vector<Eigen::Quaterniond> warm_;
 };
 
@@ -340,6 +371,19 @@ class BulletDeformableMethod : public VoxelBulletBody {
   BulletDeformableMethod& operator=(const BulletDeformableMethod&) = delete;
 
   std::string name() const override { return "bullet-fem"; }
+  /// The grab's force from statics: minus the elastic force (Bullet's own,
+  /// btDeformableLinearElasticityForce::addScaledElasticForce) on the grabbed nodes, at the end of
+  /// the frame. Exact at rest, where no inertia or damping force acts; what the punch reads.
+  Eigen::Vector3d grabForce() const override {
+    if (grabbedNodes_.empty()) return Eigen::Vector3d::Zero();
+    btAlignedObjectArray<btVector3> f;
+    f.resize(body_->m_nodes.size());
+    for (int i = 0; i < f.size(); ++i) f[i].setZero();
+    elasticity_->addScaledElasticForce(btScalar(1), f);
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (int v : grabbedNodes_) sum -= toEigen(f[body_->m_nodes[v].index]);
+    return sum;
+  }
 
  protected:
   void advance(double h) override {
@@ -421,6 +465,13 @@ class BulletVolumeMethod : public VoxelBulletBody {
   std::string name() const override { return "bullet"; }
   /// Rest volume (m^3) of the boundary faces, as Bullet measures it (btSoftBody::getVolume()).
   double restVolume() const { return body_->m_pose.m_volume; }
+
+  /// Position-based links move nodes without a force: a kinematic node feels none, so there is
+  /// no force to read (NaN). Bullet's anchors to a rigid handle read one that depends on the
+  /// sub-step, even in sign (docs/study.md, indentation).
+  Eigen::Vector3d grabForce() const override {
+    return Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  }
 
  protected:
   void advance(double h) override {

@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -127,6 +128,11 @@ class BulletSoftBodyMethod : public Method {
     refreshInverseMasses();
   }
   void moveGrab(const Eigen::Vector3d& target) override { grabTarget_ = target; }
+  /// Position-based links exert no force that a kinematic node could read: NaN (the study's
+  /// indentation reads the legacy body through BulletVolumeMethod's anchors).
+  Eigen::Vector3d grabForce() const override {
+    return Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  }
   void release() override {
     grabbed_.clear();
     grabOffsets_.clear();

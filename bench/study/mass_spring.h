@@ -147,8 +147,14 @@ class MassSpringLattice {
 
   void step() {
     const double h = params_.timeStep / params_.substeps;
+    grabImpulse_.setZero();
     for (int s = 0; s < params_.substeps; ++s) substep(h);
+    grabForce_ = grabImpulse_ / params_.timeStep;
   }
+  /// The force (N) the grab exerted over the last step: the impulse that put the grabbed
+  /// particles on their targets, m (v / keep - v_n - h a) summed (the update damps the new
+  /// velocity, v = keep (v_n + h a)), over the step's time.
+  const Eigen::Vector3d& grabForce() const { return grabForce_; }
 
   const std::vector<Eigen::Vector3d>& positions() const { return x_; }
   const std::vector<Eigen::Vector3d>& velocities() const { return v_; }
@@ -211,7 +217,9 @@ class MassSpringLattice {
     for (std::size_t i = 0; i < n; ++i) v_[i] = keep * (v_[i] + h * (f_[i] / m[i] + params_.gravity));
     for (std::size_t e = 0; e < grabbed_.size(); ++e) {
       const std::uint32_t p = grabbed_[e];
+      const Eigen::Vector3d free = v_[p];
       v_[p] = (grabTarget_ + grabOffsets_[e] - x_[p]) / h;
+      if (!pinned_[p]) grabImpulse_ += m[p] * (v_[p] - free) / keep;
     }
     for (std::size_t i = 0; i < n; ++i) {
       if (pinned_[i]) {
@@ -232,6 +240,7 @@ class MassSpringLattice {
   std::vector<std::uint32_t> grabbed_;
   std::vector<Eigen::Vector3d> grabOffsets_;
   Eigen::Vector3d grabTarget_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d grabImpulse_ = Eigen::Vector3d::Zero(), grabForce_ = Eigen::Vector3d::Zero();
 };
 
 /// The mass-spring lattice behind the study's Method interface.
@@ -253,6 +262,7 @@ class MassSpringMethod : public Method {
   }
   void moveGrab(const Eigen::Vector3d& target) override { sim_.moveGrab(target); }
   void release() override { sim_.release(); }
+  Eigen::Vector3d grabForce() const override { return sim_.grabForce(); }
   double kineticEnergy() const override { return sim_.kineticEnergy(); }
   void rotations(std::vector<Eigen::Quaterniond>& out) const override {
     neighbourhoodRotations(sim_.lattice(), sim_.positions(), warm_);

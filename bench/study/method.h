@@ -43,6 +43,23 @@ class Method {
   virtual void moveGrab(const Eigen::Vector3d& target) = 0;
   /// Lets the grabbed particles go.
   virtual void release() = 0;
+  /// As grab(), for a punch on a surface: a method of one particle per cell holds the particles
+  /// (grab()); one whose nodes are the cells' corners holds only the corners on the cells' face
+  /// towards `outward` (a unit axis), the face the punch meets.
+  virtual void grabFace(const std::vector<std::uint32_t>& particles, const Eigen::Vector3d& target,
+                        const Eigen::Vector3d& outward) {
+    (void)outward;
+    grab(particles, target);
+  }
+  /// As setPinned(particles, true), for a support under a face: a method of corner nodes pins
+  /// only the corners on the cells' face towards `outward`.
+  virtual void pinFace(const std::vector<std::uint32_t>& particles, const Eigen::Vector3d& outward) {
+    (void)outward;
+    setPinned(particles, true);
+  }
+  /// The force (N) the grab exerted on the object, the mean over the last frame; at rest, what
+  /// holds the grabbed particles where they are. Zero without a grab.
+  virtual Eigen::Vector3d grabForce() const = 0;
   /// Kinetic energy sum 1/2 m |v|^2 (J).
   virtual double kineticEnergy() const = 0;
   /// #P rotations used for the embedding's ghost nodes (see Embedding).
@@ -87,6 +104,11 @@ class FlsmMethod : public Method {
   }
   void moveGrab(const Eigen::Vector3d& target) override { solver_.moveDrag(kGrabId, target); }
   void release() override { solver_.release(kGrabId); }
+  /// the hard drag's force (Drag::force)
+  Eigen::Vector3d grabForce() const override {
+    const auto d = solver_.drags().find(kGrabId);
+    return d == solver_.drags().end() ? Eigen::Vector3d::Zero() : d->second.force;
+  }
   double kineticEnergy() const override { return solver_.kineticEnergy(); }
   void rotations(std::vector<Eigen::Quaterniond>& out) const override {
     out = solver_.regionRotations();
