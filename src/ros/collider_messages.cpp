@@ -208,4 +208,23 @@ void appendObjectWrenches(const std::vector<ObjectPairWrench>& pairs, const std:
   }
 }
 
+std::string dragWrenchId(const std::string& object, const std::string& drag) {
+  return "drag/" + object + "/" + drag;
+}
+
+void appendDragWrenches(const std::vector<ObjectSnapshot>& objects, const std::string& simFrame,
+                        const ros::Time& stamp, ContactWrenches& out) {
+  for (const ObjectSnapshot& o : objects)
+    for (const DragView& d : o.drags) {
+      geometry_msgs::WrenchStamped ws;
+      ws.header.stamp = stamp;
+      ws.header.frame_id = simFrame;
+      tf2::toMsg(Eigen::Vector3d(-d.force), ws.wrench.force);
+      tf2::toMsg(Eigen::Vector3d(-d.torque), ws.wrench.torque);
+      out.ids.push_back(dragWrenchId(o.name, d.id));
+      out.wrenches.push_back(ws);
+      out.contacts.push_back(static_cast<std::uint32_t>(d.particles));
+    }
+}
+
 }  // namespace deformable_flsm

@@ -179,6 +179,7 @@ void ColliderTopics::onFollowTimer(const ros::TimerEvent&) {
 void ColliderTopics::publishFrames(const Snapshot& s, const ros::Time& stamp, bool withTf) {
   fillContactWrenches(s.colliders, s.wrenches, robotLinks_, stamp, wrenches_);
   appendObjectWrenches(s.objectWrenches, simFrame_, stamp, wrenches_);
+  appendDragWrenches(s.objects, simFrame_, stamp, wrenches_);
   wrenches_.header.frame_id = simFrame_;
   wrenchPub_.publish(wrenches_);
   if (withTf && !s.colliders.empty()) {

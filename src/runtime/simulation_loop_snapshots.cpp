@@ -115,6 +115,9 @@ void SimulationLoop::writeObject(const Solver& solver, std::size_t k, ObjectSnap
     for (std::uint32_t p : entry.second.particles) d.centroid += o.positions[p];
     d.centroid /= static_cast<double>(entry.second.particles.size());
     d.target = entry.second.centroidTarget();
+    d.force = entry.second.force;
+    d.torque = entry.second.torque;
+    d.particles = entry.second.particles.size();
     o.drags.push_back(std::move(d));
   }
   const Eigen::Isometry3d rigid = solver.rigidFrame();

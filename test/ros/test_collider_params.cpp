@@ -360,6 +360,29 @@ TEST(ColliderMessages, WrenchesAreInTheCollidersFrames) {
   EXPECT_EQ(tfs[1].transform.translation.z, 3.0);
 }
 
+// A drag's entry is what the object exerts on the hand: minus the drag's force and torque on the
+// object, in the simulation frame, with the particles it holds.
+TEST(ColliderMessages, DragsAppearAsWhatTheObjectExertsOnTheHand) {
+  std::vector<ObjectSnapshot> objects(2);
+  objects[0].name = "object";
+  objects[1].name = "cube";
+  DragView d;
+  d.id = "lift";
+  d.force = Eigen::Vector3d(0, 0, 2.5);  // the drag holds 2.5 N of weight up
+  d.torque = Eigen::Vector3d(0.1, 0, 0);
+  d.particles = 20;
+  objects[1].drags.push_back(d);
+  ContactWrenches msg;
+  appendDragWrenches(objects, "world", ros::Time(3.0), msg);
+  ASSERT_EQ(msg.ids.size(), 1u);
+  EXPECT_EQ(msg.ids[0], dragWrenchId("cube", "lift"));
+  EXPECT_EQ(msg.ids[0], "drag/cube/lift");
+  EXPECT_EQ(msg.wrenches[0].header.frame_id, "world");
+  EXPECT_EQ(msg.wrenches[0].wrench.force.z, -2.5);  // the object pulls the hand down
+  EXPECT_EQ(msg.wrenches[0].wrench.torque.x, -0.1);
+  EXPECT_EQ(msg.contacts[0], 20u);
+}
+
 TEST(ColliderMessages, GroupedCollidersAreSummedInTheirBodyFrame) {
   // A link at (1, 0, 0) turned 90 degrees about z, with two collision elements: A at (0.1, 0, 0)
   // in the link frame, pushed down by 1 N; B at (0, 0.2, 0), pushed along the world's x by 1 N

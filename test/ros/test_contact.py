@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Contact in the default scene: the bunny dropped onto the ground comes to rest with the ground
 carrying its weight and no surface point below it; a sphere pressed into the resting bunny
-through ~collider meets a reaction force that grows with the depth."""
+through ~collider meets a reaction force that grows with the depth; a drag that lifts it carries
+its weight on ~contact_wrenches."""
 
 import math
 import time
@@ -15,7 +16,7 @@ from geometry_msgs.msg import Point, Quaternion
 from sensor_msgs import point_cloud2
 from sensor_msgs.msg import PointCloud2
 
-from deformable_flsm.msg import ColliderCommand, ContactWrenches
+from deformable_flsm.msg import ColliderCommand, ContactWrenches, DragCommand
 from flsm_testing import FlsmClient
 
 PKG = 'deformable_flsm'
@@ -135,6 +136,56 @@ class ContactTest(unittest.TestCase):
         self.send(ColliderCommand.REMOVE, 'indenter')
         self.assertIsNotNone(f.wait_state(lambda s: s.colliders == 1, 5.0), 'REMOVE not applied')
         self.rest()  # as found: the other test may come next
+
+    def drag_wrench(self, drag_id, timeout=5.0):
+        """(force, contacts) of the entry drag/<object>/<drag_id> of the next ~contact_wrenches,
+        in ~frame_id; None when there is none."""
+        msg = rospy.wait_for_message('/flsm_node/contact_wrenches', ContactWrenches, timeout)
+        ids = [i for i in msg.ids if i.startswith('drag/') and i.endswith('/' + drag_id)]
+        if not ids:
+            return None
+        k = list(msg.ids).index(ids[0])
+        f = msg.wrenches[k].wrench.force
+        return np.array([f.x, f.y, f.z]), msg.contacts[k]
+
+    def test_lift_by_a_drag(self):
+        """A hard drag lifts the resting bunny clear of the ground: its weight moves from the
+        ground's entry of ~contact_wrenches to the drag's (statics: nothing else holds it)."""
+        f = self.flsm
+        s = f.wait_state(lambda s: s.idle, 90.0)
+        self.assertIsNotNone(s)
+        weight = s.mass * 9.81
+        x = f.particles()
+        # The middle of the bunny's back, as the sphere's: the highest particle within 2 cm of the
+        # centre
+        c = x.mean(axis=0)
+        near = x[np.hypot(x[:, 0] - c[0], x[:, 1] - c[1]) < 0.02]
+        top = near[np.argmax(near[:, 2])]
+        target = (top[0], top[1], top[2] + 0.10)
+        f.drag(DragCommand.GRAB, 'lift', point=tuple(top), count=40, target=target)
+        # Settled when three readings a second apart agree within 1 % of the weight.
+        readings, end = [], time.time() + 120.0
+        while time.time() < end:
+            time.sleep(1.0)
+            w = self.drag_wrench('lift')
+            if w is None:
+                continue
+            readings.append(w[0][2])
+            if len(readings) >= 3 and np.ptp(readings[-3:]) < 0.01 * weight:
+                break
+        self.assertGreaterEqual(len(readings), 3, 'no drag entry on ~contact_wrenches')
+        force, contacts = self.drag_wrench('lift')
+        ground, _, ground_contacts = self.wrench('ground')
+        rospy.loginfo('lift: weight %.4f N, on the hand (%.4f, %.4f, %.4f) N from %d particles, '
+                      'on the ground %.4f N from %d contacts', weight, force[0], force[1], force[2],
+                      contacts, -ground[2], ground_contacts)
+        self.assertEqual(contacts, 40)
+        self.assertEqual(ground_contacts, 0, 'the lifted bunny still touches the ground')
+        # The bunny pulls the hand down with its weight.
+        self.assertAlmostEqual(-force[2] / weight, 1.0, delta=0.02)
+        self.assertLess(math.hypot(force[0], force[1]), 0.02 * weight)
+        f.release('lift')
+        self.rest()  # as found
 
 
 if __name__ == '__main__':

@@ -6,6 +6,7 @@
 
 #include "deformable_flsm/core/collider.h"
 #include "deformable_flsm/core/world.h"
+#include "deformable_flsm/runtime/simulation_loop.h"
 
 #include <Eigen/Geometry>
 
@@ -54,6 +55,16 @@ std::string objectWrenchId(const std::string& from, const std::string& on);
 /// contact. Each touching pair appears twice, (a, b) and (b, a), with opposite wrenches.
 void appendObjectWrenches(const std::vector<ObjectPairWrench>& pairs, const std::string& simFrame,
                           const ros::Time& stamp, ContactWrenches& out);
+
+/// The id of the entry of ~contact_wrenches for what `object` exerts on its drag `drag`.
+std::string dragWrenchId(const std::string& object, const std::string& drag);
+
+/// Appends what each object exerted on each of its drags (the hand holding it) over the step:
+/// id dragWrenchId(object, drag), minus the drag's force on the object and minus its torque about
+/// the drag frame's origin, in the simulation frame (header.frame_id `simFrame`); the particles
+/// the drag holds as its contacts. At rest a hard drag that lifts an object carries its weight.
+void appendDragWrenches(const std::vector<ObjectSnapshot>& objects, const std::string& simFrame,
+                        const ros::Time& stamp, ContactWrenches& out);
 
 /// A collider reported together with others as one body (the collision elements of a robot
 /// link): the body's id in ~contact_wrenches, its tf frame, and the collider's pose in it.

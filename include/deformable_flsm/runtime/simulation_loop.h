@@ -113,6 +113,12 @@ struct DragView {
   std::string id;
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   Eigen::Vector3d target = Eigen::Vector3d::Zero();
+  /// what the drag exerted on the object over the step (Drag::force, Drag::torque: N, and N m
+  /// about the drag frame's origin, a grab's target or an attached frame's origin; simulation
+  /// frame), and how many particles it holds
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();
+  Eigen::Vector3d torque = Eigen::Vector3d::Zero();
+  std::size_t particles = 0;
 };
 
 /// One object's state after a step.
