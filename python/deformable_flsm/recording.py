@@ -104,13 +104,7 @@ class Recording:
             if kind == "deformable_flsm/ContactWrenches" and not collider:
                 raise RecordingError(f"{path}: {wrench_topic} holds every collider's wrench: name the tool's "
                                      "collider")
-            edges = {}  # child -> list of (stamp, parent, 7-vector)
-            for topic, msg, _ in bag.read_messages(topics=["/tf", "/tf_static"]):
-                for tr in msg.transforms:
-                    t, r = tr.transform.translation, tr.transform.rotation
-                    edges.setdefault(tr.child_frame_id.lstrip("/"), []).append(
-                        (0.0 if topic == "/tf_static" else tr.header.stamp.to_sec(), tr.header.frame_id.lstrip("/"),
-                         np.array([t.x, t.y, t.z, r.x, r.y, r.z, r.w])))
+            edges = _tf_edges(bag)
             wrenches = []
             for _, m, _ in bag.read_messages(topics=[wrench_topic]):
                 if kind == "geometry_msgs/WrenchStamped":
@@ -121,8 +115,6 @@ class Recording:
         if not wrenches:
             raise RecordingError(f"{path}: {wrench_topic} has no messages" +
                                  (f" with collider '{collider}'" if collider else ""))
-        for child in edges:
-            edges[child].sort(key=lambda e: e[0])
         times, poses, forces = [], [], []
         for stamp, frame, f in sorted(wrenches, key=lambda w: w[0]):
             if times and stamp <= times[-1]:
@@ -189,6 +181,28 @@ def _interpolate(link, stamp):
     qb = b[3:] if np.dot(a[3:], b[3:]) >= 0 else -b[3:]
     q = (1 - s) * a[3:] + s * qb
     return link[k - 1][1], np.concatenate([(1 - s) * a[:3] + s * b[:3], q / np.linalg.norm(q)])
+
+
+def _tf_edges(bag):
+    """The bag's /tf and /tf_static as child -> [(stamp, parent, 7-vector)] sorted by stamp
+    (/tf_static's at 0: they hold always)."""
+    edges = {}
+    for topic, msg, _ in bag.read_messages(topics=["/tf", "/tf_static"]):
+        for tr in msg.transforms:
+            t, r = tr.transform.translation, tr.transform.rotation
+            edges.setdefault(tr.child_frame_id.lstrip("/"), []).append(
+                (0.0 if topic == "/tf_static" else tr.header.stamp.to_sec(), tr.header.frame_id.lstrip("/"),
+                 np.array([t.x, t.y, t.z, r.x, r.y, r.z, r.w])))
+    for child in edges:
+        edges[child].sort(key=lambda e: e[0])
+    return edges
+
+
+def _rotation_matrix(q):
+    x, y, z, w = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
 def _lookup(edges, root, frame, stamp, path):
@@ -314,9 +328,11 @@ def sample_cloud(xyz, points, box, rng, source):
 
 
 def _read_clouds(path, topic, frame_id, start, end, interval, convert):
-    """A bag's sensor_msgs/PointCloud2 on `topic`, each as convert(xyz (N, 3), stamp): the last at
-    or before `start` (the rest; None without), then one every `interval` s or more up to `end`
-    with its time from `start`. Returns (rest, times, clouds)."""
+    """A bag's sensor_msgs/PointCloud2 on `topic`, each in the simulation frame `frame_id` (a cloud
+    in another frame, a camera's optical frame, turned into it by the bag's /tf and /tf_static at
+    its stamp) as convert(xyz (N, 3), stamp): the last at or before `start` (the rest; None
+    without), then one every `interval` s or more up to `end` with its time from `start`. Returns
+    (rest, times, clouds)."""
     import rosbag
 
     with rosbag.Bag(path) as bag:
@@ -325,17 +341,33 @@ def _read_clouds(path, topic, frame_id, start, end, interval, convert):
             raise RecordingError(f"{path}: no topic {topic} (it has {', '.join(sorted(topics))})")
         if topics[topic].msg_type != "sensor_msgs/PointCloud2":
             raise RecordingError(f"{path}: {topic} is {topics[topic].msg_type}, not sensor_msgs/PointCloud2")
+        edges = None
         rest, times, clouds = None, [], []
         for _, m, _ in bag.read_messages(topics=[topic]):
             t = m.header.stamp.to_sec()
-            if m.header.frame_id.lstrip("/") != frame_id:
-                raise RecordingError(f"{path}: {topic} is in '{m.header.frame_id}': it must be in the "
-                                     f"simulation frame '{frame_id}'")
+            due = t <= start + 1e-9 or (t <= end + 1e-9 and rest is not None and
+                                        t - start - (times[-1] if times else 0.0) >= interval - 1e-9)
+            if not due:
+                continue
+            xyz = _cloud_xyz(m, path, topic)
+            frame = m.header.frame_id.lstrip("/")
+            if frame != frame_id:
+                if edges is None:
+                    edges = _tf_edges(bag)
+                try:
+                    pose = _lookup(edges, frame_id, frame, t, path)
+                except RecordingError:
+                    raise RecordingError(f"{path}: {topic} is in '{frame}', and the bag's /tf has no chain from "
+                                         f"the simulation frame '{frame_id}' to it: record /tf (and "
+                                         "/tf_static) with the clouds") from None
+                if pose is None:
+                    continue  # before its frame is known
+                xyz = xyz @ _rotation_matrix(pose[3:]).T + pose[:3]
             if t <= start + 1e-9:
-                rest = convert(_cloud_xyz(m, path, topic), t)
-            elif t <= end + 1e-9 and rest is not None and t - start - (times[-1] if times else 0.0) >= interval - 1e-9:
+                rest = convert(xyz, t)
+            else:
                 times.append(t - start)
-                clouds.append(convert(_cloud_xyz(m, path, topic), t))
+                clouds.append(convert(xyz, t))
     return rest, times, clouds
 
 

@@ -280,6 +280,62 @@ def test_a_depth_cameras_cloud_read_from_a_bag(tmp_path):
         Markers.cloud_from_bag(path, "/camera/depth/points", "map", start=10.0, end=10.5)
 
 
+def test_a_cloud_in_a_cameras_optical_frame_is_turned_into_the_simulation_frame_by_the_bags_tf(tmp_path):
+    # a depth camera 0.3 m above the object looking down (its optical z along the world's -z),
+    # its points in its optical frame, the frame on /tf_static; and one on /tf that moves (a
+    # camera on an arm: each cloud turned by the transform at its stamp)
+    import rosbag
+    import rospy
+    from geometry_msgs.msg import TransformStamped
+    from sensor_msgs import point_cloud2
+    from sensor_msgs.msg import PointField
+    from std_msgs.msg import Header
+    from tf2_msgs.msg import TFMessage
+    from deformable_flsm.recording import Markers
+
+    fields = [PointField("x", 0, PointField.FLOAT32, 1), PointField("y", 4, PointField.FLOAT32, 1),
+              PointField("z", 8, PointField.FLOAT32, 1)]
+    down = np.array([1.0, 0.0, 0.0, 0.0])  # x, y, z, w: half a turn about x, optical z down
+    rng = np.random.default_rng(4)
+
+    def transform(stamp, child, origin, q):
+        m = TransformStamped()
+        m.header.stamp, m.header.frame_id, m.child_frame_id = stamp, "world", child
+        m.transform.translation.x, m.transform.translation.y, m.transform.translation.z = origin
+        (m.transform.rotation.x, m.transform.rotation.y, m.transform.rotation.z,
+         m.transform.rotation.w) = q
+        return m
+
+    def camera_points(world, origin):
+        # world = R cam + origin with R a half turn about x: cam = R^T (world - origin)
+        d = world - origin
+        return np.column_stack([d[:, 0], -d[:, 1], -d[:, 2]])
+
+    path = str(tmp_path / "optical.bag")
+    with rosbag.Bag(path, "w") as bag:
+        bag.write("/tf_static", TFMessage([transform(rospy.Time(0), "fixed_optical", (0.0, 0.0, 0.3), down)]),
+                  rospy.Time.from_sec(9.5))
+        for k in range(31):  # 30 Hz from t = 9.5 s to 10.5 s; the recording starts at 10 s
+            t = 9.5 + k / 30.0
+            stamp = rospy.Time.from_sec(t)
+            top = 0.05 - max(0.0, t - 10.0) * 0.002
+            obj = np.column_stack([rng.uniform(-0.02, 0.02, (300, 2)), np.full(300, top)])
+            moving = np.array([0.1 * (t - 9.5), 0.0, 0.3])  # the arm's camera slides along x
+            bag.write("/tf", TFMessage([transform(stamp, "arm_optical", moving, down)]), stamp)
+            for frame, origin in (("fixed_optical", np.array([0.0, 0.0, 0.3])), ("arm_optical", moving)):
+                header = Header(stamp=stamp, frame_id=frame)
+                cloud = point_cloud2.create_cloud(header, fields, [tuple(p) for p in camera_points(obj, origin)])
+                bag.write("/%s/points" % frame, cloud, stamp)
+    for frame in ("fixed_optical", "arm_optical"):
+        m = Markers.cloud_from_bag(path, "/%s/points" % frame, "world", start=10.0, end=10.5, points=200, seed=2)
+        np.testing.assert_allclose(m.rest[:, 2], 0.05, atol=1e-6)
+        np.testing.assert_allclose(m.positions[:, :, 2], (0.05 - 0.002 * m.times)[:, None] * np.ones(200),
+                                   atol=1e-6)
+        assert np.all(np.abs(m.positions[:, :, :2]) <= 0.02 + 1e-6), frame
+    with pytest.raises(RecordingError, match="no chain from the simulation frame 'map'"):
+        Markers.cloud_from_bag(path, "/fixed_optical/points", "map", start=10.0, end=10.5)
+
+
 def test_a_simulated_poke_read_back_from_a_bag_gives_its_modulus_within_three_percent(local, tmp_path):
     truth = 35000.0
     recorded = poke_recording(truth)
