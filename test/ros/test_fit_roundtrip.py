@@ -1,8 +1,11 @@
 #!/usr/bin/env python3
 """The fit's round trip through ROS (fit_roundtrip.test): the node's plate pressed 2 mm into the
-block along the tf frame `tool` and lifted again, `rosbag record` of /tf, ~contact_wrenches and
-~particles, then deformable_flsm.fit on the bag (the particles as markers) gives back the node's
-modulus and Poisson's ratio within 3 %."""
+block along the tf frame `tool` and lifted again, seen by the node's depth camera `side`;
+`rosbag record` of /tf, /tf_static, ~contact_wrenches, ~particles and the camera's depth/points,
+then deformable_flsm.fit on the bag gives back the node's modulus and Poisson's ratio within 3 %,
+once with the particles as markers and once with the camera's cloud instead (cloud_topic: any
+points, compared point to plane, turned from the camera's optical frame by the bag's /tf_static,
+cropped to the block's side)."""
 
 import os
 import shutil
@@ -26,6 +29,11 @@ PKG = 'deformable_flsm'
 MODULUS, NU = 35000.0, 0.35   # fit_roundtrip.test
 TOP, DEPTH = 0.05, 0.002   # the block's top face; how far the plate goes in
 PLATE_OFFSET = 0.01        # the plate collider's frame over the tool frame (squeeze_scene.yaml)
+CLOUD = '/flsm_node/side/depth/points'
+TOPICS = ['/tf', '/tf_static', '/flsm_node/contact_wrenches', '/flsm_node/particles', CLOUD]
+# the block's +x side as the camera sees it (m, the simulation frame): not its pinned base, not
+# the plate's edge (x 0.04) nor its bottom face
+CLOUD_BOX = [0.015, -0.035, 0.006, 0.035, 0.035, 0.045]
 
 
 def tool_height(t):
@@ -56,11 +64,10 @@ class FitRoundTripTest(unittest.TestCase):
         self.assertIsNotNone(flsm.wait_state(lambda s: s.idle, 60.0), 'the block did not come to rest')
         out = tempfile.mkdtemp()
         bag = os.path.join(out, 'poke.bag')
-        record = subprocess.Popen(['rosbag', 'record', '-O', bag, '/tf', '/flsm_node/contact_wrenches',
-                                   '/flsm_node/particles'],
+        record = subprocess.Popen(['rosbag', 'record', '-O', bag] + TOPICS,
                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         try:
-            self.wait_recording(record, ['/tf', '/flsm_node/contact_wrenches', '/flsm_node/particles'])
+            self.wait_recording(record, TOPICS)
             tf = tf2_ros.TransformBroadcaster()
             rate = rospy.Rate(60.0)
             t0 = rospy.Time.now()
@@ -91,22 +98,23 @@ class FitRoundTripTest(unittest.TestCase):
             self.assertGreater(depth.max(), 0.99 * DEPTH, 'the bag\'s deepest tool pose (%d samples)'
                                % len(recording.times))
             self.assertGreater(recording.forces[:, 2].max(), 1.0, 'the bag\'s largest plate force (N)')
-            spec = F.FitSpec.from_yaml(os.path.join(os.path.dirname(F.package_config()), '..', 'examples', 'fit',
-                                                    'squeeze_fit.yaml'), recording=bag,
-                                       markers_topic='/flsm_node/particles')
+            example = os.path.join(os.path.dirname(F.package_config()), '..', 'examples', 'fit', 'squeeze_fit.yaml')
             cluster = F.Cluster(workers=2)
             try:
-                result = F.fit(spec, os.path.join(out, 'fit'), cluster, recording, log=rospy.loginfo)
+                for name, seen in (('markers', {'markers_topic': '/flsm_node/particles'}),
+                                   ('cloud', {'cloud_topic': CLOUD, 'cloud_box': CLOUD_BOX})):
+                    spec = F.FitSpec.from_yaml(example, recording=bag, **seen)
+                    result = F.fit(spec, os.path.join(out, 'fit_' + name), cluster, recording, log=rospy.loginfo)
+                    e, nu = result['parameters']['youngs_modulus'], result['parameters']['poissons_ratio']
+                    fitted = ('with the %s: E %.0f Pa (%.4f of the node\'s), nu %.4f (%.4f) from %d samples, '
+                              'error %.4f (force %.4f, %s %.4f)' % (name, e, e / MODULUS, nu, nu / NU,
+                                                                   len(recording.times), result['cost'],
+                                                                   result['force_cost'], name, result['marker_cost']))
+                    rospy.loginfo('fit_roundtrip: ' + fitted)
+                    self.assertAlmostEqual(e / MODULUS, 1.0, delta=0.03, msg=fitted)
+                    self.assertAlmostEqual(nu / NU, 1.0, delta=0.03, msg=fitted)
             finally:
                 cluster.close()
-            e, nu = result['parameters']['youngs_modulus'], result['parameters']['poissons_ratio']
-            rospy.loginfo('fit_roundtrip: %d samples, E %.0f Pa (%.4f of the node\'s), nu %.4f (%.4f), '
-                          'error %.4f (force %.4f, markers %.4f)', len(recording.times), e, e / MODULUS, nu,
-                          nu / NU, result['cost'], result['force_cost'], result['marker_cost'])
-            fitted = 'fitted E %.0f Pa, nu %.4f from %d samples, error %.4f' % (e, nu, len(recording.times),
-                                                                              result['cost'])
-            self.assertAlmostEqual(e / MODULUS, 1.0, delta=0.03, msg='E over the node\'s: ' + fitted)
-            self.assertAlmostEqual(nu / NU, 1.0, delta=0.03, msg='nu over the node\'s: ' + fitted)
         finally:
             shutil.rmtree(out, ignore_errors=True)
 
