@@ -74,6 +74,21 @@ def value(row, column):
     return number(row[column])
 
 
+def series(ax, pts, label, color, marker, logy):
+    """One method's points (cost, error, label text) on `ax`, its best error for the cost joined
+    when the error axis is logarithmic."""
+    if not pts:
+        return
+    ax.scatter([p[0] for p in pts], [p[1] for p in pts], color=color, marker=marker, s=30,
+               label=label, zorder=3)
+    if logy:
+        front = pareto(pts)
+        ax.plot([p[0] for p in front], [p[1] for p in front], color=color, lw=1.3, zorder=2)
+    for cost, err, text in pts:
+        ax.annotate(text, (cost, err), textcoords="offset points", xytext=(4, 3), fontsize=6.5,
+                    color=color)
+
+
 def chart(rows, calibration, path):
     fig, axes = plt.subplots(2, 2, figsize=(16, 12))
     for ax, (scenario, column, title, ylabel, logy) in zip(axes.flat, PANELS):
@@ -86,16 +101,7 @@ def chart(rows, calibration, path):
                 if r["blew_up"] == "1" or not math.isfinite(err) or (logy and not err > 0):
                     continue
                 pts.append((cost, err, "%s/%s" % (r["resolution"], r["substeps"])))
-            if not pts:
-                continue
-            ax.scatter([p[0] for p in pts], [p[1] for p in pts], color=color, marker=marker, s=30,
-                       label=label, zorder=3)
-            if logy:
-                front = pareto(pts)
-                ax.plot([p[0] for p in front], [p[1] for p in front], color=color, lw=1.3, zorder=2)
-            for cost, err, text in pts:
-                ax.annotate(text, (cost, err), textcoords="offset points", xytext=(4, 3), fontsize=6.5,
-                            color=color)
+            series(ax, pts, label, color, marker, logy)
         if column == "tip_ratio":
             fem = number(calibration.get("fem_tip", "nan"))
             ax.axhline(1.0, color="black", lw=1.0, label="FEM oracle (physics)")
@@ -131,16 +137,7 @@ def indentation(rows, path):
                 err = abs(ratio - 1.0) if logy else ratio
                 pts.append((number(r["cpu_s_per_sim_s"]), err,
                             "%s/%s" % (r["resolution"], r["substeps"])))
-            if not pts:
-                continue
-            ax.scatter([p[0] for p in pts], [p[1] for p in pts], color=color, marker=marker, s=30,
-                       label=label, zorder=3)
-            if logy:
-                front = pareto(pts)
-                ax.plot([p[0] for p in front], [p[1] for p in front], color=color, lw=1.3, zorder=2)
-            for cost, err, text in pts:
-                ax.annotate(text, (cost, err), textcoords="offset points", xytext=(4, 3), fontsize=6.5,
-                            color=color)
+            series(ax, pts, label, color, marker, logy)
         ax.set_xscale("log")
         if logy:
             ax.set_yscale("log")

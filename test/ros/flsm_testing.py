@@ -19,6 +19,24 @@ from deformable_flsm.msg import ColliderCommand, DragCommand, ForceCommand, Simu
 from deformable_flsm.srv import PinBox
 
 
+def wait_recording(record, topics, timeout=60.0):
+    """Until `rosbag record` (subprocess.Popen) subscribes to every topic of `topics` (a busy
+    machine takes seconds); an empty string, or why not (it stopped, or it did not in time)."""
+    import rosgraph
+    master = rosgraph.Master('/flsm_testing')
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        if record.poll() is not None:
+            return 'rosbag record stopped'
+        _, subscribers, _ = master.getSystemState()
+        subscribed = {t for t, nodes in subscribers if any(n.startswith('/record') for n in nodes)}
+        if all(t in subscribed for t in topics):
+            time.sleep(0.5)
+            return ''
+        time.sleep(0.2)
+    return 'rosbag record did not subscribe to %s within %.0f s' % (', '.join(topics), timeout)
+
+
 def stop_recording(record, path, timeout=60.0):
     """Stops `rosbag record` (started as subprocess.Popen) and waits until its bag is closed at
     `path`; False if it was not within `timeout` s. `rosbag record` is a Python wrapper around the

@@ -11,11 +11,9 @@ import os
 import shutil
 import subprocess
 import tempfile
-import time
 import unittest
 
 import numpy as np
-import rosgraph
 import rospy
 import rostest
 import tf2_ros
@@ -23,7 +21,7 @@ from geometry_msgs.msg import TransformStamped
 
 from deformable_flsm import fit as F
 from deformable_flsm.recording import Recording
-from flsm_testing import FlsmClient, stop_recording
+from flsm_testing import FlsmClient, stop_recording, wait_recording
 
 PKG = 'deformable_flsm'
 MODULUS, NU = 35000.0, 0.35   # fit_roundtrip.test
@@ -44,20 +42,6 @@ def tool_height(t):
 
 class FitRoundTripTest(unittest.TestCase):
 
-    def wait_recording(self, record, topics, timeout=60.0):
-        """Until rosbag record subscribes to every topic (a busy machine takes seconds)."""
-        master = rosgraph.Master('/test_fit_roundtrip')
-        deadline = time.time() + timeout
-        while time.time() < deadline:
-            self.assertIsNone(record.poll(), 'rosbag record stopped')
-            _, subscribers, _ = master.getSystemState()
-            subscribed = {t for t, nodes in subscribers if any(n.startswith('/record') for n in nodes)}
-            if all(t in subscribed for t in topics):
-                rospy.sleep(0.5)
-                return
-            rospy.sleep(0.2)
-        self.fail('rosbag record did not subscribe to %s within %.0f s' % (', '.join(topics), timeout))
-
     def test_the_nodes_modulus_comes_back_from_a_bag(self):
         rospy.init_node('test_fit_roundtrip')
         flsm = FlsmClient()
@@ -67,7 +51,8 @@ class FitRoundTripTest(unittest.TestCase):
         record = subprocess.Popen(['rosbag', 'record', '-O', bag] + TOPICS,
                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         try:
-            self.wait_recording(record, TOPICS)
+            problem = wait_recording(record, TOPICS)
+            self.assertEqual(problem, '', problem)
             tf = tf2_ros.TransformBroadcaster()
             rate = rospy.Rate(60.0)
             t0 = rospy.Time.now()

@@ -15,8 +15,6 @@ import tempfile
 import time
 import unittest
 
-import numpy as np
-import rosgraph
 import rospy
 import rostest
 from geometry_msgs.msg import Pose, Twist
@@ -25,7 +23,7 @@ from deformable_flsm import fit as F
 from deformable_flsm.msg import ColliderCommand
 from deformable_flsm.recording import Recording
 from deformable_flsm.srv import Step
-from flsm_testing import stop_recording
+from flsm_testing import stop_recording, wait_recording
 
 PKG = 'deformable_flsm'
 NODE = '/flsm_node'
@@ -46,20 +44,6 @@ def tool_height(t):
 
 
 class FitTapTest(unittest.TestCase):
-
-    def wait_recording(self, record, topics, timeout=60.0):
-        """Until rosbag record subscribes to every topic (a busy machine takes seconds)."""
-        master = rosgraph.Master('/test_fit_tap')
-        deadline = time.time() + timeout
-        while time.time() < deadline:
-            self.assertIsNone(record.poll(), 'rosbag record stopped')
-            _, subscribers, _ = master.getSystemState()
-            subscribed = {t for t, nodes in subscribers if any(n.startswith('/record') for n in nodes)}
-            if all(t in subscribed for t in topics):
-                time.sleep(0.5)
-                return
-            time.sleep(0.2)
-        self.fail('rosbag record did not subscribe to %s within %.0f s' % (', '.join(topics), timeout))
 
     def drive(self, pub, step):
         """Each step: MOVE the plate to where it is at the step's start with the velocity that
@@ -96,7 +80,8 @@ class FitTapTest(unittest.TestCase):
         record = subprocess.Popen(['rosbag', 'record', '-O', bag] + topics,
                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         try:
-            self.wait_recording(record, topics)
+            problem = wait_recording(record, topics)
+            self.assertEqual(problem, '', problem)
             ends = self.drive(pub, step)
             time.sleep(1.0)
         finally:
