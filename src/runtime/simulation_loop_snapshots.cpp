@@ -115,8 +115,10 @@ void SimulationLoop::writeObject(const Solver& solver, std::size_t k, ObjectSnap
     for (std::uint32_t p : entry.second.particles) d.centroid += o.positions[p];
     d.centroid /= static_cast<double>(entry.second.particles.size());
     d.target = entry.second.centroidTarget();
-    d.force = entry.second.force;
-    d.torque = entry.second.torque;
+    // finite with a finite state (ensureFinite()); never handed out otherwise
+    const bool finite = entry.second.force.allFinite() && entry.second.torque.allFinite();
+    d.force = finite ? entry.second.force : Eigen::Vector3d::Zero();
+    d.torque = finite ? entry.second.torque : Eigen::Vector3d::Zero();
     d.particles = entry.second.particles.size();
     o.drags.push_back(std::move(d));
   }
