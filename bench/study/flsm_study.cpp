@@ -696,7 +696,7 @@ const std::vector<int> kBlockResolutions = {9, 13, 17};
 
 /// The sub-steps per 1/60 s frame each method runs the punch at: FastLSM's explicit step at the
 /// fewest that leave alpha uncapped (a power of two) and twice that; the mass-spring lattice at
-/// its fewest stable and four times that; the implicit steps and the legacy soft body at 1 and 4.
+/// its fewest stable and four times that; the implicit steps at 1 and 4.
 std::vector<int> punchSubsteps(const std::string& method, const Block& b, const Calibration& c, double nu) {
   if (method == "fastlsm") {
     int s = 1;
