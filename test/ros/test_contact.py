@@ -139,12 +139,12 @@ class ContactTest(unittest.TestCase):
 
     def drag_wrench(self, drag_id, timeout=5.0):
         """(force, contacts) of the entry drag/<object>/<drag_id> of the next ~contact_wrenches,
-        in ~frame_id; None when there is none."""
+        in ~frame_id, <object> the single object's ~object_frame_id; None when there is none."""
         msg = rospy.wait_for_message('/flsm_node/contact_wrenches', ContactWrenches, timeout)
-        ids = [i for i in msg.ids if i.startswith('drag/') and i.endswith('/' + drag_id)]
-        if not ids:
+        entry = 'drag/%s/%s' % (rospy.get_param('/flsm_node/object_frame_id', 'flsm_object'), drag_id)
+        if entry not in msg.ids:
             return None
-        k = list(msg.ids).index(ids[0])
+        k = list(msg.ids).index(entry)
         f = msg.wrenches[k].wrench.force
         return np.array([f.x, f.y, f.z]), msg.contacts[k]
 
