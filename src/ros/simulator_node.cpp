@@ -144,10 +144,8 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   if (!params_.cameras.empty()) {
     cameras_ = std::make_unique<CameraTopics>(
         pnh_, params_.cameras, params_.frameId, *loop_, objects_, objectsMutex_, tfBuffer_,
-        [this] { startTfListener(); }, [this](const Snapshot& s, ros::Time& stamp) {
-          stamp = stampOf(s);
-          return s.timeStarted && !aheadOfTheClock(stamp);
-        });
+        [this] { startTfListener(); },
+        [this](const Snapshot& s, ros::Time& stamp) { return sendable(s, stamp); });
   }
   loop_->start();
   if (params_.clock == NodeParams::Clock::Follow) {
@@ -238,11 +236,8 @@ void SimulatorNode::onPublishTimer(const ros::TimerEvent& event) {
 
 void SimulatorNode::publishNewest() {
   const Snapshot& s = loop_->acquire();
-  const ros::Time stamp = stampOf(s);
-  // A followed clock that went back: the state is ahead of it until the loop has reset. Before
-  // the loop followed a first time its state has no time on that clock (a busy machine can run
-  // the publish timer first).
-  if (!s.timeStarted || aheadOfTheClock(stamp)) return;
+  ros::Time stamp;
+  if (!sendable(s, stamp)) return;
   std::shared_lock<std::shared_mutex> lock(objectsMutex_);
   // tf, the wrenches and the clouds of one snapshot carry one stamp: a subscriber pairs a cloud
   // with the colliders' and objects' frames of the same step by it. tf goes once per stamp (a
@@ -286,8 +281,8 @@ void SimulatorNode::onStateTimer(const ros::TimerEvent&) { publishState(); }
 
 void SimulatorNode::publishState() {
   loop_->copySummary(summary_);
-  const ros::Time stamp = stampOf(summary_);
-  if (!summary_.timeStarted || aheadOfTheClock(stamp)) return;
+  ros::Time stamp;
+  if (!sendable(summary_, stamp)) return;
   {
     std::shared_lock<std::shared_mutex> lock(objectsMutex_);
     publisher_->publishState(summary_, stamp, colliders_->frameMisses());

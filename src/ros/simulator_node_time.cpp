@@ -59,6 +59,11 @@ bool SimulatorNode::aheadOfTheClock(const ros::Time& stamp) const {
   return params_.clock == NodeParams::Clock::Follow && stamp > ros::Time::now();
 }
 
+bool SimulatorNode::sendable(const Snapshot& s, ros::Time& stamp) const {
+  stamp = stampOf(s);
+  return s.timeStarted && !aheadOfTheClock(stamp);
+}
+
 void SimulatorNode::onTick(double time, const Snapshot* state) {
   const ros::Time stamp(time);
   if (state != nullptr) {

@@ -112,6 +112,10 @@ class SimulatorNode {
   /// ~clock follow: `stamp` lies beyond the followed clock (which went back, and the loop has
   /// not reset yet): such a state is not sent.
   bool aheadOfTheClock(const ros::Time& stamp) const;
+  /// Whether state `s` may be sent, its stamp (stampOf()) in `stamp`: not before the loop
+  /// followed a first time (the state has no time on that clock yet; a busy machine can run a
+  /// publish timer first), nor ahead of the followed clock.
+  bool sendable(const Snapshot& s, ros::Time& stamp) const;
   /// ~clock sim, on the simulation thread: each tick's tf (the objects' and colliders' frames of
   /// the new state, or the last state's again at rest), then /clock.
   void onTick(double time, const Snapshot* state);
