@@ -43,6 +43,19 @@ void setScale(visualization_msgs::Marker& m, double x, double y, double z) {
   m.scale.z = z;
 }
 
+/// Appends entry `id` to `out`: its force and torque in `frame`, stamped `stamp`, its contacts.
+void appendEntry(ContactWrenches& out, const std::string& id, const std::string& frame, const ros::Time& stamp,
+                 const Eigen::Vector3d& force, const Eigen::Vector3d& torque, std::size_t contacts) {
+  geometry_msgs::WrenchStamped ws;
+  ws.header.stamp = stamp;
+  ws.header.frame_id = frame;
+  tf2::toMsg(force, ws.wrench.force);
+  tf2::toMsg(torque, ws.wrench.torque);
+  out.ids.push_back(id);
+  out.wrenches.push_back(ws);
+  out.contacts.push_back(static_cast<std::uint32_t>(contacts));
+}
+
 }  // namespace
 
 void fillColliderMarkers(const std::map<std::string, Collider>& colliders,
@@ -156,25 +169,12 @@ void fillContactWrenches(const std::map<std::string, Collider>& colliders,
     const ContactWrench cw = w == wrenches.end() ? ContactWrench() : w->second;
     // Sim -> collider frame: the transpose of the collider's rotation.
     const Eigen::Matrix3d colliderFromSim = entry.second.pose.linear().transpose();
-    geometry_msgs::WrenchStamped ws;
-    ws.header.stamp = stamp;
-    ws.header.frame_id = colliderFrameId(entry.first);
-    tf2::toMsg(Eigen::Vector3d(colliderFromSim * cw.force), ws.wrench.force);
-    tf2::toMsg(Eigen::Vector3d(colliderFromSim * cw.torque), ws.wrench.torque);
-    out.ids.push_back(entry.first);
-    out.wrenches.push_back(ws);
-    out.contacts.push_back(static_cast<std::uint32_t>(cw.contacts));
+    appendEntry(out, entry.first, colliderFrameId(entry.first), stamp, colliderFromSim * cw.force,
+                colliderFromSim * cw.torque, cw.contacts);
   }
-  for (const auto& entry : bodies) {
-    geometry_msgs::WrenchStamped ws;
-    ws.header.stamp = stamp;
-    ws.header.frame_id = entry.second.group->frame;
-    tf2::toMsg(entry.second.force, ws.wrench.force);
-    tf2::toMsg(entry.second.torque, ws.wrench.torque);
-    out.ids.push_back(entry.first);
-    out.wrenches.push_back(ws);
-    out.contacts.push_back(static_cast<std::uint32_t>(entry.second.contacts));
-  }
+  for (const auto& entry : bodies)
+    appendEntry(out, entry.first, entry.second.group->frame, stamp, entry.second.force, entry.second.torque,
+                entry.second.contacts);
 }
 
 void colliderTransforms(const std::map<std::string, Collider>& colliders,
@@ -196,16 +196,9 @@ std::string objectWrenchId(const std::string& from, const std::string& on) {
 
 void appendObjectWrenches(const std::vector<ObjectPairWrench>& pairs, const std::string& simFrame,
                           const ros::Time& stamp, ContactWrenches& out) {
-  for (const ObjectPairWrench& pair : pairs) {
-    geometry_msgs::WrenchStamped ws;
-    ws.header.stamp = stamp;
-    ws.header.frame_id = simFrame;
-    tf2::toMsg(pair.wrench.force, ws.wrench.force);
-    tf2::toMsg(pair.wrench.torque, ws.wrench.torque);
-    out.ids.push_back(objectWrenchId(pair.from, pair.on));
-    out.wrenches.push_back(ws);
-    out.contacts.push_back(static_cast<std::uint32_t>(pair.wrench.contacts));
-  }
+  for (const ObjectPairWrench& pair : pairs)
+    appendEntry(out, objectWrenchId(pair.from, pair.on), simFrame, stamp, pair.wrench.force, pair.wrench.torque,
+                pair.wrench.contacts);
 }
 
 std::string dragWrenchId(const std::string& object, const std::string& drag) {
@@ -215,16 +208,8 @@ std::string dragWrenchId(const std::string& object, const std::string& drag) {
 void appendDragWrenches(const std::vector<ObjectSnapshot>& objects, const std::string& simFrame,
                         const ros::Time& stamp, ContactWrenches& out) {
   for (const ObjectSnapshot& o : objects)
-    for (const DragView& d : o.drags) {
-      geometry_msgs::WrenchStamped ws;
-      ws.header.stamp = stamp;
-      ws.header.frame_id = simFrame;
-      tf2::toMsg(Eigen::Vector3d(-d.force), ws.wrench.force);
-      tf2::toMsg(Eigen::Vector3d(-d.torque), ws.wrench.torque);
-      out.ids.push_back(dragWrenchId(o.name, d.id));
-      out.wrenches.push_back(ws);
-      out.contacts.push_back(static_cast<std::uint32_t>(d.particles));
-    }
+    for (const DragView& d : o.drags)
+      appendEntry(out, dragWrenchId(o.name, d.id), simFrame, stamp, -d.force, -d.torque, d.particles);
 }
 
 }  // namespace deformable_flsm
