@@ -10,6 +10,7 @@
 #include "study/scenarios.h"
 #include "study/setting.h"
 #include "support/fem_oracle.h"
+#include "support/indentation.h"
 
 #include <Eigen/Core>
 
@@ -78,17 +79,10 @@ inline Block makeBlock(int n) {
 
 /// The oracle's force (N) on the same voxels (one linear hexahedron per cell): the base face's
 /// nodes fixed, the top face's nodes over the punch's cells moved kPunchDepth down and held
-/// sideways (bonded).
+/// sideways (bonded; indentation::femPunch()).
 inline double oraclePunchForce(const Block& b, double youngsModulus, double nu) {
-  FemOracle fem(b.voxels, FemMaterial{youngsModulus, nu, kStudyDensity}, 1);
-  const double dx = b.voxels.spacing, top = kBlockSize, half = 0.5 * b.punchCells * dx + 1e-9;
-  fem.fixNodesInBox(Eigen::Vector3d::Constant(-1e3), Eigen::Vector3d(1e3, 1e3, 1e-9));
-  const Eigen::Vector3d lo(-half, -half, top - 1e-9), hi(half, half, top + 1e-9);
-  fem.prescribeInBox(lo, hi, 0, 0.0);
-  fem.prescribeInBox(lo, hi, 1, 0.0);
-  fem.prescribeInBox(lo, hi, 2, -kPunchDepth);
-  const FemSolution u = fem.solveStatic(Eigen::Vector3d::Zero());
-  return -fem.reactionInBox(u, lo, hi).z();
+  return indentation::femPunch(b.voxels, b.punchCells, kPunchDepth, FemMaterial{youngsModulus, nu, kStudyDensity},
+                               true);
 }
 
 /// The setting of a punch run (no load, kPunchAmbientDamping).

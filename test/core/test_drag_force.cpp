@@ -92,15 +92,18 @@ INSTANTIATE_TEST_SUITE_P(
 // frictionless punch's bound, and the same static answer from both integrators.
 TEST(DragForce, ABondedPunchPressesWithTheOraclesForce) {
   double force[2] = {0.0, 0.0};  // explicit, implicit (N)
+  Voxelization vox = test::makeBox(13, 13, 13, 0.05 / 13);
+  vox.origin = Eigen::Vector3d(-6.5 * vox.spacing, -6.5 * vox.spacing, 0.0);
+  constexpr double depth = 1e-3, nu = 0.3;
+  const indentation::Press defaults;  // the press's modulus and density
+  const double oracle =
+      indentation::femPunch(vox, 5, depth, FemMaterial{defaults.youngsModulus, nu, defaults.density}, true);
   for (const Integrator integrator : {Integrator::Explicit, Integrator::Implicit}) {
-    Voxelization vox = test::makeBox(13, 13, 13, 0.05 / 13);
-    const double dx = vox.spacing, top = indentation::topOf(vox);
-    vox.origin = Eigen::Vector3d(-6.5 * dx, -6.5 * dx, 0.0);
     indentation::Press how;
     how.integrator = integrator;
     how.substeps = integrator == Integrator::Explicit ? 120 : 4;
     how.w = 1;  // the node's default regions
-    how.nu = 0.3;
+    how.nu = nu;
     auto lattice = std::make_shared<const Lattice>(vox, how.density, how.w);
     Solver s(lattice, indentation::solverParams(how));
     indentation::holdBase(s, vox);
@@ -114,7 +117,6 @@ TEST(DragForce, ABondedPunchPressesWithTheOraclesForce) {
       }
     }
     ASSERT_EQ(under.size(), 25u);
-    const double depth = 1e-3;
     s.grab("punch", under, start, 0.0);
     // lowered over how.pressSeconds, then held how.holdSeconds (as indentation::lower())
     const int press = static_cast<int>(std::lround(how.pressSeconds / how.timeStep));
@@ -123,15 +125,6 @@ TEST(DragForce, ABondedPunchPressesWithTheOraclesForce) {
       s.moveDrag("punch", Eigen::Vector3d(start - Eigen::Vector3d(0, 0, depth * std::min(1.0, double(i) / press))));
       s.step();
     }
-    FemOracle fem(vox, FemMaterial{how.youngsModulus, how.nu, how.density}, 1);
-    const double half = 2.5 * dx + 1e-9;
-    fem.fixNodesInBox(Eigen::Vector3d::Constant(-1e3), Eigen::Vector3d(1e3, 1e3, 0.5 * dx + 1e-9));
-    const Eigen::Vector3d lo(-half, -half, top - 1e-9), hi(half, half, top + 1e-9);
-    fem.prescribeInBox(lo, hi, 0, 0.0);
-    fem.prescribeInBox(lo, hi, 1, 0.0);
-    fem.prescribeInBox(lo, hi, 2, -depth);
-    const FemSolution u = fem.solveStatic(Eigen::Vector3d::Zero());
-    const double oracle = -fem.reactionInBox(u, lo, hi).z();
     force[integrator == Integrator::Implicit] = -s.drags().at("punch").force.z();
     std::printf("[ bonded  ] %s: %.4f N, oracle %.4f N (%+.1f %%)\n", toString(integrator),
                 force[integrator == Integrator::Implicit], oracle,

@@ -120,13 +120,19 @@ inline Collider sphere(double radius) {
 
 /// The oracle's press on the same block: its nodes held up to the centres of the pinned layer
 /// (with one element per cell, only the base face has nodes there), the top nodes within
-/// `halfWidth` of the z axis lowered by `depth` (frictionless: z only). The solution, and in
-/// `force` the tool's force (N, upwards).
+/// `halfWidth` of the z axis lowered by `depth` (frictionless: z only; `bonded`: held sideways
+/// too, a punch the surface sticks to). The solution, and in `force` the tool's force (N,
+/// upwards).
 inline FemSolution femPress(FemOracle& fem, const Voxelization& vox, double halfWidth, double depth,
-                            double& force) {
+                            double& force, bool bonded = false) {
   const double dx = vox.spacing, top = topOf(vox), half = halfWidth;
   fem.fixNodesInBox(Eigen::Vector3d::Constant(-1e3), Eigen::Vector3d(1e3, 1e3, 0.5 * dx + 1e-9));
-  fem.prescribeInBox(Eigen::Vector3d(-half, -half, top - 1e-9), Eigen::Vector3d(half, half, top + 1e-9), 2, -depth);
+  const Eigen::Vector3d lo(-half, -half, top - 1e-9), hi(half, half, top + 1e-9);
+  if (bonded) {
+    fem.prescribeInBox(lo, hi, 0, 0.0);
+    fem.prescribeInBox(lo, hi, 1, 0.0);
+  }
+  fem.prescribeInBox(lo, hi, 2, -depth);
   FemSolution u = fem.solveStatic(Eigen::Vector3d::Zero());
   force = -fem.reactionInBox(u, Eigen::Vector3d(-1e3, -1e3, top - 1e-9), Eigen::Vector3d::Constant(1e3)).z();
   return u;
@@ -135,10 +141,11 @@ inline FemSolution femPress(FemOracle& fem, const Voxelization& vox, double half
 /// The oracle's punch: the top nodes over the k x k cells the punch meets pressed (femPress()),
 /// one element per cell (two per edge read 3 % less on 13 cells at nu 0, but take minutes to
 /// factorize). The punch's force (N).
-inline double femPunch(const Voxelization& vox, int k, double depth, const FemMaterial& material) {
+inline double femPunch(const Voxelization& vox, int k, double depth, const FemMaterial& material,
+                       bool bonded = false) {
   FemOracle fem(vox, material, 1);
   double force = 0.0;
-  femPress(fem, vox, 0.5 * k * vox.spacing + 1e-9, depth, force);
+  femPress(fem, vox, 0.5 * k * vox.spacing + 1e-9, depth, force, bonded);
   return force;
 }
 
