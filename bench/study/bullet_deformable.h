@@ -186,22 +186,23 @@ class VoxelBulletBody : public Method {
   void grabFace(const std::vector<std::uint32_t>& particles, const Eigen::Vector3d& target,
                 const Eigen::Vector3d& outward) override {
     grab(particles, target);
-    std::vector<int> face;
+    const std::vector<char> face = faceCorners(particles, outward);
+    std::vector<int> nodes;
     std::vector<Eigen::Vector3d> offsets;
     for (std::size_t e = 0; e < grabbedNodes_.size(); ++e)
-      if (onFace(particles, grabbedNodes_[e], outward)) {
-        face.push_back(grabbedNodes_[e]);
+      if (face[static_cast<std::size_t>(grabbedNodes_[e])]) {
+        nodes.push_back(grabbedNodes_[e]);
         offsets.push_back(grabOffsets_[e]);
       }
-    grabbedNodes_ = face;
+    grabbedNodes_ = nodes;
     grabOffsets_ = offsets;
     refreshInverseMasses();
   }
   /// Pins only the cells' corners on their face towards `outward`.
   void pinFace(const std::vector<std::uint32_t>& particles, const Eigen::Vector3d& outward) override {
-    for (std::uint32_t p : particles)
-      for (int v : mesh_.cellCorners[p])
-        if ((mesh_.nodes[v] - lattice_->restPositions()[p]).dot(outward) > 0.0) pinnedNodes_[v] = 1;
+    const std::vector<char> face = faceCorners(particles, outward);
+    for (std::size_t v = 0; v < face.size(); ++v)
+      if (face[v]) pinnedNodes_[v] = 1;
     refreshInverseMasses();
   }
   void moveGrab(const Eigen::Vector3d& target) override { grabTarget_ = target; }
@@ -232,12 +233,14 @@ class VoxelBulletBody : public Method {
 
   /// Advances the body by one sub-step h (s).
   virtual void advance(double h) = 0;
-  /// Whether node v is a corner, on the face towards `outward`, of one of the cells `particles`.
-  bool onFace(const std::vector<std::uint32_t>& particles, int v, const Eigen::Vector3d& outward) const {
+  /// Per node, 1 where it is a corner of one of the cells `particles` on that cell's face towards
+  /// `outward`.
+  std::vector<char> faceCorners(const std::vector<std::uint32_t>& particles, const Eigen::Vector3d& outward) const {
+    std::vector<char> face(mesh_.nodes.size(), 0);
     for (std::uint32_t p : particles)
-      for (int c : mesh_.cellCorners[p])
-        if (c == v && (mesh_.nodes[v] - lattice_->restPositions()[p]).dot(outward) > 0.0) return true;
-    return false;
+      for (int v : mesh_.cellCorners[p])
+        if ((mesh_.nodes[v] - lattice_->restPositions()[p]).dot(outward) > 0.0) face[static_cast<std::size_t>(v)] = 1;
+    return face;
   }
   /// Called after inverse masses changed (pins, grabs).
   virtual void inverseMassesChanged() {}

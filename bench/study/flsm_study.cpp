@@ -296,12 +296,14 @@ std::unique_ptr<Method> makeMethod(const std::string& name, const std::shared_pt
   throw std::invalid_argument("unknown method " + name);
 }
 
-/// Does FastLSM cap alpha (simulate a softer material than asked) for this scenario, object,
-/// resolution and sub-step count?
-bool flsmCapped(Scenario scenario, const StudyObject& object, int resolution, int substeps, const Calibration& calib) {
-  const auto lattice = buildLattice(object, resolution);
-  const auto m = makeMethod("fastlsm", lattice, scenarioSetting(scenario, object, resolution, substeps), calib);
+/// Does FastLSM cap alpha (simulate a softer material than asked) on this lattice in this
+/// setting; for this scenario, object, resolution and sub-step count?
+bool flsmCapped(const std::shared_ptr<const Lattice>& lattice, const Setting& setting, const Calibration& calib) {
+  const auto m = makeMethod("fastlsm", lattice, setting, calib);
   return dynamic_cast<const FlsmMethod&>(*m).solver().stiffnessSaturated();
+}
+bool flsmCapped(Scenario scenario, const StudyObject& object, int resolution, int substeps, const Calibration& calib) {
+  return flsmCapped(buildLattice(object, resolution), scenarioSetting(scenario, object, resolution, substeps), calib);
 }
 
 /// Fewest stable mass-spring sub-steps per frame on `lattice` for a material of Young's modulus
@@ -700,11 +702,7 @@ const std::vector<int> kBlockResolutions = {9, 13, 17};
 std::vector<int> punchSubsteps(const std::string& method, const Block& b, const Calibration& c, double nu) {
   if (method == "fastlsm") {
     int s = 1;
-    while (s < 1024) {
-      const auto m = makeMethod(method, b.lattice, punchSetting(0, s, nu), c);
-      if (!dynamic_cast<const FlsmMethod&>(*m).solver().stiffnessSaturated()) break;
-      s *= 2;
-    }
+    while (s < 1024 && flsmCapped(b.lattice, punchSetting(b.voxels.dims.x(), s, nu), c)) s *= 2;
     return {s, 2 * s};
   }
   if (method == "mass-spring") {
