@@ -11,9 +11,11 @@
 //  - a frictionless flat punch 5 cells wide pressed 2 mm into a 5 cm cube of 13 cells held by
 //    its base: force against the oracle's on the same 5 x 5 cells;
 //  - a frictionless sphere of radius 2 cm pressed 2 mm into a block 21 x 21 x 12 cells of 2.5 mm:
-//    force against Hertz on a layer bonded to its base (Dimitriadis et al. 2002),
+//    force against the axisymmetric FEM of the block (axisymmetric_press.h) and Hertz on a layer
+//    bonded to its base (Dimitriadis et al. 2002),
 // at 20 kPa, w = 1 to 3, the explicit step at 120 sub-steps of 1/30 s (not capped) and the
-// implicit step at 4 (--local-only prints only these).
+// implicit step at 4 (--local-only prints only these). --sphere-sweep prints the sphere against
+// the FEM by its contact radius in cells (R 2 and 1 cm, 1 to 4 mm, two spacings) and nothing else.
 // Loads are small (deflections ~1 % of the length), where linear elasticity is the reference.
 // A benchmark: it prints figures and never fails.
 //
@@ -30,7 +32,7 @@
 // case the Young's modulus E (Pa) instead of the one that keeps the explicit step under its cap.
 //
 //   bench_material [--quick] [--nu NU] [--substeps N] [--across N] [--from-section]
-//                  [--integrator explicit|implicit] [--modulus E] [--local-only]
+//                  [--integrator explicit|implicit] [--modulus E] [--local-only] [--sphere-sweep]
 
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/section.h"
@@ -303,6 +305,7 @@ void printLocalCases(const std::vector<double>& nus) {
   for (double nu : nus) {
     const double punchOracle = ind::femPunch(cube, 5, depth, FemMaterial{kLocalModulus, nu, kDensity});
     const double hertz = analytic::hertzSphereOnBondedLayerForce(R, depth, 11.5 * 0.0025, kLocalModulus, nu);
+    const double sphereOracle = ind::sphereOracle(slab, R, depth, FemMaterial{kLocalModulus, nu, kDensity});
     for (int w = 1; w <= 3; ++w)
       for (Integrator integrator : {Integrator::Explicit, Integrator::Implicit}) {
         ind::Press how;
@@ -316,17 +319,43 @@ void printLocalCases(const std::vector<double>& nus) {
         std::printf("%-12s %3d %2d %3d %5.2f %9s %12.4f %12.4f %8.3f%s\n", "punch 5x5", 13, w, how.substeps, nu,
                     toString(integrator), punch.force, punchOracle, punch.force / punchOracle,
                     punch.saturated ? " capped" : "");
-        std::printf("%-12s %3d %2d %3d %5.2f %9s %12.4f %12.4f %8.3f%s\n", "sphere 2 mm", 21, w, how.substeps, nu,
-                    toString(integrator), sphere.force, hertz, sphere.force / hertz,
-                    sphere.saturated ? " capped" : "");
+        std::printf("%-12s %3d %2d %3d %5.2f %9s %12.4f %12.4f %8.3f (of Hertz on the layer %.3f)%s\n", "sphere 2 mm",
+                    21, w, how.substeps, nu, toString(integrator), sphere.force, sphereOracle,
+                    sphere.force / sphereOracle, sphere.force / hertz, sphere.saturated ? " capped" : "");
       }
   }
+}
+
+/// The sphere against the axisymmetric FEM by its contact radius in cells (--sphere-sweep): R 2
+/// and 1 cm pressed 1 to 4 mm into the same 5.25 x 5.25 x 3 cm block at two spacings, w = 1, the
+/// implicit step at 4 sub-steps.
+void printSphereSweep(const std::vector<double>& nus) {
+  namespace ind = indentation;
+  constexpr double kLocalModulus = 20000.0;
+  std::printf("\nsphere by contact radius: E %.0f Pa, w = 1, implicit, 4 sub-steps (force, N)\n", kLocalModulus);
+  std::printf("%6s %7s %5s %6s %11s %9s %10s %10s %8s\n", "R mm", "dx mm", "nu", "d mm", "a / dx", "contacts",
+              "lattice", "FEM", "ratio");
+  for (double R : {0.02, 0.01})
+    for (double dx : {0.0025, 0.001875}) {
+      const int n = static_cast<int>(std::lround(0.0525 / dx)) | 1, nz = static_cast<int>(std::lround(0.03 / dx));
+      const Voxelization slab = box(n, n, nz, dx, Eigen::Vector3d(-0.5 * n * dx, -0.5 * n * dx, 0.0));
+      for (double nu : nus)
+        for (double depth = 0.001; depth < 0.00401; depth += 0.0005) {
+          ind::Press how;
+          how.nu = nu;
+          how.youngsModulus = kLocalModulus;
+          const ind::PressResult p = ind::press(slab, ind::sphere(R), R, depth, how);
+          const double fem = ind::sphereOracle(slab, R, depth, FemMaterial{kLocalModulus, nu, kDensity});
+          std::printf("%6.0f %7.3f %5.2f %6.2f %11.2f %9zu %10.4f %10.4f %8.3f\n", 1e3 * R, 1e3 * dx, nu, 1e3 * depth,
+                      std::sqrt(R * depth) / dx, p.contacts, p.force, fem, p.force / fem);
+        }
+    }
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false, implicit = false, localOnly = false;
+  bool quick = false, implicit = false, localOnly = false, sphereSweep = false;
   int onlySubsteps = 0, onlyAcross = 0;
   std::vector<double> nus = {0.0, 0.3};
   for (int a = 1; a < argc; ++a) {
@@ -339,6 +368,11 @@ int main(int argc, char** argv) {
     if (std::strcmp(argv[a], "--integrator") == 0 && a + 1 < argc) implicit = parseIntegrator(argv[++a]) == Integrator::Implicit;
     if (std::strcmp(argv[a], "--modulus") == 0 && a + 1 < argc) gModulus = std::atof(argv[++a]);
     if (std::strcmp(argv[a], "--local-only") == 0) localOnly = true;
+    if (std::strcmp(argv[a], "--sphere-sweep") == 0) sphereSweep = true;
+  }
+  if (sphereSweep) {
+    printSphereSweep(nus);
+    return 0;
   }
   if (localOnly) {
     printLocalCases(nus);

@@ -146,7 +146,7 @@ void ProblemReporter::watchContacts(const std::map<std::string, ContactWrench>& 
          line("collider '%s' has pressed on only %zu particle%s for %.1f s: a patch about %.3g m "
               "across, under 3 cells of %.3g m, which the lattice does not resolve, so its force "
               "(%.3g N) is only roughly what ~youngs_modulus gives (a sphere at 1.8 cells of contact "
-              "radius reads 1.14 of Hertz's). A lattice of ~spacing %.3g m (about %.0f times the "
+              "radius reads 1.16 of a finite element solution's). A lattice of ~spacing %.3g m (about %.0f times the "
               "particles) or a larger ~particle_budget resolves it.",
               id.c_str(), w.contacts, w.contacts == 1 ? "" : "s", time - since, across, dx, w.force.norm(),
               across / 3.0, std::pow(3.0 * dx / across, 3)));

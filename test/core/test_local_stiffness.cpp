@@ -96,12 +96,16 @@ TEST(LocalStiffness, WiderRegionsAreSofterUnderAPunch) {
 }
 
 // A sphere of radius 2 cm pressed 1, 2 and 3 mm into a block 5 x 5 x 3 cm of 2.5 mm cells
-// (contact radius 1.8 to 3.1 cells): the force follows Hertz on a layer bonded to its base
-// (the block's pinned layer) within 15 % (measured: +14, +12, +10 % at nu 0, +10, +5, +1 % at
-// 0.3; part of it is the contact model's, whose particles are spheres of radius r, so that an
-// indenter of radius R meets their centres as one of R + r: sqrt(1 + r / R) = 1.03 here), the
-// exponent 1.5 within 0.15, at nu 0 and 0.3; the explicit step agrees with the implicit within
-// 2 %. The explicit step runs at 120 sub-steps, alpha a quarter of its cap: nearer the cap (60
+// (contact radius 1.8 to 3.1 cells), against two references: Hertz on a layer bonded to its base
+// (the block's pinned layer; a paraboloid, the layer unbounded) and the axisymmetric FEM of the
+// block (the sphere as a sphere, the block as a cylinder of its area with a free side), 1 to 5 %
+// below Hertz's series here. The lattice reads (measured) +16, +15, +15 % of the FEM at nu 0 and
+// +12, +8, +5 % at 0.3 (+14, +12, +10 % and +10, +5, +1 % of Hertz's series): within 20 % of the
+// FEM and 15 % of the series, the exponent 1.5 within 0.15; the explicit step agrees with the
+// implicit within 2 %. About 3 % of the excess is the contact model's: its particles are spheres of
+// radius r, so an indenter of radius R meets their centres as one of R + r (sqrt(1 + r / R)); the
+// rest is the lattice's (docs/method.md: at nu 0 it stays +12 % at 3 to 5 cells of contact radius).
+// The explicit step runs at 120 sub-steps, alpha a quarter of its cap: nearer the cap (60
 // to 90 sub-steps) the frictionless dent gives way after 3 to 7 s, the top layer under the sphere
 // scrambled and the force a third, a fault of the explicit step's contact on a curved surface
 // (the same state handed to the implicit step recovers; docs/method.md).
@@ -113,11 +117,15 @@ TEST(LocalStiffness, SpherePressedIntoABlockFollowsHertz) {
     double f1 = 0.0, f3 = 0.0;
     for (double depth : {0.001, 0.002, 0.003}) {
       const double hertz = analytic::hertzSphereOnBondedLayerForce(R, depth, thickness, kModulus, nu);
+      const double oracle = ind::sphereOracle(vox, R, depth, FemMaterial{kModulus, nu, 1000.0});
       const double f = ind::press(vox, ind::sphere(R), R, depth, how(Integrator::Implicit, 4, 1, nu)).force;
-      std::printf("[ sphere  ] nu %.1f, depth %.0f mm: %.4f N, Hertz on the layer %.4f N (%+.1f %%; half-space %.4f N)\n",
-                  nu, 1e3 * depth, f, hertz, 100 * (f / hertz - 1),
-                  analytic::hertzSphereForce(R, depth, kModulus, nu));
+      std::printf("[ sphere  ] nu %.1f, depth %.0f mm: %.4f N, the FEM %.4f N (%+.1f %%), Hertz on the layer %.4f N "
+                  "(%+.1f %%; half-space %.4f N)\n", nu, 1e3 * depth, f, oracle, 100 * (f / oracle - 1), hertz,
+                  100 * (f / hertz - 1), analytic::hertzSphereForce(R, depth, kModulus, nu));
+      EXPECT_NEAR(f / oracle, 1.0, 0.2) << "nu " << nu << ", depth " << depth;
       EXPECT_NEAR(f / hertz, 1.0, 0.15) << "nu " << nu << ", depth " << depth;
+      EXPECT_LT(oracle, hertz) << "the sphere and the free side give less than the paraboloid on an unbounded layer";
+      EXPECT_GT(oracle, 0.93 * hertz);
       if (depth == 0.001) f1 = f;
       if (depth == 0.003) f3 = f;
       if (depth == 0.002) {
@@ -282,3 +290,4 @@ TEST(LocalStiffness, APadPlacedIntoTheObjectCountsTheParticlesBuriedInIt) {
   }
   EXPECT_GT(pressed.contactWrench("pad").contacts, 0u);
 }
+

@@ -5,6 +5,7 @@
 #pragma once
 
 #include "deformable_flsm/core/solver.h"
+#include "support/axisymmetric_press.h"
 #include "support/fem_oracle.h"
 
 #include <Eigen/Core>
@@ -147,6 +148,22 @@ inline double femPunch(const Voxelization& vox, int k, double depth, const FemMa
   double force = 0.0;
   femPress(fem, vox, 0.5 * k * vox.spacing + 1e-9, depth, force, bonded);
   return force;
+}
+
+/// The oracle's sphere on the same block: the axisymmetric FEM (axisymmetricPress()) of a
+/// cylinder of the block's top area, bonded at its pinned layer's centres, a sphere of `radius`
+/// pressed `depth` into the top face's centre, frictionless. Its force (N).
+inline double sphereOracle(const Voxelization& vox, double radius, double depth, const FemMaterial& material) {
+  const double top = topOf(vox);
+  std::size_t topCells = 0;
+  for (const Eigen::Vector3i& c : vox.cells) topCells += (c.z() + 1) * vox.spacing > top - 1e-9;
+  AxisymmetricPress p;
+  p.indenterRadius = radius;
+  p.depth = depth;
+  p.thickness = top - 0.5 * vox.spacing;
+  p.outerRadius = vox.spacing * std::sqrt(static_cast<double>(topCells) / 3.14159265358979323846);
+  p.material = material;
+  return axisymmetricPress(p).force;
 }
 
 }  // namespace indentation

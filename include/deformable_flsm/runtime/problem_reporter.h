@@ -49,8 +49,8 @@ class ProblemReporter {
   void publishingTook(double seconds) const;
 
   /// A collider pressing on fewer particles than this meets a patch under about 3 cells across,
-  /// which the lattice does not resolve (docs/method.md: a sphere's force is 1.14 of Hertz's at
-  /// 1.8 cells of contact radius, 1.10 at 3.1; a 5-cell punch 0.90 of the FEM's).
+  /// which the lattice does not resolve (docs/method.md: a sphere's force is 1.16 of the FEM's at
+  /// 1.8 cells of contact radius at nu 0, and stays 1.12 to 1.16 to 4.8; a 5-cell punch 0.90).
   static constexpr std::size_t kResolvedContacts = 7;
   /// ... for at least this long (s of simulated time): a touch on its way in or out is not warned
   static constexpr double kUnresolvedSeconds = 1.0;
