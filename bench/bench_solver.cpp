@@ -5,6 +5,8 @@
 // drifts by tens of percent within a minute, a busy spell then hits every entry alike, and the
 // ratios (naive/fast, w = 4 / w = 1, each size against 10k, threads) are taken within a round.
 //
+// Then the fast solver at w = 2 at each SIMD level the CPU runs (simd.h: chosen at run time, so
+// that a build for the x86-64 baseline runs the CPU's own instructions; FLSM_SIMD lowers it).
 // Then the fast solver at w = 2 across lattice sizes (1k to 200k particles: cost per particle
 // should stay flat), on boxes that hold the slices' cross-section while the particle count grows
 // and the other way round (what the cost per particle follows), and with every hardware thread
@@ -42,6 +44,7 @@
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/mesh.h"
 #include "deformable_flsm/core/resolution.h"
+#include "deformable_flsm/core/simd.h"
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/voxelizer.h"
 
@@ -525,15 +528,46 @@ void swayTable(const TriMesh& mesh, std::size_t particles) {
   }
 }
 
+/// The fast solver (w = 2, one thread) at each SIMD level this CPU runs and the build has code
+/// for (simd.h), entries in turns: what the run-time choice gives a build for the x86-64 baseline.
+void simdTable(const Voxelization& vox, const Args& args) {
+  const SimdLevel chosen = simdLevel();
+  std::vector<SimdLevel> levels;
+  for (SimdLevel l : {SimdLevel::Baseline, SimdLevel::X86_64_V3, SimdLevel::X86_64_V4})
+    if (setSimdLevel(l) == l) levels.push_back(l);
+  auto lattice = std::make_shared<const Lattice>(vox, 1000.0, 2);
+  SolverParams p;
+  p.substeps = 1;
+  std::vector<std::unique_ptr<Timed>> entries;
+  for (SimdLevel l : levels) {
+    setSimdLevel(l);
+    entries.push_back(std::make_unique<Timed>(lattice, p, args.steps));
+  }
+  for (int r = 0; r < args.repeats; ++r)
+    for (std::size_t i = 0; i < levels.size(); ++i) {
+      setSimdLevel(levels[i]);
+      entries[i]->run();
+    }
+  setSimdLevel(chosen);
+  std::printf("\nfast, w=2, single thread, at each SIMD level (median of %d rounds, entries in turns; x chosen: the\n"
+              "median of the ratios to the chosen level's run in the same round)\n%12s %12s %10s\n",
+              args.repeats, "level", "ns/p-step", "x chosen");
+  const std::size_t ref = static_cast<std::size_t>(
+      std::find(levels.begin(), levels.end(), chosen) - levels.begin());
+  for (std::size_t i = 0; i < levels.size(); ++i)
+    std::printf("%12s %12.1f %10.2f\n", toString(levels[i]), median(entries[i]->samples),
+                ref < levels.size() ? ratioMedian(*entries[i], *entries[ref]) : 0.0);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   const Args args = parse(argc, argv);
   const TriMesh mesh = loadMesh(args.mesh, 0.1);
   const Voxelization vox = voxelizeNear(mesh, args.particles);
-  std::printf("mesh %s: %zu triangles; lattice %d x %d x %d cells, spacing %.4g m, %zu particles\n",
+  std::printf("mesh %s: %zu triangles; lattice %d x %d x %d cells, spacing %.4g m, %zu particles\n%s\n",
               args.mesh.c_str(), mesh.triangles.size(), vox.dims.x(), vox.dims.y(), vox.dims.z(), vox.spacing,
-              vox.cells.size());
+              vox.cells.size(), simdLevelNote().c_str());
   if (args.onlySway) {
     swayTable(mesh, args.particles);
     return 0;
@@ -589,6 +623,7 @@ int main(int argc, char** argv) {
     }
     std::printf("fast w=4 / w=1 cost ratio: %.2f\n", ratioMedian(*fast[3], *fast[0]));
   }
+  simdTable(vox, args);
 
   std::printf("\nfast, w=2, single thread, across lattice sizes (median and fastest of %d rounds; x 10k: the\n"
               "median of the ratios to the 10k lattice's run in the same round)\n%10s %10s %16s %10s %8s %14s\n",

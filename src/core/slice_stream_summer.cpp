@@ -3,6 +3,7 @@
 #include "deformable_flsm/core/slice_stream_summer.h"
 
 #include "deformable_flsm/core/window_sums.h"
+#include "simd_dispatch.h"
 #include "sliding_window.h"
 
 #include <omp.h>
@@ -17,6 +18,8 @@ namespace deformable_flsm {
 
 using detail::slideRun;
 using detail::withChannels;
+using detail::kBuiltWide;
+using detail::withSimdWidth;
 using detail::zWindowRows;
 
 void SliceStreamSummer::reserveSliceScratch(int Kg, int Ks) {
@@ -116,8 +119,12 @@ class SliceStreamSummer::Sweep {
       auto src = [=](std::uint32_t p, std::ptrdiff_t z) {
         return row[z + off] + static_cast<std::size_t>(p - start[z + off]) * KK;
       };
-      zWindowRows<KK>(k, r0, r1, k > 0 ? s_.rowStart(k - 1, yR0_) : 0, b % kBlock == 0, w_, zOrder(), s_.zPos_.data(),
-                      s_.zLen_.data(), s_.zBase_.data(), src, t_.sumPrev.data(), t_.sumCur.data());
+      const std::uint32_t prevBase = k > 0 ? s_.rowStart(k - 1, yR0_) : 0;
+      withSimdWidth<kBuiltWide>([&](auto wide) {
+        zWindowRows<KK, decltype(wide)::value>(k, r0, r1, prevBase, b % kBlock == 0, w_, zOrder(), s_.zPos_.data(),
+                                               s_.zLen_.data(), s_.zBase_.data(), src, t_.sumPrev.data(),
+                                               t_.sumCur.data());
+      });
     });
     double* regions = regionRow(b);
     const std::uint32_t n0 = s_.rowStart(k, yN0_);
@@ -148,8 +155,11 @@ class SliceStreamSummer::Sweep {
       auto src = [=](std::uint32_t p, std::ptrdiff_t z) {
         return row[z + off] + static_cast<std::size_t>(p - start[z + off]) * KK;
       };
-      zWindowRows<KK>(k, n0, n1, k > 0 ? s_.rowStart(k - 1, yN0_) : 0, c % kBlock == 0, w_, zOrder(), s_.zPos_.data(),
-                      s_.zLen_.data(), s_.zBase_.data(), src, t_.zPrev.data(), t_.zCur.data());
+      const std::uint32_t prevBase = k > 0 ? s_.rowStart(k - 1, yN0_) : 0;
+      withSimdWidth<kBuiltWide>([&](auto wide) {
+        zWindowRows<KK, decltype(wide)::value>(k, n0, n1, prevBase, c % kBlock == 0, w_, zOrder(), s_.zPos_.data(),
+                                               s_.zLen_.data(), s_.zBase_.data(), src, t_.zPrev.data(), t_.zCur.data());
+      });
     });
     yPass(k, n0, n1, Ks_, t_.zCur.data(), t_.colSum.data());
     xScatter(k, t_.colSum.data());
@@ -194,8 +204,11 @@ class SliceStreamSummer::Sweep {
           end = std::lower_bound(run, end, i1);
           if (end == run) continue;
         }
-        slideRun<KK>(in, out, end - run, w,
-                     [run, i0](std::ptrdiff_t u) { return static_cast<std::ptrdiff_t>(run[u] - i0); });
+        withSimdWidth<kBuiltWide>([&](auto wide) {
+          slideRun<KK, decltype(wide)::value>(in, out, end - run, w, [run, i0](std::ptrdiff_t u) {
+            return static_cast<std::ptrdiff_t>(run[u] - i0);
+          });
+        });
       }
     });
   }
@@ -236,8 +249,10 @@ class SliceStreamSummer::Sweep {
     forXRuns(k, i0, s_.rowStart(k, yD1_), Kg_, [&](auto kc, std::uint32_t first, std::ptrdiff_t len) {
       constexpr int KK = decltype(kc)::value;
       kernel_.particleData(first, first + static_cast<std::size_t>(len), t_.run.data());
-      slideRun<KK>(t_.run.data(), out + static_cast<std::size_t>(first - i0) * KK, len, w_,
-                   [](std::ptrdiff_t u) { return u; });
+      withSimdWidth<kBuiltWide>([&](auto wide) {
+        slideRun<KK, decltype(wide)::value>(t_.run.data(), out + static_cast<std::size_t>(first - i0) * KK, len, w_,
+                                            [](std::ptrdiff_t u) { return u; });
+      });
     });
   }
 
@@ -247,8 +262,10 @@ class SliceStreamSummer::Sweep {
     const std::uint32_t n0 = s_.rowStart(k, yN0_);
     forXRuns(k, s_.rowStart(k, yP0_), s_.rowStart(k, yP1_), Ks_, [&](auto kc, std::uint32_t first, std::ptrdiff_t len) {
       constexpr int KK = decltype(kc)::value;
-      slideRun<KK>(in + static_cast<std::size_t>(first - n0) * KK, t_.run.data(), len, w_,
-                   [](std::ptrdiff_t u) { return u; });
+      withSimdWidth<kBuiltWide>([&](auto wide) {
+        slideRun<KK, decltype(wide)::value>(in + static_cast<std::size_t>(first - n0) * KK, t_.run.data(), len, w_,
+                                            [](std::ptrdiff_t u) { return u; });
+      });
       kernel_.particleResult(first, first + static_cast<std::size_t>(len), t_.run.data());
     });
   }

@@ -29,17 +29,21 @@ void withChannels(int K, F&& f) {
   throw std::invalid_argument("region summation: unsupported channel count " + std::to_string(K));
 }
 
-/// K running sums held in SIMD registers: K / kWide vectors of kWide doubles (4 where the target
-/// has AVX, else 2: GCC/Clang vector types wider than the target's registers are lowered
-/// poorly), then a two-wide vector and a scalar for the rest. Rows are loaded and stored
-/// unaligned.
-template <int K>
-struct Accumulator {
+/// The accumulators' vector width for this build's own code: 4 where the target has AVX, else 2
+/// (GCC/Clang vector types wider than the target's registers are lowered poorly). Code run at a
+/// level with AVX (withSimdWidth()) takes 4.
 #ifdef __AVX__
-  static constexpr int kWide = 4;
+constexpr int kBuiltWide = 4;
 #else
-  static constexpr int kWide = 2;
+constexpr int kBuiltWide = 2;
 #endif
+
+/// K running sums held in SIMD registers: K / W vectors of W doubles (W 2 or 4), then a two-wide
+/// vector and a scalar for the rest. Rows are loaded and stored unaligned.
+template <int K, int W = kBuiltWide>
+struct Accumulator {
+  static_assert(W == 2 || W == 4, "two or four lanes");
+  static constexpr int kWide = W;
   typedef double VW __attribute__((vector_size(kWide * sizeof(double))));
   typedef double V2 __attribute__((vector_size(2 * sizeof(double))));
   static constexpr int kFull = K / kWide;
@@ -97,9 +101,9 @@ struct Accumulator {
 /// Sliding window of half-width w over one run of `len` elements, element u of the run at
 /// in/out + idx(u) * K: out_t = sum of in_u over |u - t| <= w. O(1) per element and channel: the
 /// window of element t is that of t - 1 plus element t + w, minus element t - w - 1.
-template <int K, typename Index>
+template <int K, int W = kBuiltWide, typename Index>
 inline void slideRun(const double* in, double* out, std::ptrdiff_t len, std::ptrdiff_t w, Index idx) {
-  Accumulator<K> acc;
+  Accumulator<K, W> acc;
   acc.zero();
   // window of element 0: [0, min(w, len-1)]
   const std::ptrdiff_t first = std::min(w, len - 1);
@@ -126,7 +130,7 @@ inline void slideRun(const double* in, double* out, std::ptrdiff_t len, std::ptr
 /// out + (p - p0) * K. A restart (or a run's first element) sums the window directly; otherwise
 /// the row of p's lower neighbour q in `prev` (the same rows of slice s - 1, q at prev + (q -
 /// prevBase) * K) is updated by the element entering and the one leaving, as in slideRun().
-template <int K, typename Source>
+template <int K, int W = kBuiltWide, typename Source>
 inline void zWindowRows(std::size_t s, std::uint32_t p0, std::uint32_t p1, std::uint32_t prevBase, bool restart,
                         std::ptrdiff_t w, const std::uint32_t* order, const std::uint32_t* zPos,
                         const std::uint32_t* zLen, const std::uint32_t* zBase, Source src, const double* prev,
@@ -135,7 +139,7 @@ inline void zWindowRows(std::size_t s, std::uint32_t p0, std::uint32_t p1, std::
   for (std::uint32_t p = p0; p < p1; ++p) {
     const std::ptrdiff_t t = zPos[p], len = zLen[p];
     const std::uint32_t* run = order + zBase[p];
-    Accumulator<K> acc;
+    Accumulator<K, W> acc;
     if (restart || t == 0) {
       acc.zero();
       const std::ptrdiff_t lo = std::max(-w, -t), hi = std::min(w, len - 1 - t);

@@ -5,6 +5,7 @@
 #include "deformable_flsm/core/small_matrix.h"
 #include "inertia.h"
 #include "lanes.h"
+#include "simd_dispatch.h"
 
 #include <Eigen/Eigenvalues>
 
@@ -306,156 +307,162 @@ int Solver::scatterChannels() const {
 }
 
 void Solver::particleData(std::size_t begin, std::size_t end, double* out) {
-  const auto& mt = lattice_->regionMassFractions();
-  const int in = gatherChannels();
-  for (std::size_t i = begin; i < end; ++i) {
-    double* d = out + (i - begin) * in;
-    const Eigen::Vector3d p = x_[i] - xref_;
-    const Eigen::Vector3d mp = mt[i] * p;
-    const Eigen::Vector3d& q = restCentered_[i];
-    d[0] = mp.x();
-    d[1] = mp.y();
-    d[2] = mp.z();
-    for (int a = 0; a < 3; ++a)
-      for (int b = 0; b < 3; ++b) d[3 + 3 * a + b] = mp[a] * q[b];
-    if (passDamping_) {
-      const Eigen::Vector3d mv = mt[i] * v_[i];
-      const Eigen::Vector3d l = p.cross(mv);
-      d[12] = mv.x(); d[13] = mv.y(); d[14] = mv.z();
-      d[15] = l.x(); d[16] = l.y(); d[17] = l.z();
-      d[18] = mp.x() * p.x(); d[19] = mp.y() * p.y(); d[20] = mp.z() * p.z();
-      d[21] = mp.x() * p.y(); d[22] = mp.x() * p.z(); d[23] = mp.y() * p.z();
+  detail::withSimd([&] {
+    const auto& mt = lattice_->regionMassFractions();
+    const int in = gatherChannels();
+    for (std::size_t i = begin; i < end; ++i) {
+      double* d = out + (i - begin) * in;
+      const Eigen::Vector3d p = x_[i] - xref_;
+      const Eigen::Vector3d mp = mt[i] * p;
+      const Eigen::Vector3d& q = restCentered_[i];
+      d[0] = mp.x();
+      d[1] = mp.y();
+      d[2] = mp.z();
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) d[3 + 3 * a + b] = mp[a] * q[b];
+      if (passDamping_) {
+        const Eigen::Vector3d mv = mt[i] * v_[i];
+        const Eigen::Vector3d l = p.cross(mv);
+        d[12] = mv.x(); d[13] = mv.y(); d[14] = mv.z();
+        d[15] = l.x(); d[16] = l.y(); d[17] = l.z();
+        d[18] = mp.x() * p.x(); d[19] = mp.y() * p.y(); d[20] = mp.z() * p.z();
+        d[21] = mp.x() * p.y(); d[22] = mp.x() * p.z(); d[23] = mp.y() * p.z();
+      }
     }
-  }
+  });
 }
 
 static_assert(kRotationBatch == kLanes, "one region per SIMD lane");
 
 void Solver::regionData(std::size_t begin, std::size_t end, const double* sums, double* out) {
-  const int in = gatherChannels(), outK = scatterChannels();
-  // Regions in batches of kRotationBatch, one SIMD lane each: the rotations are extracted
-  // together, and the damping field's inertia solve runs in the lanes too.
-  for (std::size_t r0 = begin; r0 < end; r0 += kRotationBatch) {
-    const int count = static_cast<int>(std::min<std::size_t>(kRotationBatch, end - r0));
-    double A[kRotationBatch * 9], R[kRotationBatch * 9];
-    Lanes c[3] = {}, c0[3] = {}, beta = {}, M = {}, iM = {};
-    for (int l = 0; l < count; ++l) {
-      const std::size_t r = r0 + static_cast<std::size_t>(l);
-      const double* s = sums + (r - begin) * in;
-      M[l] = regionMass_[r];
-      iM[l] = regionInvMass_[r];
-      beta[l] = regionWeight_[r];
-      for (int i = 0; i < 3; ++i) {
-        c[i][l] = s[i] * iM[l];
-        c0[i][l] = regionRestCenter_[r][i];
+  detail::withSimd([&] {
+    const int in = gatherChannels(), outK = scatterChannels();
+    // Regions in batches of kRotationBatch, one SIMD lane each: the rotations are extracted
+    // together, and the damping field's inertia solve runs in the lanes too.
+    for (std::size_t r0 = begin; r0 < end; r0 += kRotationBatch) {
+      const int count = static_cast<int>(std::min<std::size_t>(kRotationBatch, end - r0));
+      double A[kRotationBatch * 9], R[kRotationBatch * 9];
+      Lanes c[3] = {}, c0[3] = {}, beta = {}, M = {}, iM = {};
+      for (int l = 0; l < count; ++l) {
+        const std::size_t r = r0 + static_cast<std::size_t>(l);
+        const double* s = sums + (r - begin) * in;
+        M[l] = regionMass_[r];
+        iM[l] = regionInvMass_[r];
+        beta[l] = regionWeight_[r];
+        for (int i = 0; i < 3; ++i) {
+          c[i][l] = s[i] * iM[l];
+          c0[i][l] = regionRestCenter_[r][i];
+        }
+        // A = sum m~ p q^T - M c c0^T (row-major)
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) A[9 * l + 3 * i + j] = s[3 + 3 * i + j] - M[l] * c[i][l] * c0[j][l];
       }
-      // A = sum m~ p q^T - M c c0^T (row-major)
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) A[9 * l + 3 * i + j] = s[3 + 3 * i + j] - M[l] * c[i][l] * c0[j][l];
-    }
-    extractRotationBatch(count, A, rotations_.data() + r0, R);
-    for (int l = 0; l < count; ++l) {
-      double* t = out + (r0 + static_cast<std::size_t>(l) - begin) * outK;
-      const double* Rl = R + 9 * l;
-      for (int i = 0; i < 3; ++i) {
-        for (int j = 0; j < 3; ++j) t[3 * i + j] = beta[l] * Rl[3 * i + j];
-        t[9 + i] = beta[l] * (c[i][l] - (Rl[3 * i] * c0[0][l] + Rl[3 * i + 1] * c0[1][l] + Rl[3 * i + 2] * c0[2][l]));
+      extractRotationBatch(count, A, rotations_.data() + r0, R);
+      for (int l = 0; l < count; ++l) {
+        double* t = out + (r0 + static_cast<std::size_t>(l) - begin) * outK;
+        const double* Rl = R + 9 * l;
+        for (int i = 0; i < 3; ++i) {
+          for (int j = 0; j < 3; ++j) t[3 * i + j] = beta[l] * Rl[3 * i + j];
+          t[9 + i] = beta[l] * (c[i][l] - (Rl[3 * i] * c0[0][l] + Rl[3 * i + 1] * c0[1][l] + Rl[3 * i + 2] * c0[2][l]));
+        }
+      }
+      if (!passDamping_) continue;
+      // Rigid velocity field u + w x p of each region: v_r = sum m~ v / M, angular momentum about c
+      // L_r = sum p x m~ v - c x sum m~ v, second moment about c P = sum m~ p p^T - M c c^T,
+      // inertia I = tr(P) 1 - P, w = I^+ L_r (solveInertia(): the cofactor solve here, lanes that
+      // are not clearly positive definite go to the general routine), u = v_r - w x c.
+      Lanes mv[3] = {}, l[3] = {}, pp[6] = {};
+      for (int k = 0; k < count; ++k) {
+        const double* s = sums + (r0 + static_cast<std::size_t>(k) - begin) * in;
+        for (int i = 0; i < 3; ++i) {
+          mv[i][k] = s[12 + i];
+          l[i][k] = s[15 + i];
+        }
+        for (int i = 0; i < 6; ++i) pp[i][k] = s[18 + i];
+      }
+      Lanes vr[3], L[3];
+      for (int i = 0; i < 3; ++i) vr[i] = mv[i] * iM;
+      L[0] = l[0] - (c[1] * mv[2] - c[2] * mv[1]);
+      L[1] = l[1] - (c[2] * mv[0] - c[0] * mv[2]);
+      L[2] = l[2] - (c[0] * mv[1] - c[1] * mv[0]);
+      const Lanes p00 = pp[0] - M * c[0] * c[0], p11 = pp[1] - M * c[1] * c[1], p22 = pp[2] - M * c[2] * c[2];
+      const Lanes p01 = pp[3] - M * c[0] * c[1], p02 = pp[4] - M * c[0] * c[2], p12 = pp[5] - M * c[1] * c[2];
+      const Lanes h00 = p11 + p22, h11 = p00 + p22, h22 = p00 + p11, h01 = -p01, h02 = -p02, h12 = -p12;
+      const Lanes trace = h00 + h11 + h22;
+      const Lanes tol = kInertiaRankTolerance * trace;
+      const Lanes zero = {};
+      Lanes w[3];
+      LaneMask positive;
+      solveSymmetricPositive3(h00, h11, h22, h01, h02, h12, L, tol, w, positive);
+      const LaneMask fast = (trace > zero) & positive;
+      for (int k = 0; k < count; ++k) {
+        if (fast[k] != 0) continue;
+        Eigen::Matrix3d I;
+        I << h00[k], h01[k], h02[k], h01[k], h11[k], h12[k], h02[k], h12[k], h22[k];
+        const Eigen::Vector3d wk = solveInertia(I, Eigen::Vector3d(L[0][k], L[1][k], L[2][k]));
+        for (int i = 0; i < 3; ++i) w[i][k] = wk[i];
+      }
+      Lanes u[3];
+      u[0] = vr[0] - (w[1] * c[2] - w[2] * c[1]);
+      u[1] = vr[1] - (w[2] * c[0] - w[0] * c[2]);
+      u[2] = vr[2] - (w[0] * c[1] - w[1] * c[0]);
+      for (int k = 0; k < count; ++k) {
+        double* t = out + (r0 + static_cast<std::size_t>(k) - begin) * outK;
+        for (int i = 0; i < 3; ++i) {
+          t[12 + i] = u[i][k];
+          t[15 + i] = w[i][k];
+        }
       }
     }
-    if (!passDamping_) continue;
-    // Rigid velocity field u + w x p of each region: v_r = sum m~ v / M, angular momentum about c
-    // L_r = sum p x m~ v - c x sum m~ v, second moment about c P = sum m~ p p^T - M c c^T,
-    // inertia I = tr(P) 1 - P, w = I^+ L_r (solveInertia(): the cofactor solve here, lanes that
-    // are not clearly positive definite go to the general routine), u = v_r - w x c.
-    Lanes mv[3] = {}, l[3] = {}, pp[6] = {};
-    for (int k = 0; k < count; ++k) {
-      const double* s = sums + (r0 + static_cast<std::size_t>(k) - begin) * in;
-      for (int i = 0; i < 3; ++i) {
-        mv[i][k] = s[12 + i];
-        l[i][k] = s[15 + i];
-      }
-      for (int i = 0; i < 6; ++i) pp[i][k] = s[18 + i];
-    }
-    Lanes vr[3], L[3];
-    for (int i = 0; i < 3; ++i) vr[i] = mv[i] * iM;
-    L[0] = l[0] - (c[1] * mv[2] - c[2] * mv[1]);
-    L[1] = l[1] - (c[2] * mv[0] - c[0] * mv[2]);
-    L[2] = l[2] - (c[0] * mv[1] - c[1] * mv[0]);
-    const Lanes p00 = pp[0] - M * c[0] * c[0], p11 = pp[1] - M * c[1] * c[1], p22 = pp[2] - M * c[2] * c[2];
-    const Lanes p01 = pp[3] - M * c[0] * c[1], p02 = pp[4] - M * c[0] * c[2], p12 = pp[5] - M * c[1] * c[2];
-    const Lanes h00 = p11 + p22, h11 = p00 + p22, h22 = p00 + p11, h01 = -p01, h02 = -p02, h12 = -p12;
-    const Lanes trace = h00 + h11 + h22;
-    const Lanes tol = kInertiaRankTolerance * trace;
-    const Lanes zero = {};
-    Lanes w[3];
-    LaneMask positive;
-    solveSymmetricPositive3(h00, h11, h22, h01, h02, h12, L, tol, w, positive);
-    const LaneMask fast = (trace > zero) & positive;
-    for (int k = 0; k < count; ++k) {
-      if (fast[k] != 0) continue;
-      Eigen::Matrix3d I;
-      I << h00[k], h01[k], h02[k], h01[k], h11[k], h12[k], h02[k], h12[k], h22[k];
-      const Eigen::Vector3d wk = solveInertia(I, Eigen::Vector3d(L[0][k], L[1][k], L[2][k]));
-      for (int i = 0; i < 3; ++i) w[i][k] = wk[i];
-    }
-    Lanes u[3];
-    u[0] = vr[0] - (w[1] * c[2] - w[2] * c[1]);
-    u[1] = vr[1] - (w[2] * c[0] - w[0] * c[2]);
-    u[2] = vr[2] - (w[0] * c[1] - w[1] * c[0]);
-    for (int k = 0; k < count; ++k) {
-      double* t = out + (r0 + static_cast<std::size_t>(k) - begin) * outK;
-      for (int i = 0; i < 3; ++i) {
-        t[12 + i] = u[i][k];
-        t[15 + i] = w[i][k];
-      }
-    }
-  }
+  });
 }
 
 void Solver::particleResult(std::size_t begin, std::size_t end, const double* sums) {
-  const int outK = scatterChannels();
-  const StepConstants& k = step_;
-  for (std::size_t i = begin; i < end; ++i) {
-    const double* s = sums + (i - begin) * outK;
-    const Eigen::Vector3d& q = restCentered_[i];
-    Eigen::Vector3d g(s[9], s[10], s[11]);
-    for (int a = 0; a < 3; ++a) g[a] += s[3 * a] * q.x() + s[3 * a + 1] * q.y() + s[3 * a + 2] * q.z();
-    g = g * invWeightSum_[i] + xref_;
-    if (!k.integrate) {
-      (*goalsOut_)[i] = g;
-      continue;
+  detail::withSimd([&] {
+    const int outK = scatterChannels();
+    const StepConstants& k = step_;
+    for (std::size_t i = begin; i < end; ++i) {
+      const double* s = sums + (i - begin) * outK;
+      const Eigen::Vector3d& q = restCentered_[i];
+      Eigen::Vector3d g(s[9], s[10], s[11]);
+      for (int a = 0; a < 3; ++a) g[a] += s[3 * a] * q.x() + s[3 * a + 1] * q.y() + s[3 * a + 2] * q.z();
+      g = g * invWeightSum_[i] + xref_;
+      if (!k.integrate) {
+        (*goalsOut_)[i] = g;
+        continue;
+      }
+      // v <- v_obj + keep (v - v_obj) + alpha s_i (g - x) / h + h (gravity + f / m) + kd (v_rigid - v);
+      // x <- x + h v
+      goal_[i] = g;  // the contact pass bounds its push-out by it
+      // (a pinned or hard-dragged particle is left to finishSubstep(), the latter's free velocity
+      // kept for its drag's impulse)
+      if (pinned_[i] != 0) continue;
+      Eigen::Vector3d a = params_.gravity;
+      if (k.forced) a += forceAccel_[i];
+      if (volumetric_) a += volumetricAccel_[i];
+      Eigen::Vector3d dv = k.pull * stiffnessFactor_[i] * (g - x_[i]) + k.h * a;
+      if (passDamping_) {
+        const Eigen::Vector3d p = x_[i] - xref_;
+        const Eigen::Vector3d target =
+            (Eigen::Vector3d(s[12], s[13], s[14]) + Eigen::Vector3d(s[15], s[16], s[17]).cross(p)) * invCount_[i];
+        dv += k.kd * (target - v_[i]);
+      }
+      Eigen::Vector3d v;
+      if (k.relative) {
+        // ambient damping of the motion relative to the object's rigid motion (computeRigidMotion())
+        const Eigen::Vector3d rigid = rigidVelocity_ + rigidSpin_.cross(x_[i] - xref_);
+        v = rigid + k.keep * (v_[i] - rigid) + dv;
+      } else {
+        v = (v_[i] + dv) * k.keep;  // held by the world: drag towards rest
+      }
+      if (hardDragged_[i] != 0) {
+        freeVelocity_[i] = v;
+        continue;
+      }
+      v_[i] = v;
+      x_[i] += k.h * v;
     }
-    // v <- v_obj + keep (v - v_obj) + alpha s_i (g - x) / h + h (gravity + f / m) + kd (v_rigid - v);
-    // x <- x + h v
-    goal_[i] = g;  // the contact pass bounds its push-out by it
-    // (a pinned or hard-dragged particle is left to finishSubstep(), the latter's free velocity
-    // kept for its drag's impulse)
-    if (pinned_[i] != 0) continue;
-    Eigen::Vector3d a = params_.gravity;
-    if (k.forced) a += forceAccel_[i];
-    if (volumetric_) a += volumetricAccel_[i];
-    Eigen::Vector3d dv = k.pull * stiffnessFactor_[i] * (g - x_[i]) + k.h * a;
-    if (passDamping_) {
-      const Eigen::Vector3d p = x_[i] - xref_;
-      const Eigen::Vector3d target =
-          (Eigen::Vector3d(s[12], s[13], s[14]) + Eigen::Vector3d(s[15], s[16], s[17]).cross(p)) * invCount_[i];
-      dv += k.kd * (target - v_[i]);
-    }
-    Eigen::Vector3d v;
-    if (k.relative) {
-      // ambient damping of the motion relative to the object's rigid motion (computeRigidMotion())
-      const Eigen::Vector3d rigid = rigidVelocity_ + rigidSpin_.cross(x_[i] - xref_);
-      v = rigid + k.keep * (v_[i] - rigid) + dv;
-    } else {
-      v = (v_[i] + dv) * k.keep;  // held by the world: drag towards rest
-    }
-    if (hardDragged_[i] != 0) {
-      freeVelocity_[i] = v;
-      continue;
-    }
-    v_[i] = v;
-    x_[i] += k.h * v;
-  }
+  });
 }
 
 // Ambient damping is mass-proportional (Rayleigh) damping, C = c M, of the motion relative to the

@@ -2,6 +2,8 @@
 // stencil, and the cap on alpha that keeps the sub-step stable (see computeRegionWeights()).
 #include "deformable_flsm/core/solver.h"
 
+#include "simd_dispatch.h"
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -235,32 +237,34 @@ void Solver::capPhysicalAlpha(double requested, const std::vector<double>& defic
 // angular momentum exactly; f_j = -sum_{i,a} G_ia ([plus(i,a) = j] - [minus(i,a) = j]),
 // G_ia = lambda V_i e_i F_ia / d_ia.
 void Solver::computeVolumetricForces() {
-  const std::size_t n = x_.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    const VolumetricStencil& st = stencil_[i];
-    Eigen::Vector3d F[3];
-    double e = 0.0, eaa[3] = {0.0, 0.0, 0.0};
-    for (int a = 0; a < 3; ++a) {
-      F[a] = (x_[st.plus[a]] - x_[st.minus[a]]) * st.invDistance[a];
-      if (st.invDistance[a] > 0.0) eaa[a] = 0.5 * (F[a].squaredNorm() - 1.0);
-      e += eaa[a];
+  detail::withSimd([&] {
+    const std::size_t n = x_.size();
+    for (std::size_t i = 0; i < n; ++i) {
+      const VolumetricStencil& st = stencil_[i];
+      Eigen::Vector3d F[3];
+      double e = 0.0, eaa[3] = {0.0, 0.0, 0.0};
+      for (int a = 0; a < 3; ++a) {
+        F[a] = (x_[st.plus[a]] - x_[st.minus[a]]) * st.invDistance[a];
+        if (st.invDistance[a] > 0.0) eaa[a] = 0.5 * (F[a].squaredNorm() - 1.0);
+        e += eaa[a];
+      }
+      e = std::clamp(e, -kMaxVolumetricStrain, kMaxVolumetricStrain);
+      for (int a = 0; a < 3; ++a) {
+        const double ea = std::clamp(eaa[a], -kMaxVolumetricStrain, kMaxVolumetricStrain);
+        stencilForce_[i][a] = ((st.weight * e + st.deficit[a] * ea) * st.invDistance[a]) * F[a];
+      }
     }
-    e = std::clamp(e, -kMaxVolumetricStrain, kMaxVolumetricStrain);
-    for (int a = 0; a < 3; ++a) {
-      const double ea = std::clamp(eaa[a], -kMaxVolumetricStrain, kMaxVolumetricStrain);
-      stencilForce_[i][a] = ((st.weight * e + st.deficit[a] * ea) * st.invDistance[a]) * F[a];
+    std::fill(volumetricAccel_.begin(), volumetricAccel_.end(), Eigen::Vector3d::Zero());
+    for (std::size_t i = 0; i < n; ++i) {
+      const VolumetricStencil& st = stencil_[i];
+      for (int a = 0; a < 3; ++a) {
+        volumetricAccel_[st.plus[a]] -= stencilForce_[i][a];
+        volumetricAccel_[st.minus[a]] += stencilForce_[i][a];
+      }
     }
-  }
-  std::fill(volumetricAccel_.begin(), volumetricAccel_.end(), Eigen::Vector3d::Zero());
-  for (std::size_t i = 0; i < n; ++i) {
-    const VolumetricStencil& st = stencil_[i];
-    for (int a = 0; a < 3; ++a) {
-      volumetricAccel_[st.plus[a]] -= stencilForce_[i][a];
-      volumetricAccel_[st.minus[a]] += stencilForce_[i][a];
-    }
-  }
-  const auto& m = lattice_->masses();
-  for (std::size_t i = 0; i < n; ++i) volumetricAccel_[i] /= m[i];
+    const auto& m = lattice_->masses();
+    for (std::size_t i = 0; i < n; ++i) volumetricAccel_[i] /= m[i];
+  });
 }
 
 bool Solver::stiffnessSaturated() const {

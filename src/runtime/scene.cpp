@@ -2,6 +2,7 @@
 
 #include "deformable_flsm/core/resolution.h"
 #include "deformable_flsm/core/section.h"
+#include "deformable_flsm/core/simd.h"
 #include "deformable_flsm/core/voxelizer.h"
 #include "deformable_flsm/runtime/format.h"
 #include "deformable_flsm/runtime/render_mesh.h"
@@ -225,6 +226,7 @@ Scene buildScene(const NodeParams& params, const TriMesh& mesh, int measureSteps
     info.nsPerParticleSubstep =
         1e9 * info.stepSeconds / (static_cast<double>(L.size()) * solverParams.substeps);
     info.cpuFraction = info.stepSeconds * params.realTimeFactor / solverParams.timeStep;
+    info.simd = simdLevelNote();
     solver.reset();
   }
 

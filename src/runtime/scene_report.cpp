@@ -66,7 +66,8 @@ std::string stepLine(const SceneInfo& info, const NodeParams& params) {
   return formatted("step: %.3g s in %d sub-steps (%s solver) measured at %.2f ms = %.0f ns per "
                  "particle-substep; at real-time factor %.3g the solver takes %.0f%% of a core",
                  s.timeStep, s.substeps, toString(s.kind), 1e3 * info.stepSeconds,
-                 info.nsPerParticleSubstep, params.realTimeFactor, 100.0 * info.cpuFraction);
+                 info.nsPerParticleSubstep, params.realTimeFactor, 100.0 * info.cpuFraction) +
+         (info.simd.empty() ? "" : "; " + info.simd);
 }
 
 std::string renderLine(const SceneInfo& info, const NodeParams& params) {

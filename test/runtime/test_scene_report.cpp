@@ -2,6 +2,7 @@
 /// Tests of runtime/scene_report.h: the start-up summary and warnings of a small built scene (the
 /// unit cube on a 10-cell lattice) carry the figures worked out by hand for it.
 #include "deformable_flsm/runtime/scene_report.h"
+#include "deformable_flsm/core/simd.h"
 
 #include "deformable_flsm/runtime/scene.h"
 
@@ -33,6 +34,7 @@ SceneInfo cubeInfo(const NodeParams& p) {
   info.stepSeconds = 0.004;
   info.nsPerParticleSubstep = 1000.0;  // 4 ms over 1000 particles x 4 sub-steps
   info.cpuFraction = 0.24;             // 4 ms of a 1/60 s step at real-time factor 1
+  info.simd = "SIMD: x86-64-v3 (the CPU runs x86-64-v3, the build targets baseline)";
   return info;
 }
 
@@ -49,7 +51,8 @@ TEST(SceneReport, TheSummaryOfTheCubeHasItsFigures) {
       "material: Young's modulus 1.4e+04 Pa, density 1000 kg/m^3 -> alpha 0.0365 per sub-step "
       "(as asked)",
       "step: 0.0167 s in 4 sub-steps (fast solver) measured at 4.00 ms = 1000 ns per "
-      "particle-substep; at real-time factor 1 the solver takes 24% of a core",
+      "particle-substep; at real-time factor 1 the solver takes 24% of a core; SIMD: x86-64-v3 (the CPU "
+      "runs x86-64-v3, the build targets baseline)",
       "render mesh: 12 triangles, 8 vertices",
       "colliders: 1 (with the ground), particles collide as spheres of radius 0.05 m",
       "pinned: 100 particles (box 0: 100)",
@@ -120,6 +123,17 @@ TEST(SceneReport, ARegionRadiusBeyondTheLimitIsReportedClamped) {
             "~particle_budget), to silence this warning.");
   // 21 cells wide on a section of 10: bending stiffer than asked
   EXPECT_NE(sectionWarning(info, p).find("w = 10 cells (21 cells wide)"), std::string::npos);
+}
+
+// A measured step says which instruction set it ran at, chosen at run time for this CPU.
+TEST(SceneReport, TheMeasuredStepNamesTheInstructionSet) {
+  const NodeParams p = cubeParams();
+  const SceneInfo info = buildScene(p, test::boxMesh(Eigen::Vector3d::Ones()), 1).info;
+  EXPECT_EQ(info.simd, simdLevelNote());
+  const std::vector<std::string> lines = sceneSummaryLines(info, p);
+  const std::string step = lines[4];
+  EXPECT_EQ(step.rfind("step: ", 0), 0u) << step;
+  EXPECT_NE(step.find(std::string("SIMD: ") + toString(simdLevel())), std::string::npos) << step;
 }
 
 }  // namespace

@@ -59,6 +59,8 @@ struct SceneInfo {
   double stepSeconds = 0.0, nsPerParticleSubstep = 0.0;
   /// fraction of one core the solver needs at the configured real-time factor
   double cpuFraction = 0.0;
+  /// the instruction set the step was measured at (simdLevelNote(): chosen at run time)
+  std::string simd;
 };
 
 /// The start-up summary, one entry per line (no newlines inside): lattice, regions, thinnest

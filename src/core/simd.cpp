@@ -1,0 +1,99 @@
+#include "deformable_flsm/core/simd.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+
+namespace deformable_flsm {
+
+namespace {
+
+SimdLevel detectCpu() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("x86-64-v4")) return SimdLevel::X86_64_V4;
+  if (__builtin_cpu_supports("x86-64-v3")) return SimdLevel::X86_64_V3;
+#endif
+  return SimdLevel::Baseline;
+}
+
+SimdLevel lower(SimdLevel a, SimdLevel b) { return static_cast<int>(a) < static_cast<int>(b) ? a : b; }
+
+struct Choice {
+  SimdLevel cpu = detectCpu();
+  std::atomic<int> level{static_cast<int>(cpu)};
+  /// why the level is below the CPU's, or that FLSM_SIMD was refused ("" when neither)
+  std::string why;
+
+  Choice() {
+    const char* asked = std::getenv("FLSM_SIMD");
+    SimdLevel parsed = cpu;
+    if (asked != nullptr && *asked != '\0') {
+      if (!parseSimdLevel(asked, parsed)) {
+        why = std::string("; FLSM_SIMD '") + asked + "' ignored (baseline, x86-64-v3 or x86-64-v4)";
+      } else {
+        level = static_cast<int>(lower(parsed, cpu));
+        why = std::string("; lowered by FLSM_SIMD=") + asked;
+      }
+    }
+  }
+};
+
+Choice& choice() {
+  static Choice c;
+  return c;
+}
+
+}  // namespace
+
+const char* toString(SimdLevel level) {
+  switch (level) {
+    case SimdLevel::X86_64_V4: return "x86-64-v4";
+    case SimdLevel::X86_64_V3: return "x86-64-v3";
+    case SimdLevel::Baseline: break;
+  }
+  return "baseline";
+}
+
+bool parseSimdLevel(const char* text, SimdLevel& level) {
+  for (SimdLevel l : {SimdLevel::Baseline, SimdLevel::X86_64_V3, SimdLevel::X86_64_V4}) {
+    if (text != nullptr && std::strcmp(text, toString(l)) == 0) {
+      level = l;
+      return true;
+    }
+  }
+  return false;
+}
+
+SimdLevel cpuSimdLevel() { return choice().cpu; }
+
+SimdLevel builtSimdLevel() {
+#if defined(__AVX512F__) && defined(__AVX512BW__) && defined(__AVX512DQ__) && defined(__AVX512VL__)
+  return SimdLevel::X86_64_V4;
+#elif defined(__AVX2__) && defined(__FMA__)
+  return SimdLevel::X86_64_V3;
+#else
+  return SimdLevel::Baseline;
+#endif
+}
+
+SimdLevel simdLevel() {
+  // the build's own code is never below its own level
+  const int asked = choice().level.load(std::memory_order_relaxed);
+  return static_cast<SimdLevel>(std::max(asked, static_cast<int>(builtSimdLevel())));
+}
+
+SimdLevel setSimdLevel(SimdLevel level) {
+  choice().level.store(static_cast<int>(lower(level, choice().cpu)), std::memory_order_relaxed);
+  return simdLevel();
+}
+
+std::string simdLevelNote() {
+  const Choice& c = choice();
+  return std::string("SIMD: ") + toString(simdLevel()) + " (the CPU runs " + toString(c.cpu) +
+         ", the build targets " + toString(builtSimdLevel()) + ")" + c.why;
+}
+
+}  // namespace deformable_flsm
