@@ -24,7 +24,7 @@ SimdLevel lower(SimdLevel a, SimdLevel b) { return static_cast<int>(a) < static_
 struct Choice {
   SimdLevel cpu = detectCpu();
   std::atomic<int> level{static_cast<int>(cpu)};
-  /// why the level is below the CPU's, or that FLSM_SIMD was refused ("" when neither)
+  /// what FLSM_SIMD asked, or that it was refused ("" when it is not set)
   std::string why;
 
   Choice() {
@@ -35,7 +35,7 @@ struct Choice {
         why = std::string("; FLSM_SIMD '") + asked + "' ignored (baseline, x86-64-v3 or x86-64-v4)";
       } else {
         level = static_cast<int>(lower(parsed, cpu));
-        why = std::string("; lowered by FLSM_SIMD=") + asked;
+        why = std::string("; FLSM_SIMD=") + asked;
       }
     }
   }
