@@ -47,6 +47,7 @@
 #include "deformable_flsm/core/simd.h"
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/voxelizer.h"
+#include "bench_solver_implicit.h"
 
 #include <algorithm>
 #include <chrono>
@@ -132,8 +133,7 @@ std::size_t heapInUse() {
   return info.uordblks + info.hblkhd;
 }
 
-/// The voxelization whose particle count is nearest to `target`.
-Voxelization voxelizeNear(const TriMesh& mesh, std::size_t target) { return nearestResolution(mesh, target).voxels; }
+using bench::voxelizeNear;
 
 /// A solver in a deformed, moving state (so that the rotation extraction does real work), stepped
 /// once, and how many steps make one timed run of it.
@@ -229,305 +229,6 @@ double threadedShare(const Timed& t) {
   return n > 0.0 ? threaded / n : 1.0;
 }
 
-/// The fewest sub-steps of a 1/60 s step at which the explicit step takes the material uncapped
-/// (at most kMaxSubsteps); `p` otherwise as given.
-int substepsNeeded(const std::shared_ptr<const Lattice>& lattice, SolverParams p) {
-  constexpr int kMaxSubsteps = 1000;
-  p.integrator = Integrator::Explicit;
-  int lo = 1, hi = kMaxSubsteps;  // hi: uncapped
-  while (lo < hi) {
-    const int mid = (lo + hi) / 2;
-    p.substeps = mid;
-    if (Solver(lattice, p).stiffnessSaturated())
-      lo = mid + 1;
-    else
-      hi = mid;
-  }
-  return lo;
-}
-
-/// A drop: the object 2 cm above a ground plane, stepped for `seconds`; wall time per particle per
-/// step (ns) and the implicit step's CG iterations per step (mean, largest).
-struct DropRun {
-  double ns = 0.0, cpuNs = 0.0, meanIterations = 0.0;
-  int maxIterations = 0;
-};
-
-/// A ground plane 2 cm below the solver's lowest contact sphere, set as collider "ground".
-void setGroundBelow(Solver& s) {
-  double lowest = s.positions()[0].z();
-  for (const auto& x : s.positions()) lowest = std::min(lowest, x.z());
-  Collider ground;
-  ground.shape.type = ColliderType::HalfSpace;
-  ground.pose.translation() = Eigen::Vector3d(0, 0, lowest - s.contactRadius() - 0.02);
-  s.setCollider("ground", ground);
-}
-
-DropRun drop(const std::shared_ptr<const Lattice>& lattice, const SolverParams& p, double seconds) {
-  Solver s(lattice, p);
-  setGroundBelow(s);
-  const int steps = static_cast<int>(std::lround(seconds / p.timeStep));
-  DropRun out;
-  long total = 0;
-  const auto t0 = std::chrono::steady_clock::now();
-  const std::clock_t c0 = std::clock();
-  for (int i = 0; i < steps; ++i) {
-    s.step();
-    total += s.lastImplicitSolve().iterations;
-    out.maxIterations = std::max(out.maxIterations, s.lastImplicitSolve().iterations);
-  }
-  const double ns = std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count();
-  out.ns = ns / (double(steps) * double(lattice->size()));
-  out.cpuNs = 1e9 * double(std::clock() - c0) / CLOCKS_PER_SEC / (double(steps) * double(lattice->size()));
-  out.meanIterations = double(total) / steps;
-  return out;
-}
-
-void implicitTable(const TriMesh& mesh, std::size_t particles, const Args& args) {
-  std::printf("\nimplicit (1 sub-step) against explicit (the sub-steps it needs for the material), nu 0.3, w %d,\n"
-              "single thread, a drop of 2 cm onto a plane and 2 s of settling; ns per particle per 1/60 s step,\n"
-              "wall clock and CPU time (the process's: on a loaded machine the wall clock counts the waits too)\n"
-              "%10s %10s %8s %14s %14s %8s %12s %12s %8s %8s %7s\n",
-              args.regionHalfWidth, "particles", "E (Pa)", "exp sub", "explicit ns/p", "implicit ns/p", "exp/imp",
-              "exp cpu ns/p", "imp cpu ns/p", "cpu e/i", "CG mean", "CG max");
-  for (std::size_t target : {particles / 4, particles}) {
-    const Voxelization vox = voxelizeNear(mesh, target);
-    auto lattice = std::make_shared<const Lattice>(vox, 1000.0, args.regionHalfWidth);
-    for (double E : args.moduli) {
-      SolverParams p;
-      p.regionHalfWidth = args.regionHalfWidth;
-      p.youngsModulus = E;
-      p.poissonsRatio = 0.3;
-      p.substeps = 1;
-      p.integrator = Integrator::Implicit;
-      const DropRun imp = drop(lattice, p, 2.0);
-      SolverParams e = p;
-      e.integrator = Integrator::Explicit;
-      e.substeps = substepsNeeded(lattice, p);
-      const DropRun exp = args.implicitAlone ? DropRun() : drop(lattice, e, 2.0);
-      std::printf("%10zu %10.3g %8d %14.1f %14.1f %8.2f %12.1f %12.1f %8.2f %8.1f %7d\n", lattice->size(), E, e.substeps,
-                  exp.ns, imp.ns, exp.ns / imp.ns, exp.cpuNs, imp.cpuNs, exp.cpuNs / imp.cpuNs, imp.meanIterations,
-                  imp.maxIterations);
-    }
-  }
-}
-
-/// The bunny's material in the demo and sway tables: E, nu 0, the node's region damping 10 and
-/// ambient damping 0.5, steps of h in `substeps`.
-SolverParams bunnyParams(int w, double E, Integrator integrator, double h, int substeps) {
-  SolverParams p;
-  p.regionHalfWidth = w;
-  p.youngsModulus = E;
-  p.poissonsRatio = 0.0;
-  p.damping = 10.0;
-  p.ambientDamping = 0.5;
-  p.timeStep = h;
-  p.substeps = substeps;
-  p.integrator = integrator;
-  return p;
-}
-
-/// The node's demo on the ground (flsm_demo): the bunny upright, dropped 2 cm onto a ground plane
-/// and left 2.5 s; the 6 particles nearest its top dragged (hard) round the demo's circle for 5 s,
-/// the target moved at 20 Hz; released and left 2.5 s; poked sideways (an impulse of 0.6 object
-/// sizes per second on the particles within a quarter of its size of the centre) and left 2.5 s;
-/// pushed for 0.5 s and left 2 s more, in steps of h seconds (one sub-step each). Per phase: CPU
-/// time per step (this thread's) and CG iterations per step (mean, largest).
-void demoRow(const TriMesh& upright, std::size_t particles, int w, double E, double h) {
-  const Voxelization vox = voxelizeNear(upright, particles);
-  auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
-  Solver s(lattice, bunnyParams(w, E, Integrator::Implicit, h, 1));
-  setGroundBelow(s);
-  std::uint32_t top = 0;
-  for (std::uint32_t k = 0; k < s.positions().size(); ++k)
-    if (s.positions()[k].z() > s.positions()[top].z()) top = k;
-  const auto threadCpu = [] {
-    timespec t;
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-    return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
-  };
-  std::printf("%10zu %3d %9.3g", lattice->size(), w, E);
-  const auto stepsIn = [h](double seconds) { return std::max(1, static_cast<int>(std::lround(seconds / h))); };
-  const auto phase = [&](double seconds, const auto& before) {
-    const int steps = stepsIn(seconds);
-    long total = 0;
-    int most = 0;
-    const double t0 = threadCpu();
-    for (int i = 0; i < steps; ++i) {
-      before(i);
-      s.step();
-      total += s.lastImplicitSolve().iterations;
-      most = std::max(most, s.lastImplicitSolve().iterations);
-    }
-    std::printf(" %8.2f %5.1f %4d", 1e3 * (threadCpu() - t0) / steps, double(total) / steps, most);
-  };
-  const auto nothing = [](int) {};
-  phase(2.5, nothing);
-  Eigen::Vector3d lo = s.positions()[0], hi = lo, centre = Eigen::Vector3d::Zero();
-  for (const auto& x : s.positions()) {
-    lo = lo.cwiseMin(x);
-    hi = hi.cwiseMax(x);
-    centre += x;
-  }
-  centre /= double(s.positions().size());
-  const double size = (hi - lo).norm();
-  const Eigen::Vector3d start = s.positions()[top];
-  s.grab("ear", s.nearestParticles(start, 6), start, 0.0);
-  const double radius = 0.12 * size;
-  const int dragSteps = stepsIn(5.0), every = stepsIn(0.05);  // the target moved at 20 Hz
-  phase(5.0, [&](int i) {
-    if (i % every != 0) return;
-    const double phi = 2.0 * M_PI * i / dragSteps;
-    s.moveDrag("ear", start + Eigen::Vector3d(radius * std::sin(phi), 0.5 * radius * (1.0 - std::cos(phi)),
-                                              0.5 * radius * std::sin(phi)));
-  });
-  s.release("ear");
-  phase(2.5, nothing);
-  const std::vector<std::uint32_t> body = s.particlesWithin(centre, 0.25 * size);
-  const double sphereMass = 1000.0 * 4.0 / 3.0 * M_PI * std::pow(0.25 * size, 3);
-  s.applyImpulse(body, Eigen::Vector3d(0.6 * size * sphereMass, 0, 0));
-  phase(2.5, nothing);
-  s.applyForce(body, Eigen::Vector3d(0, -4.0 * size * sphereMass, 0), 0.5);
-  phase(2.5, nothing);
-  std::printf("\n");
-}
-
-/// The bunny file is Y-up: turned about x so that it stands, as the node's default mesh_rpy does.
-TriMesh standing(const TriMesh& mesh) {
-  TriMesh upright = mesh;
-  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.5 * M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  for (auto& v : upright.vertices) v = R * v;
-  return upright;
-}
-
-void demoTable(const TriMesh& mesh, std::size_t particles, double h) {
-  const TriMesh upright = standing(mesh);
-  std::printf("\nimplicit, the node's demo on the ground (nu 0, region damping 10, ambient damping 0.5, one sub-step\n"
-              "of 1/%.4g s, single thread): dropped and settled, dragged round the demo's circle, released, poked,\n"
-              "pushed; per phase CPU ms per step, CG iterations per step (mean, largest)\n"
-              "%10s %3s %9s %19s %19s %19s %19s %19s\n", 1.0 / h, "particles", "w", "E (Pa)", "drop: ms  CG  max",
-              "drag: ms  CG  max", "released", "poked", "pushed");
-  for (std::size_t n : {particles / 4, particles})
-    for (int w : {1, 2})
-      for (double E : {30e3, 1e6}) demoRow(upright, n, w, E, h);
-}
-
-/// The amplitude a linear mode of angular frequency omega keeps per period under backward Euler
-/// ((1 + (omega h)^2)^(-pi / (omega h))) or BDF2 (its characteristic root r of
-/// (3/2 - i omega h) r^2 - 2 r + 1/2 = 0: |r|^(2 pi / arg r)), at omega h = z.
-double schemeKeeps(ImplicitScheme scheme, double z) {
-  if (scheme == ImplicitScheme::BackwardEuler) return std::pow(1.0 + z * z, -M_PI / z);
-  const std::complex<double> a(1.5, -z), sq = std::sqrt(std::complex<double>(4.0, 0.0) - 2.0 * a);
-  const std::complex<double> r1 = (2.0 + sq) / (2.0 * a), r2 = (2.0 - sq) / (2.0 * a);
-  const std::complex<double> r = std::abs(r1) > std::abs(r2) ? r1 : r2;
-  return std::pow(std::abs(r), 2.0 * M_PI / std::abs(std::arg(r)));
-}
-
-/// The bunny's sway after a poke, with every damping off (region, ambient; no gravity, no ground:
-/// the material and the integrator alone): the 6 particles nearest its top, their mean
-/// displacement along the poke in the object's frame (Solver::rigidFrame()) after each step, for
-/// 1.5 s, fitted by least squares with a damped sinusoid A exp(-s t) cos(omega t + phi) + c (a
-/// search over omega and s, the rest linear): the period 2 pi / omega and the amplitude kept per
-/// period exp(-2 pi s / omega). Prints the row and returns the kept amplitude.
-double swayRow(const TriMesh& upright, std::size_t particles, int w, double E, Integrator integrator,
-               ImplicitScheme scheme, double h, int substeps, double reference) {
-  const Voxelization vox = voxelizeNear(upright, particles);
-  auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
-  SolverParams p = bunnyParams(w, E, integrator, h, substeps);
-  p.damping = 0.0;
-  p.ambientDamping = 0.0;
-  p.gravity.setZero();
-  p.implicitScheme = scheme;
-  Solver s(lattice, p);
-  Eigen::Vector3d lo = s.positions()[0], hi = lo, centre = Eigen::Vector3d::Zero();
-  std::uint32_t top = 0;
-  for (std::uint32_t k = 0; k < s.positions().size(); ++k) {
-    const Eigen::Vector3d& x = s.positions()[k];
-    lo = lo.cwiseMin(x);
-    hi = hi.cwiseMax(x);
-    centre += x;
-    if (x.z() > s.positions()[top].z()) top = k;
-  }
-  centre /= double(s.positions().size());
-  const double size = (hi - lo).norm();
-  const std::vector<std::uint32_t> ear = s.nearestParticles(s.positions()[top], 6);
-  const std::vector<std::uint32_t> body = s.particlesWithin(centre, 0.25 * size);
-  const double sphereMass = 1000.0 * 4.0 / 3.0 * M_PI * std::pow(0.25 * size, 3);
-  s.applyImpulse(body, Eigen::Vector3d(0.6 * size * sphereMass, 0, 0));
-  const auto& x0 = lattice->restPositions();
-  const auto sway = [&] {
-    const Eigen::Isometry3d toRest = s.rigidFrame().inverse();
-    double d = 0.0;
-    for (std::uint32_t k : ear) d += (toRest * s.positions()[k] - x0[k]).x();
-    return d / double(ear.size());
-  };
-  const int steps = static_cast<int>(std::lround(1.5 / h));
-  std::vector<double> t(steps), d(steps);
-  timespec t0, t1;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t0);
-  for (int i = 0; i < steps; ++i) {
-    s.step();
-    t[i] = h * (i + 1);
-    d[i] = sway();
-  }
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t1);
-  const double cpu = double(t1.tv_sec - t0.tv_sec) + 1e-9 * double(t1.tv_nsec - t0.tv_nsec);
-  // the fit: for each (omega, s) the best A cos, B sin and c by linear least squares
-  double best = std::numeric_limits<double>::infinity(), omega = 0.0, decay = 0.0;
-  for (double om = 5.0; om <= 60.0; om += 0.05) {
-    for (double sg = 0.0; sg <= 15.0; sg += 0.02) {
-      Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
-      Eigen::Vector3d Atb = Eigen::Vector3d::Zero();
-      for (int i = 0; i < steps; ++i) {
-        const double e = std::exp(-sg * t[i]);
-        const Eigen::Vector3d row(e * std::cos(om * t[i]), e * std::sin(om * t[i]), 1.0);
-        AtA += row * row.transpose();
-        Atb += row * d[i];
-      }
-      const Eigen::Vector3d c = AtA.ldlt().solve(Atb);
-      double r = 0.0;
-      for (int i = 0; i < steps; ++i) {
-        const double e = std::exp(-sg * t[i]);
-        const double f = c.x() * e * std::cos(om * t[i]) + c.y() * e * std::sin(om * t[i]) + c.z();
-        r += (f - d[i]) * (f - d[i]);
-      }
-      if (r < best) {
-        best = r;
-        omega = om;
-        decay = sg;
-      }
-    }
-  }
-  const double period = 2.0 * M_PI / omega;
-  const double kept = std::exp(-decay * period);
-  const double omegaH = omega * h / substeps;
-  const bool implicit = integrator == Integrator::Implicit;
-  std::printf("%10zu %3d %9.3g %15s %7.4f %9d %9.3f %9.3f %11.3f %12.3f %11.2f\n", lattice->size(), w, E,
-              !implicit ? "explicit" : scheme == ImplicitScheme::Bdf2 ? "implicit bdf2" : "implicit BE", h, substeps,
-              period, kept, implicit ? schemeKeeps(scheme, omegaH) : 1.0, reference > 0.0 ? kept / reference : 1.0,
-              cpu / 1.5);
-  return kept;
-}
-
-/// The sway of the implicit step at 1/240, 1/60 and 1/30 s against the explicit step at 80
-/// sub-steps of 1/60 s (its own loss per period, to other modes, is the reference).
-void swayTable(const TriMesh& mesh, std::size_t particles) {
-  const TriMesh upright = standing(mesh);
-  std::printf("\nthe bunny's sway after a poke, every damping off (nu 0, w = 2, 30 kPa): period (s), amplitude kept\n"
-              "per period, what the scheme keeps of a linear mode at that period, kept over the explicit step's,\n"
-              "CPU s per simulated s (one thread)\n"
-              "%10s %3s %9s %15s %7s %9s %9s %9s %11s %12s %11s\n", "particles", "w", "E (Pa)", "step", "h (s)",
-              "substeps", "period", "kept", "scheme's", "over explicit", "CPU s/s");
-  constexpr auto BE = ImplicitScheme::BackwardEuler;
-  constexpr auto BDF2 = ImplicitScheme::Bdf2;
-  const double reference = swayRow(upright, particles, 2, 30e3, Integrator::Explicit, BE, 1.0 / 60.0, 80, 0.0);
-  for (ImplicitScheme scheme : {BE, BDF2}) {
-    swayRow(upright, particles, 2, 30e3, Integrator::Implicit, scheme, 1.0 / 60.0, 4, reference);
-    swayRow(upright, particles, 2, 30e3, Integrator::Implicit, scheme, 1.0 / 60.0, 1, reference);
-    swayRow(upright, particles, 2, 30e3, Integrator::Implicit, scheme, 1.0 / 30.0, 1, reference);
-  }
-}
-
 /// The fast solver (w = 2, one thread) at each SIMD level this CPU runs and the build has code
 /// for (simd.h), entries in turns: what the run-time choice gives a build for the x86-64 baseline.
 void simdTable(const Voxelization& vox, const Args& args) {
@@ -559,133 +260,188 @@ void simdTable(const Voxelization& vox, const Args& args) {
                 ref < levels.size() ? ratioMedian(*entries[i], *entries[ref]) : 0.0);
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  const Args args = parse(argc, argv);
-  const TriMesh mesh = loadMesh(args.mesh, 0.1);
-  const Voxelization vox = voxelizeNear(mesh, args.particles);
-  std::printf("mesh %s: %zu triangles; lattice %d x %d x %d cells, spacing %.4g m, %zu particles\n%s\n",
-              args.mesh.c_str(), mesh.triangles.size(), vox.dims.x(), vox.dims.y(), vox.dims.z(), vox.spacing,
-              vox.cells.size(), simdLevelNote().c_str());
-  if (args.onlySway) {
-    swayTable(mesh, args.particles);
-    return 0;
-  }
-  if (args.onlyImplicit) {
-    implicitTable(mesh, args.particles, args);
-    demoTable(mesh, args.particles, args.demoStep);
-    return 0;
-  }
+/// Memory a step works in (bytes per particle).
+void memoryLine(const Voxelization& vox) {
+  // Memory a step works in: the solver's per-particle state and scratch arrays, measured as the
+  // heap growth of building one (lattice and mesh excluded), divided by the particle count.
+  auto lattice = std::make_shared<const Lattice>(vox, 1000.0, 2);
+  const std::size_t before = heapInUse();
   {
-    // Memory a step works in: the solver's per-particle state and scratch arrays, measured as the
-    // heap growth of building one (lattice and mesh excluded), divided by the particle count.
-    auto lattice = std::make_shared<const Lattice>(vox, 1000.0, 2);
-    const std::size_t before = heapInUse();
-    {
-      Solver s(lattice, SolverParams());
-      s.step();
-      std::printf("solver memory: %.0f bytes per particle (fast, w=2, after one step)\n",
-                  double(heapInUse() - before) / double(lattice->size()));
-    }
+    Solver s(lattice, SolverParams());
+    s.step();
+    std::printf("solver memory: %.0f bytes per particle (fast, w=2, after one step)\n",
+                double(heapInUse() - before) / double(lattice->size()));
   }
+}
+
+/// The fast and naive solvers at w = 1 to 4.
+void regionWidthTable(const Voxelization& vox, const Args& args) {
   // Every table's entries run in turns (one run each per round, `repeats` rounds): the figures are
   // medians over the rounds, and ratios between entries are medians of the ratios within a round.
   std::printf("single thread, double precision, one sub-step per step, median of %d rounds (entries in turns)\n",
               args.repeats);
   std::printf("%3s %16s %16s %10s\n", "w", "fast ns/p-step", "naive ns/p-step", "naive/fast");
-  {
-    std::vector<std::unique_ptr<Timed>> fast, naive;
-    std::vector<Timed*> all;
-    for (int w = 1; w <= 4; ++w) {
-      auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
-      SolverParams p;
-      p.regionHalfWidth = w;
-      p.substeps = 1;
-      p.kind = SolverKind::Fast;
-      fast.push_back(std::make_unique<Timed>(lattice, p, args.steps));
-      all.push_back(fast.back().get());
-      if (w <= args.maxNaiveW) {
-        p.kind = SolverKind::Naive;
-        naive.push_back(std::make_unique<Timed>(lattice, p, std::max(1, args.steps / (w * w))));
-        all.push_back(naive.back().get());
-      }
+  std::vector<std::unique_ptr<Timed>> fast, naive;
+  std::vector<Timed*> all;
+  for (int w = 1; w <= 4; ++w) {
+    auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
+    SolverParams p;
+    p.regionHalfWidth = w;
+    p.substeps = 1;
+    p.kind = SolverKind::Fast;
+    fast.push_back(std::make_unique<Timed>(lattice, p, args.steps));
+    all.push_back(fast.back().get());
+    if (w <= args.maxNaiveW) {
+      p.kind = SolverKind::Naive;
+      naive.push_back(std::make_unique<Timed>(lattice, p, std::max(1, args.steps / (w * w))));
+      all.push_back(naive.back().get());
     }
-    interleave(all, args.repeats);
-    for (int w = 1; w <= 4; ++w) {
-      const Timed& f = *fast[static_cast<std::size_t>(w - 1)];
-      if (w <= static_cast<int>(naive.size())) {
-        const Timed& n = *naive[static_cast<std::size_t>(w - 1)];
-        std::printf("%3d %16.1f %16.1f %10.1f\n", w, median(f.samples), median(n.samples), ratioMedian(n, f));
-      } else {
-        std::printf("%3d %16.1f %16s %10s\n", w, median(f.samples), "-", "-");
-      }
-    }
-    std::printf("fast w=4 / w=1 cost ratio: %.2f\n", ratioMedian(*fast[3], *fast[0]));
   }
-  simdTable(vox, args);
+  interleave(all, args.repeats);
+  for (int w = 1; w <= 4; ++w) {
+    const Timed& f = *fast[static_cast<std::size_t>(w - 1)];
+    if (w <= static_cast<int>(naive.size())) {
+      const Timed& n = *naive[static_cast<std::size_t>(w - 1)];
+      std::printf("%3d %16.1f %16.1f %10.1f\n", w, median(f.samples), median(n.samples), ratioMedian(n, f));
+    } else {
+      std::printf("%3d %16.1f %16s %10s\n", w, median(f.samples), "-", "-");
+    }
+  }
+  std::printf("fast w=4 / w=1 cost ratio: %.2f\n", ratioMedian(*fast[3], *fast[0]));
+}
 
+/// The fast solver across lattice sizes, 1k to 200k particles.
+void sizeTable(const TriMesh& mesh, const Args& args) {
   std::printf("\nfast, w=2, single thread, across lattice sizes (median and fastest of %d rounds; x 10k: the\n"
               "median of the ratios to the 10k lattice's run in the same round)\n%10s %10s %16s %10s %8s %14s\n",
               args.repeats, "particles", "resolution", "ns/p-step", "fastest", "x 10k", "ms per step");
-  {
-    std::vector<std::unique_ptr<Timed>> sizes;
-    std::vector<int> resolution;
-    std::size_t reference = 0;
-    for (std::size_t target : {1000u, 5000u, 10000u, 50000u, 100000u, 200000u}) {
-      const Voxelization v = voxelizeNear(mesh, target);
-      auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
-      SolverParams q;
-      q.substeps = 1;
-      if (target == 10000u) reference = sizes.size();
-      sizes.push_back(std::make_unique<Timed>(lat, q, stepsPerRun(*lat)));
-      resolution.push_back(v.dims.maxCoeff());
-    }
-    std::vector<Timed*> all;
-    for (auto& t : sizes) all.push_back(t.get());
-    interleave(all, args.repeats);
-    for (std::size_t i = 0; i < sizes.size(); ++i) {
-      const Timed& t = *sizes[i];
-      const double ns = median(t.samples);
-      std::printf("%10zu %10d %16.1f %10.1f %8.2f %14.2f\n", t.lattice->size(), resolution[i], ns, fastest(t.samples),
-                  ratioMedian(t, *sizes[reference]), ns * double(t.lattice->size()) * 1e-6);
-    }
+  std::vector<std::unique_ptr<Timed>> sizes;
+  std::vector<int> resolution;
+  std::size_t reference = 0;
+  for (std::size_t target : {1000u, 5000u, 10000u, 50000u, 100000u, 200000u}) {
+    const Voxelization v = voxelizeNear(mesh, target);
+    auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
+    SolverParams q;
+    q.substeps = 1;
+    if (target == 10000u) reference = sizes.size();
+    sizes.push_back(std::make_unique<Timed>(lat, q, stepsPerRun(*lat)));
+    resolution.push_back(v.dims.maxCoeff());
   }
+  std::vector<Timed*> all;
+  for (auto& t : sizes) all.push_back(t.get());
+  interleave(all, args.repeats);
+  for (std::size_t i = 0; i < sizes.size(); ++i) {
+    const Timed& t = *sizes[i];
+    const double ns = median(t.samples);
+    std::printf("%10zu %10d %16.1f %10.1f %8.2f %14.2f\n", t.lattice->size(), resolution[i], ns, fastest(t.samples),
+                ratioMedian(t, *sizes[reference]), ns * double(t.lattice->size()) * 1e-6);
+  }
+}
+
+/// The fast solver on boxes of full cells.
+void boxTable(const Args& args) {
   // Boxes of full cells: the cost per particle against the particle count with the slices' cross-
   // section held, and against the cross-section with the count held (the region pass's working set
   // is a few slices: 2w + 2 in each direction's ring, and the slice buffers).
   std::printf("\nfast, w=2, single thread, boxes of full cells (median of %d rounds; x first: the median of the\n"
               "ratios to the first box's run in the same round)\n%16s %10s %8s %12s %8s %6s\n",
               args.repeats, "box", "particles", "slice", "ns/p-step", "x first", "bands");
+  std::vector<std::unique_ptr<Timed>> boxes;
+  const std::vector<Eigen::Vector3i> dims = {{20, 20, 25}, {20, 20, 125}, {20, 20, 500},
+                                             {30, 30, 220}, {45, 45, 100}, {64, 64, 49}};
+  for (const Eigen::Vector3i& d : dims) {
+    Voxelization v;
+    v.spacing = 0.01;
+    v.dims = d;
+    v.closed = true;
+    for (int k = 0; k < d.z(); ++k)
+      for (int j = 0; j < d.y(); ++j)
+        for (int i = 0; i < d.x(); ++i) v.cells.emplace_back(i, j, k);
+    v.fillFraction.assign(v.cells.size(), 1.0);
+    auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
+    SolverParams q;
+    q.substeps = 1;
+    boxes.push_back(std::make_unique<Timed>(lat, q, stepsPerRun(*lat)));
+  }
+  std::vector<Timed*> all;
+  for (auto& t : boxes) all.push_back(t.get());
+  interleave(all, args.repeats);
+  for (std::size_t i = 0; i < boxes.size(); ++i) {
+    const Timed& t = *boxes[i];
+    const Eigen::Vector3i& d = dims[i];
+    const std::string name = std::to_string(d.x()) + " x " + std::to_string(d.y()) + " x " + std::to_string(d.z());
+    std::printf("%16s %10zu %8d %12.1f %8.2f %6zu\n", name.c_str(), t.lattice->size(), d.x() * d.y(),
+                median(t.samples), ratioMedian(t, *boxes[0]), SliceStreamSummer(*t.lattice).bandCount());
+  }
+}
+
+/// A row of the busy table: one thread and every thread beside another process's busy loop.
+struct BusyRow {
+  std::size_t particles;
+  double one, all, cost, threaded, diff, msThreads, msOne;
+};
+
+/// The threads' quiet row for lattice `v` (printed) and their busy row (returned), `hw` threads.
+BusyRow threadRow(const TriMesh& mesh, const Voxelization& v, const Args& args, unsigned hw) {
+  auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
+  SolverParams p;
+  p.substeps = 1;
+  // At least 20 steps a run: the governor's probes are a few steps in a hundred.
+  const int steps = std::max(20, static_cast<int>(1e8 / (400.0 * double(lat->size()))));
+  Timed one(lat, p, steps), oneBusy(lat, p, steps);
+  // The machine's ceiling: hw independent one-thread solvers of 1/hw of the particles each (the
+  // same state and work in all as the one lattice), one after the other, then at once.
+  const Voxelization part = voxelizeNear(mesh, lat->size() / hw);
+  auto partLattice = std::make_shared<const Lattice>(part, 1000.0, 2);
+  std::vector<std::unique_ptr<Timed>> apart;
+  for (unsigned k = 0; k < hw; ++k) apart.push_back(std::make_unique<Timed>(partLattice, p, steps));
+  p.threads = static_cast<int>(hw);
+  Timed all(lat, p, steps), allBusy(lat, p, steps);
+  one.warmUp();
+  all.warmUp();
+  for (auto& a : apart) a->warmUp();
   {
-    std::vector<std::unique_ptr<Timed>> boxes;
-    const std::vector<Eigen::Vector3i> dims = {{20, 20, 25}, {20, 20, 125}, {20, 20, 500},
-                                               {30, 30, 220}, {45, 45, 100}, {64, 64, 49}};
-    for (const Eigen::Vector3i& d : dims) {
-      Voxelization v;
-      v.spacing = 0.01;
-      v.dims = d;
-      v.closed = true;
-      for (int k = 0; k < d.z(); ++k)
-        for (int j = 0; j < d.y(); ++j)
-          for (int i = 0; i < d.x(); ++i) v.cells.emplace_back(i, j, k);
-      v.fillFraction.assign(v.cells.size(), 1.0);
-      auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
-      SolverParams q;
-      q.substeps = 1;
-      boxes.push_back(std::make_unique<Timed>(lat, q, stepsPerRun(*lat)));
-    }
-    std::vector<Timed*> all;
-    for (auto& t : boxes) all.push_back(t.get());
-    interleave(all, args.repeats);
-    for (std::size_t i = 0; i < boxes.size(); ++i) {
-      const Timed& t = *boxes[i];
-      const Eigen::Vector3i& d = dims[i];
-      const std::string name = std::to_string(d.x()) + " x " + std::to_string(d.y()) + " x " + std::to_string(d.z());
-      std::printf("%16s %10zu %8d %12.1f %8.2f %6zu\n", name.c_str(), t.lattice->size(), d.x() * d.y(),
-                  median(t.samples), ratioMedian(t, *boxes[0]), SliceStreamSummer(*t.lattice).bandCount());
+    const BusyLoop busy;
+    oneBusy.warmUp();
+    allBusy.warmUp();
+  }
+  std::vector<double> machine, ofMachine;
+  for (int r = 0; r < 3 * args.repeats; ++r) {
+    one.run();
+    all.run();
+    const auto t0 = std::chrono::steady_clock::now();
+    for (auto& a : apart) a->run();
+    const auto t1 = std::chrono::steady_clock::now();
+    std::vector<std::thread> others;
+    for (std::size_t k = 1; k < apart.size(); ++k) others.emplace_back([&apart, k] { apart[k]->run(); });
+    apart[0]->run();
+    for (auto& t : others) t.join();
+    const auto t2 = std::chrono::steady_clock::now();
+    machine.push_back(std::chrono::duration<double>(t1 - t0).count() / std::chrono::duration<double>(t2 - t1).count());
+    ofMachine.push_back(one.samples.back() / all.samples.back() / machine.back());
+    {
+      const BusyLoop busy;
+      oneBusy.run();
+      allBusy.run();
     }
   }
+  double diff = 0.0;
+  for (std::size_t i = 0; i < lat->size(); ++i)
+    diff = std::max(diff, (one.solver->positions()[i] - all.solver->positions()[i]).norm());
+  std::printf("%10zu %14.1f %14.1f %8.2fx %8.2fx %8.2fx %9.0f%% %8.0f%% %22.3g\n", lat->size(), median(one.samples),
+              median(all.samples), ratioMedian(one, all), fastest(one.samples) / fastest(all.samples),
+              median(machine), 100.0 * median(ofMachine), 100.0 * threadedShare(all), diff);
+  double busyDiff = 0.0;
+  for (std::size_t i = 0; i < lat->size(); ++i)
+    busyDiff = std::max(busyDiff, (oneBusy.solver->positions()[i] - allBusy.solver->positions()[i]).norm());
+  const ThreadGovernor* g = allBusy.solver->threadGovernor();
+  return {lat->size(), median(oneBusy.samples), median(allBusy.samples), ratioMedian(allBusy, oneBusy),
+          threadedShare(allBusy), busyDiff, g ? 1e3 * g->recentSeconds(true) : 0.0,
+          g ? 1e3 * g->recentSeconds(false) : 0.0};
+}
+
+/// Every hardware thread against one, quiet and beside a busy loop.
+void threadTables(const TriMesh& mesh, const Voxelization& vox, const Args& args) {
   // Threads: every hardware thread against one, at the benchmark's size and at 50k particles,
   // on the machine as it is (quiet, one hopes) and with a busy loop of our own in another
   // process (one core taken), in the same rounds. The threaded solvers choose per step between
@@ -701,69 +457,9 @@ int main(int argc, char** argv) {
               "the governor ran on the threads)\n%10s %14s %14s %9s %9s %9s %10s %9s %22s\n",
               hw, hw, hw, "particles", "1: ns/p-step", "all: ns/p-step", "speed-up", "fastest", "machine", "of machine",
               "threaded", "max position difference");
-  struct BusyRow {
-    std::size_t particles;
-    double one, all, cost, threaded, diff, msThreads, msOne;
-  };
   std::vector<BusyRow> busyRows;
-  for (std::size_t target : {args.particles, std::size_t{50000}}) {
-    const Voxelization v = target == args.particles ? vox : voxelizeNear(mesh, target);
-    auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
-    SolverParams p;
-    p.substeps = 1;
-    // At least 20 steps a run: the governor's probes are a few steps in a hundred.
-    const int steps = std::max(20, static_cast<int>(1e8 / (400.0 * double(lat->size()))));
-    Timed one(lat, p, steps), oneBusy(lat, p, steps);
-    // The machine's ceiling: hw independent one-thread solvers of 1/hw of the particles each (the
-    // same state and work in all as the one lattice), one after the other, then at once.
-    const Voxelization part = voxelizeNear(mesh, lat->size() / hw);
-    auto partLattice = std::make_shared<const Lattice>(part, 1000.0, 2);
-    std::vector<std::unique_ptr<Timed>> apart;
-    for (unsigned k = 0; k < hw; ++k) apart.push_back(std::make_unique<Timed>(partLattice, p, steps));
-    p.threads = static_cast<int>(hw);
-    Timed all(lat, p, steps), allBusy(lat, p, steps);
-    one.warmUp();
-    all.warmUp();
-    for (auto& a : apart) a->warmUp();
-    {
-      const BusyLoop busy;
-      oneBusy.warmUp();
-      allBusy.warmUp();
-    }
-    std::vector<double> machine, ofMachine;
-    for (int r = 0; r < 3 * args.repeats; ++r) {
-      one.run();
-      all.run();
-      const auto t0 = std::chrono::steady_clock::now();
-      for (auto& a : apart) a->run();
-      const auto t1 = std::chrono::steady_clock::now();
-      std::vector<std::thread> others;
-      for (std::size_t k = 1; k < apart.size(); ++k) others.emplace_back([&apart, k] { apart[k]->run(); });
-      apart[0]->run();
-      for (auto& t : others) t.join();
-      const auto t2 = std::chrono::steady_clock::now();
-      machine.push_back(std::chrono::duration<double>(t1 - t0).count() / std::chrono::duration<double>(t2 - t1).count());
-      ofMachine.push_back(one.samples.back() / all.samples.back() / machine.back());
-      {
-        const BusyLoop busy;
-        oneBusy.run();
-        allBusy.run();
-      }
-    }
-    double diff = 0.0;
-    for (std::size_t i = 0; i < lat->size(); ++i)
-      diff = std::max(diff, (one.solver->positions()[i] - all.solver->positions()[i]).norm());
-    std::printf("%10zu %14.1f %14.1f %8.2fx %8.2fx %8.2fx %9.0f%% %8.0f%% %22.3g\n", lat->size(), median(one.samples),
-                median(all.samples), ratioMedian(one, all), fastest(one.samples) / fastest(all.samples),
-                median(machine), 100.0 * median(ofMachine), 100.0 * threadedShare(all), diff);
-    double busyDiff = 0.0;
-    for (std::size_t i = 0; i < lat->size(); ++i)
-      busyDiff = std::max(busyDiff, (oneBusy.solver->positions()[i] - allBusy.solver->positions()[i]).norm());
-    const ThreadGovernor* g = allBusy.solver->threadGovernor();
-    busyRows.push_back({lat->size(), median(oneBusy.samples), median(allBusy.samples), ratioMedian(allBusy, oneBusy),
-                        threadedShare(allBusy), busyDiff, g ? 1e3 * g->recentSeconds(true) : 0.0,
-                        g ? 1e3 * g->recentSeconds(false) : 0.0});
-  }
+  for (std::size_t target : {args.particles, std::size_t{50000}})
+    busyRows.push_back(threadRow(mesh, target == args.particles ? vox : voxelizeNear(mesh, target), args, hw));
   std::printf("\nthe same with another process spinning on one core (started before and stopped after each\n"
               "entry's run, in the same rounds as above; cost: median of the all / 1 time ratios within a round;\n"
               "governor: the threaded solver's recent median step on the threads and on one thread)\n"
@@ -772,8 +468,34 @@ int main(int argc, char** argv) {
   for (const BusyRow& b : busyRows)
     std::printf("%10zu %14.1f %14.1f %8.2fx %8.0f%% %11.2f / %.2f ms %22.3g\n", b.particles, b.one, b.all, b.cost,
                 100.0 * b.threaded, b.msThreads, b.msOne, b.diff);
-  implicitTable(mesh, args.particles, args);
-  demoTable(mesh, args.particles, args.demoStep);
-  swayTable(mesh, args.particles);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args args = parse(argc, argv);
+  const TriMesh mesh = loadMesh(args.mesh, 0.1);
+  const Voxelization vox = voxelizeNear(mesh, args.particles);
+  std::printf("mesh %s: %zu triangles; lattice %d x %d x %d cells, spacing %.4g m, %zu particles\n%s\n",
+              args.mesh.c_str(), mesh.triangles.size(), vox.dims.x(), vox.dims.y(), vox.dims.z(), vox.spacing,
+              vox.cells.size(), simdLevelNote().c_str());
+  if (args.onlySway) {
+    bench::swayTable(mesh, args.particles);
+    return 0;
+  }
+  if (args.onlyImplicit) {
+    bench::implicitTable(mesh, args.particles, args.regionHalfWidth, args.moduli, args.implicitAlone);
+    bench::demoTable(mesh, args.particles, args.demoStep);
+    return 0;
+  }
+  memoryLine(vox);
+  regionWidthTable(vox, args);
+  simdTable(vox, args);
+  sizeTable(mesh, args);
+  boxTable(args);
+  threadTables(mesh, vox, args);
+  bench::implicitTable(mesh, args.particles, args.regionHalfWidth, args.moduli, args.implicitAlone);
+  bench::demoTable(mesh, args.particles, args.demoStep);
+  bench::swayTable(mesh, args.particles);
   return 0;
 }

@@ -1,5 +1,7 @@
 #include "deformable_flsm/core/simd.h"
 
+#include "simd_dispatch.h"
+
 #include <algorithm>
 #include <atomic>
 #include <cstdlib>
@@ -11,7 +13,7 @@ namespace deformable_flsm {
 namespace {
 
 SimdLevel detectCpu() {
-#if defined(__x86_64__) && defined(__GNUC__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
   __builtin_cpu_init();
   if (__builtin_cpu_supports("x86-64-v4")) return SimdLevel::X86_64_V4;
   if (__builtin_cpu_supports("x86-64-v3")) return SimdLevel::X86_64_V3;
@@ -21,9 +23,18 @@ SimdLevel detectCpu() {
 
 SimdLevel lower(SimdLevel a, SimdLevel b) { return static_cast<int>(a) < static_cast<int>(b) ? a : b; }
 
+/// The highest level this build has code for: its own, or an entry of simd_dispatch.h above it.
+SimdLevel reachable() {
+  if (FLSM_SIMD_V4_ENTRY) return SimdLevel::X86_64_V4;
+  if (FLSM_SIMD_V3_ENTRY) return SimdLevel::X86_64_V3;
+  return builtSimdLevel();
+}
+
 struct Choice {
   SimdLevel cpu = detectCpu();
-  std::atomic<int> level{static_cast<int>(cpu)};
+  /// the CPU's level, capped at what the build has code for
+  SimdLevel top = lower(cpu, reachable());
+  std::atomic<int> level{static_cast<int>(top)};
   /// what FLSM_SIMD asked, or that it was refused ("" when it is not set)
   std::string why;
 
@@ -34,7 +45,7 @@ struct Choice {
       if (!parseSimdLevel(asked, parsed)) {
         why = std::string("; FLSM_SIMD '") + asked + "' ignored (baseline, x86-64-v3 or x86-64-v4)";
       } else {
-        level = static_cast<int>(lower(parsed, cpu));
+        level = static_cast<int>(lower(parsed, top));
         why = std::string("; FLSM_SIMD=") + asked;
       }
     }
@@ -86,7 +97,7 @@ SimdLevel simdLevel() {
 }
 
 SimdLevel setSimdLevel(SimdLevel level) {
-  choice().level.store(static_cast<int>(lower(level, choice().cpu)), std::memory_order_relaxed);
+  choice().level.store(static_cast<int>(lower(level, choice().top)), std::memory_order_relaxed);
   return simdLevel();
 }
 
@@ -95,5 +106,15 @@ std::string simdLevelNote() {
   return std::string("SIMD: ") + toString(simdLevel()) + " (the CPU runs " + toString(c.cpu) +
          ", the build targets " + toString(builtSimdLevel()) + ")" + c.why;
 }
+
+namespace detail {
+
+double fusedMultiplyAddProbe(double a, double c) {
+  double r = 0.0;
+  withSimd([&] { r = a * a - c; });
+  return r;
+}
+
+}  // namespace detail
 
 }  // namespace deformable_flsm

@@ -1,9 +1,10 @@
 /// @file simd_dispatch.h
 /// withSimd(f): runs f compiled for the level simdLevel() chooses (private to the core). Each
 /// level's entry is f inlined whole (gnu::flatten) into a function compiled for that level
-/// (gnu::target), so that the kernel and what it inlines (the lanes of lanes.h, Eigen's small
-/// matrices) use that level's registers and FMA; a call f makes that is not inlined runs the
-/// build's own code. Where the build already targets a level, no entry below it is made.
+/// (gnu::target), so that the kernel and what it inlines use that level's instructions: the
+/// vector types (lanes.h, the sliding window's accumulators) its registers, and FMA throughout
+/// (Eigen chooses its packets by the build's macros, so its own vectors stay 128-bit); a call f
+/// makes that is not inlined runs the build's own code.
 #pragma once
 
 #include "deformable_flsm/core/simd.h"
@@ -13,13 +14,12 @@
 namespace deformable_flsm {
 namespace detail {
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#if !(defined(__AVX512F__) && defined(__AVX512BW__) && defined(__AVX512DQ__) && defined(__AVX512VL__))
+// Entries only in a build for the baseline (no AVX): a build for a wider target (-march=native,
+// -march=znver2, ...) runs its own code, since GCC does not inline a kernel compiled for one
+// -march into a function for another (the entry would run the build's code under a wider name).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__AVX__)
 #define FLSM_SIMD_V4_ENTRY 1
-#endif
-#if !(defined(__AVX2__) && defined(__FMA__))
 #define FLSM_SIMD_V3_ENTRY 1
-#endif
 #endif
 #ifndef FLSM_SIMD_V4_ENTRY
 #define FLSM_SIMD_V4_ENTRY 0

@@ -8,6 +8,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <memory>
 #include <vector>
 
@@ -62,16 +64,34 @@ TEST(Simd, LevelsHaveNamesBothWays) {
 // Never above the CPU (the instructions would fault), never below the build (no code there).
 TEST(Simd, TheLevelStaysWithinTheCpuAndTheBuild) {
   const LevelGuard guard;
-  const int cpu = static_cast<int>(deformable_flsm::cpuSimdLevel());
   const int built = static_cast<int>(deformable_flsm::builtSimdLevel());
-  EXPECT_LE(built, cpu) << "a build for a level above the CPU's would not have started";
+  // a build for the baseline has code up to v4 (x86-64, GCC), any other only its own
+  const int cpu = static_cast<int>(deformable_flsm::cpuSimdLevel());
+  const int top = std::min(cpu, built == 0 && deformable_flsm::setSimdLevel(SimdLevel::X86_64_V4) != SimdLevel::Baseline
+                                    ? 4
+                                    : built);
   for (SimdLevel level : kLevels) {
     const int set = static_cast<int>(deformable_flsm::setSimdLevel(level));
-    EXPECT_EQ(set, std::max(built, std::min(static_cast<int>(level), cpu))) << deformable_flsm::toString(level);
+    EXPECT_EQ(set, std::max(built, std::min(static_cast<int>(level), top))) << deformable_flsm::toString(level);
     EXPECT_EQ(set, static_cast<int>(deformable_flsm::simdLevel()));
   }
   const std::string note = deformable_flsm::simdLevelNote();
   EXPECT_NE(note.find(deformable_flsm::toString(deformable_flsm::cpuSimdLevel())), std::string::npos) << note;
+}
+
+// Each level runs its own code: FMA rounds a * a - c once where the level has it (x86-64-v3 and
+// v4), twice in a build for the baseline at its own level. A dispatch that ran the build's code
+// at every level would fail here.
+TEST(Simd, EachLevelRunsItsOwnInstructions) {
+  const LevelGuard guard;
+  const double a = 1.0 + std::ldexp(1.0, -30), c = 1.0 + std::ldexp(1.0, -29);
+  for (SimdLevel level : kLevels) {
+    if (!runs(level) || deformable_flsm::setSimdLevel(level) != level) continue;
+    const double r = deformable_flsm::detail::fusedMultiplyAddProbe(a, c);
+    const bool fused = level != SimdLevel::Baseline || deformable_flsm::builtSimdLevel() != SimdLevel::Baseline;
+    std::printf("[ simd ] %s: a * a - c = %g (%s)\n", deformable_flsm::toString(level), r, fused ? "fused" : "rounded twice");
+    EXPECT_EQ(r, fused ? std::ldexp(1.0, -60) : 0.0) << deformable_flsm::toString(level);
+  }
 }
 
 // Every level the CPU runs moves the block as the CPU's own level does, within round-off grown

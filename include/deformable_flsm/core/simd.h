@@ -3,7 +3,7 @@
 /// lands on: a package built for the x86-64 baseline (as a binary package is, and as a plain
 /// `catkin_make` builds it) runs its region pass, rotation extraction and per-particle update
 /// with AVX2 and FMA (x86-64-v3) or AVX-512 (x86-64-v4) where the CPU has them, as a build with
-/// `-march=native` does. A build that already targets the CPU's level uses its own code.
+/// `-march=native` does. A build for any wider target (`-march=native`) uses its own code.
 ///
 /// The environment variable FLSM_SIMD (`baseline`, `x86-64-v3`, `x86-64-v4`) lowers the level at
 /// start-up (never above what the CPU runs); setSimdLevel() does the same from code.
@@ -27,14 +27,23 @@ SimdLevel cpuSimdLevel();
 /// The level this build's own code targets (its compiler flags): what runs where the CPU has no
 /// more, and where the kernels are not dispatched.
 SimdLevel builtSimdLevel();
-/// The level the kernels run at: cpuSimdLevel(), lowered by FLSM_SIMD when that is set and valid
-/// (an invalid value is ignored and simdLevelNote() says so), or by setSimdLevel(); never below
-/// builtSimdLevel() (a build for the CPU's level has no code below it).
+/// The level the kernels run at: cpuSimdLevel() (capped at the highest the build has code for:
+/// a build for the baseline has x86-64-v3 and v4 besides its own, any other build only its own),
+/// lowered by FLSM_SIMD when that is set and valid (an invalid value is ignored and
+/// simdLevelNote() says so), or by setSimdLevel(); never below builtSimdLevel().
 SimdLevel simdLevel();
-/// Sets the level the kernels run at, capped at cpuSimdLevel(); returns simdLevel() after it. For
-/// tests and benchmarks: set it before stepping, not while another thread steps.
+/// Sets the level the kernels run at, capped at cpuSimdLevel() and at the highest level the build
+/// has code for; returns simdLevel() after it. For tests and benchmarks: set it before stepping,
+/// not while another thread steps.
 SimdLevel setSimdLevel(SimdLevel level);
-/// One line for a start-up log: the level in use, the CPU's and the build's, and why if lowered.
+/// One line for a start-up log: the level in use, the CPU's and the build's, and what FLSM_SIMD
+/// asked.
 std::string simdLevelNote();
+
+namespace detail {
+/// a * a - c computed at simdLevel(): rounded twice at a level without FMA, once with it (for
+/// tests: a = 1 + 2^-30, c = 1 + 2^-29 gives 0 without FMA and 2^-60 with it).
+double fusedMultiplyAddProbe(double a, double c);
+}  // namespace detail
 
 }  // namespace deformable_flsm
