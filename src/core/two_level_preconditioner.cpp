@@ -35,6 +35,64 @@ Eigen::Matrix3d crossMatrix(const Eigen::Vector3d& v) {
 
 int floorDiv(int a, int b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
+/// The aggregates: cubes of s cells from the lattice's lowest corner, numbered in the order their
+/// first particle comes.
+struct AggregateGrid {
+  int s = 0, count = 0;
+  Eigen::Vector3i lo = Eigen::Vector3i::Zero(), dims = Eigen::Vector3i::Zero();
+  std::vector<int> grid;  // per cube: its aggregate, -1 when empty
+  int at(const Eigen::Vector3i& c) const {
+    return grid[static_cast<std::size_t>(c.x() + dims.x() * (c.y() + dims.y() * c.z()))];
+  }
+};
+
+/// The finest aggregates (s >= 2w: a region's 2w + 1 cells meet at most two per axis) within the
+/// budget of maxAggregates.
+AggregateGrid aggregateGrid(const std::vector<Eigen::Vector3i>& cells, int w, int maxAggregates) {
+  AggregateGrid g;
+  Eigen::Vector3i hi = Eigen::Vector3i::Zero();
+  if (!cells.empty()) g.lo = hi = cells[0];
+  for (const Eigen::Vector3i& c : cells) {
+    g.lo = g.lo.cwiseMin(c);
+    hi = hi.cwiseMax(c);
+  }
+  for (g.s = std::max(2, 2 * w);; ++g.s) {
+    g.dims = (hi - g.lo) / g.s + Eigen::Vector3i::Ones();
+    g.grid.assign(static_cast<std::size_t>(g.dims.prod()), -1);
+    g.count = 0;
+    for (const Eigen::Vector3i& c : cells) {
+      const Eigen::Vector3i q = (c - g.lo) / g.s;
+      int& slot = g.grid[static_cast<std::size_t>(q.x() + g.dims.x() * (q.y() + g.dims.y() * q.z()))];
+      if (slot < 0) slot = g.count++;
+    }
+    if (g.count <= maxAggregates) return g;
+  }
+}
+
+/// The aggregates' rest centres (mass-weighted) and the particle nearest each: its region's
+/// rotation turns the aggregate.
+void centresAndRepresentatives(const std::vector<int>& aggregate, const std::vector<double>& massFractions,
+                               const std::vector<Eigen::Vector3d>& restCentered, int count,
+                               std::vector<Eigen::Vector3d>& center, std::vector<int>& representative) {
+  const std::size_t n = aggregate.size(), m = static_cast<std::size_t>(count);
+  center.assign(m, Eigen::Vector3d::Zero());
+  std::vector<double> mass(m, 0.0), nearest(m, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    center[static_cast<std::size_t>(aggregate[i])] += massFractions[i] * restCentered[i];
+    mass[static_cast<std::size_t>(aggregate[i])] += massFractions[i];
+  }
+  for (std::size_t a = 0; a < m; ++a) center[a] /= mass[a];
+  representative.assign(m, -1);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t a = static_cast<std::size_t>(aggregate[i]);
+    const double d = (restCentered[i] - center[a]).squaredNorm();
+    if (representative[a] < 0 || d < nearest[a]) {
+      representative[a] = static_cast<int>(i);
+      nearest[a] = d;
+    }
+  }
+}
+
 }  // namespace
 
 TwoLevelPreconditioner::TwoLevelPreconditioner(const Lattice& lattice, const std::vector<double>& massFractions,
@@ -52,52 +110,17 @@ TwoLevelPreconditioner::TwoLevelPreconditioner(const Lattice& lattice, const std
   const std::vector<Eigen::Vector3i>& cells = lattice.cells();
   const std::size_t n = cells.size();
   const int w = lattice.regionHalfWidth();
-  Eigen::Vector3i lo = Eigen::Vector3i::Constant(0), hi = Eigen::Vector3i::Constant(0);
-  if (n > 0) lo = hi = cells[0];
-  for (const Eigen::Vector3i& c : cells) {
-    lo = lo.cwiseMin(c);
-    hi = hi.cwiseMax(c);
-  }
-  // the finest aggregates (s >= 2w: a region's 2w + 1 cells meet at most two per axis) within
-  // the budget
-  std::vector<int> grid;
-  Eigen::Vector3i dims;
-  for (s_ = std::max(2, 2 * w);; ++s_) {
-    dims = (hi - lo) / s_ + Eigen::Vector3i::Ones();
-    grid.assign(static_cast<std::size_t>(dims.prod()), -1);
-    count_ = 0;
-    for (const Eigen::Vector3i& c : cells) {
-      const Eigen::Vector3i g = (c - lo) / s_;
-      int& slot = grid[static_cast<std::size_t>(g.x() + dims.x() * (g.y() + dims.y() * g.z()))];
-      if (slot < 0) slot = count_++;
-    }
-    if (count_ <= maxAggregates) break;
-  }
+  const AggregateGrid g = aggregateGrid(cells, w, maxAggregates);
+  s_ = g.s;
+  count_ = g.count;
   aggregate_.resize(n);
   parity_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3i g = (cells[i] - lo) / s_;
-    aggregate_[i] = grid[static_cast<std::size_t>(g.x() + dims.x() * (g.y() + dims.y() * g.z()))];
-    parity_[i] = static_cast<char>((g.x() & 1) | ((g.y() & 1) << 1) | ((g.z() & 1) << 2));
+    const Eigen::Vector3i c = (cells[i] - g.lo) / s_;
+    aggregate_[i] = g.at(c);
+    parity_[i] = static_cast<char>((c.x() & 1) | ((c.y() & 1) << 1) | ((c.z() & 1) << 2));
   }
-  // the aggregates' rest centres and the particle nearest each: its region's rotation turns the
-  // aggregate
-  center_.assign(static_cast<std::size_t>(count_), Eigen::Vector3d::Zero());
-  std::vector<double> mass(static_cast<std::size_t>(count_), 0.0), nearest(static_cast<std::size_t>(count_), 0.0);
-  for (std::size_t i = 0; i < n; ++i) {
-    center_[static_cast<std::size_t>(aggregate_[i])] += massFractions[i] * restCentered[i];
-    mass[static_cast<std::size_t>(aggregate_[i])] += massFractions[i];
-  }
-  for (int a = 0; a < count_; ++a) center_[static_cast<std::size_t>(a)] /= mass[static_cast<std::size_t>(a)];
-  representative_.assign(static_cast<std::size_t>(count_), -1);
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::size_t a = static_cast<std::size_t>(aggregate_[i]);
-    const double d = (restCentered[i] - center_[a]).squaredNorm();
-    if (representative_[a] < 0 || d < nearest[a]) {
-      representative_[a] = static_cast<int>(i);
-      nearest[a] = d;
-    }
-  }
+  centresAndRepresentatives(aggregate_, massFractions, restCentered, count_, center_, representative_);
   rotates_.assign(static_cast<std::size_t>(count_), 0);
   aggregateRotation_.assign(static_cast<std::size_t>(count_), Eigen::Matrix3d::Identity());
   offset_.assign(n, Eigen::Vector3d::Zero());
@@ -106,12 +129,12 @@ TwoLevelPreconditioner::TwoLevelPreconditioner(const Lattice& lattice, const std
   regionAggregate_.assign(n * kPerRegion, -1);
   for (std::size_t r = 0; r < n; ++r) {
     Eigen::Vector3i first;
-    for (int a = 0; a < 3; ++a) first[a] = floorDiv(cells[r][a] - w - lo[a], s_);
+    for (int a = 0; a < 3; ++a) first[a] = floorDiv(cells[r][a] - w - g.lo[a], s_);
     for (int k = 0; k < kPerRegion; ++k) {
-      Eigen::Vector3i g;
-      for (int a = 0; a < 3; ++a) g[a] = ((first[a] & 1) == ((k >> a) & 1)) ? first[a] : first[a] + 1;
-      if ((g.array() < 0).any() || (g.array() >= dims.array()).any()) continue;
-      regionAggregate_[r * kPerRegion + k] = grid[static_cast<std::size_t>(g.x() + dims.x() * (g.y() + dims.y() * g.z()))];
+      Eigen::Vector3i c;
+      for (int a = 0; a < 3; ++a) c[a] = ((first[a] & 1) == ((k >> a) & 1)) ? first[a] : first[a] + 1;
+      if ((c.array() < 0).any() || (c.array() >= g.dims.array()).any()) continue;
+      regionAggregate_[r * kPerRegion + k] = g.at(c);
     }
   }
   regionAggMass_.assign(n * kPerRegion, 0.0);
