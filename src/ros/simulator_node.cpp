@@ -68,6 +68,16 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   });
 
   checkClock();
+  startLoop(scene);
+  makeValidators();
+  makeReporter();
+  makeInterfaces();
+  reporter_->warnAboutScene();
+  makeSensors();
+  startThreads();
+}
+
+void SimulatorNode::startLoop(WorldScene& scene) {
   for (const TactileSpec& t : params_.tactile) {
     try {
       scene.world->recordContacts(t.collider, true);
@@ -87,7 +97,9 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
     clockPub_ = nh_.advertise<rosgraph_msgs::Clock>("/clock", kClockQueue);
     loop_->setTickObserver([this](double time, const Snapshot* state) { onTick(time, state); });
   }
+}
 
+void SimulatorNode::makeValidators() {
   commands_.resize(objects_.size());
   for (std::size_t k = 0; k < objects_.size(); ++k) {
     const Lattice& L = *objects_[k].lattice;
@@ -97,7 +109,9 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
                std::string& why) { return lookupTransform(frame, stamp, T, why); },
         [this, k] { return loop_->centerOfMass(k); });
   }
+}
 
+void SimulatorNode::makeReporter() {
   const SceneObject& first = objects_.front();
   publisher_ = std::make_unique<StatePublisher>(pnh_, params_, objects_, namespaced_, *stats_);
   // The pins of the whole scene: a ~pinned box holds nothing only if it holds no object's
@@ -114,6 +128,9 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
         postLog(severity == ProblemSeverity::Error ? LogLevel::Error : LogLevel::Warn, line);
       });
   reporter_->setResetCause([this] { return loop_->lastResetCause(); });
+}
+
+void SimulatorNode::makeInterfaces() {
   advertise();
   stateNh_.setCallbackQueue(&stateQueue_);
   std::vector<RestObject> rest;
@@ -134,8 +151,9 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
   mouse_ = std::make_unique<InteractiveDrag>(
       pnh_, params_.frameId, handles,
       [this](std::size_t k, const DragCommand& d) { return onMouseDrag(k, d); });
+}
 
-  reporter_->warnAboutScene();
+void SimulatorNode::makeSensors() {
   loop_->setFrameSource([this](const std::string& frame, Eigen::Isometry3d& T) {
     return attachedFrame(frame, T);
   });
@@ -147,6 +165,9 @@ SimulatorNode::SimulatorNode(const ros::NodeHandle& nh, const ros::NodeHandle& p
         [this] { startTfListener(); },
         [this](const Snapshot& s, ros::Time& stamp) { return sendable(s, stamp); });
   }
+}
+
+void SimulatorNode::startThreads() {
   loop_->start();
   if (params_.clock == NodeParams::Clock::Follow) {
     clockSub_ = stateNh_.subscribe("/clock", kClockQueue, &SimulatorNode::onClock, this);

@@ -93,6 +93,20 @@ class SimulatorNode {
   ~SimulatorNode();
 
  private:
+  // Start-up, in this order (the constructor).
+  /// The tactile sensors' recordings, the simulation loop (not started) and /clock.
+  void startLoop(WorldScene& scene);
+  /// Each object's command validator.
+  void makeValidators();
+  /// The state publisher, the scene's summed pins and the problem reporter.
+  void makeReporter();
+  /// Topics, colliders, dynamic_reconfigure and the interactive drag handles.
+  void makeInterfaces();
+  /// The loop's source of attached frames, the tactile and camera topics (before the loop
+  /// starts: a sensor that cannot start leaves no thread running).
+  void makeSensors();
+  /// The simulation loop, the timers and the spinners.
+  void startThreads();
   void advertise();
   void onPublishTimer(const ros::TimerEvent& event);
   /// The newest snapshot out: tf, wrenches, markers, meshes and clouds (the main thread).
