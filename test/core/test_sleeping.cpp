@@ -371,19 +371,33 @@ TEST(WorldSleep, ObjectsThatDoNotRestStepExactlyAsWithoutSleeping) {
   EXPECT_EQ(runs[0], runs[1]);
 }
 
-// What wakes a sleeping block resting on the ground, and what does not.
-TEST(WorldSleep, ASleepingObjectWakesForACommandAChangeOrACollider) {
-  World world(kStep, kSubsteps);
-  world.setSleepParams(sleepAfter(0.5));
-  world.setCollider("ground", ground(0.0));
-  world.setCollider("far", box(Eigen::Vector3d(2, 0, 0.1), Eigen::Vector3d(0.05, 0.05, 0.05)));
-  auto a = boxAt(3, 3, 3, 0.01, Eigen::Vector3d(0, 0, 0));
-  Solver& A = world.addObject("a", a, paramsFor(*a, 1.0, 2.0));
-  const auto settle = [&]() {
-    int i = 0;
-    for (; i < stepsFor(20.0) && !world.asleep("a"); ++i) world.step();
+// What wakes a sleeping block resting on the ground, and what does not: a block of 3 x 3 x 3
+// cells on the ground, a box "far" parked 2 m away, each case from the block asleep.
+class SleepingBlock : public ::testing::Test {
+ protected:
+  SleepingBlock() : world(kStep, kSubsteps), a(boxAt(3, 3, 3, 0.01, Eigen::Vector3d(0, 0, 0))) {
+    world.setSleepParams(sleepAfter(0.5));
+    world.setCollider("ground", ground(0.0));
+    world.setCollider("far", box(Eigen::Vector3d(2, 0, 0.1), Eigen::Vector3d(0.05, 0.05, 0.05)));
+    A = &world.addObject("a", a, paramsFor(*a, 1.0, 2.0));
+  }
+  /// Steps until the block sleeps (20 s at most); whether it does.
+  bool settle() {
+    for (int i = 0; i < stepsFor(20.0) && !world.asleep("a"); ++i) world.step();
     return world.asleep("a");
-  };
+  }
+  /// "far" back 2 m away, still.
+  void park() {
+    world.moveCollider("far", Eigen::Isometry3d(Eigen::Translation3d(2, 0, 0.1)), Eigen::Vector3d::Zero(),
+                       Eigen::Vector3d::Zero());
+  }
+
+  World world;
+  std::shared_ptr<const Lattice> a;
+  Solver* A = nullptr;
+};
+
+TEST_F(SleepingBlock, WakesForADragOrAParameterNotForAColliderFarAway) {
   ASSERT_TRUE(settle());
   const ContactWrench held = world.contactWrench("ground");
   EXPECT_NEAR(-held.force.z(), a->totalMass() * kG, 0.02 * a->totalMass() * kG) << "asleep, it still weighs on the ground";
@@ -395,27 +409,27 @@ TEST(WorldSleep, ASleepingObjectWakesForACommandAChangeOrACollider) {
   world.moveCollider("far", Eigen::Isometry3d(Eigen::Translation3d(2, 0.5, 0.1)), Eigen::Vector3d::Zero(),
                      Eigen::Vector3d::Zero());
   // a drag: awake while it holds
-  A.grab("hand", {0}, A.positions()[0], 0.0);
+  A->grab("hand", {0}, A->positions()[0], 0.0);
   world.step();
   EXPECT_FALSE(world.asleep("a")) << "a drag";
-  A.release("hand");
+  A->release("hand");
   ASSERT_TRUE(settle());
   // a parameter: gravity turned sideways
-  SolverParams p = A.params();
+  SolverParams p = A->params();
   p.gravity = Eigen::Vector3d(3.0, 0.0, -9.81);
-  A.setParams(p);
+  A->setParams(p);
   world.step();
   EXPECT_FALSE(world.asleep("a")) << "a parameter changed";
-  p.gravity = Eigen::Vector3d(0.0, 0.0, -9.81);
-  A.setParams(p);
+}
+
+TEST_F(SleepingBlock, WakesForAColliderSetOnItMovingAtItOrTakenAway) {
   ASSERT_TRUE(settle());
   // a collider put beside it, and one moving towards it
   world.moveCollider("far", Eigen::Isometry3d(Eigen::Translation3d(0.015, 0.015, 0.045)), Eigen::Vector3d::Zero(),
                      Eigen::Vector3d::Zero());
   world.step();
   EXPECT_FALSE(world.asleep("a")) << "a collider set down on it";
-  world.moveCollider("far", Eigen::Isometry3d(Eigen::Translation3d(2, 0, 0.1)), Eigen::Vector3d::Zero(),
-                     Eigen::Vector3d::Zero());
+  park();
   ASSERT_TRUE(settle());
   // 5 cm a step, its face 5 cm away: it arrives at the end of the step, and wakes it before
   world.moveCollider("far", Eigen::Isometry3d(Eigen::Translation3d(0.13, 0.015, 0.015)),
@@ -424,37 +438,39 @@ TEST(WorldSleep, ASleepingObjectWakesForACommandAChangeOrACollider) {
   world.step();
   world.moveCollider("far", world.object("a")->colliders().at("far").pose, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
   EXPECT_FALSE(world.asleep("a")) << "a collider moving at it";
-  world.moveCollider("far", Eigen::Isometry3d(Eigen::Translation3d(2, 0, 0.1)), Eigen::Vector3d::Zero(),
-                     Eigen::Vector3d::Zero());
+  park();
   ASSERT_TRUE(settle());
   // the ground taken away: it falls
-  const double z0 = centreOfMass(A).z();
+  const double z0 = centreOfMass(*A).z();
   EXPECT_TRUE(world.removeCollider("ground"));
   for (int i = 0; i < 10; ++i) world.step();
   EXPECT_FALSE(world.asleep("a"));
-  EXPECT_LT(centreOfMass(A).z(), z0 - 0.01) << "without the ground it falls";
-  // its state set, pins, a reset, the contact parameters: each wakes it
-  world.setCollider("ground", ground(-0.1));
-  ASSERT_TRUE(settle());
+  EXPECT_LT(centreOfMass(*A).z(), z0 - 0.01) << "without the ground it falls";
+}
+
+TEST_F(SleepingBlock, WakesWhenItsStatePinsOrContactParametersAreSet) {
   const auto wokeBy = [&](const char* what, const std::function<void()>& change) {
     ASSERT_TRUE(settle()) << "before " << what;
     change();
     world.step();
     EXPECT_FALSE(world.asleep("a")) << what;
   };
-  wokeBy("positions", [&]() { A.setPositions(A.positions()); });
-  wokeBy("velocities", [&]() { A.setVelocities(std::vector<Eigen::Vector3d>(a->size(), Eigen::Vector3d::Zero())); });
-  wokeBy("a pin", [&]() { A.setPinned(0, true); });
-  wokeBy("a reset", [&]() { A.reset(); });
+  wokeBy("positions", [&]() { A->setPositions(A->positions()); });
+  wokeBy("velocities", [&]() { A->setVelocities(std::vector<Eigen::Vector3d>(a->size(), Eigen::Vector3d::Zero())); });
+  wokeBy("a pin", [&]() { A->setPinned(0, true); });
+  wokeBy("a reset", [&]() { A->reset(); });
   wokeBy("the contact parameters", [&]() { world.setContactParams(world.contactParams()); });
+}
+
+TEST_F(SleepingBlock, AsleepItIsNotSteppedAndANewObjectANaNOrSwitchingOffWakesIt) {
   // asleep, it is not stepped: its particles stay, its clock still runs
   ASSERT_TRUE(settle());
-  const double t0 = A.time();
-  const auto still = A.positions();
+  const double t0 = A->time();
+  const auto still = A->positions();
   world.step();
   EXPECT_TRUE(world.asleep("a"));
-  EXPECT_EQ(A.positions(), still);
-  EXPECT_NEAR(A.time(), t0 + kStep, 1e-12);
+  EXPECT_EQ(A->positions(), still);
+  EXPECT_NEAR(A->time(), t0 + kStep, 1e-12);
   // an object added beside it wakes it
   auto b = boxAt(2, 2, 2, 0.01, Eigen::Vector3d(0.5, 0, 0));
   world.addObject("b", b, paramsFor(*b, 1.0, 2.0));
@@ -462,12 +478,12 @@ TEST(WorldSleep, ASleepingObjectWakesForACommandAChangeOrACollider) {
   EXPECT_TRUE(world.removeObject("b"));
   // a state that is not finite never rests
   ASSERT_TRUE(settle());
-  std::vector<Eigen::Vector3d> bad = A.positions();
+  std::vector<Eigen::Vector3d> bad = A->positions();
   bad[0].x() = std::numeric_limits<double>::quiet_NaN();
-  A.setPositions(bad);
+  A->setPositions(bad);
   for (int i = 0; i < stepsFor(3.0); ++i) world.step();
   EXPECT_FALSE(world.asleep("a")) << "a NaN never sleeps";
-  A.reset();
+  A->reset();
   // sleeping switched off wakes it
   ASSERT_TRUE(settle());
   world.setSleepParams(SleepParams());
@@ -556,10 +572,8 @@ struct BunnyPress {
   double push = 0.0;
   std::size_t woke = 0, moved = 0;
 };
-static BunnyPress pressTheBunnies(bool sleeping) {
-  const double dt = 1.0 / 30.0, size = 0.05;
-  World world(dt, 8);
-  if (sleeping) world.setSleepParams(sleepAfter(1.0));
+/// Forty bunnies of 5 cm dropped into a bin in four-by-four layers, each spinning (seeded).
+static void dropFortyBunnies(World& world, double dt, double size) {
   const int n = 40, side = 4;
   const auto shape = meshAt(kBunnyMeshPath, true, 0.0, size, 7, Eigen::Vector3d::Zero());
   Eigen::Vector3d extent = Eigen::Vector3d::Zero();
@@ -586,12 +600,11 @@ static BunnyPress pressTheBunnies(bool sleeping) {
     for (std::size_t j = 0; j < v.size(); ++j) v[j] = spin.cross(s.positions()[j] - centre);
     s.setVelocities(v);
   }
-  for (int i = 0; i < 300; ++i) world.step();
-  if (sleeping) {
-    std::printf("bin of 40 bunnies with sleeping: %zu asleep after 10 s\n", world.sleepingCount());
-    EXPECT_GE(world.sleepingCount(), 36u) << "the pile rests";
-  }
-  const auto names = world.objectNames();
+}
+
+/// A sphere "finger" of 2 cm set on the pile a quarter of the way across; each object's positions
+/// before it presses.
+static std::vector<std::vector<Eigen::Vector3d>> fingerOnThePile(World& world, const std::vector<std::string>& names) {
   std::vector<std::vector<Eigen::Vector3d>> start;
   Eigen::Vector3d lo = world.object(names[0])->positions()[0], hi = lo;
   for (const std::string& name : names) {
@@ -611,6 +624,38 @@ static BunnyPress pressTheBunnies(bool sleeping) {
   finger.shape.radius = 0.02;
   finger.pose.translation() = Eigen::Vector3d(at.x(), at.y(), top + finger.shape.radius);
   world.setCollider("finger", finger);
+  return start;
+}
+
+/// The objects whose mass-weighted displacement from `start` exceeds 0.03 of a contact radius.
+static std::size_t movedObjects(const World& world, const std::vector<std::string>& names,
+                                const std::vector<std::vector<Eigen::Vector3d>>& start) {
+  std::size_t moved = 0;
+  for (std::size_t o = 0; o < names.size(); ++o) {
+    const Solver& s = *world.object(names[o]);
+    const auto& m = s.lattice().masses();
+    double d = 0.0, mass = 0.0;
+    for (std::size_t i = 0; i < m.size(); ++i) {
+      d += m[i] * (s.positions()[i] - start[o][i]).squaredNorm();
+      mass += m[i];
+    }
+    if (std::sqrt(d / mass) > 0.03 * s.contactRadius()) ++moved;
+  }
+  return moved;
+}
+
+static BunnyPress pressTheBunnies(bool sleeping) {
+  const double dt = 1.0 / 30.0, size = 0.05;
+  World world(dt, 8);
+  if (sleeping) world.setSleepParams(sleepAfter(1.0));
+  dropFortyBunnies(world, dt, size);
+  for (int i = 0; i < 300; ++i) world.step();
+  if (sleeping) {
+    std::printf("bin of 40 bunnies with sleeping: %zu asleep after 10 s\n", world.sleepingCount());
+    EXPECT_GE(world.sleepingCount(), 36u) << "the pile rests";
+  }
+  const auto names = world.objectNames();
+  const std::vector<std::vector<Eigen::Vector3d>> start = fingerOnThePile(world, names);
   BunnyPress press;
   std::set<std::string> woke;
   double overlap = 0.0;
@@ -624,16 +669,7 @@ static BunnyPress pressTheBunnies(bool sleeping) {
     overlap = std::max(overlap, deepestOverlap(world));
   }
   press.woke = woke.size();
-  for (std::size_t o = 0; o < names.size(); ++o) {
-    const Solver& s = *world.object(names[o]);
-    const auto& m = s.lattice().masses();
-    double d = 0.0, mass = 0.0;
-    for (std::size_t i = 0; i < m.size(); ++i) {
-      d += m[i] * (s.positions()[i] - start[o][i]).squaredNorm();
-      mass += m[i];
-    }
-    if (std::sqrt(d / mass) > 0.03 * s.contactRadius()) ++press.moved;
-  }
+  press.moved = movedObjects(world, names, start);
   std::printf("finger pressed into 40 bunnies (%s): up to %.3g N, %zu objects awake in the push, %zu moved farther than "
               "0.03 r; deepest overlap %.3g r\n",
               sleeping ? "sleeping" : "never sleeping", press.push, press.woke, press.moved, overlap);
