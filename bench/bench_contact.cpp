@@ -130,6 +130,93 @@ Collider capsule(const Eigen::Vector3d& centre, const Eigen::AngleAxisd& turn, d
   return c;
 }
 
+/// The 8 primitives (the ground, two boxes, three spheres and two capsules), each touching the
+/// bunny (bounds lo..hi, middle mid, the particles' spheres `touch` out from them). Prints nothing.
+void addPrimitives(Solver& s, const Collider& ground, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                   const Eigen::Vector3d& mid, double touch) {
+  s.setCollider("ground", ground);
+  const Eigen::Vector3d half(0.03, 0.01, 0.03);
+  s.setCollider("left", box(Eigen::Vector3d(mid.x(), lo.y() - touch - half.y(), mid.z()), half));
+  s.setCollider("right", box(Eigen::Vector3d(mid.x(), hi.y() + touch + half.y(), mid.z()), half));
+  const double R = 0.02;
+  s.setCollider("front", sphere(Eigen::Vector3d(lo.x() - touch - R, mid.y(), mid.z()), R));
+  s.setCollider("back", sphere(Eigen::Vector3d(hi.x() + touch + R, mid.y(), mid.z()), R));
+  s.setCollider("top", sphere(Eigen::Vector3d(mid.x(), mid.y(), hi.z() + touch + R), R));
+  s.setCollider("rod_y", capsule(Eigen::Vector3d(mid.x(), mid.y(), hi.z() + touch + 0.01), Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX()), 0.01, 0.1));  // along y
+  s.setCollider("rod_x", capsule(Eigen::Vector3d(mid.x(), lo.y() - touch - 0.01, lo.z() + 0.03), Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()), 0.01, 0.1));  // along x
+}
+
+/// The ground and a rigid bunny of half the size beside the soft one, touching it; prints the mesh
+/// collider's line (its triangles, its distance field's nodes and build time).
+void addMeshCollider(Solver& s, const TriMesh& mesh, const Collider& ground, const Eigen::Vector3d& hi,
+                     const Eigen::Vector3d& mid) {
+  TriMesh small = mesh;
+  for (auto& v : small.vertices) v *= 0.5;
+  Collider rigid;
+  rigid.shape.type = ColliderType::Mesh;
+  rigid.shape.mesh = std::make_shared<const TriMesh>(small);
+  const auto t0 = std::chrono::steady_clock::now();
+  rigid.shape.distanceField = std::make_shared<const MeshDistanceField>(small);
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("mesh collider: %zu triangles, distance field %d x %d x %d nodes built in %.0f ms\n",
+              small.triangles.size(), rigid.shape.distanceField->dims().x(), rigid.shape.distanceField->dims().y(),
+              rigid.shape.distanceField->dims().z(), ms);
+  // its centre on the soft bunny's +x side at mid height: the warm-up pushes the soft one aside
+  rigid.pose.translation() = Eigen::Vector3d(hi.x(), mid.y(), mid.z()) - 0.5 * (small.boundsMin() + small.boundsMax());
+  s.setCollider("ground", ground);
+  s.setCollider("rigid_bunny", rigid);
+}
+
+/// The robot's 22 far links, spread along an arm that reaches toward the bunny (bounds up to hi)
+/// from the +x, +y side and stops 5 cm or more short of its bounds. Prints nothing.
+void addFarLinks(Solver& s, const Eigen::Vector3d& hi) {
+  const auto meshLink = boxMesh(Eigen::Vector3d(0.03, 0.02, 0.05));
+  for (int k = 0; k < 22; ++k) {
+    // along the arm, from 0.8 m away to 5 cm from the bunny's bounds, turning as it goes
+    const double t = k / 21.0;
+    const double reach = 0.05 + 0.75 * (1.0 - t);
+    const Eigen::Vector3d centre = hi + Eigen::Vector3d(reach + 0.06, reach + 0.06, 0.1 * t);
+    const Eigen::AngleAxisd turn(0.4 * k, Eigen::Vector3d(1, 2, 3).normalized());
+    Collider c;
+    switch (k % 4) {
+      case 0: c = cylinder(centre, turn, 0.04, 0.06); break;
+      case 1: c = box(centre, Eigen::Vector3d(0.03, 0.04, 0.05)); c.pose.linear() = turn.toRotationMatrix(); break;
+      case 2: c = sphere(centre, 0.05); break;
+      default:
+        c.shape.type = ColliderType::Mesh;
+        c.shape.mesh = meshLink;
+        c.pose.translation() = centre;
+        c.pose.linear() = turn.toRotationMatrix();
+    }
+    s.setCollider("robot/link" + std::to_string(k) + "/0", c);
+  }
+}
+
+/// Prints the table of the entries' figures (ns per particle-step, x none, contacts, ms per step
+/// for `particles` particles), then the far links' own cost.
+void resultTable(const std::vector<Entry>& entries, const Args& args, int steps, const SolverParams& p,
+                 std::size_t particles) {
+  std::printf("\nsingle thread, %d rounds of %d steps after %d steps of warm-up; x none: median of the ratios within\n"
+              "a round; contacts: particles touching a collider in the last sub-step\n", args.rounds, steps, 3 * steps);
+  std::printf("%16s %12s %10s %10s %10s\n", "colliders", "ns/p-step", "x none", "contacts", "ms/step");
+  for (const Entry& e : entries) {
+    std::vector<double> ratio;
+    for (std::size_t i = 0; i < e.samples.size(); ++i) ratio.push_back(e.samples[i] / entries[0].samples[i]);
+    const double ns = median(e.samples);
+    std::printf("%16s %12.1f %10.3f %10zu %10.2f\n", e.name.c_str(), ns, median(ratio), e.contacts,
+                ns * p.substeps * double(particles) * 1e-6);
+  }
+  // The far links' own cost: the robot against its two fingers alone, and against the ground
+  // alone (no robot), each the median of the ratios within a round.
+  const auto versus = [&](const Entry& a, const Entry& b) {
+    std::vector<double> ratio;
+    for (std::size_t i = 0; i < a.samples.size(); ++i) ratio.push_back(a.samples[i] / b.samples[i]);
+    return median(ratio);
+  };
+  std::printf("\n24-link robot (22 links far) / 2 fingers: %.3f\n", versus(entries[5], entries[4]));
+  std::printf("24-link robot / ground (no robot):       %.3f\n", versus(entries[5], entries[1]));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -162,38 +249,8 @@ int main(int argc, char** argv) {
   for (Entry& e : entries) e.solver = std::make_unique<Solver>(lattice, p);
   entries[0].solver->pinBox(Eigen::Vector3d::Constant(-1e9), Eigen::Vector3d(1e9, 1e9, lo.z() + 0.5 * vox.spacing), true);
   entries[1].solver->setCollider("ground", ground);
-  {
-    Solver& s = *entries[2].solver;
-    s.setCollider("ground", ground);
-    const Eigen::Vector3d half(0.03, 0.01, 0.03);
-    s.setCollider("left", box(Eigen::Vector3d(mid.x(), lo.y() - touch - half.y(), mid.z()), half));
-    s.setCollider("right", box(Eigen::Vector3d(mid.x(), hi.y() + touch + half.y(), mid.z()), half));
-    const double R = 0.02;
-    s.setCollider("front", sphere(Eigen::Vector3d(lo.x() - touch - R, mid.y(), mid.z()), R));
-    s.setCollider("back", sphere(Eigen::Vector3d(hi.x() + touch + R, mid.y(), mid.z()), R));
-    s.setCollider("top", sphere(Eigen::Vector3d(mid.x(), mid.y(), hi.z() + touch + R), R));
-    s.setCollider("rod_y", capsule(Eigen::Vector3d(mid.x(), mid.y(), hi.z() + touch + 0.01), Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX()), 0.01, 0.1));  // along y
-    s.setCollider("rod_x", capsule(Eigen::Vector3d(mid.x(), lo.y() - touch - 0.01, lo.z() + 0.03), Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()), 0.01, 0.1));  // along x
-  }
-  {
-    // a rigid bunny of half the size beside the soft one, touching it
-    TriMesh small = mesh;
-    for (auto& v : small.vertices) v *= 0.5;
-    Collider rigid;
-    rigid.shape.type = ColliderType::Mesh;
-    rigid.shape.mesh = std::make_shared<const TriMesh>(small);
-    const auto t0 = std::chrono::steady_clock::now();
-    rigid.shape.distanceField = std::make_shared<const MeshDistanceField>(small);
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    std::printf("mesh collider: %zu triangles, distance field %d x %d x %d nodes built in %.0f ms\n",
-                small.triangles.size(), rigid.shape.distanceField->dims().x(), rigid.shape.distanceField->dims().y(),
-                rigid.shape.distanceField->dims().z(), ms);
-    // its centre on the soft bunny's +x side at mid height: the warm-up pushes the soft one aside
-    rigid.pose.translation() = Eigen::Vector3d(hi.x(), mid.y(), mid.z()) - 0.5 * (small.boundsMin() + small.boundsMax());
-    Solver& s = *entries[3].solver;
-    s.setCollider("ground", ground);
-    s.setCollider("rigid_bunny", rigid);
-  }
+  addPrimitives(*entries[2].solver, ground, lo, hi, mid, touch);
+  addMeshCollider(*entries[3].solver, mesh, ground, hi, mid);
   // A robot: two box fingers gripping the bunny's sides (with the ground), then the same with
   // 22 more links spread along an arm that reaches toward it from the +x, +y side and stops
   // 5 cm or more short of its bounds.
@@ -204,29 +261,7 @@ int main(int argc, char** argv) {
     s.setCollider("robot/finger_left/0", box(Eigen::Vector3d(mid.x(), lo.y() - touch - half.y(), mid.z()), half));
     s.setCollider("robot/finger_right/0", box(Eigen::Vector3d(mid.x(), hi.y() + touch + half.y(), mid.z()), half));
   }
-  {
-    Solver& s = *entries[5].solver;
-    const auto meshLink = boxMesh(Eigen::Vector3d(0.03, 0.02, 0.05));
-    for (int k = 0; k < 22; ++k) {
-      // along the arm, from 0.8 m away to 5 cm from the bunny's bounds, turning as it goes
-      const double t = k / 21.0;
-      const double reach = 0.05 + 0.75 * (1.0 - t);
-      const Eigen::Vector3d centre = hi + Eigen::Vector3d(reach + 0.06, reach + 0.06, 0.1 * t);
-      const Eigen::AngleAxisd turn(0.4 * k, Eigen::Vector3d(1, 2, 3).normalized());
-      Collider c;
-      switch (k % 4) {
-        case 0: c = cylinder(centre, turn, 0.04, 0.06); break;
-        case 1: c = box(centre, Eigen::Vector3d(0.03, 0.04, 0.05)); c.pose.linear() = turn.toRotationMatrix(); break;
-        case 2: c = sphere(centre, 0.05); break;
-        default:
-          c.shape.type = ColliderType::Mesh;
-          c.shape.mesh = meshLink;
-          c.pose.translation() = centre;
-          c.pose.linear() = turn.toRotationMatrix();
-      }
-      s.setCollider("robot/link" + std::to_string(k) + "/0", c);
-    }
-  }
+  addFarLinks(*entries[5].solver, hi);
   const int steps = stepsPerRun(lattice->size());
   for (int i = 0; i < 3; ++i)
     for (Entry& e : entries) run(e, steps);  // warm-up: the bunny settles against its colliders
@@ -234,24 +269,6 @@ int main(int argc, char** argv) {
   for (int round = 0; round < args.rounds; ++round)
     for (Entry& e : entries) run(e, steps);
 
-  std::printf("\nsingle thread, %d rounds of %d steps after %d steps of warm-up; x none: median of the ratios within\n"
-              "a round; contacts: particles touching a collider in the last sub-step\n", args.rounds, steps, 3 * steps);
-  std::printf("%16s %12s %10s %10s %10s\n", "colliders", "ns/p-step", "x none", "contacts", "ms/step");
-  for (const Entry& e : entries) {
-    std::vector<double> ratio;
-    for (std::size_t i = 0; i < e.samples.size(); ++i) ratio.push_back(e.samples[i] / entries[0].samples[i]);
-    const double ns = median(e.samples);
-    std::printf("%16s %12.1f %10.3f %10zu %10.2f\n", e.name.c_str(), ns, median(ratio), e.contacts,
-                ns * p.substeps * double(lattice->size()) * 1e-6);
-  }
-  // The far links' own cost: the robot against its two fingers alone, and against the ground
-  // alone (no robot), each the median of the ratios within a round.
-  const auto versus = [&](const Entry& a, const Entry& b) {
-    std::vector<double> ratio;
-    for (std::size_t i = 0; i < a.samples.size(); ++i) ratio.push_back(a.samples[i] / b.samples[i]);
-    return median(ratio);
-  };
-  std::printf("\n24-link robot (22 links far) / 2 fingers: %.3f\n", versus(entries[5], entries[4]));
-  std::printf("24-link robot / ground (no robot):       %.3f\n", versus(entries[5], entries[1]));
+  resultTable(entries, args, steps, p, lattice->size());
   return 0;
 }

@@ -284,25 +284,13 @@ std::size_t pairContacts(const World& world) {
   return c / 2;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  const Args args = parse(argc, argv);
-  const Shape shape = makeShape(args);
-  std::printf("object: the bunny at %.0f mm, resolution %d: %zu particles; render mesh %zu triangles, %zu vertices; "
-              "%.0f Hz in %d sub-steps, one thread\n",
-              1000 * kSize, args.resolution, shape.voxels.cells.size(), shape.renderTriangles,
-              shape.renderVertices.size(), 1.0 / kStep, substepsPerStep);
-
-  // --- 1. N objects against one alone ---
+/// Prints table 1: N objects alone, apart and in a pile, ms per step and the pile's contact figures.
+void sizesTable(const Shape& shape, const Args& args) {
   const int steps = 20;
-  if (args.only != "bin") {
-    std::printf("\nN objects: ms per step (median of %d rounds of %d steps)\n", args.rounds, steps);
-    std::printf("%6s %10s %10s %10s %12s %12s %14s %10s %12s %8s\n", "N", "N x alone", "apart", "pile", "apart/Nx1",
-                "pile/apart", "pile contacts", "overlap/r", "list builds", "passes");
-  }
+  std::printf("\nN objects: ms per step (median of %d rounds of %d steps)\n", args.rounds, steps);
+  std::printf("%6s %10s %10s %10s %12s %12s %14s %10s %12s %8s\n", "N", "N x alone", "apart", "pile", "apart/Nx1",
+              "pile/apart", "pile contacts", "overlap/r", "list builds", "passes");
   for (int n : {1, 10, 50, args.objects}) {
-    if (args.only == "bin") break;
     const Placed one = place(shape, Eigen::Vector3d::Zero());
     Solver alone(one.lattice, params(*one.lattice));
     alone.setCollider("ground", groundCollider());
@@ -332,17 +320,18 @@ int main(int argc, char** argv) {
                 1e3 * median(tApart), 1e3 * median(tPile), median(ratioApart), median(ratioPile), pairContacts(*pile),
                 deepestOverlap(*pile), builds, pile->contactPasses().since(passes0).perSubstep());
   }
+}
 
-  // --- 2. the bin against real time ---
-  if (args.only == "sizes") return 0;
+/// The bin of tables 2 and 3: its World, its objects as placed, and their render meshes embedded in
+/// the first bin's lattices (table 3's bin places its objects alike).
+struct RenderedBin {
   std::vector<Placed> placed;
-  auto world = bin(shape, args.objects, &placed);
+  std::unique_ptr<World> world;
   std::vector<Embedding> embeddings;
-  std::vector<std::vector<Eigen::Vector3d>> vertices(placed.size());
-  for (const Placed& p : placed) embeddings.emplace_back(*p.lattice, p.vertices);
-  std::size_t particles = 0;
-  for (const Placed& p : placed) particles += p.lattice->size();
-  auto frame = [&]() {
+  std::vector<std::vector<Eigen::Vector3d>> vertices;
+
+  /// One step and the render meshes' update: the CPU seconds of each.
+  std::pair<double, double> frame() {
     const double step = secondsOf([&] { world->step(); });
     const double render = secondsOf([&] {
       for (std::size_t o = 0; o < placed.size(); ++o) {
@@ -351,111 +340,152 @@ int main(int argc, char** argv) {
       }
     });
     return std::make_pair(step, render);
-  };
+  }
+};
+
+/// Prints table 2: the bin falling and settled, ms per step and per frame against real time.
+void realTimeTable(RenderedBin& scene, const Shape& shape, const Args& args) {
+  std::size_t particles = 0;
+  for (const Placed& p : scene.placed) particles += p.lattice->size();
   std::printf("\nbin of %d objects, %zu particles, %zu render vertices per frame:\n", args.objects, particles,
-              placed.size() * shape.renderVertices.size());
+              scene.placed.size() * shape.renderVertices.size());
   for (const char* phase : {"falling (first 1.5 s)", "settled (after 4 s)"}) {
     std::vector<double> step, render;
     const int frames = 45;
-    const std::size_t builds0 = world->contactListBuilds();
-    const World::ContactPasses passes0 = world->contactPasses();
-    const World::ContactTimes times0 = world->contactTimes();
+    const std::size_t builds0 = scene.world->contactListBuilds();
+    const World::ContactPasses passes0 = scene.world->contactPasses();
+    const World::ContactTimes times0 = scene.world->contactTimes();
     for (int f = 0; f < frames; ++f) {
-      const auto t = frame();
+      const auto t = scene.frame();
       step.push_back(t.first);
       render.push_back(t.second);
     }
     // over the timed frames only
-    const double builds = double(world->contactListBuilds() - builds0) / (frames * substepsPerStep);
-    const double passes = world->contactPasses().since(passes0).perSubstep();
+    const double builds = double(scene.world->contactListBuilds() - builds0) / (frames * substepsPerStep);
+    const double passes = scene.world->contactPasses().since(passes0).perSubstep();
     const double ms = 1e3 * median(step), msr = 1e3 * median(render);
     std::printf("  %-22s step %.2f ms, render meshes %.2f ms, frame %.2f ms (%s 33.3 ms at 30 Hz), %.3f ms per "
                 "object, object contacts %zu, deepest overlap %.3f r, list builds per sub-step %.2f, contact passes "
                 "per sub-step %.2f\n",
                 phase, ms, msr, ms + msr, ms + msr <= 1e3 / 30.0 ? "within" : "over", (ms + msr) / args.objects,
-                pairContacts(*world), deepestOverlap(*world), builds, passes);
-    printParts(*world, times0, sum(step), frames);
+                pairContacts(*scene.world), deepestOverlap(*scene.world), builds, passes);
+    printParts(*scene.world, times0, sum(step), frames);
     if (phase[0] == 'f')
-      for (int f = 0; f < 75; ++f) world->step();  // on to 4 s
+      for (int f = 0; f < 75; ++f) scene.world->step();  // on to 4 s
   }
   std::printf("  FastLSM's penguins: 150 objects of 150 particles at 25 frames per second on a Pentium 4, 0.27 ms per "
               "object per frame, no contact between them\n");
+}
 
-  // --- 3. the bin with sleeping objects ---
-  placed.clear();
-  world = bin(shape, args.objects, &placed);
-  SleepParams sleep;
-  sleep.fraction = 2e-5;  // the node's rest (LoopSettings)
-  sleep.hold = 1.0;
-  world->setSleepParams(sleep);
-  int settle = 0;
-  const std::size_t most = (9 * placed.size()) / 10;
-  for (; settle < 240 || (world->sleepingCount() < most && settle < 600); ++settle) world->step();
-  std::printf("\nthe bin with sleeping objects (rest: 2e-5 of an object's size over 1 s):\n");
-  // also: the objects awake at some step of the phase, and how many of them moved less than
-  // 0.03 r (mass-weighted RMS) over it
-  auto timed = [&](const char* phase, const std::function<void()>& before) {
-    std::vector<double> step, render;
-    std::size_t awake = 0;
-    const int frames = 45;
-    const std::vector<std::string> names = world->objectNames();
-    std::vector<std::vector<Eigen::Vector3d>> start;
-    for (const std::string& name : names) start.push_back(world->object(name)->positions());
-    std::vector<char> woke(names.size(), 0);
-    const World::ContactTimes times0 = world->contactTimes();
-    for (int f = 0; f < frames; ++f) {
-      before();
-      const auto t = frame();
-      step.push_back(t.first);
-      render.push_back(t.second);
-      awake = std::max(awake, placed.size() - world->sleepingCount());
-      for (std::size_t o = 0; o < names.size(); ++o) woke[o] |= !world->asleep(names[o]);
+/// Prints a row of table 3: 45 frames of the sleeping bin, `before` called before each. Also: the
+/// objects awake at some step of the phase, and how many of them moved less than 0.03 r
+/// (mass-weighted RMS) over it.
+void sleepRow(RenderedBin& scene, const char* phase, const std::function<void()>& before) {
+  std::vector<double> step, render;
+  std::size_t awake = 0;
+  const int frames = 45;
+  const std::vector<std::string> names = scene.world->objectNames();
+  std::vector<std::vector<Eigen::Vector3d>> start;
+  for (const std::string& name : names) start.push_back(scene.world->object(name)->positions());
+  std::vector<char> woke(names.size(), 0);
+  const World::ContactTimes times0 = scene.world->contactTimes();
+  for (int f = 0; f < frames; ++f) {
+    before();
+    const auto t = scene.frame();
+    step.push_back(t.first);
+    render.push_back(t.second);
+    awake = std::max(awake, scene.placed.size() - scene.world->sleepingCount());
+    for (std::size_t o = 0; o < names.size(); ++o) woke[o] |= !scene.world->asleep(names[o]);
+  }
+  std::size_t woken = 0, still = 0;
+  for (std::size_t o = 0; o < names.size(); ++o) {
+    if (!woke[o]) continue;
+    const Solver& s = *scene.world->object(names[o]);
+    const auto& m = s.lattice().masses();
+    double d = 0.0, mass = 0.0;
+    for (std::size_t i = 0; i < m.size(); ++i) {
+      d += m[i] * (s.positions()[i] - start[o][i]).squaredNorm();
+      mass += m[i];
     }
-    std::size_t woken = 0, still = 0;
-    for (std::size_t o = 0; o < names.size(); ++o) {
-      if (!woke[o]) continue;
-      const Solver& s = *world->object(names[o]);
-      const auto& m = s.lattice().masses();
-      double d = 0.0, mass = 0.0;
-      for (std::size_t i = 0; i < m.size(); ++i) {
-        d += m[i] * (s.positions()[i] - start[o][i]).squaredNorm();
-        mass += m[i];
-      }
-      ++woken;
-      if (std::sqrt(d / mass) < 0.03 * s.contactRadius()) ++still;
-    }
-    const double ms = 1e3 * median(step), msr = 1e3 * median(render);
-    std::printf("  %-30s step %.2f ms, render meshes %.2f ms, frame %.2f ms (%s 33.3 ms at 30 Hz), at most %zu of %zu "
-                "objects awake (%zu at some step, %zu of them moved less than 0.03 r), deepest overlap %.3f r\n",
-                phase, ms, msr, ms + msr, ms + msr <= 1e3 / 30.0 ? "within" : "over", awake, placed.size(), woken, still,
-                deepestOverlap(*world));
-    printParts(*world, times0, sum(step), frames);
-  };
-  char settled[64];
-  std::snprintf(settled, sizeof settled, "settled (after %.1f s)", settle * kStep);
-  timed(settled, [] {});
-  // a finger over the pile at (x, y) a quarter of the way in from a corner
-  const std::string first = world->objectNames().front();
-  Eigen::Vector3d lo = world->object(first)->positions()[0], hi = lo;
-  for (const std::string& name : world->objectNames())
-    for (const Eigen::Vector3d& x : world->object(name)->positions()) {
+    ++woken;
+    if (std::sqrt(d / mass) < 0.03 * s.contactRadius()) ++still;
+  }
+  const double ms = 1e3 * median(step), msr = 1e3 * median(render);
+  std::printf("  %-30s step %.2f ms, render meshes %.2f ms, frame %.2f ms (%s 33.3 ms at 30 Hz), at most %zu of %zu "
+              "objects awake (%zu at some step, %zu of them moved less than 0.03 r), deepest overlap %.3f r\n",
+              phase, ms, msr, ms + msr, ms + msr <= 1e3 / 30.0 ? "within" : "over", awake, scene.placed.size(), woken,
+              still, deepestOverlap(*scene.world));
+  printParts(*scene.world, times0, sum(step), frames);
+}
+
+/// The finger: a 2 cm sphere resting on the pile's top at (x, y) a quarter of the way in from a
+/// corner of its bounds (`first`: the world's first object).
+Collider fingerOver(World& world, const std::string& first) {
+  Eigen::Vector3d lo = world.object(first)->positions()[0], hi = lo;
+  for (const std::string& name : world.objectNames())
+    for (const Eigen::Vector3d& x : world.object(name)->positions()) {
       lo = lo.cwiseMin(x);
       hi = hi.cwiseMax(x);
     }
   const Eigen::Vector2d at = lo.head<2>() + 0.25 * (hi - lo).head<2>();
   double top = lo.z();
-  for (const std::string& name : world->objectNames())
-    for (const Eigen::Vector3d& x : world->object(name)->positions())
+  for (const std::string& name : world.objectNames())
+    for (const Eigen::Vector3d& x : world.object(name)->positions())
       if ((x.head<2>() - at).norm() < 0.01) top = std::max(top, x.z());
   Collider finger;
   finger.shape.type = ColliderType::Sphere;
   finger.shape.radius = 0.02;
   finger.pose.translation() = Eigen::Vector3d(at.x(), at.y(), top + finger.shape.radius);
-  world->setCollider("finger", finger);
+  return finger;
+}
+
+/// Prints table 3: a new bin with sleeping objects, settled, then with a finger pressed into it.
+void sleepTable(RenderedBin& scene, const Shape& shape, const Args& args) {
+  scene.placed.clear();
+  scene.world = bin(shape, args.objects, &scene.placed);
+  SleepParams sleep;
+  sleep.fraction = 2e-5;  // the node's rest (LoopSettings)
+  sleep.hold = 1.0;
+  scene.world->setSleepParams(sleep);
+  int settle = 0;
+  const std::size_t most = (9 * scene.placed.size()) / 10;
+  for (; settle < 240 || (scene.world->sleepingCount() < most && settle < 600); ++settle) scene.world->step();
+  std::printf("\nthe bin with sleeping objects (rest: 2e-5 of an object's size over 1 s):\n");
+  char settled[64];
+  std::snprintf(settled, sizeof settled, "settled (after %.1f s)", settle * kStep);
+  sleepRow(scene, settled, [] {});
+  // a finger over the pile at (x, y) a quarter of the way in from a corner
+  const std::string first = scene.world->objectNames().front();
+  scene.world->setCollider("finger", fingerOver(*scene.world, first));
   // 45 frames at 2 cm/s: 3 cm down into the pile from its top there
-  timed("a finger pressed into it", [&] {
-    world->moveCollider("finger", world->object(first)->colliders().at("finger").pose, Eigen::Vector3d(0, 0, -0.02),
-                        Eigen::Vector3d::Zero());
+  sleepRow(scene, "a finger pressed into it", [&] {
+    scene.world->moveCollider("finger", scene.world->object(first)->colliders().at("finger").pose,
+                              Eigen::Vector3d(0, 0, -0.02), Eigen::Vector3d::Zero());
   });
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args args = parse(argc, argv);
+  const Shape shape = makeShape(args);
+  std::printf("object: the bunny at %.0f mm, resolution %d: %zu particles; render mesh %zu triangles, %zu vertices; "
+              "%.0f Hz in %d sub-steps, one thread\n",
+              1000 * kSize, args.resolution, shape.voxels.cells.size(), shape.renderTriangles,
+              shape.renderVertices.size(), 1.0 / kStep, substepsPerStep);
+
+  // --- 1. N objects against one alone ---
+  if (args.only != "bin") sizesTable(shape, args);
+
+  // --- 2. the bin against real time ---
+  if (args.only == "sizes") return 0;
+  RenderedBin scene;
+  scene.world = bin(shape, args.objects, &scene.placed);
+  scene.vertices.resize(scene.placed.size());
+  for (const Placed& p : scene.placed) scene.embeddings.emplace_back(*p.lattice, p.vertices);
+  realTimeTable(scene, shape, args);
+
+  // --- 3. the bin with sleeping objects ---
+  sleepTable(scene, shape, args);
   return 0;
 }

@@ -37,6 +37,16 @@ using namespace deformable_flsm;
 
 namespace {
 
+/// The command line (see the top comment).
+struct Args {
+  std::string mesh, markers;
+  int squeeze = 0, markerEvery = 3, subdivision = 1;
+  double markerNoise = 1e-5;
+  double spacing = 0, youngs = 0, nu = -1, depth = 0.002, rate = 30, press = 1.0, hold = 0.5, noise = 0.02;
+  int cells = 5;
+  unsigned seed = 1;
+};
+
 [[noreturn]] void usage(const char* why) {
   std::fprintf(stderr, "fem_recording: %s\nusage: fem_recording --mesh FILE --spacing M --youngs PA --nu NU "
                        "[--depth M] [--punch-cells K] [--rate HZ] [--press S] [--hold S] [--noise F] [--seed N]\n",
@@ -44,94 +54,116 @@ namespace {
   std::exit(2);
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  std::string mesh, markers;
-  int squeeze = 0, markerEvery = 3, subdivision = 1;
-  double markerNoise = 1e-5;
-  double spacing = 0, youngs = 0, nu = -1, depth = 0.002, rate = 30, press = 1.0, hold = 0.5, noise = 0.02;
-  int cells = 5;
-  unsigned seed = 1;
+/// Reads the command line; prints the usage and exits on a wrong one.
+Args parse(int argc, char** argv) {
+  Args a;
   for (int i = 1; i < argc; i += 2) {
     if (i + 1 >= argc) usage("every option takes a value");
     const std::string key = argv[i];
     const char* v = argv[i + 1];
-    if (key == "--mesh") mesh = v;
-    else if (key == "--spacing") spacing = std::atof(v);
-    else if (key == "--youngs") youngs = std::atof(v);
-    else if (key == "--nu") nu = std::atof(v);
-    else if (key == "--depth") depth = std::atof(v);
-    else if (key == "--punch-cells") cells = std::atoi(v);
-    else if (key == "--rate") rate = std::atof(v);
-    else if (key == "--press") press = std::atof(v);
-    else if (key == "--hold") hold = std::atof(v);
-    else if (key == "--noise") noise = std::atof(v);
-    else if (key == "--seed") seed = static_cast<unsigned>(std::atol(v));
-    else if (key == "--squeeze") squeeze = std::atoi(v);
-    else if (key == "--subdivision") subdivision = std::atoi(v);
-    else if (key == "--markers") markers = v;
-    else if (key == "--marker-every") markerEvery = std::atoi(v);
-    else if (key == "--marker-noise") markerNoise = std::atof(v);
+    if (key == "--mesh") a.mesh = v;
+    else if (key == "--spacing") a.spacing = std::atof(v);
+    else if (key == "--youngs") a.youngs = std::atof(v);
+    else if (key == "--nu") a.nu = std::atof(v);
+    else if (key == "--depth") a.depth = std::atof(v);
+    else if (key == "--punch-cells") a.cells = std::atoi(v);
+    else if (key == "--rate") a.rate = std::atof(v);
+    else if (key == "--press") a.press = std::atof(v);
+    else if (key == "--hold") a.hold = std::atof(v);
+    else if (key == "--noise") a.noise = std::atof(v);
+    else if (key == "--seed") a.seed = static_cast<unsigned>(std::atol(v));
+    else if (key == "--squeeze") a.squeeze = std::atoi(v);
+    else if (key == "--subdivision") a.subdivision = std::atoi(v);
+    else if (key == "--markers") a.markers = v;
+    else if (key == "--marker-every") a.markerEvery = std::atoi(v);
+    else if (key == "--marker-noise") a.markerNoise = std::atof(v);
     else usage(("unknown option " + key).c_str());
   }
-  if (mesh.empty() || !(spacing > 0) || !(youngs > 0) || !(nu >= 0 && nu < 0.5) || !(depth > 0) || cells < 1 ||
-      !(rate > 0) || !(press > 0) || !(hold >= 0) || !(noise >= 0) || markerEvery < 1 || !(markerNoise >= 0) ||
-      subdivision < 1)
+  if (a.mesh.empty() || !(a.spacing > 0) || !(a.youngs > 0) || !(a.nu >= 0 && a.nu < 0.5) || !(a.depth > 0) ||
+      a.cells < 1 || !(a.rate > 0) || !(a.press > 0) || !(a.hold >= 0) || !(a.noise >= 0) || a.markerEvery < 1 ||
+      !(a.markerNoise >= 0) || a.subdivision < 1)
     usage("--mesh, --spacing > 0, --youngs > 0 and 0 <= --nu < 0.5 are needed; the rest positive");
+  return a;
+}
+
+/// Prints the recording's first line: a comment saying what made it.
+void printHeader(const Args& a) {
+  if (a.squeeze)
+    std::printf("# fem_recording: FEM squeeze (a plate over the top), E %g Pa, nu %g, depth %g m, noise %g, seed %u",
+                a.youngs, a.nu, a.depth, a.noise, a.seed);
+  else
+    std::printf("# fem_recording: FEM punch %d cells, E %g Pa, nu %g, depth %g m, noise %g, seed %u", a.cells,
+                a.youngs, a.nu, a.depth, a.noise, a.seed);
+  if (a.subdivision > 1) std::printf(", %d elements per cell edge", a.subdivision);
+  std::printf("\n");
+}
+
+/// The markers: the nodes of the block's side faces in the middle third of its height (`top`).
+/// Prints nothing.
+std::vector<int> sideNodes(const std::vector<Eigen::Vector3d>& nodes, double top) {
+  std::vector<int> marked;
+  Eigen::Vector3d lo = nodes.front(), hi = nodes.front();
+  for (const Eigen::Vector3d& x : nodes) lo = lo.cwiseMin(x), hi = hi.cwiseMax(x);
+  for (int i = 0; i < static_cast<int>(nodes.size()); ++i) {
+    const Eigen::Vector3d& x = nodes[i];
+    const bool side = std::abs(x.x() - lo.x()) < 1e-9 || std::abs(x.x() - hi.x()) < 1e-9 ||
+                      std::abs(x.y() - lo.y()) < 1e-9 || std::abs(x.y() - hi.y()) < 1e-9;
+    if (side && x.z() > top / 3 - 1e-9 && x.z() < 2 * top / 3 + 1e-9) marked.push_back(i);
+  }
+  return marked;
+}
+
+/// Prints the fit's CSV (the tool's position and the noisy force at each sample) and writes the
+/// markers' CSV to --markers if given. `u`: the displacements at depth `unit`, `perMetre`: the
+/// force per metre of depth.
+void writeSamples(const Args& a, const std::vector<Eigen::Vector3d>& nodes, const std::vector<int>& marked,
+                  const FemSolution& u, double top, double unit, double perMetre, std::mt19937& rng,
+                  std::normal_distribution<double>& gauss) {
+  const int n = static_cast<int>(std::lround((2 * a.press + a.hold) * a.rate));
+  std::FILE* mf = a.markers.empty() ? nullptr : std::fopen(a.markers.c_str(), "w");
+  if (!a.markers.empty() && !mf) throw std::runtime_error("cannot write " + a.markers);
+  std::normal_distribution<double> jitter(0.0, a.markerNoise);
+  if (mf) std::fprintf(mf, "# fem_recording: %zu side nodes, noise %g m\ntime,marker,x,y,z\n", marked.size(), a.markerNoise);
+  std::printf("time,x,y,z,fx,fy,fz\n");
+  for (int k = 0; k <= n; ++k) {
+    const double t = k / a.rate;
+    const double d = a.depth * std::min({1.0, t / a.press, std::max(0.0, (2 * a.press + a.hold - t) / a.press)});
+    std::printf("%.6f,0,0,%.8f,0,0,%.6e\n", t, top - d, perMetre * d + gauss(rng));
+    if (mf && k % a.markerEvery == 0) {
+      for (std::size_t m = 0; m < marked.size(); ++m) {
+        const Eigen::Vector3d x = nodes[marked[m]] + (d / unit) * u.nodeDisplacements[marked[m]];
+        const double e = k == 0 ? 0.0 : 1.0;  // the rest exact
+        std::fprintf(mf, "%.6f,%zu,%.8f,%.8f,%.8f\n", t, m, x.x() + e * jitter(rng), x.y() + e * jitter(rng),
+                     x.z() + e * jitter(rng));
+      }
+    }
+  }
+  if (mf) std::fclose(mf);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args args = parse(argc, argv);
   try {
     VoxelizeOptions o;
-    o.spacing = spacing;
-    const Voxelization vox = voxelize(loadMesh(mesh), o);
+    o.spacing = args.spacing;
+    const Voxelization vox = voxelize(loadMesh(args.mesh), o);
     const double top = indentation::topOf(vox);
     // linear elastic: the force and the displacements are proportional to the depth
-    FemOracle fem(vox, FemMaterial{youngs, nu, 1000.0}, subdivision);
+    FemOracle fem(vox, FemMaterial{args.youngs, args.nu, 1000.0}, args.subdivision);
     const double unit = 1e-3;
     double unitForce = 0.0;
     const FemSolution u =
-        indentation::femPress(fem, vox, squeeze ? 1e3 : 0.5 * cells * vox.spacing + 1e-9, unit, unitForce);
+        indentation::femPress(fem, vox, args.squeeze ? 1e3 : 0.5 * args.cells * vox.spacing + 1e-9, unit, unitForce);
     const double perMetre = unitForce / unit;
-    std::mt19937 rng(seed);
-    std::normal_distribution<double> gauss(0.0, noise * perMetre * depth);
-    const int n = static_cast<int>(std::lround((2 * press + hold) * rate));
-    if (squeeze)
-      std::printf("# fem_recording: FEM squeeze (a plate over the top), E %g Pa, nu %g, depth %g m, noise %g, seed %u",
-                  youngs, nu, depth, noise, seed);
-    else
-      std::printf("# fem_recording: FEM punch %d cells, E %g Pa, nu %g, depth %g m, noise %g, seed %u", cells,
-                  youngs, nu, depth, noise, seed);
-    if (subdivision > 1) std::printf(", %d elements per cell edge", subdivision);
-    std::printf("\n");
+    std::mt19937 rng(args.seed);
+    std::normal_distribution<double> gauss(0.0, args.noise * perMetre * args.depth);
+    printHeader(args);
     // the markers: side-face nodes in the middle third of the height
-    std::vector<int> marked;
     const std::vector<Eigen::Vector3d>& nodes = fem.nodePositions();
-    Eigen::Vector3d lo = nodes.front(), hi = nodes.front();
-    for (const Eigen::Vector3d& x : nodes) lo = lo.cwiseMin(x), hi = hi.cwiseMax(x);
-    for (int i = 0; i < static_cast<int>(nodes.size()); ++i) {
-      const Eigen::Vector3d& x = nodes[i];
-      const bool side = std::abs(x.x() - lo.x()) < 1e-9 || std::abs(x.x() - hi.x()) < 1e-9 ||
-                        std::abs(x.y() - lo.y()) < 1e-9 || std::abs(x.y() - hi.y()) < 1e-9;
-      if (side && x.z() > top / 3 - 1e-9 && x.z() < 2 * top / 3 + 1e-9) marked.push_back(i);
-    }
-    std::FILE* mf = markers.empty() ? nullptr : std::fopen(markers.c_str(), "w");
-    if (!markers.empty() && !mf) throw std::runtime_error("cannot write " + markers);
-    std::normal_distribution<double> jitter(0.0, markerNoise);
-    if (mf) std::fprintf(mf, "# fem_recording: %zu side nodes, noise %g m\ntime,marker,x,y,z\n", marked.size(), markerNoise);
-    std::printf("time,x,y,z,fx,fy,fz\n");
-    for (int k = 0; k <= n; ++k) {
-      const double t = k / rate;
-      const double d = depth * std::min({1.0, t / press, std::max(0.0, (2 * press + hold - t) / press)});
-      std::printf("%.6f,0,0,%.8f,0,0,%.6e\n", t, top - d, perMetre * d + gauss(rng));
-      if (mf && k % markerEvery == 0) {
-        for (std::size_t m = 0; m < marked.size(); ++m) {
-          const Eigen::Vector3d x = nodes[marked[m]] + (d / unit) * u.nodeDisplacements[marked[m]];
-          const double e = k == 0 ? 0.0 : 1.0;  // the rest exact
-          std::fprintf(mf, "%.6f,%zu,%.8f,%.8f,%.8f\n", t, m, x.x() + e * jitter(rng), x.y() + e * jitter(rng),
-                       x.z() + e * jitter(rng));
-        }
-      }
-    }
-    if (mf) std::fclose(mf);
+    const std::vector<int> marked = sideNodes(nodes, top);
+    writeSamples(args, nodes, marked, u, top, unit, perMetre, rng, gauss);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fem_recording: %s\n", e.what());
     return 1;
