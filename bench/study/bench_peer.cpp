@@ -145,6 +145,137 @@ struct Entry {
   RunRecord first;                                // the first run's record (runs are deterministic)
 };
 
+/// Prints the set-up: the mesh and lattice, the scenario's setting, how cost is measured.
+void printSetup(const Args& args, const StudyObject& bunny, int resolution, const Voxelization& voxels,
+                const Lattice& lattice, Scenario scenario, const Setting& setting, int frames) {
+  const std::size_t P = lattice.size();
+  const double dx = lattice.spacing();
+  const double h = setting.substep();
+  std::printf("bench_peer: mesh %s x %.2g, size %.4f m; resolution %d, lattice %d x %d x %d, spacing %.4g m, "
+              "%zu particles, w = %d (the study's region radius would give w = %d here)\n",
+              args.mesh.c_str(), kStudyBunnyScale, bunny.size, resolution, voxels.dims.x(), voxels.dims.y(),
+              voxels.dims.z(), dx, P, args.halfWidth, static_cast<int>(std::lround(bunny.regionRadius / dx)));
+  std::printf("scenario %s (study::runScenario): %d frames of %.4g s, %d sub-step(s) of %.4g s, E = %.3g Pa, "
+              "ambient damping %.2g/s, %zu base particles pinned, %zu ear particles dragged\n",
+              toString(scenario), frames, setting.frameStep, args.substeps, h, setting.youngsModulus,
+              setting.ambientDamping, baseParticles(lattice, bunny).size(), earParticles(lattice, bunny).size());
+  std::printf("single thread; cost = wall time of step() only, median over the frames of a run, then over %d "
+              "run(s), per particle and sub-step\n",
+              args.repeats);
+}
+
+/// Adds FastLSM's entry to `entries` and prints its regions and alpha.
+void addFastLsm(std::vector<Entry>& entries, const Args& args, const std::shared_ptr<const Lattice>& lattice,
+                const SolverParams& flsm) {
+  const std::size_t P = lattice->size();
+  // FastLSM: one region per particle; its sums cost O(1) per particle whatever w, but the
+  // mean region size says how much each shape match covers.
+  const std::vector<int>& counts = lattice->regionCounts();
+  const double members = std::accumulate(counts.begin(), counts.end(), 0.0) / double(P);
+  Entry e;
+  e.label = "FastLSM fast, w " + std::to_string(args.halfWidth);
+  e.workUnits = P;
+  e.make = [lattice, flsm]() -> std::unique_ptr<Method> { return std::make_unique<FlsmMethod>(lattice, flsm); };
+  entries.push_back(std::move(e));
+  const FlsmMethod probe(lattice, flsm);
+  std::printf("FastLSM: %zu regions of %.1f particles on average (up to %d), alpha %.3g%s, double precision\n", P,
+              members, (2 * args.halfWidth + 1) * (2 * args.halfWidth + 1) * (2 * args.halfWidth + 1),
+              probe.solver().alpha(),
+              probe.solver().stiffnessSaturated() ? " (capped: the step is too long for E, the material is softer)"
+                                                  : "");
+}
+
+#ifdef FLSM_STUDY_WITH_BULLET
+/// Adds Bullet's entries to `entries`, one per --iterations count, and prints its links and kLST.
+void addBullet(std::vector<Entry>& entries, const Args& args, const std::shared_ptr<const Lattice>& lattice,
+               const Setting& setting) {
+  const std::size_t P = lattice->size();
+  const double dx = lattice->spacing();
+  const double h = setting.substep();
+  const std::size_t links = latticeLinks(*lattice).size();
+  const double kLST = std::min(1.0, args.bulletRatio * setting.youngsModulus * h * h / (kStudyDensity * dx * dx));
+  BulletParams base;
+  base.linearStiffness = kLST;
+  base.ambientDamping = setting.ambientDamping;
+  base.gravity = setting.gravity;
+  base.timeStep = setting.frameStep;
+  base.substeps = setting.substeps;
+  for (int it : args.iterations) {
+    Entry e;
+    e.label = "Bullet soft body";
+    e.iterations = it;
+    e.workUnits = links;
+    BulletParams p = base;
+    p.positionIterations = it;
+    e.make = [lattice, p]() -> std::unique_ptr<Method> {
+      return std::make_unique<BulletSoftBodyMethod>(lattice, p);
+    };
+    entries.push_back(std::move(e));
+  }
+  std::printf("Bullet %d.%02d: btSoftBody, %zu nodes, %zu links (%.2f per particle: face, edge and corner "
+              "neighbours), kLST %.3g%s, %zu-byte btScalar, no collision world\n",
+              BT_BULLET_VERSION / 100, BT_BULLET_VERSION % 100, P, links, double(links) / double(P), kLST,
+              kLST >= 1.0 ? " (capped at 1)" : "", sizeof(btScalar));
+}
+#endif
+
+/// Runs every entry --repeats times, in turns, recording its cost per run and its first record.
+void runEntries(std::vector<Entry>& entries, const Args& args, Scenario scenario, const StudyObject& bunny,
+                const Lattice& lattice, const Setting& setting) {
+  const std::size_t P = lattice.size();
+  for (int r = 0; r < args.repeats; ++r)
+    for (Entry& e : entries) {
+      auto method = e.make();
+      RunRecord rec = runScenario(scenario, bunny, lattice, *method, setting.frameStep, 0);
+      e.nsPerParticleStep.push_back(1e9 * median(rec.frameSeconds) / (double(args.substeps) * double(P)));
+      if (r == 0) e.first = std::move(rec);
+    }
+}
+
+/// The cost table: each entry's work units and cost per particle-step, against FastLSM's.
+void costTable(const std::vector<Entry>& entries, const Args& args, std::size_t P) {
+  const double fastNs = median(entries.front().nsPerParticleStep);
+  std::printf("\ncost (single thread):\n%-17s %5s %10s %9s %11s %10s %9s %9s %12s  %s\n", "method", "iter",
+              "work units", "per part.", "unit-iters", "ns/p-step", "x FastLSM", "ms/frame", "ns/unit-iter",
+              "ns/p-step of each run");
+  for (const Entry& e : entries) {
+    const double ns = median(e.nsPerParticleStep);
+    const double unitIters = double(e.iterations > 0 ? e.iterations : 1) * double(e.workUnits) / double(P);
+    std::string runs;
+    for (double v : e.nsPerParticleStep) runs += (runs.empty() ? "" : " ") + std::to_string(std::lround(v));
+    std::printf("%-17s %5s %10zu %9.2f %11.2f %10.1f %9.2f %9.2f %12.2f  %s\n", e.label.c_str(),
+                e.iterations > 0 ? std::to_string(e.iterations).c_str() : "-", e.workUnits,
+                double(e.workUnits) / double(P), unitIters, ns, ns / fastNs, ns * 1e-6 * double(P) * args.substeps,
+                ns / unitIters, runs.c_str());
+  }
+  std::printf("work units: FastLSM regions (one per particle), Bullet links; unit-iters: work units x position "
+              "iterations (one pass for FastLSM) per particle-step.\n");
+}
+
+/// The result table: what each entry's first run produced (volume, shape, energy, outcome).
+void resultTable(const std::vector<Entry>& entries) {
+  // What the (first) runs produced: the costs above are only comparable between runs that
+  // stayed finite and kept the bunny's shape.
+  std::printf("\nresult of the same runs:\n%-17s %5s %12s %11s %13s %12s  %s\n", "method", "iter", "vol hold (%)",
+              "vol end (%)", "shape end (%)", "peak KE (J)", "outcome");
+  for (const Entry& e : entries) {
+    const RunRecord& rec = e.first;
+    std::string outcome = "finite";
+    if (rec.blewUp) outcome = "BLEW UP at frame " + std::to_string(rec.blowUpFrame + 1);
+    else if (std::abs(rec.volumeChange) > kCollapsedVolume || std::abs(rec.finalVolumeChange) > kCollapsedVolume)
+      outcome = "collapsed";
+    std::printf("%-17s %5s %12s %11s %13s %12.3g  %s\n", e.label.c_str(),
+                e.iterations > 0 ? std::to_string(e.iterations).c_str() : "-", percent(rec.volumeChange).c_str(),
+                percent(rec.finalVolumeChange).c_str(), percent(rec.shapeError).c_str(), rec.peakKineticEnergy,
+                outcome.c_str());
+  }
+  std::printf("vol hold: volume change of the embedded render mesh at the end of the hold (ear 30%% of the size "
+              "away); vol end, shape end: %.0f s after release (shape = RMS distance to the best rigid fit of the "
+              "rest shape, over the size; the soft bunny still wobbles then). collapsed: volume change beyond "
+              "+-%.0f%%; blew up: non-finite, or %.0f sizes away.\n",
+              kEarDragEnd - kEarDragHoldUntil, 100.0 * kCollapsedVolume, kBlowUpSizes);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -156,123 +287,26 @@ int main(int argc, char** argv) {
     const Voxelization voxels = std::move(near.voxels);
     const auto lattice = std::make_shared<const Lattice>(voxels, kStudyDensity, args.halfWidth);
     const std::size_t P = lattice->size();
-    const double dx = lattice->spacing();
 
     // The study's ear-drag setting at this resolution, on the lattice's regions (w as given).
     const Scenario scenario = Scenario::EarDrag;
     const Setting setting = scenarioSetting(scenario, bunny, resolution, args.substeps);
     const SolverParams flsm = flsmParams(setting, lattice->regionHalfWidth(), SolverKind::Fast);
     const int frames = static_cast<int>(std::lround(scenarioDuration(scenario) / setting.frameStep));
-    const double h = setting.substep();
-
-    std::printf("bench_peer: mesh %s x %.2g, size %.4f m; resolution %d, lattice %d x %d x %d, spacing %.4g m, "
-                "%zu particles, w = %d (the study's region radius would give w = %d here)\n",
-                args.mesh.c_str(), kStudyBunnyScale, bunny.size, resolution, voxels.dims.x(), voxels.dims.y(),
-                voxels.dims.z(), dx, P, args.halfWidth, static_cast<int>(std::lround(bunny.regionRadius / dx)));
-    std::printf("scenario %s (study::runScenario): %d frames of %.4g s, %d sub-step(s) of %.4g s, E = %.3g Pa, "
-                "ambient damping %.2g/s, %zu base particles pinned, %zu ear particles dragged\n",
-                toString(scenario), frames, setting.frameStep, args.substeps, h, setting.youngsModulus,
-                setting.ambientDamping, baseParticles(*lattice, bunny).size(), earParticles(*lattice, bunny).size());
-    std::printf("single thread; cost = wall time of step() only, median over the frames of a run, then over %d "
-                "run(s), per particle and sub-step\n",
-                args.repeats);
+    printSetup(args, bunny, resolution, voxels, *lattice, scenario, setting, frames);
 
     std::vector<Entry> entries;
-    {
-      // FastLSM: one region per particle; its sums cost O(1) per particle whatever w, but the
-      // mean region size says how much each shape match covers.
-      const std::vector<int>& counts = lattice->regionCounts();
-      const double members = std::accumulate(counts.begin(), counts.end(), 0.0) / double(P);
-      Entry e;
-      e.label = "FastLSM fast, w " + std::to_string(args.halfWidth);
-      e.workUnits = P;
-      e.make = [lattice, flsm]() -> std::unique_ptr<Method> { return std::make_unique<FlsmMethod>(lattice, flsm); };
-      entries.push_back(std::move(e));
-      const FlsmMethod probe(lattice, flsm);
-      std::printf("FastLSM: %zu regions of %.1f particles on average (up to %d), alpha %.3g%s, double precision\n", P,
-                  members, (2 * args.halfWidth + 1) * (2 * args.halfWidth + 1) * (2 * args.halfWidth + 1),
-                  probe.solver().alpha(),
-                  probe.solver().stiffnessSaturated() ? " (capped: the step is too long for E, the material is softer)"
-                                                      : "");
-    }
+    addFastLsm(entries, args, lattice, flsm);
 #ifdef FLSM_STUDY_WITH_BULLET
-    {
-      const std::size_t links = latticeLinks(*lattice).size();
-      const double kLST = std::min(1.0, args.bulletRatio * setting.youngsModulus * h * h / (kStudyDensity * dx * dx));
-      BulletParams base;
-      base.linearStiffness = kLST;
-      base.ambientDamping = setting.ambientDamping;
-      base.gravity = setting.gravity;
-      base.timeStep = setting.frameStep;
-      base.substeps = setting.substeps;
-      for (int it : args.iterations) {
-        Entry e;
-        e.label = "Bullet soft body";
-        e.iterations = it;
-        e.workUnits = links;
-        BulletParams p = base;
-        p.positionIterations = it;
-        e.make = [lattice, p]() -> std::unique_ptr<Method> {
-          return std::make_unique<BulletSoftBodyMethod>(lattice, p);
-        };
-        entries.push_back(std::move(e));
-      }
-      std::printf("Bullet %d.%02d: btSoftBody, %zu nodes, %zu links (%.2f per particle: face, edge and corner "
-                  "neighbours), kLST %.3g%s, %zu-byte btScalar, no collision world\n",
-                  BT_BULLET_VERSION / 100, BT_BULLET_VERSION % 100, P, links, double(links) / double(P), kLST,
-                  kLST >= 1.0 ? " (capped at 1)" : "", sizeof(btScalar));
-    }
+    addBullet(entries, args, lattice, setting);
 #else
     std::printf("Bullet: not built in (pkg-config found no 'bullet'; install libbullet-dev): FastLSM only\n");
 #endif
     std::fflush(stdout);
 
-    for (int r = 0; r < args.repeats; ++r)
-      for (Entry& e : entries) {
-        auto method = e.make();
-        RunRecord rec = runScenario(scenario, bunny, *lattice, *method, setting.frameStep, 0);
-        e.nsPerParticleStep.push_back(1e9 * median(rec.frameSeconds) / (double(args.substeps) * double(P)));
-        if (r == 0) e.first = std::move(rec);
-      }
-
-    // Cost of the runs.
-    const double fastNs = median(entries.front().nsPerParticleStep);
-    std::printf("\ncost (single thread):\n%-17s %5s %10s %9s %11s %10s %9s %9s %12s  %s\n", "method", "iter",
-                "work units", "per part.", "unit-iters", "ns/p-step", "x FastLSM", "ms/frame", "ns/unit-iter",
-                "ns/p-step of each run");
-    for (const Entry& e : entries) {
-      const double ns = median(e.nsPerParticleStep);
-      const double unitIters = double(e.iterations > 0 ? e.iterations : 1) * double(e.workUnits) / double(P);
-      std::string runs;
-      for (double v : e.nsPerParticleStep) runs += (runs.empty() ? "" : " ") + std::to_string(std::lround(v));
-      std::printf("%-17s %5s %10zu %9.2f %11.2f %10.1f %9.2f %9.2f %12.2f  %s\n", e.label.c_str(),
-                  e.iterations > 0 ? std::to_string(e.iterations).c_str() : "-", e.workUnits,
-                  double(e.workUnits) / double(P), unitIters, ns, ns / fastNs, ns * 1e-6 * double(P) * args.substeps,
-                  ns / unitIters, runs.c_str());
-    }
-    std::printf("work units: FastLSM regions (one per particle), Bullet links; unit-iters: work units x position "
-                "iterations (one pass for FastLSM) per particle-step.\n");
-
-    // What the (first) runs produced: the costs above are only comparable between runs that
-    // stayed finite and kept the bunny's shape.
-    std::printf("\nresult of the same runs:\n%-17s %5s %12s %11s %13s %12s  %s\n", "method", "iter", "vol hold (%)",
-                "vol end (%)", "shape end (%)", "peak KE (J)", "outcome");
-    for (const Entry& e : entries) {
-      const RunRecord& rec = e.first;
-      std::string outcome = "finite";
-      if (rec.blewUp) outcome = "BLEW UP at frame " + std::to_string(rec.blowUpFrame + 1);
-      else if (std::abs(rec.volumeChange) > kCollapsedVolume || std::abs(rec.finalVolumeChange) > kCollapsedVolume)
-        outcome = "collapsed";
-      std::printf("%-17s %5s %12s %11s %13s %12.3g  %s\n", e.label.c_str(),
-                  e.iterations > 0 ? std::to_string(e.iterations).c_str() : "-", percent(rec.volumeChange).c_str(),
-                  percent(rec.finalVolumeChange).c_str(), percent(rec.shapeError).c_str(), rec.peakKineticEnergy,
-                  outcome.c_str());
-    }
-    std::printf("vol hold: volume change of the embedded render mesh at the end of the hold (ear 30%% of the size "
-                "away); vol end, shape end: %.0f s after release (shape = RMS distance to the best rigid fit of the "
-                "rest shape, over the size; the soft bunny still wobbles then). collapsed: volume change beyond "
-                "+-%.0f%%; blew up: non-finite, or %.0f sizes away.\n",
-                kEarDragEnd - kEarDragHoldUntil, 100.0 * kCollapsedVolume, kBlowUpSizes);
+    runEntries(entries, args, scenario, bunny, *lattice, setting);
+    costTable(entries, args, P);
+    resultTable(entries);
     return 0;
   } catch (const std::exception& ex) {
     std::fprintf(stderr, "bench_peer: %s\n", ex.what());

@@ -24,6 +24,8 @@
 
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/voxelizer.h"
+#include "study/bar_physics.h"
+#include "study/csv.h"
 #include "study/indentation.h"
 #include "study/mass_spring.h"
 #include "study/method.h"
@@ -410,61 +412,7 @@ double calibrationTip(const StudyObject& bar, const std::string& method, int sub
 
 // --- physics -------------------------------------------------------------------------------
 
-/// The physical answer to the cantilever: the deflection (m, downward) of the bar's centre line
-/// at each probe (StudyObject::probes), from the FEM oracle on the bar's voxels and from
-/// Timoshenko's beam, and the tips; and to the column: the shortening (m, along -x) at each
-/// probe from the FEM oracle and from uniaxial stress (nu = 0, free sides).
-struct Physics {
-  std::vector<double> fem, timoshenko;
-  double femTip = 0.0, timoshenkoTip = 0.0, eulerBernoulliTip = 0.0;  // / L
-  double femCheckTip = 0.0;                                           // / L, coarser oracle
-  double femSeconds = 0.0;
-  std::vector<double> columnFem, columnUniaxial;
-  double columnFemTop = 0.0, columnUniaxialTop = 0.0;  // / L
-};
-
-/// Axis along which a bar scenario's load acts (the displacement that is compared).
-int loadAxis(Scenario s) { return s == Scenario::Column ? 0 : 2; }
-
-/// Displacement (m) against the load (downward for the cantilever, along -x for the column) of
-/// the centre line at each probe of `bar` from a static FEM solve of `scenario` on
-/// the bar's voxels at `resolution`, clamped as the scenario clamps (cells with centres within
-/// L / 20 of the fixed end): the node displacements along the centre line (a node line when the
-/// section has an even number of elements), interpolated linearly in x.
-std::vector<double> femProbeDeflections(const StudyObject& bar, Scenario scenario, int resolution, int subdivision) {
-  VoxelizeOptions options;
-  options.resolution = resolution;
-  const Voxelization voxels = voxelize(bar.mesh, options);
-  FemOracle fem(voxels, FemMaterial{bar.youngsModulus, kStudyPoissonRatio, kStudyDensity}, subdivision);
-  const double inf = std::numeric_limits<double>::infinity();
-  const double cut = bar.mesh.boundsMin().x() + kBarClampFraction * (bar.mesh.boundsMax().x() - bar.mesh.boundsMin().x());
-  fem.clampCellsInBox(Eigen::Vector3d(-inf, -inf, -inf), Eigen::Vector3d(cut, inf, inf));
-  const FemSolution u = fem.solveStatic(scenarioGravity(scenario));
-  const int axis = loadAxis(scenario);
-  const Eigen::Vector3d& probe0 = bar.probes.front();
-  const double tol = 1e-6 * voxels.spacing;
-  std::vector<std::pair<double, double>> line;  // (x, downward deflection)
-  for (std::size_t n = 0; n < fem.nodePositions().size(); ++n) {
-    const Eigen::Vector3d& x = fem.nodePositions()[n];
-    if (std::abs(x.y() - probe0.y()) < tol && std::abs(x.z() - probe0.z()) < tol)
-      line.emplace_back(x.x(), -u.nodeDisplacements[n][axis]);
-  }
-  if (line.size() < 2)
-    throw std::runtime_error("FEM oracle: no node line on the bar's centre line at resolution " +
-                             std::to_string(resolution) + " (use an even number of elements across the section)");
-  std::sort(line.begin(), line.end());
-  std::vector<double> out;
-  for (const Eigen::Vector3d& p : bar.probes) {
-    auto hi = std::lower_bound(line.begin(), line.end(), std::make_pair(p.x(), -inf));
-    if (hi == line.end()) hi = line.end() - 1;
-    if (hi == line.begin()) hi = line.begin() + 1;
-    const auto lo = hi - 1;
-    const double t = (p.x() - lo->first) / (hi->first - lo->first);
-    out.push_back(lo->second + t * (hi->second - lo->second));
-  }
-  return out;
-}
-
+/// The physical references of the bar (Physics, study/bar_physics.h).
 Physics physics(const StudyObject& bar) {
   Physics ph;
   const auto t0 = std::chrono::steady_clock::now();
@@ -488,29 +436,6 @@ Physics physics(const StudyObject& bar) {
   const double q = kStudyDensity * kBarLoad * a * a, I = a * a * a * a / 12.0;
   ph.eulerBernoulliTip = q * std::pow(lf, 4) / (8.0 * bar.youngsModulus * I) / kBarLength;
   return ph;
-}
-
-/// A cantilever or column run against physics: tip displacement over the reference's minus 1
-/// (negative: too stiff), and the RMS over the probes of the displacement difference over the
-/// reference tip's.
-struct PhysicalError {
-  double tip = std::numeric_limits<double>::quiet_NaN();
-  double profile = std::numeric_limits<double>::quiet_NaN();
-};
-
-PhysicalError physicalError(const StudyObject& bar, Scenario scenario, const std::vector<Eigen::Vector3d>& finalPoints,
-                            const std::vector<double>& reference) {
-  const int axis = loadAxis(scenario);
-  PhysicalError e;
-  const std::size_t np = bar.probes.size(), first = finalPoints.size() - np;
-  double sum = 0.0;
-  for (std::size_t k = 0; k < np; ++k) {
-    const double w = bar.probes[k][axis] - finalPoints[first + k][axis];
-    sum += (w - reference[k]) * (w - reference[k]);
-    if (k + 1 == np) e.tip = w / reference[k] - 1.0;
-  }
-  e.profile = std::sqrt(sum / double(np)) / reference.back();
-  return e;
 }
 
 /// Matches the static stiffness of the peers that take no modulus to physics: the cantilever's
@@ -579,14 +504,6 @@ Calibration calibrate(const StudyObject& bar, const Physics& ph, bool withMassSp
 
 // --- output ----------------------------------------------------------------------------------
 
-std::string num(double v) {
-  if (std::isnan(v)) return "";
-  if (std::isinf(v)) return "inf";
-  std::ostringstream os;
-  os << std::setprecision(6) << v;
-  return os.str();
-}
-
 struct Row {
   const Run* run = nullptr;
   double errorRef = std::numeric_limits<double>::quiet_NaN();
@@ -625,68 +542,6 @@ const std::string kAccuracyHeader =
 const std::string kStabilityHeader =
     "scenario,method,resolution,particles,frame_step_s,substeps,outcome,blow_up_time_s,shape_error,"
     "recovered_after_s,peak_kinetic_energy_J,volume_change_held,volume_change_final,youngs_modulus_Pa,cg_iterations";
-
-/// Can the rows of the file at `path` be merged with this program's (`header`)? True when the
-/// file is missing or empty or starts with `header`; otherwise prints why not.
-bool mergeable(const std::string& path, const std::string& header) {
-  std::ifstream in(path);
-  std::string line;
-  if (!in || !std::getline(in, line) || line == header) return true;
-  std::fprintf(stderr, "flsm_study: %s has other columns than this program writes: run the whole study "
-                       "(without --methods) once\n", path.c_str());
-  return false;
-}
-
-/// How writeCsv() orders rows: by scenario (kScenarioOrder), then method (kAllMethods); or by
-/// method only. Rows of equal rank keep the order in which they were run.
-enum class CsvOrder { ScenarioThenMethod, Method };
-const std::vector<std::string> kScenarioOrder = {"cantilever", "column", "ear-drag", "drag-5x", "plane", "scrambled"};
-
-/// Field `k` (from 0) of a CSV line without quoted fields.
-std::string csvField(const std::string& line, int k) {
-  std::size_t begin = 0;
-  for (int i = 0; i < k; ++i) {
-    begin = line.find(',', begin);
-    if (begin == std::string::npos) return {};
-    ++begin;
-  }
-  return line.substr(begin, line.find(',', begin) - begin);
-}
-
-/// Writes `header` and `lines` (rows without newline; field 0 the scenario, field 1 the method)
-/// to `path`. With `keepOthers`, the rows of the existing file whose method this run did not run
-/// (`ran` false) are kept; an existing file with another header cannot be merged (its columns
-/// differ): that is an error that asks for the whole study. Returns false after printing why.
-template <typename Ran>
-bool writeCsv(const std::string& path, const std::string& header, std::vector<std::string> lines, bool keepOthers,
-              const Ran& ran, CsvOrder order) {
-  if (keepOthers) {
-    if (!mergeable(path, header)) return false;
-    std::ifstream in(path);
-    std::string line;
-    if (in && std::getline(in, line)) {
-      while (std::getline(in, line))
-        if (!line.empty() && !ran(csvField(line, 1))) lines.push_back(line);
-    }
-  }
-  auto rank = [](const std::vector<std::string>& list, const std::string& name) {
-    return std::find(list.begin(), list.end(), name) - list.begin();
-  };
-  std::stable_sort(lines.begin(), lines.end(), [&](const std::string& a, const std::string& b) {
-    const auto ma = rank(kAllMethods, csvField(a, 1)), mb = rank(kAllMethods, csvField(b, 1));
-    if (order == CsvOrder::Method) return ma < mb;
-    const auto sa = rank(kScenarioOrder, csvField(a, 0)), sb = rank(kScenarioOrder, csvField(b, 0));
-    return sa != sb ? sa < sb : ma < mb;
-  });
-  std::ofstream f(path);
-  if (!f) {
-    std::fprintf(stderr, "flsm_study: cannot write %s (does the directory exist?)\n", path.c_str());
-    return false;
-  }
-  f << header << '\n';
-  for (const std::string& line : lines) f << line << '\n';
-  return true;
-}
 
 // --- indentation ---------------------------------------------------------------------------
 
@@ -748,22 +603,25 @@ bool runIndentation(const Args& args, const Calibration& calib, const Selected& 
       }
     }
   }
-  return writeCsv(args.out + "/indentation.csv", kIndentationHeader, std::move(lines), subset, selected,
+  return writeCsv(args.out + "/indentation.csv", kIndentationHeader, std::move(lines), subset, selected, kAllMethods,
                   CsvOrder::Method);
 }
 
-}  // namespace
+// --- stages of main ---------------------------------------------------------------------------
 
-int main(int argc, char** argv) {
-  const Args args = parse(argc, argv);
-  std::setvbuf(stdout, nullptr, _IOLBF, 0);  // progress lines appear as they are printed, also into a pipe
-  const auto start = std::chrono::steady_clock::now();
-  bool withBullet = false;
-#ifdef FLSM_STUDY_WITH_BULLET
-  withBullet = args.bullet;
-#endif
-  const StudyObject bar = makeBar(kBarLength);
-  const StudyObject bunny = makeBunny(args.mesh, kStudyBunnyScale);
+/// The methods of this run: all (the Bullet peers when built in), or those of --methods.
+struct Selection {
+  const Args& args;
+  bool withBullet;
+  bool subset;
+  bool operator()(const std::string& m) const {
+    if ((m == "bullet" || m == "bullet-fem") && !withBullet) return false;
+    return !subset || std::find(args.methods.begin(), args.methods.end(), m) != args.methods.end();
+  }
+};
+
+/// Prints the first lines of the log: the objects, how cost is measured, whether Bullet runs.
+void printIntro(const Args& args, const StudyObject& bar, const StudyObject& bunny, bool withBullet) {
   const std::string meshName = args.mesh.substr(args.mesh.find_last_of('/') + 1);  // no machine paths in the log
   std::printf("flsm_study: bar %.3g x %.3g x %.3g m (%zu render vertices); bunny %s x %.2g, size %.4f m (%zu vertices, "
               "%zu sampled)\n",
@@ -772,136 +630,201 @@ int main(int argc, char** argv) {
   std::printf("single thread; cost = CPU time of the stepping thread per frame, the mean over the frames of a run%s\n",
               args.repeats > 1 ? ", then the median over up to --repeats runs (runs under 2 s)" : "");
   if (!withBullet) std::printf("Bullet's soft body: not built in (no Bullet found, or --no-bullet)\n");
+}
 
-  const Physics ph = physics(bar);
+/// Prints the physical references: the FEM oracle's, Timoshenko's and Euler-Bernoulli's tips,
+/// and the column's shortening.
+void printPhysics(const Physics& ph) {
   std::printf("physics: FEM oracle (resolution %d, %d^3 elements per cell, %.1f s) tip %.5f L, at resolution %d "
               "%.5f L; Timoshenko %.5f L; Euler-Bernoulli %.5f L\n",
               kFemResolution, kFemSubdivision, ph.femSeconds, ph.femTip, kFemCheckResolution, ph.femCheckTip,
               ph.timoshenkoTip, ph.eulerBernoulliTip);
   std::printf("physics: column shortening, FEM oracle %.5f L; uniaxial stress (nu = 0) %.5f L\n", ph.columnFemTop,
               ph.columnUniaxialTop);
-  // the methods of this run: all (the Bullet peers when built in), or those of --methods
-  const bool subset = !args.methods.empty();
-  auto selected = [&](const std::string& m) {
-    if ((m == "bullet" || m == "bullet-fem") && !withBullet) return false;
-    return !subset || std::find(args.methods.begin(), args.methods.end(), m) != args.methods.end();
-  };
+}
+
+/// The selected methods of the accuracy runs (all but the stress table's "fastlsm-nu0").
+std::vector<std::string> accuracyMethods(const Selection& selected) {
   std::vector<std::string> methods;  // of the accuracy runs
   for (const std::string& m : kAllMethods)
     if (m != "fastlsm-nu0" && selected(m)) methods.push_back(m);
-  if (subset && !(mergeable(args.out + "/accuracy.csv", kAccuracyHeader) &&
-                  mergeable(args.out + "/stability.csv", kStabilityHeader)))
-    return 1;
-  if (subset) {
-    std::string list;
-    for (const auto& m : args.methods) list += " " + m;
-    std::printf("methods:%s (the other methods' rows and calibration.csv are kept)\n", list.c_str());
-  }
-  // Bullet's deformable body damps its stiff modes with the mass-spring's calibrated dashpot time
-  const Calibration calib =
-      calibrate(bar, ph, selected("mass-spring") || selected("bullet-fem"), selected("bullet"));
-  std::printf("  (physics and calibration: %.0f s)\n", secondsSince(start));
-  if (!runIndentation(args, calib, selected, subset)) return 1;
-  if (args.indentationOnly) {
-    std::printf("wrote indentation.csv in %.0f s\n", secondsSince(start));
-    return 0;
-  }
+  return methods;
+}
 
-  const std::vector<int> barRes = args.quick ? std::vector<int>{20} : kBarResolutions;
-  const int barRef = args.quick ? 40 : kBarReferenceResolution;
-  const std::vector<int> bunnyRes = args.quick ? std::vector<int>{12} : kBunnyResolutions;
-  const int bunnyRef = args.quick ? 24 : kBunnyReferenceResolution;
-  const std::vector<int> subs = args.quick ? std::vector<int>{1, 4} : kSubsteps;
-  const int refSubs = args.quick ? 8 : kReferenceSubsteps;
+/// With --methods: checks that the existing files can be merged and prints the methods run;
+/// false after printing why not.
+bool announceSubset(const Args& args) {
+  if (!(mergeable(args.out + "/accuracy.csv", kAccuracyHeader) &&
+        mergeable(args.out + "/stability.csv", kStabilityHeader)))
+    return false;
+  std::string list;
+  for (const auto& m : args.methods) list += " " + m;
+  std::printf("methods:%s (the other methods' rows and calibration.csv are kept)\n", list.c_str());
+  return true;
+}
 
+/// Resolutions and sub-steps of the accuracy runs and of their reference runs.
+struct Grid {
+  std::vector<int> barRes;
+  int barRef = 0;
+  std::vector<int> bunnyRes;
+  int bunnyRef = 0;
+  std::vector<int> subs;
+  int refSubs = 0;
+  std::vector<int> columnRes;
+};
+
+/// The study's grid, or with --quick a small one that checks the pipeline.
+Grid studyGrid(bool quick) {
+  Grid g;
+  g.barRes = quick ? std::vector<int>{20} : kBarResolutions;
+  g.barRef = quick ? 40 : kBarReferenceResolution;
+  g.bunnyRes = quick ? std::vector<int>{12} : kBunnyResolutions;
+  g.bunnyRef = quick ? 24 : kBunnyReferenceResolution;
+  g.subs = quick ? std::vector<int>{1, 4} : kSubsteps;
+  g.refSubs = quick ? 8 : kReferenceSubsteps;
+  g.columnRes = quick ? std::vector<int>{20} : kColumnResolutions;
+  return g;
+}
+
+/// The accuracy runs (each owned here) and their rows (each pointing to its run).
+struct AccuracyRuns {
   std::vector<std::unique_ptr<Run>> runs;
   std::vector<Row> rows;
-  const std::vector<int> columnRes = args.quick ? std::vector<int>{20} : kColumnResolutions;
-  for (Scenario scenario : {Scenario::Cantilever, Scenario::Column, Scenario::EarDrag}) {
-    const bool onBar = scenario != Scenario::EarDrag;
-    const StudyObject& object = onBar ? bar : bunny;
-    const std::vector<int>& resolutions =
-        scenario == Scenario::Cantilever ? barRes : (scenario == Scenario::Column ? columnRes : bunnyRes);
-    const int refRes = onBar ? barRef : bunnyRef;
-    std::printf("%s:\n", toString(scenario));
-    const auto scenarioStart = std::chrono::steady_clock::now();
-    std::map<std::string, const Run*> fastBySetting;
-    const Run* fastRef = nullptr;
-    // naive LSM and the implicit step are measured against FastLSM's reference run: without
-    // FastLSM among the methods, that run alone (its row is kept from the existing file)
-    std::vector<std::string> scenarioMethods = methods;
-    const bool fastRefOnly = !selected("fastlsm") && (selected("naive-lsm") || selected("fastlsm-implicit"));
-    if (fastRefOnly && scenario != Scenario::Column) scenarioMethods.insert(scenarioMethods.begin(), "fastlsm");
-    for (const std::string& method : scenarioMethods) {
-      if (method == "bullet-fem" && !onBar) continue;
-      const bool refOnly = method == "fastlsm" && fastRefOnly;
-      // the method's own sub-step lists at each resolution, and its reference
-      auto substepsAt = [&](int res) {
-        if (method == "bullet-fem") {
-          const std::size_t k = static_cast<std::size_t>(
-              std::find(resolutions.begin(), resolutions.end(), res) - resolutions.begin());
-          if (args.quick) return std::vector<int>{1};
-          return k < kBulletFemSubsteps.size() ? kBulletFemSubsteps[k] : std::vector<int>{};
-        }
-        if ((method == "fastlsm" || method == "naive-lsm") && !args.quick) {
-          std::vector<int> out = subs;
-          while (out.back() < kMaxFlsmSubsteps && flsmCapped(scenario, object, res, out.back(), calib))
-            out.push_back(2 * out.back());
-          return out;
-        }
-        if (method == "fastlsm-implicit") return args.quick ? std::vector<int>{1} : kImplicitSubsteps;
-        if (method != "mass-spring") return subs;
-        const int smin = massSpringMinSubsteps(buildLattice(object, res), calib, object.youngsModulus, kAccuracyFrameStep);
-        std::vector<int> out;
-        for (int f : kMassSpringSubstepFactors) out.push_back(smin * f);
-        return out;
-      };
-      const Run* ref = nullptr;
-      if (method == "naive-lsm") {
-        ref = fastRef;  // same algorithm as FastLSM (sums in another order): same reference
-      } else if (method == "fastlsm-implicit") {
-        // the same model (regions, material, damping) in time steps that tend to zero: both
-        // integrators converge to FastLSM's converged run
-        ref = fastRef;
-      } else if (method != "bullet-fem" && scenario != Scenario::Column) {  // the column: physics only
-        int rs = method == "mass-spring"
-                     ? massSpringMinSubsteps(buildLattice(object, refRes), calib, object.youngsModulus,
-                                             kAccuracyFrameStep) *
-                           kMassSpringReferenceFactor
-                     : refSubs;
-        if (method == "fastlsm" && !args.quick)
-          while (rs < kMaxReferenceSubsteps && flsmCapped(scenario, object, refRes, rs, calib)) rs *= 2;
-        runs.push_back(std::make_unique<Run>(runOnce(scenario, object, method, refRes, rs, calib, 1, true)));
-        ref = runs.back().get();
-        if (!refOnly) {
-          rows.emplace_back();
-          rows.back().run = ref;
-        }
-        if (method == "fastlsm") fastRef = ref;
-      }
-      if (refOnly) continue;
-      const std::vector<int>& runResolutions =
-          method == "fastlsm-implicit" && scenario == Scenario::Cantilever && !args.quick ? kImplicitBarResolutions
-                                                                                         : resolutions;
-      for (int res : runResolutions) {
-        if (method == "naive-lsm" && buildLattice(object, res)->regionHalfWidth() > kNaiveMaxHalfWidth)
-          continue;
-        for (int sub : substepsAt(res)) {
-          runs.push_back(std::make_unique<Run>(runOnce(scenario, object, method, res, sub, calib, args.repeats, false)));
-          const Run& run = *runs.back();
-          Row row;
-          row.run = &run;
-          if (ref) row.errorRef = errorAgainst(run, *ref, object.size);
-          const std::string key = std::to_string(res) + "/" + std::to_string(sub);
-          if (method == "fastlsm") fastBySetting[key] = &run;
-          if (method == "naive-lsm" && fastBySetting.count(key))
-            row.diffVsFast = errorAgainst(run, *fastBySetting[key], object.size);
-          rows.push_back(row);
-        }
-      }
-    }
-    std::printf("  (%s: %.0f s)\n", toString(scenario), secondsSince(scenarioStart));
+};
+
+/// What the accuracy runs of one scenario share.
+struct ScenarioContext {
+  Scenario scenario;
+  const StudyObject& object;
+  const std::vector<int>& resolutions;
+  int refRes;
+  const Grid& grid;
+  const Args& args;
+  const Calibration& calib;
+};
+
+/// FastLSM's runs of a scenario, which naive LSM and the implicit step are compared with: by
+/// "resolution/sub-steps", and its reference run.
+struct FastRuns {
+  std::map<std::string, const Run*> fastBySetting;
+  const Run* fastRef = nullptr;
+};
+
+/// The method's own sub-step lists at each resolution.
+std::vector<int> substepsAt(const std::string& method, const ScenarioContext& ctx, int res) {
+  const Args& args = ctx.args;
+  const std::vector<int>& resolutions = ctx.resolutions;
+  if (method == "bullet-fem") {
+    const std::size_t k = static_cast<std::size_t>(
+        std::find(resolutions.begin(), resolutions.end(), res) - resolutions.begin());
+    if (args.quick) return std::vector<int>{1};
+    return k < kBulletFemSubsteps.size() ? kBulletFemSubsteps[k] : std::vector<int>{};
   }
+  if ((method == "fastlsm" || method == "naive-lsm") && !args.quick) {
+    std::vector<int> out = ctx.grid.subs;
+    while (out.back() < kMaxFlsmSubsteps && flsmCapped(ctx.scenario, ctx.object, res, out.back(), ctx.calib))
+      out.push_back(2 * out.back());
+    return out;
+  }
+  if (method == "fastlsm-implicit") return args.quick ? std::vector<int>{1} : kImplicitSubsteps;
+  if (method != "mass-spring") return ctx.grid.subs;
+  const int smin = massSpringMinSubsteps(buildLattice(ctx.object, res), ctx.calib, ctx.object.youngsModulus, kAccuracyFrameStep);
+  std::vector<int> out;
+  for (int f : kMassSpringSubstepFactors) out.push_back(smin * f);
+  return out;
+}
+
+/// The run `method`'s runs are measured against (nullptr: none): FastLSM's reference for naive
+/// LSM and the implicit step, else the method's own reference run, run here (and given a row
+/// unless `refOnly`), except for Bullet's deformable body and the column (physics only).
+const Run* referenceRun(const std::string& method, const ScenarioContext& ctx, bool refOnly, FastRuns& fast,
+                        AccuracyRuns& out) {
+  const Run* ref = nullptr;
+  if (method == "naive-lsm") {
+    ref = fast.fastRef;  // same algorithm as FastLSM (sums in another order): same reference
+  } else if (method == "fastlsm-implicit") {
+    // the same model (regions, material, damping) in time steps that tend to zero: both
+    // integrators converge to FastLSM's converged run
+    ref = fast.fastRef;
+  } else if (method != "bullet-fem" && ctx.scenario != Scenario::Column) {  // the column: physics only
+    int rs = method == "mass-spring"
+                 ? massSpringMinSubsteps(buildLattice(ctx.object, ctx.refRes), ctx.calib, ctx.object.youngsModulus,
+                                         kAccuracyFrameStep) *
+                       kMassSpringReferenceFactor
+                 : ctx.grid.refSubs;
+    if (method == "fastlsm" && !ctx.args.quick)
+      while (rs < kMaxReferenceSubsteps && flsmCapped(ctx.scenario, ctx.object, ctx.refRes, rs, ctx.calib)) rs *= 2;
+    out.runs.push_back(std::make_unique<Run>(runOnce(ctx.scenario, ctx.object, method, ctx.refRes, rs, ctx.calib, 1, true)));
+    ref = out.runs.back().get();
+    if (!refOnly) {
+      out.rows.emplace_back();
+      out.rows.back().run = ref;
+    }
+    if (method == "fastlsm") fast.fastRef = ref;
+  }
+  return ref;
+}
+
+/// Runs `method` at every resolution and sub-step count of the scenario, one row each, measured
+/// against `ref` (and naive LSM against FastLSM at the same setting).
+void settingRuns(const std::string& method, const ScenarioContext& ctx, const Run* ref, FastRuns& fast,
+                 AccuracyRuns& out) {
+  const StudyObject& object = ctx.object;
+  const std::vector<int>& runResolutions =
+      method == "fastlsm-implicit" && ctx.scenario == Scenario::Cantilever && !ctx.args.quick ? kImplicitBarResolutions
+                                                                                             : ctx.resolutions;
+  for (int res : runResolutions) {
+    if (method == "naive-lsm" && buildLattice(object, res)->regionHalfWidth() > kNaiveMaxHalfWidth)
+      continue;
+    for (int sub : substepsAt(method, ctx, res)) {
+      out.runs.push_back(
+          std::make_unique<Run>(runOnce(ctx.scenario, object, method, res, sub, ctx.calib, ctx.args.repeats, false)));
+      const Run& run = *out.runs.back();
+      Row row;
+      row.run = &run;
+      if (ref) row.errorRef = errorAgainst(run, *ref, object.size);
+      const std::string key = std::to_string(res) + "/" + std::to_string(sub);
+      if (method == "fastlsm") fast.fastBySetting[key] = &run;
+      if (method == "naive-lsm" && fast.fastBySetting.count(key))
+        row.diffVsFast = errorAgainst(run, *fast.fastBySetting[key], object.size);
+      out.rows.push_back(row);
+    }
+  }
+}
+
+/// Runs the accuracy grid of one scenario (the cantilever, the column or the ear drag) with
+/// every method, adding its runs and rows to `out`.
+void runAccuracyScenario(Scenario scenario, const StudyObject& bar, const StudyObject& bunny, const Grid& grid,
+                         const std::vector<std::string>& methods, const Selection& selected, const Args& args,
+                         const Calibration& calib, AccuracyRuns& out) {
+  const bool onBar = scenario != Scenario::EarDrag;
+  const StudyObject& object = onBar ? bar : bunny;
+  const std::vector<int>& resolutions =
+      scenario == Scenario::Cantilever ? grid.barRes : (scenario == Scenario::Column ? grid.columnRes : grid.bunnyRes);
+  const int refRes = onBar ? grid.barRef : grid.bunnyRef;
+  std::printf("%s:\n", toString(scenario));
+  const auto scenarioStart = std::chrono::steady_clock::now();
+  FastRuns fast;
+  // naive LSM and the implicit step are measured against FastLSM's reference run: without
+  // FastLSM among the methods, that run alone (its row is kept from the existing file)
+  std::vector<std::string> scenarioMethods = methods;
+  const bool fastRefOnly = !selected("fastlsm") && (selected("naive-lsm") || selected("fastlsm-implicit"));
+  if (fastRefOnly && scenario != Scenario::Column) scenarioMethods.insert(scenarioMethods.begin(), "fastlsm");
+  const ScenarioContext ctx{scenario, object, resolutions, refRes, grid, args, calib};
+  for (const std::string& method : scenarioMethods) {
+    if (method == "bullet-fem" && !onBar) continue;
+    const bool refOnly = method == "fastlsm" && fastRefOnly;
+    const Run* ref = referenceRun(method, ctx, refOnly, fast, out);
+    if (refOnly) continue;
+    settingRuns(method, ctx, ref, fast, out);
+  }
+  std::printf("  (%s: %.0f s)\n", toString(scenario), secondsSince(scenarioStart));
+}
+
+/// Fills the rows of the bar scenarios' runs with their errors against physics (FEM oracle,
+/// Timoshenko or uniaxial stress) and the cantilever's profile.
+void addPhysicalErrors(std::vector<Row>& rows, const StudyObject& bar, const Physics& ph) {
   for (Row& row : rows) {
     const Scenario sc = row.run->scenario;
     if (row.run->record.blewUp) continue;
@@ -916,7 +839,11 @@ int main(int argc, char** argv) {
       row.vsAnalytic = physicalError(bar, sc, row.run->record.finalPoints, ph.columnUniaxial);
     }
   }
+}
 
+/// Runs the stress table and returns its runs.
+std::vector<std::unique_ptr<Run>> runStress(const StudyObject& bunny, const Calibration& calib,
+                                            const Selection& selected) {
   // stress: every method at 1/30 s frames in one sub-step, and the explicit mass-spring also at
   // the fewest sub-steps that its linear stability bound allows (how its users would run it);
   // the implicit step at the bunny's modulus and at stiffer ones (kImplicitStressModuli)
@@ -939,88 +866,140 @@ int main(int argc, char** argv) {
   }
 
   std::printf("  (stress: %.0f s)\n", secondsSince(stressStart));
+  return stress;
+}
+
+/// Writes <dir>/calibration.csv: the physical references and the calibration of the peers.
+/// Returns false after printing why it could not.
+bool writeCalibration(const std::string& dir, const Physics& ph, const Calibration& calib, const StudyObject& bar,
+                      const StudyObject& bunny, bool withBullet) {
+  std::ofstream f(dir + "/calibration.csv");
+  if (!f) {
+    std::fprintf(stderr, "flsm_study: cannot write %s/calibration.csv (does the directory exist?)\n", dir.c_str());
+    return false;
+  }
+  f << "quantity,value,unit,meaning\n"
+    << "bar_length," << num(kBarLength) << ",m,cantilever bar length (section L/10)\n"
+    << "euler_bernoulli_tip," << num(ph.eulerBernoulliTip) << ",1,Euler-Bernoulli tip deflection / L of the bar "
+       "(free length L - clamp, E, load)\n"
+    << "timoshenko_tip," << num(ph.timoshenkoTip) << ",1,Timoshenko tip deflection / L (shear term with nu = "
+    << kStudyPoissonRatio << ")\n"
+    << "fem_tip," << num(ph.femTip) << ",1,FEM oracle tip deflection / L (bar voxels at resolution " << kFemResolution
+    << ", " << kFemSubdivision << "^3 trilinear hexahedra per cell, nu = " << kStudyPoissonRatio << "): the physical reference\n"
+    << "fem_check_tip," << num(ph.femCheckTip) << ",1,FEM oracle tip deflection / L at resolution "
+    << kFemCheckResolution << " (coarser, convergence check)\n"
+    << "column_fem_top," << num(ph.columnFemTop) << ",1,FEM oracle shortening / L of the column (the bar clamped at "
+       "its base, load " << kColumnLoad << " m/s^2 along it)\n"
+    << "column_uniaxial_top," << num(ph.columnUniaxialTop) << ",1,uniaxial-stress shortening / L of a free column "
+       "(rho g H^2 / (2 E), nu = 0)\n"
+    << "poisson_ratio," << num(kStudyPoissonRatio) << ",1,Poisson's ratio of FastLSM, the FEM oracle and Bullet's deformable body\n"
+    << "fastlsm_tip," << num(calib.fastlsmTip) << ",1,FastLSM tip deflection / L at the calibration setting (res "
+    << kCalibrationResolution << ", " << kCalibrationSubsteps << " sub-steps)\n"
+    << "spring_ratio," << num(calib.springRatio) << ",1,mass-spring kappa / E: spring stiffness k = kappa h fill\n"
+    << "bar_youngs_modulus," << num(bar.youngsModulus) << ",Pa,bar material\n"
+    << "bunny_youngs_modulus," << num(bunny.youngsModulus) << ",Pa,bunny material\n"
+    << "dashpot_time," << num(calib.dashpotTime) << ",s,mass-spring beta: dashpot c = beta k\n"
+    << "omega_max," << num(calib.omegaMax) << ",rad/s,highest mass-spring frequency at the calibration resolution\n"
+    << "mass_spring_tip," << num(calib.massSpringTip) << ",1,mass-spring tip deflection / L after calibration\n";
+  if (withBullet)
+    f << "bullet_ratio," << num(calib.bulletRatio) << ",1,legacy Bullet kLST = ratio E h^2 / (rho dx^2) capped at 1 ("
+      << kBulletIterations << " position iterations; pose matching kMT " << kBulletPoseMatching
+      << " per 1/60 s; volume conservation kVC = " << kBulletVolumeFraction << " K / V0)\n"
+      << "bullet_tip," << num(calib.bulletTip) << ",1,legacy Bullet tip deflection / L after calibration ("
+      << kBulletCalibrationSubsteps << " sub-steps)" << (calib.bulletReached ? "" : ": target not reached") << "\n";
+  return true;
+}
+
+/// The lines of accuracy.csv, one per row (kAccuracyHeader's columns).
+std::vector<std::string> accuracyLines(const std::vector<Row>& rows, const StudyObject& bar) {
+  std::vector<std::string> lines;
+  for (const Row& row : rows) {
+    const Run& r = *row.run;
+    const double frameStep = scenarioSetting(r.scenario, bar, r.resolution, r.substeps).frameStep;
+    std::ostringstream f;
+    f << toString(r.scenario) << ',' << r.method << ',' << r.resolution << ',' << r.substeps << ','
+      << (r.reference ? 1 : 0) << ',' << r.particles << ',' << r.halfWidth << ',' << num(r.substep) << ','
+      << (r.record.blewUp ? 1 : 0) << ',' << num(row.errorRef) << ',' << num(row.ebRms) << ',' << num(row.tip) << ','
+      << num(r.scenario != Scenario::EarDrag ? std::numeric_limits<double>::quiet_NaN() : r.record.shapeError)
+      << ',' << num(r.record.volumeChange) << ',' << num(r.record.peakKineticEnergy) << ','
+      << num(r.secondsPerFrame / frameStep) << ','
+      << num(1e9 * r.secondsPerFrame / (double(r.substeps) * double(r.particles))) << ',' << r.repeats << ','
+      << num(row.diffVsFast) << ',' << num(r.alpha) << ',' << (r.saturated < 0 ? std::string() : std::to_string(r.saturated))
+      << ',' << num(row.vsFem.tip) << ',' << num(row.vsFem.profile) << ',' << num(row.vsAnalytic.tip) << ','
+      << num(row.vsAnalytic.profile) << ',' << num(r.iterations) << ',' << num(r.wallSecondsPerFrame / frameStep);
+    lines.push_back(f.str());
+  }
+  return lines;
+}
+
+/// The lines of stability.csv, one per stress run (kStabilityHeader's columns).
+std::vector<std::string> stabilityLines(const std::vector<std::unique_ptr<Run>>& stress) {
+  std::vector<std::string> lines;
+  for (const auto& rp : stress) {
+    const Run& r = *rp;
+    const std::string outcome =
+        r.record.blewUp ? "blew up" : (r.record.shapeError < kRecoveredTolerance ? "recovered" : "distorted");
+    std::ostringstream f;
+    f << toString(r.scenario) << ',' << r.method << ',' << r.resolution << ',' << r.particles << ','
+      << num(kStressFrameStep) << ',' << r.substeps << ',' << outcome << ','
+      << num(r.record.blewUp ? (r.record.blowUpFrame + 1) * kStressFrameStep
+                             : std::numeric_limits<double>::quiet_NaN())
+      << ',' << num(r.record.shapeError) << ',' << num(r.record.recoveredAfter) << ','
+      << num(r.record.peakKineticEnergy) << ','
+      << num(r.scenario == Scenario::DragFar ? r.record.volumeChange : std::numeric_limits<double>::quiet_NaN())
+      << ',' << num(r.record.finalVolumeChange) << ',' << num(r.youngsModulus) << ',' << num(r.iterations);
+    lines.push_back(f.str());
+  }
+  return lines;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args args = parse(argc, argv);
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);  // progress lines appear as they are printed, also into a pipe
+  const auto start = std::chrono::steady_clock::now();
+  bool withBullet = false;
+#ifdef FLSM_STUDY_WITH_BULLET
+  withBullet = args.bullet;
+#endif
+  const StudyObject bar = makeBar(kBarLength);
+  const StudyObject bunny = makeBunny(args.mesh, kStudyBunnyScale);
+  printIntro(args, bar, bunny, withBullet);
+
+  const Physics ph = physics(bar);
+  printPhysics(ph);
+  // the methods of this run: all (the Bullet peers when built in), or those of --methods
+  const bool subset = !args.methods.empty();
+  const Selection selected{args, withBullet, subset};
+  const std::vector<std::string> methods = accuracyMethods(selected);  // of the accuracy runs
+  if (subset && !announceSubset(args)) return 1;
+  // Bullet's deformable body damps its stiff modes with the mass-spring's calibrated dashpot time
+  const Calibration calib =
+      calibrate(bar, ph, selected("mass-spring") || selected("bullet-fem"), selected("bullet"));
+  std::printf("  (physics and calibration: %.0f s)\n", secondsSince(start));
+  if (!runIndentation(args, calib, selected, subset)) return 1;
+  if (args.indentationOnly) {
+    std::printf("wrote indentation.csv in %.0f s\n", secondsSince(start));
+    return 0;
+  }
+
+  const Grid grid = studyGrid(args.quick);
+  AccuracyRuns accuracy;
+  for (Scenario scenario : {Scenario::Cantilever, Scenario::Column, Scenario::EarDrag})
+    runAccuracyScenario(scenario, bar, bunny, grid, methods, selected, args, calib, accuracy);
+  addPhysicalErrors(accuracy.rows, bar, ph);
+  const std::vector<std::unique_ptr<Run>> stress = runStress(bunny, calib, selected);
 
   // --- files
   const std::string dir = args.out;
-  if (!subset) {
-    std::ofstream f(dir + "/calibration.csv");
-    if (!f) {
-      std::fprintf(stderr, "flsm_study: cannot write %s/calibration.csv (does the directory exist?)\n", dir.c_str());
-      return 1;
-    }
-    f << "quantity,value,unit,meaning\n"
-      << "bar_length," << num(kBarLength) << ",m,cantilever bar length (section L/10)\n"
-      << "euler_bernoulli_tip," << num(ph.eulerBernoulliTip) << ",1,Euler-Bernoulli tip deflection / L of the bar "
-         "(free length L - clamp, E, load)\n"
-      << "timoshenko_tip," << num(ph.timoshenkoTip) << ",1,Timoshenko tip deflection / L (shear term with nu = "
-      << kStudyPoissonRatio << ")\n"
-      << "fem_tip," << num(ph.femTip) << ",1,FEM oracle tip deflection / L (bar voxels at resolution " << kFemResolution
-      << ", " << kFemSubdivision << "^3 trilinear hexahedra per cell, nu = " << kStudyPoissonRatio << "): the physical reference\n"
-      << "fem_check_tip," << num(ph.femCheckTip) << ",1,FEM oracle tip deflection / L at resolution "
-      << kFemCheckResolution << " (coarser, convergence check)\n"
-      << "column_fem_top," << num(ph.columnFemTop) << ",1,FEM oracle shortening / L of the column (the bar clamped at "
-         "its base, load " << kColumnLoad << " m/s^2 along it)\n"
-      << "column_uniaxial_top," << num(ph.columnUniaxialTop) << ",1,uniaxial-stress shortening / L of a free column "
-         "(rho g H^2 / (2 E), nu = 0)\n"
-      << "poisson_ratio," << num(kStudyPoissonRatio) << ",1,Poisson's ratio of FastLSM, the FEM oracle and Bullet's deformable body\n"
-      << "fastlsm_tip," << num(calib.fastlsmTip) << ",1,FastLSM tip deflection / L at the calibration setting (res "
-      << kCalibrationResolution << ", " << kCalibrationSubsteps << " sub-steps)\n"
-      << "spring_ratio," << num(calib.springRatio) << ",1,mass-spring kappa / E: spring stiffness k = kappa h fill\n"
-      << "bar_youngs_modulus," << num(bar.youngsModulus) << ",Pa,bar material\n"
-      << "bunny_youngs_modulus," << num(bunny.youngsModulus) << ",Pa,bunny material\n"
-      << "dashpot_time," << num(calib.dashpotTime) << ",s,mass-spring beta: dashpot c = beta k\n"
-      << "omega_max," << num(calib.omegaMax) << ",rad/s,highest mass-spring frequency at the calibration resolution\n"
-      << "mass_spring_tip," << num(calib.massSpringTip) << ",1,mass-spring tip deflection / L after calibration\n";
-    if (withBullet)
-      f << "bullet_ratio," << num(calib.bulletRatio) << ",1,legacy Bullet kLST = ratio E h^2 / (rho dx^2) capped at 1 ("
-        << kBulletIterations << " position iterations; pose matching kMT " << kBulletPoseMatching
-        << " per 1/60 s; volume conservation kVC = " << kBulletVolumeFraction << " K / V0)\n"
-        << "bullet_tip," << num(calib.bulletTip) << ",1,legacy Bullet tip deflection / L after calibration ("
-        << kBulletCalibrationSubsteps << " sub-steps)" << (calib.bulletReached ? "" : ": target not reached") << "\n";
-  }
-  {
-    std::vector<std::string> lines;
-    for (const Row& row : rows) {
-      const Run& r = *row.run;
-      const double frameStep = scenarioSetting(r.scenario, bar, r.resolution, r.substeps).frameStep;
-      std::ostringstream f;
-      f << toString(r.scenario) << ',' << r.method << ',' << r.resolution << ',' << r.substeps << ','
-        << (r.reference ? 1 : 0) << ',' << r.particles << ',' << r.halfWidth << ',' << num(r.substep) << ','
-        << (r.record.blewUp ? 1 : 0) << ',' << num(row.errorRef) << ',' << num(row.ebRms) << ',' << num(row.tip) << ','
-        << num(r.scenario != Scenario::EarDrag ? std::numeric_limits<double>::quiet_NaN() : r.record.shapeError)
-        << ',' << num(r.record.volumeChange) << ',' << num(r.record.peakKineticEnergy) << ','
-        << num(r.secondsPerFrame / frameStep) << ','
-        << num(1e9 * r.secondsPerFrame / (double(r.substeps) * double(r.particles))) << ',' << r.repeats << ','
-        << num(row.diffVsFast) << ',' << num(r.alpha) << ',' << (r.saturated < 0 ? std::string() : std::to_string(r.saturated))
-        << ',' << num(row.vsFem.tip) << ',' << num(row.vsFem.profile) << ',' << num(row.vsAnalytic.tip) << ','
-        << num(row.vsAnalytic.profile) << ',' << num(r.iterations) << ',' << num(r.wallSecondsPerFrame / frameStep);
-      lines.push_back(f.str());
-    }
-    if (!writeCsv(dir + "/accuracy.csv",
-kAccuracyHeader, std::move(lines), subset, selected, CsvOrder::ScenarioThenMethod))
-      return 1;
-  }
-  {
-    std::vector<std::string> lines;
-    for (const auto& rp : stress) {
-      const Run& r = *rp;
-      const std::string outcome =
-          r.record.blewUp ? "blew up" : (r.record.shapeError < kRecoveredTolerance ? "recovered" : "distorted");
-      std::ostringstream f;
-      f << toString(r.scenario) << ',' << r.method << ',' << r.resolution << ',' << r.particles << ','
-        << num(kStressFrameStep) << ',' << r.substeps << ',' << outcome << ','
-        << num(r.record.blewUp ? (r.record.blowUpFrame + 1) * kStressFrameStep
-                               : std::numeric_limits<double>::quiet_NaN())
-        << ',' << num(r.record.shapeError) << ',' << num(r.record.recoveredAfter) << ','
-        << num(r.record.peakKineticEnergy) << ','
-        << num(r.scenario == Scenario::DragFar ? r.record.volumeChange : std::numeric_limits<double>::quiet_NaN())
-        << ',' << num(r.record.finalVolumeChange) << ',' << num(r.youngsModulus) << ',' << num(r.iterations);
-      lines.push_back(f.str());
-    }
-    if (!writeCsv(dir + "/stability.csv",
-kStabilityHeader, std::move(lines), subset, selected, CsvOrder::Method))
-      return 1;
-  }
+  if (!subset && !writeCalibration(dir, ph, calib, bar, bunny, withBullet)) return 1;
+  if (!writeCsv(dir + "/accuracy.csv", kAccuracyHeader, accuracyLines(accuracy.rows, bar), subset, selected,
+                kAllMethods, CsvOrder::ScenarioThenMethod))
+    return 1;
+  if (!writeCsv(dir + "/stability.csv", kStabilityHeader, stabilityLines(stress), subset, selected, kAllMethods,
+                CsvOrder::Method))
+    return 1;
   const double total = secondsSince(start);
   std::printf("wrote %saccuracy.csv, stability.csv in %.0f s\n", subset ? "" : "calibration.csv, ", total);
   return 0;

@@ -319,6 +319,169 @@ inline std::vector<std::uint32_t> earParticles(const Lattice& lattice, const Stu
   return out;
 }
 
+namespace detail {
+
+/// The render mesh and probes of a run embedded in its lattice: deformed on demand with a
+/// method's particles, then sampled (the sample points) or measured (the volume change).
+class EmbeddedPoints {
+ public:
+  EmbeddedPoints(const StudyObject& object, const Lattice& lattice)
+      : object_(object),
+        embedding_(lattice, meshAndProbes(object)),
+        v0_(closedMeshVolume(object.mesh.vertices, object.mesh.triangles)) {}
+
+  /// Deforms the render mesh and probes with `method`'s particles and rotations.
+  void embed(const Method& method) {
+    method.rotations(rotations_);
+    embedding_.deform(method.positions(), rotations_, deformed_);
+  }
+
+  /// Sample points of the last embed(): object.sampleVertices, then object.probes.
+  std::vector<Eigen::Vector3d> samplePoints() const {
+    std::vector<Eigen::Vector3d> s;
+    s.reserve(object_.sampleVertices.size() + object_.probes.size());
+    for (std::uint32_t v : object_.sampleVertices) s.push_back(deformed_[v]);
+    s.insert(s.end(), deformed_.end() - static_cast<std::ptrdiff_t>(object_.probes.size()), deformed_.end());
+    return s;
+  }
+
+  /// (V - V0) / V0 of the render mesh of the last embed().
+  double volumeChange() const {
+    const auto vertexCount = static_cast<std::ptrdiff_t>(object_.mesh.vertices.size());
+    const std::vector<Eigen::Vector3d> verts(deformed_.begin(), deformed_.begin() + vertexCount);
+    return closedMeshVolume(verts, object_.mesh.triangles) / v0_ - 1.0;
+  }
+
+ private:
+  /// The points embedded: the render mesh's vertices, then the probes.
+  static std::vector<Eigen::Vector3d> meshAndProbes(const StudyObject& object) {
+    std::vector<Eigen::Vector3d> points = object.mesh.vertices;
+    points.insert(points.end(), object.probes.begin(), object.probes.end());
+    return points;
+  }
+
+  const StudyObject& object_;
+  const Embedding embedding_;
+  const double v0_;
+  std::vector<Eigen::Vector3d> deformed_;
+  std::vector<Eigen::Quaterniond> rotations_;
+};
+
+/// Centroid (unweighted mean) of the rest positions `x0`.
+inline Eigen::Vector3d restCentroid(const std::vector<Eigen::Vector3d>& x0) {
+  Eigen::Vector3d restCentroid = Eigen::Vector3d::Zero();
+  for (const auto& p : x0) restCentroid += p;
+  restCentroid /= static_cast<double>(x0.size());
+  return restCentroid;
+}
+
+/// The drag of a scenario's ear: its particles (none: no drag), their rest centroid, how far
+/// (m, along +x) and over what ramp (s) they are dragged, and until when they are held (s).
+struct DragPlan {
+  std::vector<std::uint32_t> ear;
+  Eigen::Vector3d earStart = Eigen::Vector3d::Zero();
+  double dragDistance = 0.0, ramp = 0.0, holdUntil = 0.0;
+};
+
+/// Cantilever and column: pins the particles within kBarClampFraction of the bar's fixed end.
+inline void clampBar(const StudyObject& object, const Lattice& lattice, Method& method) {
+  const auto& x0 = lattice.restPositions();
+  std::vector<std::uint32_t> clamp;
+  const double cut = object.mesh.boundsMin().x() + kBarClampFraction * (object.mesh.boundsMax().x() - object.mesh.boundsMin().x());
+  for (std::size_t i = 0; i < x0.size(); ++i)
+    if (x0[i].x() < cut) clamp.push_back(static_cast<std::uint32_t>(i));
+  method.setPinned(clamp, true);
+}
+
+/// Ear drag and drag far: pins the bunny's base and grabs its ear where it rests; returns the drag.
+inline DragPlan grabEar(Scenario scenario, const StudyObject& object, const Lattice& lattice, Method& method) {
+  const auto& x0 = lattice.restPositions();
+  DragPlan d;
+  method.setPinned(baseParticles(lattice, object), true);
+  d.ear = earParticles(lattice, object);
+  for (std::uint32_t p : d.ear) d.earStart += x0[p];
+  d.earStart /= static_cast<double>(d.ear.size());
+  const bool far = scenario == Scenario::DragFar;
+  d.dragDistance = (far ? kDragFarDistance : kEarDragDistance) * object.size;
+  d.ramp = far ? kDragFarRamp : kEarDragRamp;
+  d.holdUntil = far ? kDragFarHoldUntil : kEarDragHoldUntil;
+  method.grab(d.ear, d.earStart);
+  return d;
+}
+
+/// Plane: every particle collapsed onto the horizontal plane through the rest centroid.
+inline void collapseOntoPlane(const Lattice& lattice, const Eigen::Vector3d& restCentroid, Method& method) {
+  std::vector<Eigen::Vector3d> x = lattice.restPositions();
+  for (auto& p : x) p.y() = restCentroid.y();
+  method.setPositions(x);
+}
+
+/// Scrambled: every particle placed at random (seed kScrambleSeed) in the rest bounding box.
+inline void scramble(const Lattice& lattice, Method& method) {
+  std::mt19937 rng(kScrambleSeed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const Eigen::Vector3d lo = lattice.restMin(), hi = lattice.restMax();
+  std::vector<Eigen::Vector3d> x(lattice.restPositions().size());
+  for (auto& p : x) {
+    const double a = u(rng), b = u(rng), c = u(rng);
+    p = lo + Eigen::Vector3d(a, b, c).cwiseProduct(hi - lo);
+  }
+  method.setPositions(x);
+}
+
+/// Sets `method` up for `scenario` (clamp, pins and grab, or start positions); returns the drag.
+inline DragPlan setUpScenario(Scenario scenario, const StudyObject& object, const Lattice& lattice, Method& method,
+                              const Eigen::Vector3d& restCentroid) {
+  switch (scenario) {
+    case Scenario::Cantilever:
+    case Scenario::Column: clampBar(object, lattice, method); break;
+    case Scenario::EarDrag:
+    case Scenario::DragFar: return grabEar(scenario, object, lattice, method);
+    case Scenario::Plane: collapseOntoPlane(lattice, restCentroid, method); break;
+    case Scenario::Scrambled: scramble(lattice, method); break;
+  }
+  return DragPlan();
+}
+
+/// Before frame `f` of a drag: moves the grab to where the target is at the end of the frame
+/// while held; at the end of the hold, records the volume change in `rec` and releases.
+inline void driveDrag(const DragPlan& drag, int f, int holdEndFrame, double frameStep, Method& method,
+                      EmbeddedPoints& points, RunRecord& rec) {
+  const double t = (f + 1) * frameStep;  // where the target is at the end of this frame
+  if (f < holdEndFrame) {
+    method.moveGrab(drag.earStart + Eigen::Vector3d(drag.dragDistance * std::min(1.0, t / drag.ramp), 0.0, 0.0));
+  } else if (f == holdEndFrame) {
+    points.embed(method);
+    rec.volumeChange = points.volumeChange();
+    method.release();
+  }
+}
+
+/// Steps `method` one frame and records the step's CPU and wall time in `rec`.
+inline void timedStep(Method& method, RunRecord& rec) {
+  const double cpu0 = threadCpuSeconds();
+  const auto t0 = std::chrono::steady_clock::now();
+  method.step();
+  const auto t1 = std::chrono::steady_clock::now();
+  rec.frameCpuSeconds.push_back(threadCpuSeconds() - cpu0);
+  rec.frameSeconds.push_back(std::chrono::duration<double>(t1 - t0).count());
+}
+
+/// Has the state `x` blown up: a coordinate not finite, or a particle farther than kBlowUpSizes
+/// object sizes (`size`) from the rest centroid?
+inline bool blownUp(const std::vector<Eigen::Vector3d>& x, const Eigen::Vector3d& restCentroid, double size) {
+  bool bad = !allFinite(x);
+  if (!bad)
+    for (const auto& p : x)
+      if ((p - restCentroid).norm() > kBlowUpSizes * size) {
+        bad = true;
+        break;
+      }
+  return bad;
+}
+
+}  // namespace detail
+
 /// Runs `scenario` on `method` (whose lattice is `lattice`, built for `object`), sampling the
 /// embedded points every `sampleEvery` frames (0: only at the end).
 /// @param[in]     scenario     what to do
@@ -333,135 +496,44 @@ inline RunRecord runScenario(Scenario scenario, const StudyObject& object, const
   const int frames = static_cast<int>(std::lround(scenarioDuration(scenario) / frameStep));
   const double size = object.size;
   const auto& x0 = lattice.restPositions();
+  detail::EmbeddedPoints points(object, lattice);
+  const Eigen::Vector3d restCentroid = detail::restCentroid(x0);
+  const detail::DragPlan drag = detail::setUpScenario(scenario, object, lattice, method, restCentroid);
 
-  std::vector<Eigen::Vector3d> points = object.mesh.vertices;
-  points.insert(points.end(), object.probes.begin(), object.probes.end());
-  const Embedding embedding(lattice, points);
-  const double v0 = closedMeshVolume(object.mesh.vertices, object.mesh.triangles);
-  std::vector<Eigen::Vector3d> deformed;
-  std::vector<Eigen::Quaterniond> rotations;
-  auto embed = [&]() {
-    method.rotations(rotations);
-    embedding.deform(method.positions(), rotations, deformed);
-  };
-  auto samplePoints = [&]() {
-    std::vector<Eigen::Vector3d> s;
-    s.reserve(object.sampleVertices.size() + object.probes.size());
-    for (std::uint32_t v : object.sampleVertices) s.push_back(deformed[v]);
-    s.insert(s.end(), deformed.end() - static_cast<std::ptrdiff_t>(object.probes.size()), deformed.end());
-    return s;
-  };
-  auto volumeChange = [&]() {
-    const std::vector<Eigen::Vector3d> verts(deformed.begin(),
-                                             deformed.begin() + static_cast<std::ptrdiff_t>(object.mesh.vertices.size()));
-    return closedMeshVolume(verts, object.mesh.triangles) / v0 - 1.0;
-  };
-
-  Eigen::Vector3d restCentroid = Eigen::Vector3d::Zero();
-  for (const auto& p : x0) restCentroid += p;
-  restCentroid /= static_cast<double>(x0.size());
-
-  // set-up
-  std::vector<std::uint32_t> ear;
-  Eigen::Vector3d earStart = Eigen::Vector3d::Zero();
-  double dragDistance = 0.0, ramp = 0.0, holdUntil = 0.0;
-  switch (scenario) {
-    case Scenario::Cantilever:
-    case Scenario::Column: {
-      std::vector<std::uint32_t> clamp;
-      const double cut = object.mesh.boundsMin().x() + kBarClampFraction * (object.mesh.boundsMax().x() - object.mesh.boundsMin().x());
-      for (std::size_t i = 0; i < x0.size(); ++i)
-        if (x0[i].x() < cut) clamp.push_back(static_cast<std::uint32_t>(i));
-      method.setPinned(clamp, true);
-      break;
-    }
-    case Scenario::EarDrag:
-    case Scenario::DragFar: {
-      method.setPinned(baseParticles(lattice, object), true);
-      ear = earParticles(lattice, object);
-      for (std::uint32_t p : ear) earStart += x0[p];
-      earStart /= static_cast<double>(ear.size());
-      const bool far = scenario == Scenario::DragFar;
-      dragDistance = (far ? kDragFarDistance : kEarDragDistance) * size;
-      ramp = far ? kDragFarRamp : kEarDragRamp;
-      holdUntil = far ? kDragFarHoldUntil : kEarDragHoldUntil;
-      method.grab(ear, earStart);
-      break;
-    }
-    case Scenario::Plane: {
-      std::vector<Eigen::Vector3d> x = x0;
-      for (auto& p : x) p.y() = restCentroid.y();
-      method.setPositions(x);
-      break;
-    }
-    case Scenario::Scrambled: {
-      std::mt19937 rng(kScrambleSeed);
-      std::uniform_real_distribution<double> u(0.0, 1.0);
-      const Eigen::Vector3d lo = lattice.restMin(), hi = lattice.restMax();
-      std::vector<Eigen::Vector3d> x(x0.size());
-      for (auto& p : x) {
-        const double a = u(rng), b = u(rng), c = u(rng);
-        p = lo + Eigen::Vector3d(a, b, c).cwiseProduct(hi - lo);
-      }
-      method.setPositions(x);
-      break;
-    }
-  }
-
-  const int holdEndFrame = static_cast<int>(std::lround(holdUntil / frameStep));
+  const int holdEndFrame = static_cast<int>(std::lround(drag.holdUntil / frameStep));
   const bool stress = scenario == Scenario::DragFar || scenario == Scenario::Plane || scenario == Scenario::Scrambled;
   int lastDistortedFrame = -1;  // stress scenarios: the last frame that ended with the shape error at or above tolerance
   rec.frameSeconds.reserve(static_cast<std::size_t>(frames));
   rec.frameCpuSeconds.reserve(static_cast<std::size_t>(frames));
   for (int f = 0; f < frames; ++f) {
-    if (!ear.empty()) {
-      const double t = (f + 1) * frameStep;  // where the target is at the end of this frame
-      if (f < holdEndFrame) {
-        method.moveGrab(earStart + Eigen::Vector3d(dragDistance * std::min(1.0, t / ramp), 0.0, 0.0));
-      } else if (f == holdEndFrame) {
-        embed();
-        rec.volumeChange = volumeChange();
-        method.release();
-      }
-    }
-    const double cpu0 = threadCpuSeconds();
-    const auto t0 = std::chrono::steady_clock::now();
-    method.step();
-    const auto t1 = std::chrono::steady_clock::now();
-    rec.frameCpuSeconds.push_back(threadCpuSeconds() - cpu0);
-    rec.frameSeconds.push_back(std::chrono::duration<double>(t1 - t0).count());
+    if (!drag.ear.empty()) detail::driveDrag(drag, f, holdEndFrame, frameStep, method, points, rec);
+    detail::timedStep(method, rec);
     rec.frames = f + 1;
 
     const double energy = method.kineticEnergy();
     rec.peakKineticEnergy = std::isfinite(energy) ? std::max(rec.peakKineticEnergy, energy)
                                                   : std::numeric_limits<double>::infinity();
     const auto& x = method.positions();
-    bool bad = !allFinite(x);
-    if (!bad)
-      for (const auto& p : x)
-        if ((p - restCentroid).norm() > kBlowUpSizes * size) {
-          bad = true;
-          break;
-        }
-    if (bad) {
+    if (detail::blownUp(x, restCentroid, size)) {
       rec.blewUp = true;
       rec.blowUpFrame = f;
       break;
     }
     if (stress && rigidFitError(lattice.masses(), x0, x) / size >= kRecoveredTolerance) lastDistortedFrame = f;
     if (sampleEvery > 0 && (f + 1) % sampleEvery == 0) {
-      embed();
-      rec.trajectory.push_back(samplePoints());
+      points.embed(method);
+      rec.trajectory.push_back(points.samplePoints());
     }
   }
   if (rec.blewUp) return rec;
-  embed();
-  rec.finalPoints = samplePoints();
-  rec.finalVolumeChange = volumeChange();
-  if (ear.empty()) rec.volumeChange = rec.finalVolumeChange;
+  points.embed(method);
+  rec.finalPoints = points.samplePoints();
+  rec.finalVolumeChange = points.volumeChange();
+  if (drag.ear.empty()) rec.volumeChange = rec.finalVolumeChange;
   rec.shapeError = rigidFitError(lattice.masses(), x0, method.positions()) / size;
   if (stress && rec.shapeError < kRecoveredTolerance)
-    rec.recoveredAfter = std::max(0.0, (lastDistortedFrame + 1) * frameStep - (ear.empty() ? 0.0 : holdUntil));
+    rec.recoveredAfter =
+        std::max(0.0, (lastDistortedFrame + 1) * frameStep - (drag.ear.empty() ? 0.0 : drag.holdUntil));
   return rec;
 }
 
