@@ -168,7 +168,7 @@ void addMeshCollider(Solver& s, const TriMesh& mesh, const Collider& ground, con
 }
 
 /// The robot's 22 far links, spread along an arm that reaches toward the bunny (bounds up to hi)
-/// from the +x, +y side and stops 5 cm or more short of its bounds. Prints nothing.
+/// from the +x, +y side, ending 5 cm or more short of its bounds. Prints nothing.
 void addFarLinks(Solver& s, const Eigen::Vector3d& hi) {
   const auto meshLink = boxMesh(Eigen::Vector3d(0.03, 0.02, 0.05));
   for (int k = 0; k < 22; ++k) {
