@@ -1,7 +1,6 @@
 #include "deformable_flsm/core/corotated_hessian.h"
 
 #include "inertia.h"
-#include "simd_dispatch.h"
 
 #include <Eigen/Eigenvalues>
 
@@ -88,74 +87,68 @@ void CorotatedHessian::apply(RegionSummer& summer, const std::vector<Eigen::Vect
 }
 
 void CorotatedHessian::particleData(std::size_t begin, std::size_t end, double* out) {
-  detail::withSimd([&] {
-    const std::vector<Eigen::Vector3d>& p = *input_;
-    for (std::size_t i = begin; i < end; ++i) {
-      double* d = out + (i - begin) * 12;
-      const Eigen::Vector3d mp = massFractions_[i] * p[i];
-      const Eigen::Vector3d& q = restCentered_[i];
-      d[0] = mp.x();
-      d[1] = mp.y();
-      d[2] = mp.z();
-      for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b) d[3 + 3 * a + b] = mp[a] * q[b];
-    }
-  });
+  const std::vector<Eigen::Vector3d>& p = *input_;
+  for (std::size_t i = begin; i < end; ++i) {
+    double* d = out + (i - begin) * 12;
+    const Eigen::Vector3d mp = massFractions_[i] * p[i];
+    const Eigen::Vector3d& q = restCentered_[i];
+    d[0] = mp.x();
+    d[1] = mp.y();
+    d[2] = mp.z();
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) d[3 + 3 * a + b] = mp[a] * q[b];
+  }
 }
 
 // In scalars rather than Eigen's small vectors: built from components, those went through the
 // stack, and their two 8-byte stores read back as one 16-byte load stalled the loop (store
 // forwarding fails); this is the hottest loop of the implicit step.
 void CorotatedHessian::regionData(std::size_t begin, std::size_t end, const double* sums, double* out) {
-  detail::withSimd([&] {
-    for (std::size_t r = begin; r < end; ++r) {
-      const double* s = sums + (r - begin) * 12;
-      double* o = out + (r - begin) * 12;
-      const Eigen::Matrix3d& R = rotation_[r];
-      const double mx = s[0], my = s[1], mz = s[2];
-      // A = S R^T (S = sum m~ p q^T, row-major at s + 3): only its antisymmetric part is needed,
-      // A_ab = S_a . R_b (rows)
-      const auto A = [&](int a, int b) { return s[3 + 3 * a] * R(b, 0) + s[4 + 3 * a] * R(b, 1) + s[5 + 3 * a] * R(b, 2); };
-      const Eigen::Vector3d& Rc0 = rotatedCenter_[r];
-      const double cx = Rc0.x(), cy = Rc0.y(), cz = Rc0.z();
-      // L = sum m~ q~ x p, q~ = R (q - c0): vec(A) - (R c0) x sum m~ p
-      const double Lx = A(2, 1) - A(1, 2) - (cy * mz - cz * my);
-      const double Ly = A(0, 2) - A(2, 0) - (cz * mx - cx * mz);
-      const double Lz = A(1, 0) - A(0, 1) - (cx * my - cy * mx);
-      const std::array<double, 6>& J = rotatedInertiaInverse_[r];
-      const double c = coefficient_[r];
-      // c theta, theta = J L
-      const double tx = c * (J[0] * Lx + J[3] * Ly + J[4] * Lz);
-      const double ty = c * (J[3] * Lx + J[1] * Ly + J[5] * Lz);
-      const double tz = c * (J[4] * Lx + J[5] * Ly + J[2] * Lz);
-      // c [theta]x R: column b is c theta x (R e_b); theta x (R q) = ([theta]x R) q
-      for (int b = 0; b < 3; ++b) {
-        const double ux = R(0, b), uy = R(1, b), uz = R(2, b);
-        o[b] = ty * uz - tz * uy;
-        o[3 + b] = tz * ux - tx * uz;
-        o[6 + b] = tx * uy - ty * ux;
-      }
-      // c / M_r sum m~ p - c theta x R c0
-      const double cm = coefficientPerMass_[r];
-      o[9] = cm * mx - (ty * cz - tz * cy);
-      o[10] = cm * my - (tz * cx - tx * cz);
-      o[11] = cm * mz - (tx * cy - ty * cx);
+  for (std::size_t r = begin; r < end; ++r) {
+    const double* s = sums + (r - begin) * 12;
+    double* o = out + (r - begin) * 12;
+    const Eigen::Matrix3d& R = rotation_[r];
+    const double mx = s[0], my = s[1], mz = s[2];
+    // A = S R^T (S = sum m~ p q^T, row-major at s + 3): only its antisymmetric part is needed,
+    // A_ab = S_a . R_b (rows)
+    const auto A = [&](int a, int b) { return s[3 + 3 * a] * R(b, 0) + s[4 + 3 * a] * R(b, 1) + s[5 + 3 * a] * R(b, 2); };
+    const Eigen::Vector3d& Rc0 = rotatedCenter_[r];
+    const double cx = Rc0.x(), cy = Rc0.y(), cz = Rc0.z();
+    // L = sum m~ q~ x p, q~ = R (q - c0): vec(A) - (R c0) x sum m~ p
+    const double Lx = A(2, 1) - A(1, 2) - (cy * mz - cz * my);
+    const double Ly = A(0, 2) - A(2, 0) - (cz * mx - cx * mz);
+    const double Lz = A(1, 0) - A(0, 1) - (cx * my - cy * mx);
+    const std::array<double, 6>& J = rotatedInertiaInverse_[r];
+    const double c = coefficient_[r];
+    // c theta, theta = J L
+    const double tx = c * (J[0] * Lx + J[3] * Ly + J[4] * Lz);
+    const double ty = c * (J[3] * Lx + J[1] * Ly + J[5] * Lz);
+    const double tz = c * (J[4] * Lx + J[5] * Ly + J[2] * Lz);
+    // c [theta]x R: column b is c theta x (R e_b); theta x (R q) = ([theta]x R) q
+    for (int b = 0; b < 3; ++b) {
+      const double ux = R(0, b), uy = R(1, b), uz = R(2, b);
+      o[b] = ty * uz - tz * uy;
+      o[3 + b] = tz * ux - tx * uz;
+      o[6 + b] = tx * uy - ty * ux;
     }
-  });
+    // c / M_r sum m~ p - c theta x R c0
+    const double cm = coefficientPerMass_[r];
+    o[9] = cm * mx - (ty * cz - tz * cy);
+    o[10] = cm * my - (tz * cx - tx * cz);
+    o[11] = cm * mz - (tx * cy - ty * cx);
+  }
 }
 
 void CorotatedHessian::particleResult(std::size_t begin, std::size_t end, const double* sums) {
-  detail::withSimd([&] {
-    const std::vector<Eigen::Vector3d>& p = *input_;
-    const std::vector<Eigen::Vector3d>& D = *diagonal_;
-    std::vector<Eigen::Vector3d>& y = *output_;
-    for (std::size_t i = begin; i < end; ++i) {
-      const double* s = sums + (i - begin) * 12;
-      const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> B(s);
-      const Eigen::Vector3d fit = B * restCentered_[i] + Eigen::Vector3d(s[9], s[10], s[11]);
-      y[i] = D[i].cwiseProduct(p[i]) + massFractions_[i] * (coefficientSum_[i] * p[i] - fit);
-    }
-  });
+  const std::vector<Eigen::Vector3d>& p = *input_;
+  const std::vector<Eigen::Vector3d>& D = *diagonal_;
+  std::vector<Eigen::Vector3d>& y = *output_;
+  for (std::size_t i = begin; i < end; ++i) {
+    const double* s = sums + (i - begin) * 12;
+    const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> B(s);
+    const Eigen::Vector3d fit = B * restCentered_[i] + Eigen::Vector3d(s[9], s[10], s[11]);
+    y[i] = D[i].cwiseProduct(p[i]) + massFractions_[i] * (coefficientSum_[i] * p[i] - fit);
+  }
 }
 
 }  // namespace deformable_flsm

@@ -26,7 +26,6 @@
 #include "deformable_flsm/core/solver.h"
 #include "implicit_solve.h"
 #include "inertia.h"
-#include "simd_dispatch.h"
 
 #include <Eigen/Eigenvalues>
 
@@ -409,24 +408,22 @@ void Solver::implicitProduct(const std::vector<Eigen::Vector3d>& p, std::vector<
 // de_a = grad e_aa . p (the strain rate along a), de = sum_a de_a, and the ends of axis a get
 // +- h^2 [(w de + D_a de_a) grad e_aa + sigma_a^+ / d_a^2 (p_plus - p_minus)].
 void Solver::addVolumetricProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) const {
-  detail::withSimd([&] {
-    const double h2 = implicitH_ * implicitH_;
-    for (std::size_t i = 0; i < stencil_.size(); ++i) {
-      const VolumetricStencil& st = stencil_[i];
-      const VolumetricLinearisation& lin = volumetricLinear_[i];
-      double de[3], sum = 0.0;
-      for (int a = 0; a < 3; ++a) {
-        de[a] = lin.gradient[a].dot(p[st.plus[a]] - p[st.minus[a]]);
-        sum += de[a];
-      }
-      for (int a = 0; a < 3; ++a) {
-        const Eigen::Vector3d f = (h2 * (lin.weight * sum + lin.deficit[a] * de[a])) * lin.gradient[a] +
-                                  (h2 * lin.stretch[a]) * (p[st.plus[a]] - p[st.minus[a]]);
-        y[st.plus[a]] += f;
-        y[st.minus[a]] -= f;
-      }
+  const double h2 = implicitH_ * implicitH_;
+  for (std::size_t i = 0; i < stencil_.size(); ++i) {
+    const VolumetricStencil& st = stencil_[i];
+    const VolumetricLinearisation& lin = volumetricLinear_[i];
+    double de[3], sum = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      de[a] = lin.gradient[a].dot(p[st.plus[a]] - p[st.minus[a]]);
+      sum += de[a];
     }
-  });
+    for (int a = 0; a < 3; ++a) {
+      const Eigen::Vector3d f = (h2 * (lin.weight * sum + lin.deficit[a] * de[a])) * lin.gradient[a] +
+                                (h2 * lin.stretch[a]) * (p[st.plus[a]] - p[st.minus[a]]);
+      y[st.plus[a]] += f;
+      y[st.minus[a]] -= f;
+    }
+  }
 }
 
 // The free object's linear and angular momentum after the step are what the external forces give:

@@ -1,7 +1,5 @@
 #include "deformable_flsm/core/two_level_preconditioner.h"
 
-#include "simd_dispatch.h"
-
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -267,67 +265,65 @@ void TwoLevelPreconditioner::beginAssembly(const std::vector<Eigen::Vector3d>& d
 // Per region, the blocks c_r [delta_ab G_ra - T_ra^T T_rb / M_r - L_ra^T J_r L_rb] of the class
 // comment, from the rest moments (m, f, S) of the region's part in each aggregate.
 void TwoLevelPreconditioner::addRegions(const CorotatedHessian& hessian) {
-  detail::withSimd([&] {
-    const std::size_t n = regionAggMass_.size() / kPerRegion;
-    int agg[kPerRegion];
-    Columns T[kPerRegion], L[kPerRegion], JL[kPerRegion];
-    Eigen::Matrix3d G[kPerRegion];  // the rotation block tr(Q) 1 - Q of G_ra
-    for (std::size_t r = 0; r < n; ++r) {
-      const double c = hessian.regionCoefficient(r);
-      if (c == 0.0) continue;
-      const Eigen::Matrix3d& Rr = hessian.regionRotation(r);
-      const Eigen::Matrix3d J = hessian.rotatedInertiaInverse(r);
-      const Eigen::Vector3d& c0 = regionRestCenter_[r];
-      int m = 0;
-      for (int k = 0; k < kPerRegion; ++k) {
-        const std::size_t e = r * kPerRegion + static_cast<std::size_t>(k);
-        const double mass = regionAggMass_[e];
-        if (!(mass > 0.0)) continue;
-        const std::size_t a = static_cast<std::size_t>(regionAggregate_[e]);
-        const Eigen::Vector3d& f = regionAggMoment_[e];
-        const Eigen::Matrix3d& S = regionAggSecond_[e];
-        const Eigen::Vector3d& ca = center_[a];
-        agg[m] = static_cast<int>(a);
-        T[m].leftCols<3>() = mass * Eigen::Matrix3d::Identity();
-        L[m].leftCols<3>() = crossMatrix(Rr * (f - mass * c0));
-        if (rotates_[a] != 0) {
-          const Eigen::Matrix3d& Ra = aggregateRotation_[a];
-          T[m].rightCols<3>() = -crossMatrix(Ra * (f - mass * ca));
-          const Eigen::Matrix3d Q = Ra * (S - f * ca.transpose() - ca * f.transpose() + mass * ca * ca.transpose()) *
-                                    Ra.transpose();
-          G[m] = Q.trace() * Eigen::Matrix3d::Identity() - Q;
-          const Eigen::Matrix3d X = Ra * (S - f * c0.transpose() - ca * f.transpose() + mass * ca * c0.transpose()) *
-                                    Rr.transpose();
-          L[m].rightCols<3>() = X.trace() * Eigen::Matrix3d::Identity() - X;
-        } else {
-          T[m].rightCols<3>().setZero();
-          G[m].setZero();
-          L[m].rightCols<3>().setZero();
-        }
-        JL[m].noalias() = J * L[m];
-        ++m;
+  const std::size_t n = regionAggMass_.size() / kPerRegion;
+  int agg[kPerRegion];
+  Columns T[kPerRegion], L[kPerRegion], JL[kPerRegion];
+  Eigen::Matrix3d G[kPerRegion];  // the rotation block tr(Q) 1 - Q of G_ra
+  for (std::size_t r = 0; r < n; ++r) {
+    const double c = hessian.regionCoefficient(r);
+    if (c == 0.0) continue;
+    const Eigen::Matrix3d& Rr = hessian.regionRotation(r);
+    const Eigen::Matrix3d J = hessian.rotatedInertiaInverse(r);
+    const Eigen::Vector3d& c0 = regionRestCenter_[r];
+    int m = 0;
+    for (int k = 0; k < kPerRegion; ++k) {
+      const std::size_t e = r * kPerRegion + static_cast<std::size_t>(k);
+      const double mass = regionAggMass_[e];
+      if (!(mass > 0.0)) continue;
+      const std::size_t a = static_cast<std::size_t>(regionAggregate_[e]);
+      const Eigen::Vector3d& f = regionAggMoment_[e];
+      const Eigen::Matrix3d& S = regionAggSecond_[e];
+      const Eigen::Vector3d& ca = center_[a];
+      agg[m] = static_cast<int>(a);
+      T[m].leftCols<3>() = mass * Eigen::Matrix3d::Identity();
+      L[m].leftCols<3>() = crossMatrix(Rr * (f - mass * c0));
+      if (rotates_[a] != 0) {
+        const Eigen::Matrix3d& Ra = aggregateRotation_[a];
+        T[m].rightCols<3>() = -crossMatrix(Ra * (f - mass * ca));
+        const Eigen::Matrix3d Q = Ra * (S - f * ca.transpose() - ca * f.transpose() + mass * ca * ca.transpose()) *
+                                  Ra.transpose();
+        G[m] = Q.trace() * Eigen::Matrix3d::Identity() - Q;
+        const Eigen::Matrix3d X = Ra * (S - f * c0.transpose() - ca * f.transpose() + mass * ca * c0.transpose()) *
+                                  Rr.transpose();
+        L[m].rightCols<3>() = X.trace() * Eigen::Matrix3d::Identity() - X;
+      } else {
+        T[m].rightCols<3>().setZero();
+        G[m].setZero();
+        L[m].rightCols<3>().setZero();
       }
-      const double invM = 1.0 / regionMass_[r];
-      for (int a = 0; a < m; ++a) {
-        Block diag;
-        diag.noalias() = -invM * T[a].transpose() * T[a];
-        diag.noalias() -= L[a].transpose() * JL[a];
-        // delta_ab G_ra: G's translation and coupling blocks are T's
-        diag.topRows<3>() += T[a];
-        diag.bottomLeftCorner<3, 3>() -= T[a].topRightCorner<3, 3>();  // [Y]x = -(-[Y]x)
-        diag.bottomRightCorner<3, 3>() += G[a];
-        addBlock(agg[a], agg[a], c * diag);
-        for (int b = a + 1; b < m; ++b) {
-          Block off;
-          off.noalias() = -invM * T[a].transpose() * T[b];
-          off.noalias() -= L[a].transpose() * JL[b];
-          off *= c;
-          addBlock(agg[a], agg[b], off);
-          addBlock(agg[b], agg[a], off.transpose());
-        }
+      JL[m].noalias() = J * L[m];
+      ++m;
+    }
+    const double invM = 1.0 / regionMass_[r];
+    for (int a = 0; a < m; ++a) {
+      Block diag;
+      diag.noalias() = -invM * T[a].transpose() * T[a];
+      diag.noalias() -= L[a].transpose() * JL[a];
+      // delta_ab G_ra: G's translation and coupling blocks are T's
+      diag.topRows<3>() += T[a];
+      diag.bottomLeftCorner<3, 3>() -= T[a].topRightCorner<3, 3>();  // [Y]x = -(-[Y]x)
+      diag.bottomRightCorner<3, 3>() += G[a];
+      addBlock(agg[a], agg[a], c * diag);
+      for (int b = a + 1; b < m; ++b) {
+        Block off;
+        off.noalias() = -invM * T[a].transpose() * T[b];
+        off.noalias() -= L[a].transpose() * JL[b];
+        off *= c;
+        addBlock(agg[a], agg[b], off);
+        addBlock(agg[b], agg[a], off.transpose());
       }
     }
-  });
+  }
 }
 
 void TwoLevelPreconditioner::addOuter(const std::uint32_t* particles, const Eigen::Vector3d* g, int count,
