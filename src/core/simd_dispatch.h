@@ -30,19 +30,6 @@ namespace detail {
 
 #if FLSM_SIMD_V4_ENTRY
 template <class F>
-[[gnu::target("arch=x86-64-v4"), gnu::flatten]] void runAtV4(F& f) {
-  f();
-}
-#endif
-#if FLSM_SIMD_V3_ENTRY
-template <class F>
-[[gnu::target("arch=x86-64-v3"), gnu::flatten]] void runAtV3(F& f) {
-  f();
-}
-#endif
-
-#if FLSM_SIMD_V4_ENTRY
-template <class F>
 [[gnu::target("arch=x86-64-v4"), gnu::flatten]] void runWideAtV4(F& f) {
   f(std::integral_constant<int, 4>{});
 }
@@ -55,7 +42,8 @@ template <class F>
 #endif
 
 /// f(std::integral_constant<int, W>) at simdLevel(), W the vector width of the sliding window's
-/// accumulators there: 4 at a level with AVX, else the build's own (`built`, 2 or 4).
+/// accumulators there: 4 at a level with AVX, else the build's own (`built`, 2 or 4). One relaxed
+/// atomic load and a branch per call.
 template <int built, class F>
 inline void withSimdWidth(F&& f) {
   const SimdLevel level = simdLevel();
@@ -69,18 +57,10 @@ inline void withSimdWidth(F&& f) {
   f(std::integral_constant<int, built>{});
 }
 
-/// f() at simdLevel(): one relaxed atomic load and a branch per call.
+/// f() at simdLevel() (withSimdWidth() for a kernel without a width).
 template <class F>
 inline void withSimd(F&& f) {
-  const SimdLevel level = simdLevel();
-#if FLSM_SIMD_V4_ENTRY
-  if (level == SimdLevel::X86_64_V4) return runAtV4(f);
-#endif
-#if FLSM_SIMD_V3_ENTRY
-  if (level == SimdLevel::X86_64_V3) return runAtV3(f);
-#endif
-  (void)level;
-  f();
+  withSimdWidth<0>([&f](auto) { f(); });
 }
 
 }  // namespace detail
