@@ -47,13 +47,17 @@ constexpr double kCouplingCgFloor = 3e-5;
 
 void ImplicitCoupling::gather(const std::vector<Solver*>& objects) {
   for (std::size_t m = 0; m < members_.size(); ++m) {
-    const Solver& s = *objects[members_[m]];
-    const std::size_t b = start_[m], n = s.x_.size();
+    Solver& s = *objects[members_[m]];
+    const std::size_t b = start_[m], n = s.positions().size();
+    const std::vector<Eigen::Vector3d>& velocity = s.implicitVelocity();
+    const std::vector<Eigen::Vector3d>& rhs = s.implicitRhs();
+    const std::vector<PcgConstraint>& constraint = s.implicitConstraints();
+    const std::vector<Eigen::Vector3d>& normal = s.implicitNormals();
     for (std::size_t i = 0; i < n; ++i) {
-      velocity_[b + i] = s.implicitVelocity_[i];
-      rhs_[b + i] = s.implicitRhs_[i];
-      constraint_[b + i] = s.implicitConstraint_[i];
-      normal_[b + i] = s.implicitNormal_[i];
+      velocity_[b + i] = velocity[i];
+      rhs_[b + i] = rhs[i];
+      constraint_[b + i] = constraint[i];
+      normal_[b + i] = normal[i];
     }
   }
   std::fill(springDiagonal_.begin(), springDiagonal_.end(), Eigen::Vector3d::Zero());
@@ -72,10 +76,10 @@ void ImplicitCoupling::gather(const std::vector<Solver*>& objects) {
     springDiagonal_[sp.row1] += sp.k * sp.n.cwiseAbs2();
   }
   for (std::size_t m = 0; m < members_.size(); ++m) {
-    const Solver& s = *objects[members_[m]];
-    const std::size_t b = start_[m], n = s.x_.size();
+    const std::vector<Eigen::Vector3d>& invDiagonal = objects[members_[m]]->implicitInvDiagonal();
+    const std::size_t b = start_[m], n = invDiagonal.size();
     for (std::size_t i = 0; i < n; ++i)
-      inv_[m][i] = (s.implicitInvPrecond_[i].cwiseInverse() + springDiagonal_[b + i]).cwiseInverse();
+      inv_[m][i] = (invDiagonal[i].cwiseInverse() + springDiagonal_[b + i]).cwiseInverse();
   }
 }
 
@@ -105,7 +109,7 @@ void ImplicitCoupling::product(const std::vector<Solver*>& objects, const std::v
 
 void ImplicitCoupling::precondition(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& r,
                                     std::vector<Eigen::Vector3d>& z) {
-  perMember(objects, r, z, [this](Solver& s, std::size_t m) { s.coarse_->apply(inv_[m], in_[m], out_[m]); });
+  perMember(objects, r, z, [this](Solver& s, std::size_t m) { s.implicitPrecondition(inv_[m], in_[m], out_[m]); });
 }
 
 // A candidate pair of a coupled object's particle and a sleeping object's: a spring as while both
@@ -122,11 +126,14 @@ void ImplicitCoupling::holdSpring(const std::vector<Solver*>& objects, const std
   const Solver& a = *objects[sp.o1];
   const Solver& b = *objects[sp.o2];
   if (a.isPrescribed(sp.i1)) return;
-  if (!spring::geometry(a.x_[sp.i1], a.contactRadius(), b.x_[sp.i2], b.contactRadius(), sp.n, sp.gap)) return;
-  const double predicted = spring::gapAfter(sp.gap, sp.n, a.v_[sp.i1], h);
-  const double d1 = 3.0 / a.implicitInvPrecond_[sp.i1].sum();
-  const double d2 = sp.i2 < b.implicitInvPrecond_.size() ? 3.0 / b.implicitInvPrecond_[sp.i2].sum() : d1;
-  sp.k = spring::stiffness(d1, a.lattice_->masses()[sp.i1], false, d2, b.lattice_->masses()[sp.i2],
+  if (!spring::geometry(a.positions()[sp.i1], a.contactRadius(), b.positions()[sp.i2], b.contactRadius(), sp.n,
+                        sp.gap))
+    return;
+  const double predicted = spring::gapAfter(sp.gap, sp.n, a.velocities()[sp.i1], h);
+  const std::vector<Eigen::Vector3d>& invB = b.implicitInvDiagonal();
+  const double d1 = 3.0 / a.implicitInvDiagonal()[sp.i1].sum();
+  const double d2 = sp.i2 < invB.size() ? 3.0 / invB[sp.i2].sum() : d1;
+  sp.k = spring::stiffness(d1, a.lattice().masses()[sp.i1], false, d2, b.lattice().masses()[sp.i2],
                            b.isPrescribed(sp.i2));
   sp.row1 = static_cast<std::uint32_t>(start_[static_cast<std::size_t>(place_[sp.o1])] + sp.i1);
   sp.row2 = 0;
@@ -170,20 +177,16 @@ void ImplicitCoupling::substep(const std::vector<Solver*>& objects, const std::v
   const double floor = beginMembers(objects, s, h);
   buildSprings(objects, pairCandidates, h, asleep);
   const PcgResult result = solve(objects, h, floor);
-  sumSpringImpulses(objects, h);
-  for (std::size_t m = 0; m < members_.size(); ++m) {
-    Solver& sv = *objects[members_[m]];
-    sv.implicitSolve_ = result;
-    sv.implicitEnd(h, pcg_.residual(), start_[m]);
-    sv.implicitCouplingImpulse_.clear();
-  }
+  sumSpringImpulses(h);
+  for (std::size_t m = 0; m < members_.size(); ++m)
+    objects[members_[m]]->endCoupledSubstep(h, result, pcg_.residual(), start_[m], impulseOn_[m]);
   // each member's thread governor gets its share of the solve's time (as advanceSubstep() times
   // an object's own sub-step)
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   for (std::uint32_t o : members_) {
     Solver& sv = *objects[o];
-    if (sv.singleSummer_ != nullptr)
-      sv.stepSeconds_ += seconds * static_cast<double>(sv.x_.size()) / static_cast<double>(std::max<std::size_t>(size_, 1));
+    sv.addCoupledSolveTime(seconds * static_cast<double>(sv.positions().size()) /
+                           static_cast<double>(std::max<std::size_t>(size_, 1)));
   }
 }
 
@@ -196,12 +199,12 @@ void ImplicitCoupling::placeMembers(const std::vector<Solver*>& objects, const s
   place.assign(objects.size(), -1);
   size_ = 0;
   for (std::size_t o = 0; o < objects.size(); ++o) {
-    globalStart_[o + 1] = globalStart_[o] + objects[o]->x_.size();
+    globalStart_[o + 1] = globalStart_[o] + objects[o]->positions().size();
     if (!coupled[o]) continue;
     place[o] = static_cast<std::int64_t>(members_.size());
     members_.push_back(static_cast<std::uint32_t>(o));
     start_.push_back(size_);
-    size_ += objects[o]->x_.size();
+    size_ += objects[o]->positions().size();
   }
   if (velocity_.size() != size_) {
     pcg_.resize(size_);
@@ -217,12 +220,13 @@ void ImplicitCoupling::placeMembers(const std::vector<Solver*>& objects, const s
     in_.resize(members_.size());
     out_.resize(members_.size());
     inv_.resize(members_.size());
+    impulseOn_.resize(members_.size());
   }
   std::size_t largest = 0;
-  for (const Solver* object : objects) largest = std::max(largest, object->x_.size());
+  for (const Solver* object : objects) largest = std::max(largest, object->positions().size());
   for (std::size_t m = 0; m < members_.size(); ++m) {
-    const std::size_t n = objects[members_[m]]->x_.size();
-    for (auto* segment : {&in_[m], &out_[m], &inv_[m]}) {
+    const std::size_t n = objects[members_[m]]->positions().size();
+    for (auto* segment : {&in_[m], &out_[m], &inv_[m], &impulseOn_[m]}) {
       if (segment->capacity() < largest) segment->reserve(largest);
       segment->resize(n);
     }
@@ -235,11 +239,10 @@ double ImplicitCoupling::beginMembers(const std::vector<Solver*>& objects, int s
   std::size_t free = 0;
   for (std::uint32_t o : members_) {
     Solver& sv = *objects[o];
-    sv.interpolateDragFrames(static_cast<double>(s + 1) / sv.params_.substeps);
-    sv.implicitBegin(h);
-    rhsNorm2 += sv.implicitRhsNorm2_;
-    gravityNorm2 += sv.implicitGravityNorm2_;
-    free += sv.implicitFreeCount_;
+    sv.beginCoupledSubstep(s, h);
+    rhsNorm2 += sv.implicitRhsNorm2();
+    gravityNorm2 += sv.implicitGravityNorm2();
+    free += sv.implicitFreeCount();
   }
   return kCouplingCgFloor * std::max({std::sqrt(rhsNorm2), std::sqrt(gravityNorm2), 1e-300}) /
          std::sqrt(static_cast<double>(std::max<std::size_t>(free, 1)));
@@ -269,11 +272,13 @@ void ImplicitCoupling::buildSprings(const std::vector<Solver*>& objects,
     const Solver& b = *objects[sp.o2];
     const bool fixed1 = a.isPrescribed(sp.i1), fixed2 = b.isPrescribed(sp.i2);
     if (fixed1 && fixed2) continue;
-    if (!spring::geometry(a.x_[sp.i1], a.contactRadius(), b.x_[sp.i2], b.contactRadius(), sp.n, sp.gap)) continue;
-    const double predicted = spring::gapAfter(sp.gap, sp.n, a.v_[sp.i1] - b.v_[sp.i2], h);
+    if (!spring::geometry(a.positions()[sp.i1], a.contactRadius(), b.positions()[sp.i2], b.contactRadius(), sp.n,
+                          sp.gap))
+      continue;
+    const double predicted = spring::gapAfter(sp.gap, sp.n, a.velocities()[sp.i1] - b.velocities()[sp.i2], h);
     // the particles' own diagonals (mass, damping, the material's stiffness bound)
-    const double d1 = 3.0 / a.implicitInvPrecond_[sp.i1].sum(), d2 = 3.0 / b.implicitInvPrecond_[sp.i2].sum();
-    sp.k = spring::stiffness(d1, a.lattice_->masses()[sp.i1], fixed1, d2, b.lattice_->masses()[sp.i2], fixed2);
+    const double d1 = 3.0 / a.implicitInvDiagonal()[sp.i1].sum(), d2 = 3.0 / b.implicitInvDiagonal()[sp.i2].sum();
+    sp.k = spring::stiffness(d1, a.lattice().masses()[sp.i1], fixed1, d2, b.lattice().masses()[sp.i2], fixed2);
     sp.row1 = static_cast<std::uint32_t>(start_[static_cast<std::size_t>(place[sp.o1])] + sp.i1);
     sp.row2 = static_cast<std::uint32_t>(start_[static_cast<std::size_t>(place[sp.o2])] + sp.i2);
     sp.slot = static_cast<std::uint32_t>(c);
@@ -284,56 +289,43 @@ void ImplicitCoupling::buildSprings(const std::vector<Solver*>& objects,
 
 PcgResult ImplicitCoupling::solve(const std::vector<Solver*>& objects, double h, double floor) {
   // one solve, with the objects' collider contacts and the springs in one active set
-  Pcg& pcg = pcg_;
   const auto apply = [&](const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
     product(objects, p, y);
   };
   const auto precond = [&](const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
     precondition(objects, r, z);
   };
-  double passFloor = floor;
-  bool guessChanged = true;
-  PcgResult result;
-  int iterations = 0;
-  for (int pass = 0;; ++pass) {
-    gather(objects);
-    result = pcg.solveWith(apply, precond, constraint_, normal_, rhs_, velocity_, passFloor, kCouplingCgTolerance,
-                           kCgMaxIterations, !guessChanged);
-    iterations += result.iterations;
-    // the solves after the first, as an object's own: to kCgContactTolerance of the first one's
-    // initial residual (at kCouplingCgTolerance instead, the bin of twenty kept a particle rocking
-    // at 3.2 cm/s; a pass right after a spring joined may then end at once, the spring's force
-    // left in the residual, and its impulse below is taken from the gap all the same)
-    if (pass == 0) passFloor = std::max(floor, kCgContactTolerance * result.initialResidual);
+  const auto scatter = [&] {
     for (std::size_t m = 0; m < members_.size(); ++m) {
-      Solver& sv = *objects[members_[m]];
+      std::vector<Eigen::Vector3d>& v = objects[members_[m]]->implicitVelocity();
       std::copy(velocity_.begin() + static_cast<std::ptrdiff_t>(start_[m]),
-                velocity_.begin() + static_cast<std::ptrdiff_t>(start_[m] + sv.x_.size()), sv.implicitVelocity_.begin());
+                velocity_.begin() + static_cast<std::ptrdiff_t>(start_[m] + v.size()), v.begin());
     }
-    if (pass + 1 >= kContactPasses) break;
-    guessChanged = false;
+  };
+  const auto update = [&](bool& guessChanged) {
     bool changed = false;
-    for (std::size_t m = 0; m < members_.size(); ++m) {
-      Solver& sv = *objects[members_[m]];
-      if (!sv.contactBodies_.empty() && sv.updateContactSet(h, guessChanged, pcg, start_[m])) changed = true;
-    }
+    for (std::size_t m = 0; m < members_.size(); ++m)
+      if (objects[members_[m]]->updateContactSet(h, guessChanged, pcg_, start_[m])) changed = true;
     if (updateSprings(h)) {
       changed = true;
       guessChanged = true;  // the matrix changed: the residual from a product
     }
-    if (!changed) break;
-  }
-  result.iterations = iterations;
-  return result;
+    return changed;
+  };
+  // the solves after the first, as an object's own: to kCgContactTolerance of the first one's
+  // initial residual (at kCouplingCgTolerance instead, the bin of twenty kept a particle rocking
+  // at 3.2 cm/s; a pass right after a spring joined may then end at once, the spring's force
+  // left in the residual, and its impulse below is taken from the gap all the same)
+  return solveWithContactSet(
+      pcg_, [&] { gather(objects); }, apply, precond, constraint_, normal_, rhs_, velocity_, floor,
+      kCouplingCgTolerance, scatter, update);
 }
 
-void ImplicitCoupling::sumSpringImpulses(const std::vector<Solver*>& objects, double h) {
+void ImplicitCoupling::sumSpringImpulses(double h) {
   // the springs' impulses, on the objects' momentum and for the contact pass
   impulses_.clear();
-  for (std::uint32_t o : members_) {
-    Solver& sv = *objects[o];
-    sv.implicitCouplingImpulse_.assign(sv.x_.size(), Eigen::Vector3d::Zero());
-  }
+  for (std::size_t m = 0; m < members_.size(); ++m)
+    std::fill(impulseOn_[m].begin(), impulseOn_[m].end(), Eigen::Vector3d::Zero());
   for (const Spring& sp : springs_) {
     if (!sp.active) continue;
     // h times the force the solve applied on particle 1 (negative: a spring the last pass left
@@ -341,15 +333,15 @@ void ImplicitCoupling::sumSpringImpulses(const std::vector<Solver*>& objects, do
     const double lambda = spring::impulse(sp.k, spring::gapAfter(sp.gap, sp.n, velocity_[sp.row1] - velocity_[sp.row2], h), h);
     if (lambda == 0.0) continue;
     const Eigen::Vector3d J = lambda * sp.n;
-    objects[sp.o1]->implicitCouplingImpulse_[sp.i1] += J;
-    objects[sp.o2]->implicitCouplingImpulse_[sp.i2] -= J;
+    impulseOn_[static_cast<std::size_t>(place_[sp.o1])][sp.i1] += J;
+    impulseOn_[static_cast<std::size_t>(place_[sp.o2])][sp.i2] -= J;
     recordImpulse(sp, lambda);
   }
   for (const Spring& sp : held_) {
     if (!sp.active) continue;
     const double lambda = spring::impulse(sp.k, spring::gapAfter(sp.gap, sp.n, velocity_[sp.row1], h), h);
     if (lambda == 0.0) continue;
-    objects[sp.o1]->implicitCouplingImpulse_[sp.i1] += lambda * sp.n;  // the sleeping object takes none
+    impulseOn_[static_cast<std::size_t>(place_[sp.o1])][sp.i1] += lambda * sp.n;  // the sleeping object takes none
     recordImpulse(sp, lambda);
   }
 }

@@ -2,6 +2,13 @@
 // (several objects as one system). Internal to the core.
 #pragma once
 
+#include "deformable_flsm/core/pcg.h"
+
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <vector>
+
 namespace deformable_flsm {
 namespace implicit_solve {
 
@@ -46,6 +53,37 @@ constexpr int kContactPasses = 4;
 /// contact pass's friction, at most mu times a normal change of about the slop over h: two pads
 /// gripping the bunny lifted it 2 cm of 10, then lost it (test_solver_implicit).
 constexpr double kContactSlop = 1e-3;
+/// The CG and active-set loop of an implicit sub-step, one object's (Solver) or several objects'
+/// as one system (ImplicitCoupling): prepare() (the system's vectors, which a change of the set
+/// may change), solve, solved(); then update(guessChanged) changes the active set and returns
+/// whether it did, setting guessChanged when it prescribed a velocity (the next solve computes
+/// its residual again); at most kContactPasses solves. The solves after the first stop at
+/// kCgContactTolerance of the first one's initial residual, or `tolerance` of their own, or
+/// `floor`. Returns the last solve's result with the iterations of all of them.
+template <class Prepare, class Apply, class Precondition, class Solved, class Update>
+PcgResult solveWithContactSet(Pcg& pcg, Prepare&& prepare, Apply&& apply, Precondition&& precondition,
+                              const std::vector<PcgConstraint>& constraint, const std::vector<Eigen::Vector3d>& normal,
+                              const std::vector<Eigen::Vector3d>& rhs, std::vector<Eigen::Vector3d>& velocity,
+                              double floor, double tolerance, Solved&& solved, Update&& update) {
+  PcgResult result;
+  int iterations = 0;
+  double passFloor = floor;
+  bool guessChanged = true;
+  for (int pass = 0;; ++pass) {
+    prepare();
+    result = pcg.solveWith(apply, precondition, constraint, normal, rhs, velocity, passFloor, tolerance,
+                           kCgMaxIterations, !guessChanged);
+    iterations += result.iterations;
+    if (pass == 0) passFloor = std::max(floor, kCgContactTolerance * result.initialResidual);
+    solved();
+    if (pass + 1 >= kContactPasses) break;
+    guessChanged = false;
+    if (!update(guessChanged)) break;
+  }
+  result.iterations = iterations;
+  return result;
+}
+
 /// The contact states kept from one sub-step to the next (Solver::implicitContactState_).
 constexpr char kNoContact = 0, kSticking = 1, kSliding = 2, kReleased = 3;
 

@@ -117,7 +117,6 @@ void Solver::implicitSubstep(double substep) {
   bdf2Step_ = false;
   const double h = bdf2 ? bdf2Begin(substep) : substep;
   implicitBegin(h);
-  const bool contacts = !contactBodies_.empty();
   // Contacts by an active set (see constrainContacts()): solve, let go of the contacts whose
   // impulse pulls, turn the sticking ones whose impulse leaves the friction cone into sliding
   // ones, and solve again from where it was.
@@ -125,22 +124,35 @@ void Solver::implicitSubstep(double substep) {
     implicitProduct(p, y);
   };
   const auto precondition = [this](const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
-    coarse_->apply(implicitInvPrecond_, r, z);
+    implicitPrecondition(implicitInvPrecond_, r, z);
   };
-  int iterations = 0;
-  double passFloor = implicitFloor_;
-  bool guessChanged = true;
-  for (int pass = 0;; ++pass) {
-    implicitSolve_ = pcg_.solveWith(product, precondition, implicitConstraint_, implicitNormal_, implicitRhs_,
-                                    implicitVelocity_, passFloor, kCgTolerance, kCgMaxIterations, !guessChanged);
-    iterations += implicitSolve_.iterations;
-    if (pass == 0) passFloor = std::max(implicitFloor_, kCgContactTolerance * implicitSolve_.initialResidual);
-    guessChanged = false;
-    if (!contacts || pass + 1 >= kContactPasses || !updateContactSet(h, guessChanged, pcg_, 0)) break;
-  }
-  implicitSolve_.iterations = iterations;
+  implicitSolve_ = solveWithContactSet(
+      pcg_, [] {}, product, precondition, implicitConstraint_, implicitNormal_, implicitRhs_, implicitVelocity_,
+      implicitFloor_, kCgTolerance, [] {}, [&](bool& guessChanged) { return updateContactSet(h, guessChanged, pcg_, 0); });
   implicitEnd(h, pcg_.residual(), 0, substep);
   if (bdf2) bdf2End(substep);
+}
+
+void Solver::beginCoupledSubstep(int s, double h) {
+  interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
+  implicitBegin(h);
+}
+
+void Solver::implicitPrecondition(const std::vector<Eigen::Vector3d>& invDiagonal,
+                                  const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
+  coarse_->apply(invDiagonal, r, z);
+}
+
+void Solver::endCoupledSubstep(double h, const PcgResult& result, const std::vector<Eigen::Vector3d>& residual,
+                               std::size_t offset, const std::vector<Eigen::Vector3d>& couplingImpulse) {
+  implicitSolve_ = result;
+  couplingImpulse_ = &couplingImpulse;
+  implicitEnd(h, residual, offset);
+  couplingImpulse_ = nullptr;
+}
+
+void Solver::addCoupledSolveTime(double seconds) {
+  if (singleSummer_ != nullptr) stepSeconds_ += seconds;  // only with a governor (threads > 1)
 }
 
 double Solver::bdf2Begin(double h) {
@@ -451,7 +463,7 @@ void Solver::correctRigidModes(double h) {
     Eigen::Vector3d target = v_[i] + h * params_.gravity;
     if (forced) target += h * forceAccel_[i];
     Eigen::Vector3d d = m[i] * (target - implicitVelocity_[i]);
-    if (!implicitCouplingImpulse_.empty()) d += implicitCouplingImpulse_[i];
+    if (couplingImpulse_ != nullptr) d += (*couplingImpulse_)[i];
     M += m[i];
     mp += m[i] * p;
     dP += d;

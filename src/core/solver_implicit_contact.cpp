@@ -189,6 +189,7 @@ bool Solver::joinContact(std::size_t i, double h, double slop) {
 // or a sliding one if it was let go of in this sub-step and comes back slipping. Returns whether
 // the set changed.
 bool Solver::updateContactSet(double h, bool& guessChanged, Pcg& pcg, std::size_t offset) {
+  if (contactBodies_.empty()) return false;
   const std::vector<Eigen::Vector3d>& residual = pcg.residual();
   // a friction force of the solve: the right-hand side and the residual PCG keeps change together
   const auto addFriction = [this, &pcg, offset](std::size_t i, const Eigen::Vector3d& f) {

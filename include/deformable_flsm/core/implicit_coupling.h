@@ -132,10 +132,10 @@ class ImplicitCoupling {
                     const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairCandidates, double h,
                     const std::vector<char>* asleep);
   /// the joint solve with the members' contacts and the springs in one active set; each member's
-  /// implicitVelocity_ set; the last pass's result with the iterations of all passes
+  /// implicitVelocity() set; the last pass's result with the iterations of all passes
   PcgResult solve(const std::vector<Solver*>& objects, double h, double floor);
-  /// the active springs' impulses on the members (implicitCouplingImpulse_) and in impulses_
-  void sumSpringImpulses(const std::vector<Solver*>& objects, double h);
+  /// the active springs' impulses on the members (impulseOn_) and in impulses_
+  void sumSpringImpulses(double h);
   void gather(const std::vector<Solver*>& objects);
   void product(const std::vector<Solver*>& objects, const std::vector<Eigen::Vector3d>& p,
                std::vector<Eigen::Vector3d>& y);
@@ -162,6 +162,8 @@ class ImplicitCoupling {
   std::vector<Eigen::Vector3d> velocity_, rhs_, normal_, springDiagonal_;
   std::vector<PcgConstraint> constraint_;
   std::vector<std::vector<Eigen::Vector3d>> in_, out_, inv_;  // per member: its segments
+  /// per member: the springs' impulse on each particle in the last solve (m dv, N s)
+  std::vector<std::vector<Eigen::Vector3d>> impulseOn_;
   std::vector<Spring> springs_;
   /// the springs to sleeping objects: particle 2 (o2, i2) held still, row2 unused
   std::vector<Spring> held_;

@@ -519,8 +519,45 @@ class Solver : private RegionKernel {
   /// iterations summed over its contact passes.
   const PcgResult& lastImplicitSolve() const { return implicitSolve_; }
 
+  // --- one member of a coupled implicit solve (ImplicitCoupling; solver_implicit.cpp) -------
+  // Several objects' sub-steps as one system: each object's system begun here, solved there
+  // through implicitProduct(), implicitPrecondition() and updateContactSet(), ended here.
+  /// Sub-step s of length h begun as a member: the drags' frames at its end and the object's
+  /// system (implicitBegin()), which the accessors below show.
+  void beginCoupledSubstep(int s, double h);
+  /// The system A v = b of the sub-step begun: v_{n+1} (the unknown, which the coupled solve
+  /// sets), b, each row's constraint and normal, the inverse of the Jacobi diagonal.
+  std::vector<Eigen::Vector3d>& implicitVelocity() { return implicitVelocity_; }
+  const std::vector<Eigen::Vector3d>& implicitRhs() const { return implicitRhs_; }
+  const std::vector<PcgConstraint>& implicitConstraints() const { return implicitConstraint_; }
+  const std::vector<Eigen::Vector3d>& implicitNormals() const { return implicitNormal_; }
+  const std::vector<Eigen::Vector3d>& implicitInvDiagonal() const { return implicitInvPrecond_; }
+  /// The squared P-norms of h f(x_n) and of M g h over the free particles, and their count: what
+  /// a solve's floor is made of.
+  double implicitRhsNorm2() const { return implicitRhsNorm2_; }
+  double implicitGravityNorm2() const { return implicitGravityNorm2_; }
+  std::size_t implicitFreeCount() const { return implicitFreeCount_; }
+  /// y = A p, A the implicit step's matrix M + h C + h^2 K (rows of fixed entries meaningless).
+  void implicitProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y);
+  /// z = P^-1 r: the object's two-level preconditioner with `invDiagonal` as its Jacobi part
+  /// (implicitInvDiagonal(), or a coupled solve's with its springs added).
+  void implicitPrecondition(const std::vector<Eigen::Vector3d>& invDiagonal, const std::vector<Eigen::Vector3d>& r,
+                            std::vector<Eigen::Vector3d>& z);
+  /// The contact active set after a solve: lets go of pulling contacts, turns sticking ones out
+  /// of the friction cone into sliding ones, adds particles the solution carries into a
+  /// collider; returns whether it changed (never without colliders). Sets guessChanged when it
+  /// prescribed a velocity (the next solve then needs its residual computed again).
+  /// The solve's residual is pcg.residual()[offset + i].
+  bool updateContactSet(double h, bool& guessChanged, Pcg& pcg, std::size_t offset);
+  /// The member's sub-step of length h ended after the coupled solve (`result`, its residual at
+  /// residual[offset + i]): `couplingImpulse` (per particle) the impulse the other objects gave
+  /// each particle in the solve, which the momentum correction counts as external.
+  void endCoupledSubstep(double h, const PcgResult& result, const std::vector<Eigen::Vector3d>& residual,
+                         std::size_t offset, const std::vector<Eigen::Vector3d>& couplingImpulse);
+  /// Counts `seconds` of a coupled solve as this object's step time, for its thread governor.
+  void addCoupledSolveTime(double seconds);
+
  private:
-  friend class ImplicitCoupling;
   /// One sub-step of linearly implicit backward Euler (see solver_implicit.cpp): implicitBegin(),
   /// the solve with its contact passes, implicitEnd(). ImplicitCoupling solves several objects'
   /// systems as one between the two.
@@ -543,8 +580,6 @@ class Solver : private RegionKernel {
   /// After computeRegionWeights(): with the implicit integrator, alpha as requested (no cap) and
   /// the step's buffers sized; called from the constructor and setParams(), never in a step.
   void configureIntegrator();
-  /// y = A p, A the implicit step's matrix M + h C + h^2 K (rows of fixed entries meaningless).
-  void implicitProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y);
   /// Adds the Poisson term's Gauss-Newton Hessian times p, h^2 H_vol p, to y.
   void addVolumetricProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) const;
   /// Counts each hard drag's impulse in the solve (its reaction on the prescribed rows) into it.
@@ -573,9 +608,9 @@ class Solver : private RegionKernel {
   std::size_t implicitFreeCount_ = 0;           // particles not prescribed, and the squared
   double implicitRhsNorm2_ = 0.0;               // P-norms of h f(x_n) and of M g h over them
   double implicitGravityNorm2_ = 0.0;
-  /// impulses another object gave the particles within the solve (ImplicitCoupling), which
-  /// correctRigidModes() counts as external; empty when none
-  std::vector<Eigen::Vector3d> implicitCouplingImpulse_;
+  /// impulses another object gave the particles within the solve (endCoupledSubstep()), which
+  /// correctRigidModes() counts as external; null when none
+  const std::vector<Eigen::Vector3d>* couplingImpulse_ = nullptr;
   std::vector<double> weightSum_;               // sum_{r contains i} beta_r
   std::vector<Eigen::Vector3d> implicitGoal_;   // goals at the start of the sub-step
   std::vector<Eigen::Vector3d> implicitRhs_;    // M v_n + h f(x_n)
@@ -608,12 +643,6 @@ class Solver : private RegionKernel {
   /// A free particle the solution carries into a collider joins the contact set (sticking, or
   /// sliding when it was let go of and comes back slipping); returns whether it joined.
   bool joinContact(std::size_t i, double h, double slop);
-  /// The contact active set after a solve: lets go of pulling contacts, turns sticking ones out
-  /// of the friction cone into sliding ones, adds particles the solution carries into a
-  /// collider; returns whether it changed. Sets guessChanged when it prescribed a velocity (the
-  /// next solve then needs its residual computed again).
-  /// The solve's residual is pcg.residual()[offset + i].
-  bool updateContactSet(double h, bool& guessChanged, Pcg& pcg, std::size_t offset);
   /// phi - r of particle i at the start of the sub-step against contact body b at its pose then
   /// (negative: a penetration the sub-step did not make).
   double startDepth(std::size_t i, int b) const;
