@@ -84,7 +84,7 @@ PcgResult solveWithContactSet(Pcg& pcg, Prepare&& prepare, Apply&& apply, Precon
   return result;
 }
 
-/// The contact states kept from one sub-step to the next (Solver::implicitContactState_).
+/// The contact states kept from one sub-step to the next (Solver::ImplicitStep::contactState_).
 constexpr char kNoContact = 0, kSticking = 1, kSliding = 2, kReleased = 3;
 
 }  // namespace implicit_solve

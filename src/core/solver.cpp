@@ -3,6 +3,7 @@
 #include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/core/polar.h"
 #include "deformable_flsm/core/small_matrix.h"
+#include "implicit_step.h"
 #include "inertia.h"
 #include "lanes.h"
 #include "simd_dispatch.h"
@@ -152,10 +153,7 @@ void Solver::reset() {
   frameRotation_.setIdentity();
   for (ContactBody& body : contactBodies_) body.wrench = ContactWrench();
   // the implicit step's memory of the last sub-step: its warm start and contact states
-  std::fill(implicitLastDv_.begin(), implicitLastDv_.end(), Eigen::Vector3d::Zero());
-  std::fill(implicitContactState_.begin(), implicitContactState_.end(), char(0));
-  std::fill(implicitFriction_.begin(), implicitFriction_.end(), Eigen::Vector3d::Zero());
-  bdf2Ready_ = false;
+  if (implicit_) implicit_->forgetMemory();
   time_ = 0.0;
   substeps_ = 0;
   ++stateVersion_;
@@ -164,14 +162,14 @@ void Solver::reset() {
 void Solver::setPositions(const std::vector<Eigen::Vector3d>& x) {
   if (x.size() != x_.size()) throw std::invalid_argument("solver: setPositions with the wrong size");
   x_ = x;
-  bdf2Ready_ = false;
+  if (implicit_) implicit_->forgetHistory();
   ++stateVersion_;
 }
 
 void Solver::setVelocities(const std::vector<Eigen::Vector3d>& v) {
   if (v.size() != v_.size()) throw std::invalid_argument("solver: setVelocities with the wrong size");
   v_ = v;
-  bdf2Ready_ = false;
+  if (implicit_) implicit_->forgetHistory();
   ++stateVersion_;
 }
 
@@ -242,7 +240,7 @@ void Solver::advanceSubstep(int s) {
   const auto t0 = timed ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point();
   interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
   if (params_.integrator == Integrator::Implicit)
-    implicitSubstep(h);
+    implicit_->substep(h);
   else
     substep(h);
   if (timed) stepSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -270,7 +268,7 @@ void Solver::idleStep() {
     ++substeps_;
   }
   std::fill(v_.begin(), v_.end(), Eigen::Vector3d::Zero());
-  bdf2Ready_ = false;  // its history is of before it stopped
+  if (implicit_) implicit_->forgetHistory();  // its history is of before it stopped
   for (ContactBody& body : contactBodies_) body.start = body.collider->pose;
   poseCollidersAtStepEnd();
 }
@@ -561,7 +559,7 @@ void Solver::finishSubstep(double h) {
       if (pinned_[p] != 0) continue;
       v_[p] = (frame * drag.offsets[e] - x_[p]) / h;
       x_[p] += h * v_[p];
-      // the implicit step counted its impulse from the solve's residual (implicitEnd()); the
+      // the implicit step counted its impulse from the solve's residual (ImplicitStep::end()); the
       // explicit one damps the updated velocity, v = keep (v_n + dv) (a dragged object is held
       // by the world), so the drag's impulse is m (v / keep - (v_n + dv)) = m (v - v_free) / keep
       if (explicitStep) countDragImpulse(drag, x_[p], m[p] * (v_[p] - freeVelocity_[p]) / step_.keep);

@@ -25,6 +25,7 @@
 #include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/core/solver.h"
 #include "implicit_solve.h"
+#include "implicit_step.h"
 #include "inertia.h"
 
 #include <Eigen/Eigenvalues>
@@ -61,6 +62,10 @@ constexpr double kBdf2MaxGoalGapChange = 0.1;
 
 }  // namespace
 
+// --- the object's side: the step made with the integrator, and a coupled solve's member ------
+
+Solver::~Solver() = default;
+
 void Solver::configureIntegrator() {
   if (params_.integrator != Integrator::Implicit) return;
   // No stability cap: alpha (and with it k = alpha / h^2, independent of h) as requested. The
@@ -75,34 +80,85 @@ void Solver::configureIntegrator() {
   }
   alpha_ = requested;
   alphaCap_ = requested;
-  const std::size_t n = lattice_->size();
+  if (!implicit_) implicit_ = std::make_unique<ImplicitStep>(*this);
+  implicit_->configure();
+}
+
+const PcgResult& Solver::lastImplicitSolve() const {
+  static const PcgResult none;
+  return implicit_ ? implicit_->lastSolve() : none;
+}
+
+void Solver::beginCoupledSubstep(int s, double h) {
+  interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
+  implicit_->begin(h);
+}
+
+std::vector<Eigen::Vector3d>& Solver::implicitVelocity() { return implicit_->velocity(); }
+const std::vector<Eigen::Vector3d>& Solver::implicitRhs() const { return implicit_->rhs(); }
+const std::vector<PcgConstraint>& Solver::implicitConstraints() const { return implicit_->constraints(); }
+const std::vector<Eigen::Vector3d>& Solver::implicitNormals() const { return implicit_->normals(); }
+const std::vector<Eigen::Vector3d>& Solver::implicitInvDiagonal() const { return implicit_->invDiagonal(); }
+double Solver::implicitRhsNorm2() const { return implicit_->rhsNorm2(); }
+double Solver::implicitGravityNorm2() const { return implicit_->gravityNorm2(); }
+std::size_t Solver::implicitFreeCount() const { return implicit_->freeCount(); }
+
+void Solver::implicitProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
+  implicit_->product(p, y);
+}
+
+void Solver::implicitPrecondition(const std::vector<Eigen::Vector3d>& invDiagonal,
+                                  const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
+  implicit_->precondition(invDiagonal, r, z);
+}
+
+bool Solver::updateContactSet(double h, bool& guessChanged, Pcg& pcg, std::size_t offset) {
+  return implicit_->updateContactSet(h, guessChanged, pcg, offset);
+}
+
+void Solver::endCoupledSubstep(double h, const PcgResult& result, const std::vector<Eigen::Vector3d>& residual,
+                               std::size_t offset, const std::vector<Eigen::Vector3d>& couplingImpulse) {
+  implicit_->endCoupled(h, result, residual, offset, couplingImpulse);
+}
+
+void Solver::addCoupledSolveTime(double seconds) {
+  if (singleSummer_ != nullptr) stepSeconds_ += seconds;  // only with a governor (threads > 1)
+}
+
+// --- the implicit step ---------------------------------------------------------------------
+
+Solver::ImplicitStep::ImplicitStep(Solver& object) : o_(object) {}
+
+void Solver::ImplicitStep::configure() {
+  const std::size_t n = o_.lattice_->size();
   if (!hessian_)
-    hessian_ = std::make_unique<CorotatedHessian>(*summer_, lattice_->regionMassFractions(), restCentered_,
-                                                  regionMass_, regionRestCenter_);
+    hessian_ = std::make_unique<CorotatedHessian>(*o_.summer_, o_.lattice_->regionMassFractions(), o_.restCentered_,
+                                                  o_.regionMass_, o_.regionRestCenter_);
   if (!coarse_)
-    coarse_ = std::make_unique<TwoLevelPreconditioner>(*lattice_, lattice_->regionMassFractions(), restCentered_,
-                                                       regionMass_, regionRestCenter_, kCoarseAggregates);
+    coarse_ = std::make_unique<TwoLevelPreconditioner>(*o_.lattice_, o_.lattice_->regionMassFractions(),
+                                                       o_.restCentered_, o_.regionMass_, o_.regionRestCenter_,
+                                                       kCoarseAggregates);
   // the region moments of the coarse space, gathered here rather than in the first step (the
   // constructor sizes the pins after this)
-  if (pinned_.size() == n) coarse_->setFixed(*summer_, pinned_, hardDragged_);
+  if (o_.pinned_.size() == n) coarse_->setFixed(*o_.summer_, o_.pinned_, o_.hardDragged_);
   weightSum_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) weightSum_[i] = 1.0 / invWeightSum_[i];
-  if (implicitVelocity_.size() != n) {
+  for (std::size_t i = 0; i < n; ++i) weightSum_[i] = 1.0 / o_.invWeightSum_[i];
+  if (velocity_.size() != n) {
     pcg_.resize(n);
-    implicitGoal_.assign(n, Eigen::Vector3d::Zero());
-    implicitRhs_.assign(n, Eigen::Vector3d::Zero());
-    implicitVelocity_.assign(n, Eigen::Vector3d::Zero());
-    implicitDiagonal_.assign(n, Eigen::Vector3d::Zero());
-    implicitInvPrecond_.assign(n, Eigen::Vector3d::Zero());
-    implicitLastDv_.assign(n, Eigen::Vector3d::Zero());
-    implicitConstraint_.assign(n, PcgConstraint::Free);
-    implicitNormal_.assign(n, Eigen::Vector3d::Zero());
-    implicitContactBody_.assign(n, -1);
-    implicitContactState_.assign(n, kNoContact);
-    implicitFriction_.assign(n, Eigen::Vector3d::Zero());
+    goals_.assign(n, Eigen::Vector3d::Zero());
+    rhs_.assign(n, Eigen::Vector3d::Zero());
+    velocity_.assign(n, Eigen::Vector3d::Zero());
+    diagonal_.assign(n, Eigen::Vector3d::Zero());
+    invPrecond_.assign(n, Eigen::Vector3d::Zero());
+    lastDv_.assign(n, Eigen::Vector3d::Zero());
+    constraint_.assign(n, PcgConstraint::Free);
+    normal_.assign(n, Eigen::Vector3d::Zero());
+    contactBody_.assign(n, -1);
+    contactState_.assign(n, kNoContact);
+    friction_.assign(n, Eigen::Vector3d::Zero());
   }
-  volumetricLinear_.resize(volumetric_ ? n : 0);
-  const bool bdf2 = params_.implicitScheme == ImplicitScheme::Bdf2;
+  volumetricLinear_.resize(o_.volumetric_ ? n : 0);
+  const bool bdf2 = o_.params_.implicitScheme == ImplicitScheme::Bdf2;
   bdf2LastX_.resize(bdf2 ? n : 0);
   bdf2LastV_.resize(bdf2 ? n : 0);
   bdf2LastGap_.assign(bdf2 ? n : 0, Eigen::Vector3d::Zero());
@@ -111,124 +167,122 @@ void Solver::configureIntegrator() {
   bdf2Step_ = false;
 }
 
-void Solver::implicitSubstep(double substep) {
-  const bool bdf2 = params_.implicitScheme == ImplicitScheme::Bdf2;
+void Solver::ImplicitStep::forgetMemory() {
+  std::fill(lastDv_.begin(), lastDv_.end(), Eigen::Vector3d::Zero());
+  std::fill(contactState_.begin(), contactState_.end(), kNoContact);
+  std::fill(friction_.begin(), friction_.end(), Eigen::Vector3d::Zero());
+  bdf2Ready_ = false;
+}
+
+void Solver::ImplicitStep::substep(double substep) {
+  const bool bdf2 = o_.params_.implicitScheme == ImplicitScheme::Bdf2;
   // the backward Euler step solved: the sub-step itself, or BDF2's 2/3 of it from its start
   bdf2Step_ = false;
   const double h = bdf2 ? bdf2Begin(substep) : substep;
-  implicitBegin(h);
+  begin(h);
   // Contacts by an active set (see constrainContacts()): solve, let go of the contacts whose
   // impulse pulls, turn the sticking ones whose impulse leaves the friction cone into sliding
   // ones, and solve again from where it was.
-  const auto product = [this](const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
-    implicitProduct(p, y);
+  const auto apply = [this](const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
+    product(p, y);
   };
-  const auto precondition = [this](const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
-    implicitPrecondition(implicitInvPrecond_, r, z);
+  const auto precond = [this](const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
+    precondition(invPrecond_, r, z);
   };
-  implicitSolve_ = solveWithContactSet(
-      pcg_, [] {}, product, precondition, implicitConstraint_, implicitNormal_, implicitRhs_, implicitVelocity_,
-      implicitFloor_, kCgTolerance, [] {}, [&](bool& guessChanged) { return updateContactSet(h, guessChanged, pcg_, 0); });
-  implicitEnd(h, pcg_.residual(), 0, substep);
+  lastSolve_ = solveWithContactSet(
+      pcg_, [] {}, apply, precond, constraint_, normal_, rhs_, velocity_, floor_, kCgTolerance, [] {},
+      [&](bool& guessChanged) { return updateContactSet(h, guessChanged, pcg_, 0); });
+  end(h, pcg_.residual(), 0, substep);
   if (bdf2) bdf2End(substep);
 }
 
-void Solver::beginCoupledSubstep(int s, double h) {
-  interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
-  implicitBegin(h);
-}
-
-void Solver::implicitPrecondition(const std::vector<Eigen::Vector3d>& invDiagonal,
-                                  const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
+void Solver::ImplicitStep::precondition(const std::vector<Eigen::Vector3d>& invDiagonal,
+                                        const std::vector<Eigen::Vector3d>& r, std::vector<Eigen::Vector3d>& z) {
   coarse_->apply(invDiagonal, r, z);
 }
 
-void Solver::endCoupledSubstep(double h, const PcgResult& result, const std::vector<Eigen::Vector3d>& residual,
-                               std::size_t offset, const std::vector<Eigen::Vector3d>& couplingImpulse) {
-  implicitSolve_ = result;
+void Solver::ImplicitStep::endCoupled(double h, const PcgResult& result, const std::vector<Eigen::Vector3d>& residual,
+                                      std::size_t offset, const std::vector<Eigen::Vector3d>& couplingImpulse) {
+  lastSolve_ = result;
   couplingImpulse_ = &couplingImpulse;
-  implicitEnd(h, residual, offset);
+  end(h, residual, offset);
   couplingImpulse_ = nullptr;
 }
 
-void Solver::addCoupledSolveTime(double seconds) {
-  if (singleSummer_ != nullptr) stepSeconds_ += seconds;  // only with a governor (threads > 1)
-}
-
-double Solver::bdf2Begin(double h) {
-  const std::size_t n = x_.size();
-  if (impulsePending_ && bdf2Ready_) {
+double Solver::ImplicitStep::bdf2Begin(double h) {
+  const std::size_t n = o_.x_.size();
+  if (o_.impulsePending_ && bdf2Ready_) {
     // an impulse changes v_n and, for the extrapolation, v_{n-1} alike
-    for (std::size_t i = 0; i < n; ++i) bdf2LastV_[i] += impulseDv_[i];
+    for (std::size_t i = 0; i < n; ++i) bdf2LastV_[i] += o_.impulseDv_[i];
   }
-  applyPendingImpulses();
+  o_.applyPendingImpulses();
   if (!bdf2Ready_ || bdf2GapChange_ > kBdf2MaxGoalGapChange) {
-    bdf2LastX_ = x_;  // same size: no allocation
-    bdf2LastV_ = v_;
+    bdf2LastX_ = o_.x_;  // same size: no allocation
+    bdf2LastV_ = o_.v_;
     bdf2Ready_ = true;
     return h;
   }
   // the momenta BDF2's solve must keep (correctRigidModes()): a linear multistep method keeps
   // the linear one by itself, not the spin
-  const auto& m = lattice_->masses();
+  const auto& m = o_.lattice_->masses();
   double M = 0.0;
   Eigen::Vector3d mx = Eigen::Vector3d::Zero(), L = Eigen::Vector3d::Zero();
   bdf2P_.setZero();
   for (std::size_t i = 0; i < n; ++i) {
     M += m[i];
-    mx += m[i] * (x_[i] - x_[0]);
-    bdf2P_ += m[i] * v_[i];
-    L += m[i] * (x_[i] - x_[0]).cross(v_[i]);
+    mx += m[i] * (o_.x_[i] - o_.x_[0]);
+    bdf2P_ += m[i] * o_.v_[i];
+    L += m[i] * (o_.x_[i] - o_.x_[0]).cross(o_.v_[i]);
   }
   bdf2Spin_ = L - (mx / M).cross(bdf2P_);  // about the centre of mass
   bdf2Step_ = true;
   for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d x = x_[i], v = v_[i];
-    x_[i] = x + (x - bdf2LastX_[i]) / 3.0;
-    v_[i] = v + (v - bdf2LastV_[i]) / 3.0;
+    const Eigen::Vector3d x = o_.x_[i], v = o_.v_[i];
+    o_.x_[i] = x + (x - bdf2LastX_[i]) / 3.0;
+    o_.v_[i] = v + (v - bdf2LastV_[i]) / 3.0;
     bdf2LastX_[i] = x;
     bdf2LastV_[i] = v;
   }
   return 2.0 * h / 3.0;
 }
 
-void Solver::bdf2End(double h) {
-  const std::size_t n = x_.size();
+void Solver::ImplicitStep::bdf2End(double h) {
+  const std::size_t n = o_.x_.size();
   for (std::size_t i = 0; i < n; ++i) {
-    // implicitVelocity_ holds the solve's v+: the contact pass after it, a pin or a hard drag
+    // velocity_ holds the solve's v+: the contact pass after it, a pin or a hard drag
     // changed v_ since
-    const bool moved = pinned_[i] != 0 || hardDragged_[i] != 0 || implicitContactState_[i] != kNoContact ||
-                       v_[i] != implicitVelocity_[i];
+    const bool moved = o_.pinned_[i] != 0 || o_.hardDragged_[i] != 0 || contactState_[i] != kNoContact ||
+                       o_.v_[i] != velocity_[i];
     if (!moved) continue;
-    bdf2LastX_[i] = x_[i] - h * v_[i];
-    bdf2LastV_[i] = v_[i];
+    bdf2LastX_[i] = o_.x_[i] - h * o_.v_[i];
+    bdf2LastV_[i] = o_.v_[i];
   }
 }
 
-void Solver::implicitBegin(double h) {
-  const std::size_t n = x_.size();
-  const auto& m = lattice_->masses();
-  implicitH_ = h;
-  applyPendingImpulses();
+void Solver::ImplicitStep::begin(double h) {
+  const std::size_t n = o_.x_.size();
+  const auto& m = o_.lattice_->masses();
+  h_ = h;
+  o_.applyPendingImpulses();
   // a timed force's last sub-step is cut by the time the sub-step advances (BDF2 solves 2/3 of it)
-  accumulateForces(bdf2Step_ ? params_.substepLength() : h);
+  o_.accumulateForces(bdf2Step_ ? o_.params_.substepLength() : h);
   // The linearisation point: one ordinary region pass gives the goals and the rotations R_r.
-  computeGoals(implicitGoal_);
-  if (volumetric_) {
-    computeVolumetricForces();
+  o_.computeGoals(goals_);
+  if (o_.volumetric_) {
+    o_.computeVolumetricForces();
     linearizeVolumetric();
   }
-  const bool relative = params_.ambientDamping > 0.0 && !heldByWorld();
-  if (relative) computeRigidMotion();
+  const bool relative = o_.params_.ambientDamping > 0.0 && !o_.heldByWorld();
+  if (relative) o_.computeRigidMotion();
 
   // The system: A = diag(M (1 + h c [a free object]) + h^2 k_spring) + sum_r (h^2 k beta_r + h damping) K_r
   // (+ h^2 H_vol), h^2 k = alpha.
-  hessian_->setRotations(rotations_);
+  hessian_->setRotations(o_.rotations_);
   // alpha = h^2 k for the sub-step; a shorter solve (BDF2's 2/3 of it) keeps k
-  const double substep = params_.substepLength();
-  const double alpha = h == substep ? alpha_ : alpha_ * (h / substep) * (h / substep);
-  hessian_->setCoefficients(alpha, h * params_.damping, regionWeight_, weightSum_, invCount_);
-  const double c = params_.ambientDamping;
+  const double substep = o_.params_.substepLength();
+  const double alpha = h == substep ? o_.alpha_ : o_.alpha_ * (h / substep) * (h / substep);
+  hessian_->setCoefficients(alpha, h * o_.params_.damping, o_.regionWeight_, weightSum_, o_.invCount_);
+  const double c = o_.params_.ambientDamping;
   // Ambient damping relative to the object's rigid motion (a free object) is in the system; an
   // object held by the world is damped as the explicit step damps it, v_n by exp(-c h) before
   // the step: in the system it would damp the sub-step's fall onto a support the solve does not
@@ -236,56 +290,56 @@ void Solver::implicitBegin(double h) {
   // of the weight above it.
   const double damped = relative ? 1.0 + h * c : 1.0;
   const double keep = relative ? 1.0 : std::exp(-c * h);
-  for (std::size_t i = 0; i < n; ++i) implicitDiagonal_[i].setConstant(m[i] * damped);
+  for (std::size_t i = 0; i < n; ++i) diagonal_[i].setConstant(m[i] * damped);
   addDragsToSystem(h);
   // Right-hand side M v_n + h f_el(x_n), the initial guess and the Jacobi preconditioner.
   const double pull = alpha / h;  // h k
   double rhsNorm = 0.0, gravityNorm = 0.0, goalGap2 = 0.0;
-  const bool bdf2 = params_.implicitScheme == ImplicitScheme::Bdf2 && bdf2LastGap_.size() == n;
+  const bool bdf2 = o_.params_.implicitScheme == ImplicitScheme::Bdf2 && bdf2LastGap_.size() == n;
   for (std::size_t i = 0; i < n; ++i) {
-    Eigen::Vector3d a = params_.gravity;
-    if (!forcedParticles_.empty()) a += forceAccel_[i];
-    if (volumetric_) a += volumetricAccel_[i];
-    Eigen::Vector3d b = m[i] * (keep * v_[i] + h * a + pull * stiffnessFactor_[i] * (implicitGoal_[i] - x_[i]));
+    Eigen::Vector3d a = o_.params_.gravity;
+    if (!o_.forcedParticles_.empty()) a += o_.forceAccel_[i];
+    if (o_.volumetric_) a += o_.volumetricAccel_[i];
+    Eigen::Vector3d b = m[i] * (keep * o_.v_[i] + h * a + pull * o_.stiffnessFactor_[i] * (goals_[i] - o_.x_[i]));
     if (bdf2) {
-      const Eigen::Vector3d gap = implicitGoal_[i] - x_[i];
+      const Eigen::Vector3d gap = goals_[i] - o_.x_[i];
       goalGap2 = std::max(goalGap2, (gap - bdf2LastGap_[i]).squaredNorm());
       bdf2LastGap_[i] = gap;
     }
     // relative ambient damping pulls towards the object's rigid motion as gravity carries it
     // over the sub-step (as the explicit step damps before adding gravity): free fall is exact
-    if (relative) b += (h * c * m[i]) * (rigidVelocity_ + rigidSpin_.cross(x_[i] - xref_) + h * params_.gravity);
-    implicitRhs_[i] = b;
-    implicitInvPrecond_[i] = (implicitDiagonal_[i].array() + hessian_->diagonalBound(i)).inverse();
-    implicitConstraint_[i] = (pinned_[i] != 0 || hardDragged_[i] != 0) ? PcgConstraint::Fixed : PcgConstraint::Free;
-    implicitContactBody_[i] = -1;
-    if (pinned_[i] != 0)
-      implicitVelocity_[i].setZero();
-    else if (hardDragged_[i] == 0)
-      implicitVelocity_[i] = v_[i] + implicitLastDv_[i] + h * params_.gravity;
+    if (relative) b += (h * c * m[i]) * (o_.rigidVelocity_ + o_.rigidSpin_.cross(o_.x_[i] - o_.xref_) + h * o_.params_.gravity);
+    rhs_[i] = b;
+    invPrecond_[i] = (diagonal_[i].array() + hessian_->diagonalBound(i)).inverse();
+    constraint_[i] = (o_.pinned_[i] != 0 || o_.hardDragged_[i] != 0) ? PcgConstraint::Fixed : PcgConstraint::Free;
+    contactBody_[i] = -1;
+    if (o_.pinned_[i] != 0)
+      velocity_[i].setZero();
+    else if (o_.hardDragged_[i] == 0)
+      velocity_[i] = o_.v_[i] + lastDv_[i] + h * o_.params_.gravity;
   }
-  if (volumetric_) addVolumetricPreconditioner(h);
+  if (o_.volumetric_) addVolumetricPreconditioner(h);
   constrainContacts(h);
   assembleCoarse(h);
   std::size_t free = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
+    if (o_.pinned_[i] != 0 || o_.hardDragged_[i] != 0) continue;
     ++free;
-    const Eigen::Vector3d impulse = implicitRhs_[i] - m[i] * v_[i];  // h f(x_n)
-    rhsNorm += impulse.dot(implicitInvPrecond_[i].cwiseProduct(impulse));
-    const Eigen::Vector3d g = (m[i] * h) * params_.gravity;
-    gravityNorm += g.dot(implicitInvPrecond_[i].cwiseProduct(g));
+    const Eigen::Vector3d impulse = rhs_[i] - m[i] * o_.v_[i];  // h f(x_n)
+    rhsNorm += impulse.dot(invPrecond_[i].cwiseProduct(impulse));
+    const Eigen::Vector3d g = (m[i] * h) * o_.params_.gravity;
+    gravityNorm += g.dot(invPrecond_[i].cwiseProduct(g));
   }
-  implicitFreeCount_ = free;
-  bdf2GapChange_ = std::sqrt(goalGap2) / lattice_->spacing();
-  implicitRhsNorm2_ = rhsNorm;
-  implicitGravityNorm2_ = gravityNorm;
-  implicitFloor_ = kCgFloor * std::max({std::sqrt(rhsNorm), std::sqrt(gravityNorm), 1e-300}) /
+  freeCount_ = free;
+  bdf2GapChange_ = std::sqrt(goalGap2) / o_.lattice_->spacing();
+  rhsNorm2_ = rhsNorm;
+  gravityNorm2_ = gravityNorm;
+  floor_ = kCgFloor * std::max({std::sqrt(rhsNorm), std::sqrt(gravityNorm), 1e-300}) /
                    std::sqrt(static_cast<double>(std::max<std::size_t>(free, 1)));
 }
 
-void Solver::linearizeVolumetric() {
-  const std::size_t n = x_.size();
+void Solver::ImplicitStep::linearizeVolumetric() {
+  const std::size_t n = o_.x_.size();
   // The Poisson term linearised at x_n: E_i = w/2 e^2 + sum_a D_a/2 e_aa^2 has the Hessian
   //   w grad e grad e^T + sum_a D_a grad e_aa grad e_aa^T + sum_a sigma_a hess e_aa,
   // grad e_aa = +-F_a / d_a at the ends of axis a, sigma_a = w e + D_a e_aa the stress along a,
@@ -295,11 +349,11 @@ void Solver::linearizeVolumetric() {
   // semi-definite. Where the strain is clamped the force is sigma F / d with sigma constant:
   // only the last term remains.
   for (std::size_t i = 0; i < n; ++i) {
-    const VolumetricStencil& st = stencil_[i];
+    const VolumetricStencil& st = o_.stencil_[i];
     VolumetricLinearisation& lin = volumetricLinear_[i];
     double e = 0.0, eaa[3] = {0.0, 0.0, 0.0};
     for (int a = 0; a < 3; ++a) {
-      const Eigen::Vector3d F = (x_[st.plus[a]] - x_[st.minus[a]]) * st.invDistance[a];
+      const Eigen::Vector3d F = (o_.x_[st.plus[a]] - o_.x_[st.minus[a]]) * st.invDistance[a];
       if (st.invDistance[a] > 0.0) eaa[a] = 0.5 * (F.squaredNorm() - 1.0);
       e += eaa[a];
       lin.gradient[a] = F * st.invDistance[a];
@@ -316,9 +370,9 @@ void Solver::linearizeVolumetric() {
 
 // Each drag in the system: a spring drag's stiffness on the diagonal, a hard drag's velocity
 // prescribed (the one that reaches its target in the sub-step).
-void Solver::addDragsToSystem(double h) {
-  const auto& m = lattice_->masses();
-  for (const auto& entry : drags_) {
+void Solver::ImplicitStep::addDragsToSystem(double h) {
+  const auto& m = o_.lattice_->masses();
+  for (const auto& entry : o_.drags_) {
     const Drag& drag = entry.second;
     const Eigen::Isometry3d& frame = drag.frame;
     double M = 0.0;
@@ -326,56 +380,56 @@ void Solver::addDragsToSystem(double h) {
     for (std::size_t e = 0; e < drag.particles.size(); ++e) {
       const std::uint32_t p = drag.particles[e];
       if (drag.stiffness > 0.0)
-        implicitDiagonal_[p].array() += h * h * drag.stiffness * m[p] / M;
-      else if (pinned_[p] == 0)
-        implicitVelocity_[p] = (frame * drag.offsets[e] - x_[p]) / h;  // reaches the target
+        diagonal_[p].array() += h * h * drag.stiffness * m[p] / M;
+      else if (o_.pinned_[p] == 0)
+        velocity_[p] = (frame * drag.offsets[e] - o_.x_[p]) / h;  // reaches the target
     }
   }
 }
 
-void Solver::addVolumetricPreconditioner(double h) {
-  const std::size_t n = x_.size();
+void Solver::ImplicitStep::addVolumetricPreconditioner(double h) {
+  const std::size_t n = o_.x_.size();
   // the Gauss-Newton Hessian's diagonal, for the preconditioner only
   for (std::size_t i = 0; i < n; ++i) {
-    const VolumetricStencil& st = stencil_[i];
+    const VolumetricStencil& st = o_.stencil_[i];
     const VolumetricLinearisation& lin = volumetricLinear_[i];
     for (int a = 0; a < 3; ++a) {
       const Eigen::Vector3d d = (h * h * (lin.weight + lin.deficit[a])) * lin.gradient[a].cwiseAbs2() +
                                 Eigen::Vector3d::Constant(h * h * lin.stretch[a]);
-      implicitInvPrecond_[st.plus[a]] = (implicitInvPrecond_[st.plus[a]].cwiseInverse() + d).cwiseInverse();
-      implicitInvPrecond_[st.minus[a]] = (implicitInvPrecond_[st.minus[a]].cwiseInverse() + d).cwiseInverse();
+      invPrecond_[st.plus[a]] = (invPrecond_[st.plus[a]].cwiseInverse() + d).cwiseInverse();
+      invPrecond_[st.minus[a]] = (invPrecond_[st.minus[a]].cwiseInverse() + d).cwiseInverse();
     }
   }
 }
 
-void Solver::implicitEnd(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset,
+void Solver::ImplicitStep::end(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset,
                          double elapsed) {
-  const std::size_t n = x_.size();
-  if (!contactBodies_.empty()) sumContactImpulses(h, residual, offset);
-  if (!heldByWorld()) correctRigidModes(h);
+  const std::size_t n = o_.x_.size();
+  if (!o_.contactBodies_.empty()) sumContactImpulses(h, residual, offset);
+  if (!o_.heldByWorld()) correctRigidModes(h);
   sumDragImpulses(h, residual, offset);
 
   // v+ and x+ = x_n + h v+ for the free particles; the pinned and hard-dragged ones are
   // finishSubstep()'s, as in the explicit step.
   for (std::size_t i = 0; i < n; ++i) {
-    if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
-    implicitLastDv_[i] = implicitVelocity_[i] - v_[i] - h * params_.gravity;
-    v_[i] = implicitVelocity_[i];
-    x_[i] += h * v_[i];
+    if (o_.pinned_[i] != 0 || o_.hardDragged_[i] != 0) continue;
+    lastDv_[i] = velocity_[i] - o_.v_[i] - h * o_.params_.gravity;
+    o_.v_[i] = velocity_[i];
+    o_.x_[i] += h * o_.v_[i];
   }
-  endSubstep(h, elapsed > 0.0 ? elapsed : h);
+  o_.endSubstep(h, elapsed > 0.0 ? elapsed : h);
 }
 
 // A hard drag's impulse is the solve's reaction on its prescribed rows, -(b - A v); BDF2's solve
 // of 2/3 of the sub-step takes 2/3 of it, as its contacts' (sumContactImpulses()).
-void Solver::sumDragImpulses(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset) {
-  const double perSubstep = bdf2Step_ ? params_.substepLength() / h : 1.0;
-  for (auto& entry : drags_) {
+void Solver::ImplicitStep::sumDragImpulses(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset) {
+  const double perSubstep = bdf2Step_ ? o_.params_.substepLength() / h : 1.0;
+  for (auto& entry : o_.drags_) {
     Drag& drag = entry.second;
     if (drag.stiffness > 0.0) continue;
     for (std::uint32_t p : drag.particles)
-      if (pinned_[p] == 0)
-        countDragImpulse(drag, x_[p] + h * implicitVelocity_[p], -perSubstep * residual[offset + p]);
+      if (o_.pinned_[p] == 0)
+        countDragImpulse(drag, o_.x_[p] + h * velocity_[p], -perSubstep * residual[offset + p]);
   }
 }
 
@@ -385,17 +439,17 @@ void Solver::sumDragImpulses(double h, const std::vector<Eigen::Vector3d>& resid
 // sum_a D_a (g_a . d_a)^2 + sum_a sigma_a^+ / d_a^2 |d_a|^2], d_a = p_plus - p_minus on axis a.
 // Pinned and hard-dragged particles are outside the coarse space; contacts are left in it (they
 // change within the sub-step; PCG's filter keeps them prescribed).
-void Solver::assembleCoarse(double h) {
-  coarse_->setFixed(*activeSummer_, pinned_, hardDragged_);
-  if (!coarse_->needsAssembly(implicitDiagonal_, *hessian_, kCoarseTurn, kCoarseAge)) return;
-  coarse_->beginAssembly(implicitDiagonal_, *hessian_);
+void Solver::ImplicitStep::assembleCoarse(double h) {
+  coarse_->setFixed(*o_.activeSummer_, o_.pinned_, o_.hardDragged_);
+  if (!coarse_->needsAssembly(diagonal_, *hessian_, kCoarseTurn, kCoarseAge)) return;
+  coarse_->beginAssembly(diagonal_, *hessian_);
   coarse_->addRegions(*hessian_);
-  if (volumetric_) {
+  if (o_.volumetric_) {
     const double h2 = h * h;
     std::uint32_t ends[6];
     Eigen::Vector3d g[6];
-    for (std::size_t i = 0; i < stencil_.size(); ++i) {
-      const VolumetricStencil& st = stencil_[i];
+    for (std::size_t i = 0; i < o_.stencil_.size(); ++i) {
+      const VolumetricStencil& st = o_.stencil_[i];
       const VolumetricLinearisation& lin = volumetricLinear_[i];
       for (int a = 0; a < 3; ++a) {
         ends[2 * a] = st.plus[a];
@@ -411,18 +465,18 @@ void Solver::assembleCoarse(double h) {
   coarse_->factorize();
 }
 
-void Solver::implicitProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
-  hessian_->apply(*activeSummer_, implicitDiagonal_, p, y);
-  if (volumetric_) addVolumetricProduct(p, y);
+void Solver::ImplicitStep::product(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
+  hessian_->apply(*o_.activeSummer_, diagonal_, p, y);
+  if (o_.volumetric_) addVolumetricProduct(p, y);
 }
 
-// h^2 H_vol p with H_vol the Hessian linearised in implicitSubstep(): per stencil,
+// h^2 H_vol p with H_vol the Hessian linearised in begin(): per stencil,
 // de_a = grad e_aa . p (the strain rate along a), de = sum_a de_a, and the ends of axis a get
 // +- h^2 [(w de + D_a de_a) grad e_aa + sigma_a^+ / d_a^2 (p_plus - p_minus)].
-void Solver::addVolumetricProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) const {
-  const double h2 = implicitH_ * implicitH_;
-  for (std::size_t i = 0; i < stencil_.size(); ++i) {
-    const VolumetricStencil& st = stencil_[i];
+void Solver::ImplicitStep::addVolumetricProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) const {
+  const double h2 = h_ * h_;
+  for (std::size_t i = 0; i < o_.stencil_.size(); ++i) {
+    const VolumetricStencil& st = o_.stencil_[i];
     const VolumetricLinearisation& lin = volumetricLinear_[i];
     double de[3], sum = 0.0;
     for (int a = 0; a < 3; ++a) {
@@ -443,14 +497,14 @@ void Solver::addVolumetricProduct(const std::vector<Eigen::Vector3d>& p, std::ve
 //   sum m x+ x v+ = sum m x_n x v+),
 // a_ext = gravity + timed forces. The solution is corrected by the uniform velocity u and the
 // rotation w x (x - c) about the centre of mass c that restore both: u = dP / M, w = I_c^+ dL_c.
-void Solver::correctRigidModes(double h) {
-  const auto& m = lattice_->masses();
-  const std::size_t n = x_.size();
-  const Eigen::Vector3d ref = x_[anchor_];
+void Solver::ImplicitStep::correctRigidModes(double h) {
+  const auto& m = o_.lattice_->masses();
+  const std::size_t n = o_.x_.size();
+  const Eigen::Vector3d ref = o_.x_[o_.anchor_];
   double M = 0.0;
   Eigen::Vector3d mp = Eigen::Vector3d::Zero(), dP = Eigen::Vector3d::Zero(), dL = Eigen::Vector3d::Zero();
   Eigen::Matrix3d mpp = Eigen::Matrix3d::Zero();
-  const bool forced = !forcedParticles_.empty();
+  const bool forced = !o_.forcedParticles_.empty();
   // BDF2 (x_, v_ its extrapolated start, h 2/3 of the sub-step H): P+ = P_n + H F, and the spin
   // about the centre of mass S+ = sum m (x+ - c+) x v+ = sum m (x_ - c) x v+ is S_n plus H times
   // the external torque about c (a uniform gravity has none). (The angular momentum about a fixed
@@ -459,10 +513,10 @@ void Solver::correctRigidModes(double h) {
   Eigen::Vector3d force = Eigen::Vector3d::Zero(), torque = Eigen::Vector3d::Zero();
   Eigen::Vector3d solvedP = Eigen::Vector3d::Zero(), solvedL = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d p = x_[i] - ref;
-    Eigen::Vector3d target = v_[i] + h * params_.gravity;
-    if (forced) target += h * forceAccel_[i];
-    Eigen::Vector3d d = m[i] * (target - implicitVelocity_[i]);
+    const Eigen::Vector3d p = o_.x_[i] - ref;
+    Eigen::Vector3d target = o_.v_[i] + h * o_.params_.gravity;
+    if (forced) target += h * o_.forceAccel_[i];
+    Eigen::Vector3d d = m[i] * (target - velocity_[i]);
     if (couplingImpulse_ != nullptr) d += (*couplingImpulse_)[i];
     M += m[i];
     mp += m[i] * p;
@@ -470,11 +524,11 @@ void Solver::correctRigidModes(double h) {
     dL += p.cross(d);
     mpp.noalias() += m[i] * p * p.transpose();
     if (bdf2Step_) {
-      const Eigen::Vector3d a = forced ? Eigen::Vector3d(params_.gravity + forceAccel_[i]) : params_.gravity;
+      const Eigen::Vector3d a = forced ? Eigen::Vector3d(o_.params_.gravity + o_.forceAccel_[i]) : o_.params_.gravity;
       force += m[i] * a;
       torque += m[i] * p.cross(a);
-      solvedP += m[i] * implicitVelocity_[i];
-      solvedL += m[i] * p.cross(implicitVelocity_[i]);
+      solvedP += m[i] * velocity_[i];
+      solvedL += m[i] * p.cross(velocity_[i]);
     }
   }
   const Eigen::Vector3d c = mp / M;
@@ -489,7 +543,7 @@ void Solver::correctRigidModes(double h) {
   const Eigen::Matrix3d P = mpp - M * c * c.transpose();
   const Eigen::Matrix3d I = P.trace() * Eigen::Matrix3d::Identity() - P;
   const Eigen::Vector3d w = InertiaInverse(I).solve(dLc);
-  for (std::size_t i = 0; i < n; ++i) implicitVelocity_[i] += u + w.cross(x_[i] - ref - c);
+  for (std::size_t i = 0; i < n; ++i) velocity_[i] += u + w.cross(o_.x_[i] - ref - c);
 }
 
 }  // namespace deformable_flsm

@@ -5,6 +5,7 @@
 #include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/core/solver.h"
 #include "implicit_solve.h"
+#include "implicit_step.h"
 
 #include <algorithm>
 #include <cmath>
@@ -38,35 +39,35 @@ constexpr double kFrictionChange = 0.02;
 // the layers that travel more than a cell into the collider, and shape matching may not undo it.
 // Friction is in the solve too: a sticking contact whose tangential velocity were corrected after
 // the solve would leave the rest of the object moving as if it slid, and feed energy into it.
-bool Solver::constrainContacts(double h) {
-  if (contactBodies_.empty()) return false;
+bool Solver::ImplicitStep::constrainContacts(double h) {
+  if (o_.contactBodies_.empty()) return false;
   // the colliders move over the time the sub-step advances (BDF2 solves 2/3 of it)
-  const double elapsed = bdf2Step_ ? params_.substepLength() : h;
-  const double r = contactRadius();
+  const double elapsed = bdf2Step_ ? o_.params_.substepLength() : h;
+  const double r = o_.contactRadius();
   const double slop = kContactSlop * r;
   // below this slip speed a contact's slip direction is noise: what gravity adds in a sub-step
   // (on a slope, along the surface), or the contact slop over a sub-step without gravity
-  const double slipFloor = std::max(h * params_.gravity.norm(), slop / h);
+  const double slipFloor = std::max(h * o_.params_.gravity.norm(), slop / h);
   // every collider where the contact pass will see it at the end of this sub-step (the contact
   // pass sets the same pose and bounds again)
-  poseContactBodies(contactTime_, contactTime_ + elapsed, r + slop);
+  o_.poseContactBodies(o_.contactTime_, o_.contactTime_ + elapsed, r + slop);
   bool any = false;
-  for (std::size_t i = 0; i < x_.size(); ++i) {
-    if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
-    const Eigen::Vector3d predicted = v_[i] + h * params_.gravity;
-    const Eigen::Vector3d x = x_[i] + h * predicted;
+  for (std::size_t i = 0; i < o_.x_.size(); ++i) {
+    if (o_.pinned_[i] != 0 || o_.hardDragged_[i] != 0) continue;
+    const Eigen::Vector3d predicted = o_.v_[i] + h * o_.params_.gravity;
+    const Eigen::Vector3d x = o_.x_[i] + h * predicted;
     Eigen::Vector3d normal, vc;
     double depth = 0.0;
     const int b = deepestContact(x, slop, normal, depth, vc);
-    const Eigen::Vector3d slid = implicitFriction_[i];  // its kinetic friction, if it slid
-    implicitFriction_[i].setZero();
-    const char last = implicitContactState_[i];
-    implicitContactState_[i] = b < 0 ? kNoContact : kSticking;
+    const Eigen::Vector3d slid = friction_[i];  // its kinetic friction, if it slid
+    friction_[i].setZero();
+    const char last = contactState_[i];
+    contactState_[i] = b < 0 ? kNoContact : kSticking;
     if (b < 0) continue;
     // a contact let go of last sub-step (it pulled) starts free while it is still predicted in
     // contact: the solve adds it back if the solution carries it into the collider
     if (last == kReleased) {
-      implicitContactState_[i] = kReleased;
+      contactState_[i] = kReleased;
       continue;
     }
     const double undo = (std::min(startDepth(i, b), 0.0) - depth) / h;
@@ -93,48 +94,48 @@ bool Solver::constrainContacts(double h) {
     // it (a block launched at 3 m/s along the ground took 1.08 mu_k times its normal impulse)
     const bool carried = last == kSliding && !slid.isZero(0.0);
     if (carried || (last != kSticking && slipSpeed > slipFloor &&
-                    slipSpeed > contactBodies_[static_cast<std::size_t>(b)].collider->staticFriction * std::max(0.0, into))) {
+                    slipSpeed > o_.contactBodies_[static_cast<std::size_t>(b)].collider->staticFriction * std::max(0.0, into))) {
       if (carried) {
-        implicitFriction_[i] = slid - slid.dot(normal) * normal;
+        friction_[i] = slid - slid.dot(normal) * normal;
         if (slipSpeed > slipFloor)
-          implicitFriction_[i] = -(implicitFriction_[i].norm() / slipSpeed) * slip;
-        implicitRhs_[i] += implicitFriction_[i];
+          friction_[i] = -(friction_[i].norm() / slipSpeed) * slip;
+        rhs_[i] += friction_[i];
       }
-      implicitVelocity_[i] += (predicted.dot(normal) + undo - implicitVelocity_[i].dot(normal)) * normal;
-      implicitConstraint_[i] = PcgConstraint::Normal;
-      implicitNormal_[i] = normal;
-      implicitContactBody_[i] = b;
-      implicitContactState_[i] = kSliding;
+      velocity_[i] += (predicted.dot(normal) + undo - velocity_[i].dot(normal)) * normal;
+      constraint_[i] = PcgConstraint::Normal;
+      normal_[i] = normal;
+      contactBody_[i] = b;
+      contactState_[i] = kSliding;
       any = true;
       continue;
     }
     // every other contact starts sticking (the solve then says whether its impulse stays in the
     // cone): at rest the set holds from step to step
-    implicitVelocity_[i] = vc + (predicted.dot(normal) + undo - vc.dot(normal)) * normal;
-    implicitConstraint_[i] = PcgConstraint::Fixed;
-    implicitNormal_[i] = normal;
-    implicitContactBody_[i] = b;
+    velocity_[i] = vc + (predicted.dot(normal) + undo - vc.dot(normal)) * normal;
+    constraint_[i] = PcgConstraint::Fixed;
+    normal_[i] = normal;
+    contactBody_[i] = b;
     any = true;
   }
   return any;
 }
 
-double Solver::startDepth(std::size_t i, int b) const {
-  const ContactBody& body = contactBodies_[static_cast<std::size_t>(b)];
+double Solver::ImplicitStep::startDepth(std::size_t i, int b) const {
+  const ContactBody& body = o_.contactBodies_[static_cast<std::size_t>(b)];
   Eigen::Vector3d normal;
   // BDF2 solves from its extrapolated start x_: the sub-step starts at x_n (a landing particle's
   // extrapolation into the collider is not a penetration to keep)
-  const Eigen::Vector3d& x = bdf2Step_ ? bdf2LastX_[i] : x_[i];
-  return colliderDistance(body.collider->shape, body.before, x, normal) - contactRadius();
+  const Eigen::Vector3d& x = bdf2Step_ ? bdf2LastX_[i] : o_.x_[i];
+  return colliderDistance(body.collider->shape, body.before, x, normal) - o_.contactRadius();
 }
 
-int Solver::deepestContact(const Eigen::Vector3d& x, double within, Eigen::Vector3d& normal, double& depth,
+int Solver::ImplicitStep::deepestContact(const Eigen::Vector3d& x, double within, Eigen::Vector3d& normal, double& depth,
                            Eigen::Vector3d& colliderVelocity) const {
-  const double r = contactRadius();
+  const double r = o_.contactRadius();
   int deepest = -1;
   depth = within;
-  for (std::size_t b = 0; b < contactBodies_.size(); ++b) {
-    const ContactBody& body = contactBodies_[b];
+  for (std::size_t b = 0; b < o_.contactBodies_.size(); ++b) {
+    const ContactBody& body = o_.contactBodies_[b];
     if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
     const Collider& c = *body.collider;
     Eigen::Vector3d n;
@@ -150,27 +151,27 @@ int Solver::deepestContact(const Eigen::Vector3d& x, double within, Eigen::Vecto
 
 // A free particle the solution carries deeper than the slop into a collider joins the contact set:
 // sticking, or sliding if it was let go of and comes back slipping. Returns whether it joined.
-bool Solver::joinContact(std::size_t i, double h, double slop) {
+bool Solver::ImplicitStep::joinContact(std::size_t i, double h, double slop) {
   Eigen::Vector3d normal, vc;
   double depth = 0.0;
-  const int b = deepestContact(x_[i] + h * implicitVelocity_[i], 0.0, normal, depth, vc);
+  const int b = deepestContact(o_.x_[i] + h * velocity_[i], 0.0, normal, depth, vc);
   if (b < 0 || depth > -slop) return false;
-  const Eigen::Vector3d v = implicitVelocity_[i];
+  const Eigen::Vector3d v = velocity_[i];
   const double undo = (std::min(startDepth(i, b), 0.0) - depth) / h;
   const Eigen::Vector3d rel = v - vc;
-  implicitNormal_[i] = normal;
-  implicitContactBody_[i] = b;
-  if (implicitContactState_[i] != kReleased || (rel - rel.dot(normal) * normal).isZero(0.0)) {
-    implicitVelocity_[i] = vc + (v.dot(normal) + undo - vc.dot(normal)) * normal;
-    implicitConstraint_[i] = PcgConstraint::Fixed;
-    implicitContactState_[i] = kSticking;
+  normal_[i] = normal;
+  contactBody_[i] = b;
+  if (contactState_[i] != kReleased || (rel - rel.dot(normal) * normal).isZero(0.0)) {
+    velocity_[i] = vc + (v.dot(normal) + undo - vc.dot(normal)) * normal;
+    constraint_[i] = PcgConstraint::Fixed;
+    contactState_[i] = kSticking;
   } else {
     // a contact let go of (it pulled) that comes back slipping joins sliding, its kinetic
     // friction set by the next pass: added sticking, the uphill edge of a block sliding down
     // a slope came back into the plane, held the block, pulled, was let go, ... every pass
-    implicitVelocity_[i] = v + undo * normal;
-    implicitConstraint_[i] = PcgConstraint::Normal;
-    implicitContactState_[i] = kSliding;
+    velocity_[i] = v + undo * normal;
+    constraint_[i] = PcgConstraint::Normal;
+    contactState_[i] = kSliding;
   }
   return true;
 }
@@ -188,79 +189,79 @@ bool Solver::joinContact(std::size_t i, double h, double slop) {
 // that the solution carries into a collider (deeper than kContactSlop) becomes a sticking contact,
 // or a sliding one if it was let go of in this sub-step and comes back slipping. Returns whether
 // the set changed.
-bool Solver::updateContactSet(double h, bool& guessChanged, Pcg& pcg, std::size_t offset) {
-  if (contactBodies_.empty()) return false;
+bool Solver::ImplicitStep::updateContactSet(double h, bool& guessChanged, Pcg& pcg, std::size_t offset) {
+  if (o_.contactBodies_.empty()) return false;
   const std::vector<Eigen::Vector3d>& residual = pcg.residual();
   // a friction force of the solve: the right-hand side and the residual PCG keeps change together
   const auto addFriction = [this, &pcg, offset](std::size_t i, const Eigen::Vector3d& f) {
-    implicitRhs_[i] += f;
+    rhs_[i] += f;
     pcg.addToResidual(offset + i, f);
   };
-  const double slop = kContactSlop * contactRadius();
+  const double slop = kContactSlop * o_.contactRadius();
   bool changed = false;
-  for (std::size_t i = 0; i < x_.size(); ++i) {
-    if (pinned_[i] != 0 || hardDragged_[i] != 0) continue;
-    if (implicitContactBody_[i] < 0) {
+  for (std::size_t i = 0; i < o_.x_.size(); ++i) {
+    if (o_.pinned_[i] != 0 || o_.hardDragged_[i] != 0) continue;
+    if (contactBody_[i] < 0) {
       if (joinContact(i, h, slop)) changed = guessChanged = true;
       continue;
     }
-    const Collider& c = *contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])].collider;
+    const Collider& c = *o_.contactBodies_[static_cast<std::size_t>(contactBody_[i])].collider;
     const Eigen::Vector3d J = -residual[offset + i];
-    const double Jn = J.dot(implicitNormal_[i]);
-    const Eigen::Vector3d& n = implicitNormal_[i];
+    const double Jn = J.dot(normal_[i]);
+    const Eigen::Vector3d& n = normal_[i];
     if (Jn < 0.0) {
-      addFriction(i, -implicitFriction_[i]);
-      implicitFriction_[i].setZero();
-      implicitConstraint_[i] = PcgConstraint::Free;
-      implicitContactBody_[i] = -1;
-      implicitContactState_[i] = kReleased;
+      addFriction(i, -friction_[i]);
+      friction_[i].setZero();
+      constraint_[i] = PcgConstraint::Free;
+      contactBody_[i] = -1;
+      contactState_[i] = kReleased;
       changed = true;
-    } else if (implicitConstraint_[i] == PcgConstraint::Fixed) {
+    } else if (constraint_[i] == PcgConstraint::Fixed) {
       const Eigen::Vector3d Jt = J - Jn * n;
       const double t = Jt.norm();
       if (t > c.staticFriction * Jn) {
         // out of the cone: slide, with kinetic friction mu_k J.n along the impulse that held it
         // (against the slip it resisted) as a force of the solve, so that the rest of the object
         // moves with the slip
-        implicitFriction_[i] = (c.kineticFriction * Jn / t) * Jt;
-        addFriction(i, implicitFriction_[i]);
-        implicitConstraint_[i] = PcgConstraint::Normal;
-        implicitContactState_[i] = kSliding;
+        friction_[i] = (c.kineticFriction * Jn / t) * Jt;
+        addFriction(i, friction_[i]);
+        constraint_[i] = PcgConstraint::Normal;
+        contactState_[i] = kSliding;
         changed = true;
       }
     } else {
-      const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
-      const Eigen::Isometry3d& pose = contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])].now;
+      const Eigen::Vector3d x = o_.x_[i] + h * velocity_[i];
+      const Eigen::Isometry3d& pose = o_.contactBodies_[static_cast<std::size_t>(contactBody_[i])].now;
       const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - pose.translation());
-      const Eigen::Vector3d rel = implicitVelocity_[i] - vc;
+      const Eigen::Vector3d rel = velocity_[i] - vc;
       const Eigen::Vector3d slip = rel - rel.dot(n) * n;
-      const double f = implicitFriction_[i].norm(), kinetic = c.kineticFriction * Jn;
+      const double f = friction_[i].norm(), kinetic = c.kineticFriction * Jn;
       if (f == 0.0) {
         // joined sliding in this sub-step: kinetic friction against its slip from now on
         const double s = slip.norm();
         if (s > 0.0 && kinetic > 0.0) {
-          implicitFriction_[i] = -(kinetic / s) * slip;
-          addFriction(i, implicitFriction_[i]);
+          friction_[i] = -(kinetic / s) * slip;
+          addFriction(i, friction_[i]);
           changed = true;
         }
         continue;
       }
       // sliding: friction that carried the particle backwards (its slip along the friction
       // force) means it stops: it sticks
-      if (slip.dot(implicitFriction_[i]) > 0.0) {
-        addFriction(i, -implicitFriction_[i]);
-        implicitFriction_[i].setZero();
-        implicitVelocity_[i] = vc + (implicitVelocity_[i] - vc).dot(n) * n;
-        implicitConstraint_[i] = PcgConstraint::Fixed;
-        implicitContactState_[i] = kSticking;
+      if (slip.dot(friction_[i]) > 0.0) {
+        addFriction(i, -friction_[i]);
+        friction_[i].setZero();
+        velocity_[i] = vc + (velocity_[i] - vc).dot(n) * n;
+        constraint_[i] = PcgConstraint::Fixed;
+        contactState_[i] = kSticking;
         changed = true;
         guessChanged = true;
       } else if (std::abs(kinetic - f) > kFrictionChange * f) {
         // still sliding: kinetic friction mu_k J.n with this pass's normal impulse (the one it
         // was set with, the sticking solve's, held a sliding object's momentum too)
-        const Eigen::Vector3d df = (kinetic / f - 1.0) * implicitFriction_[i];
+        const Eigen::Vector3d df = (kinetic / f - 1.0) * friction_[i];
         addFriction(i, df);
-        implicitFriction_[i] += df;
+        friction_[i] += df;
         changed = true;
       }
     }
@@ -270,28 +271,28 @@ bool Solver::updateContactSet(double h, bool& guessChanged, Pcg& pcg, std::size_
 
 // After the last solve: the impulses of every contact go to its collider's wrench, as the contact
 // pass's do.
-void Solver::sumContactImpulses(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset) {
-  const double r = contactRadius();
+void Solver::ImplicitStep::sumContactImpulses(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset) {
+  const double r = o_.contactRadius();
   // BDF2's solve of 2/3 of the sub-step takes 2/3 of its impulses (its momentum balance is
   // P+ = (4 P_n - P_{n-1}) / 3 + (2h/3) (F + contact)): the sub-step's impulse is 3/2 of it
-  const double perSubstep = bdf2Step_ ? params_.substepLength() / h : 1.0;
-  for (ContactBody& body : contactBodies_) body.solved = 0;
-  for (std::size_t i = 0; i < x_.size(); ++i) {
-    if (implicitContactBody_[i] < 0) continue;
-    ContactBody& body = contactBodies_[static_cast<std::size_t>(implicitContactBody_[i])];
-    const Eigen::Vector3d& n = implicitNormal_[i];
+  const double perSubstep = bdf2Step_ ? o_.params_.substepLength() / h : 1.0;
+  for (ContactBody& body : o_.contactBodies_) body.solved = 0;
+  for (std::size_t i = 0; i < o_.x_.size(); ++i) {
+    if (contactBody_[i] < 0) continue;
+    ContactBody& body = o_.contactBodies_[static_cast<std::size_t>(contactBody_[i])];
+    const Eigen::Vector3d& n = normal_[i];
     const Eigen::Isometry3d& pose = body.now;
     Eigen::Vector3d J = -residual[offset + i];
     // a sliding contact's impulse: the normal one and the kinetic friction the solve applied
-    if (implicitConstraint_[i] == PcgConstraint::Normal) J = std::max(0.0, J.dot(n)) * n + implicitFriction_[i];
+    if (constraint_[i] == PcgConstraint::Normal) J = std::max(0.0, J.dot(n)) * n + friction_[i];
     J *= perSubstep;
-    const Eigen::Vector3d x = x_[i] + h * implicitVelocity_[i];
+    const Eigen::Vector3d x = o_.x_[i] + h * velocity_[i];
     body.impulse += J;
     body.moment += (x - r * n - pose.translation()).cross(J);
     record(body, i, J, x - r * n);
     // a contact whose normal impulse pushes (one the solve let go of does not), counted on this
     // body in the contact pass that follows in this sub-step (countedContact())
-    if ((-residual[offset + i]).dot(n) > 0.0 && markCounted(i, implicitContactBody_[i], contactPasses_ + 1))
+    if ((-residual[offset + i]).dot(n) > 0.0 && o_.markCounted(i, contactBody_[i], o_.contactPasses_ + 1))
       ++body.solved;
   }
 }

@@ -86,7 +86,7 @@ class ImplicitCoupling {
   /// One implicit sub-step s of length h of the objects marked in `coupled` (Integrator::Implicit;
   /// the others are left alone), as one system:
   ///   A_o v_o + sum_springs h^2 k n n^T (v_1 - v_2) = b_o - (h k)(gap - skin) n   (per object o)
-  /// with A_o, b_o each object's (Solver::implicitBegin()), and a spring for each candidate pair
+  /// with A_o, b_o each object's (Solver::beginCoupledSubstep()), and a spring for each candidate pair
   /// (`candidates`, global particle numbers in World's order: object o's particle i is
   /// offset[o] + i) whose gap at the end of the sub-step, x + h v with v = v_n (gravity's
   /// increment left out: the same for two free particles of one world; a pair with a pinned
@@ -125,7 +125,7 @@ class ImplicitCoupling {
   // substep()'s stages:
   /// members_, start_, globalStart_ and place_ for the coupled objects; the vectors sized
   void placeMembers(const std::vector<Solver*>& objects, const std::vector<char>& coupled);
-  /// each member's system (Solver::implicitBegin()); returns the joint solve's floor
+  /// each member's system (Solver::beginCoupledSubstep()); returns the joint solve's floor
   double beginMembers(const std::vector<Solver*>& objects, int s, double h);
   /// springs_ (and held_) for the candidate pairs, active where predicted within the skin
   void buildSprings(const std::vector<Solver*>& objects,

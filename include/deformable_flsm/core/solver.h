@@ -10,13 +10,11 @@
 #pragma once
 
 #include "deformable_flsm/core/collider.h"
-#include "deformable_flsm/core/corotated_hessian.h"
 #include "deformable_flsm/core/fast_summation.h"
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/pcg.h"
 #include "deformable_flsm/core/solver_params.h"
 #include "deformable_flsm/core/thread_governor.h"
-#include "deformable_flsm/core/two_level_preconditioner.h"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -108,6 +106,7 @@ class Solver : private RegionKernel {
   /// @throws std::invalid_argument if params.validate() fails or params.regionHalfWidth differs
   ///         from the lattice's.
   Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& params);
+  ~Solver();
 
   const Lattice& lattice() const { return *lattice_; }
   const SolverParams& params() const { return params_; }
@@ -517,26 +516,26 @@ class Solver : private RegionKernel {
   // --- implicit integrator (solver_implicit.cpp) ------------------------------------------
   /// The conjugate-gradient solve of the last implicit sub-step (zeros before the first);
   /// iterations summed over its contact passes.
-  const PcgResult& lastImplicitSolve() const { return implicitSolve_; }
+  const PcgResult& lastImplicitSolve() const;
 
   // --- one member of a coupled implicit solve (ImplicitCoupling; solver_implicit.cpp) -------
   // Several objects' sub-steps as one system: each object's system begun here, solved there
   // through implicitProduct(), implicitPrecondition() and updateContactSet(), ended here.
   /// Sub-step s of length h begun as a member: the drags' frames at its end and the object's
-  /// system (implicitBegin()), which the accessors below show.
+  /// system (ImplicitStep::begin()), which the accessors below show.
   void beginCoupledSubstep(int s, double h);
   /// The system A v = b of the sub-step begun: v_{n+1} (the unknown, which the coupled solve
   /// sets), b, each row's constraint and normal, the inverse of the Jacobi diagonal.
-  std::vector<Eigen::Vector3d>& implicitVelocity() { return implicitVelocity_; }
-  const std::vector<Eigen::Vector3d>& implicitRhs() const { return implicitRhs_; }
-  const std::vector<PcgConstraint>& implicitConstraints() const { return implicitConstraint_; }
-  const std::vector<Eigen::Vector3d>& implicitNormals() const { return implicitNormal_; }
-  const std::vector<Eigen::Vector3d>& implicitInvDiagonal() const { return implicitInvPrecond_; }
+  std::vector<Eigen::Vector3d>& implicitVelocity();
+  const std::vector<Eigen::Vector3d>& implicitRhs() const;
+  const std::vector<PcgConstraint>& implicitConstraints() const;
+  const std::vector<Eigen::Vector3d>& implicitNormals() const;
+  const std::vector<Eigen::Vector3d>& implicitInvDiagonal() const;
   /// The squared P-norms of h f(x_n) and of M g h over the free particles, and their count: what
   /// a solve's floor is made of.
-  double implicitRhsNorm2() const { return implicitRhsNorm2_; }
-  double implicitGravityNorm2() const { return implicitGravityNorm2_; }
-  std::size_t implicitFreeCount() const { return implicitFreeCount_; }
+  double implicitRhsNorm2() const;
+  double implicitGravityNorm2() const;
+  std::size_t implicitFreeCount() const;
   /// y = A p, A the implicit step's matrix M + h C + h^2 K (rows of fixed entries meaningless).
   void implicitProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y);
   /// z = P^-1 r: the object's two-level preconditioner with `invDiagonal` as its Jacobi part
@@ -558,110 +557,13 @@ class Solver : private RegionKernel {
   void addCoupledSolveTime(double seconds);
 
  private:
-  /// One sub-step of linearly implicit backward Euler (see solver_implicit.cpp): implicitBegin(),
-  /// the solve with its contact passes, implicitEnd(). ImplicitCoupling solves several objects'
-  /// systems as one between the two.
-  void implicitSubstep(double h);
-  /// The sub-step's system (right-hand side, diagonal, preconditioner, collider contacts, the
-  /// warm start) and the solve's floor (implicitFloor_).
-  void implicitBegin(double h);
-  /// implicitBegin()'s parts: the Poisson term's Hessian at x_n (volumetricLinear_), the drags in
-  /// the system (a spring's stiffness on the diagonal, a hard drag's velocity prescribed), the
-  /// Poisson term's diagonal added to the preconditioner.
-  void linearizeVolumetric();
-  void addDragsToSystem(double h);
-  void addVolumetricPreconditioner(double h);
-  /// After the solve (its residual b - A v at residual[offset + i]): the contacts' impulses, the
-  /// rigid modes of a free object, v+ and x+, the contact pass.
-  /// elapsed: the simulated time the sub-step advances, when it is not h (BDF2's solve of 2h/3);
-  /// 0 for h.
-  void implicitEnd(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset,
-                   double elapsed = 0.0);
+  /// The implicit step (backward Euler and BDF2) with its own state (implicit_step.h), made
+  /// with the implicit integrator; null with the explicit one.
+  class ImplicitStep;
+  std::unique_ptr<ImplicitStep> implicit_;
   /// After computeRegionWeights(): with the implicit integrator, alpha as requested (no cap) and
   /// the step's buffers sized; called from the constructor and setParams(), never in a step.
   void configureIntegrator();
-  /// Adds the Poisson term's Gauss-Newton Hessian times p, h^2 H_vol p, to y.
-  void addVolumetricProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) const;
-  /// Counts each hard drag's impulse in the solve (its reaction on the prescribed rows) into it.
-  void sumDragImpulses(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset);
-  /// Restores the linear and angular momentum the external forces give (free object only).
-  void correctRigidModes(double h);
-  /// ImplicitScheme::Bdf2 at the start of a sub-step of length h: keeps (x_n, v_n) for the next
-  /// one and, with the last sub-step's kept, moves x_ and v_ to BDF2's extrapolated start
-  /// ((4 x_n - x_{n-1}) / 3, likewise v) and returns 2h/3, the backward Euler step from there
-  /// that is BDF2's; without (the first sub-step, after reset() or a change of the state or the
-  /// parameters) returns h: a backward Euler step.
-  double bdf2Begin(double h);
-  /// After a BDF2 sub-step of length h: a particle a contact, a pin or a hard drag moved keeps
-  /// as its last state the one its present velocity gives, x - h v and v, so that it starts
-  /// again from that velocity rather than extrapolating a motion the contact stopped.
-  void bdf2End(double h);
-  /// Assembles and factorises the preconditioner's coarse matrix for the sub-step h.
-  void assembleCoarse(double h);
-  std::unique_ptr<CorotatedHessian> hessian_;
-  /// PCG's preconditioner: Jacobi plus the aggregates' coarse solve
-  std::unique_ptr<TwoLevelPreconditioner> coarse_;
-  Pcg pcg_;
-  PcgResult implicitSolve_;
-  double implicitH_ = 0.0;                      // the sub-step being solved (s)
-  double implicitFloor_ = 0.0;                  // CG stops at this residual (implicitBegin())
-  std::size_t implicitFreeCount_ = 0;           // particles not prescribed, and the squared
-  double implicitRhsNorm2_ = 0.0;               // P-norms of h f(x_n) and of M g h over them
-  double implicitGravityNorm2_ = 0.0;
-  /// impulses another object gave the particles within the solve (endCoupledSubstep()), which
-  /// correctRigidModes() counts as external; null when none
-  const std::vector<Eigen::Vector3d>* couplingImpulse_ = nullptr;
-  std::vector<double> weightSum_;               // sum_{r contains i} beta_r
-  std::vector<Eigen::Vector3d> implicitGoal_;   // goals at the start of the sub-step
-  std::vector<Eigen::Vector3d> implicitRhs_;    // M v_n + h f(x_n)
-  std::vector<Eigen::Vector3d> implicitVelocity_;  // v_{n+1}, the unknown
-  std::vector<Eigen::Vector3d> implicitDiagonal_;  // M (1 + h c for a free object) + h^2 spring stiffness
-  std::vector<Eigen::Vector3d> implicitInvPrecond_;  // inverse of the Jacobi diagonal
-  /// the last sub-step's v_{n+1} - v_n - h g (warm start: the next guess is v_n + h g + this)
-  std::vector<Eigen::Vector3d> implicitLastDv_;
-  /// Fixed: pinned, hard-dragged or a sticking contact; Normal: a sliding contact (normal
-  /// velocity prescribed)
-  std::vector<PcgConstraint> implicitConstraint_;
-  std::vector<Eigen::Vector3d> implicitNormal_;    // contact normal (Normal constraints)
-  std::vector<int> implicitContactBody_;           // the contact body of a contact, else -1
-  /// per particle: no contact, sticking, sliding or released (pulling) in the last sub-step
-  std::vector<char> implicitContactState_;
-  std::vector<Eigen::Vector3d> implicitFriction_;  // kinetic friction impulse of a sliding contact
-  /// ImplicitScheme::Bdf2: x and v at the start of the last sub-step (x_{n-1}, v_{n-1} for the
-  /// next), valid while bdf2Ready_
-  std::vector<Eigen::Vector3d> bdf2LastX_, bdf2LastV_;
-  bool bdf2Ready_ = false;
-  bool bdf2Step_ = false;           // this sub-step solves BDF2 from its extrapolated start
-  /// the largest change of a particle's goal - x over the last sub-step (cells), and each
-  /// particle's goal - x at its start
-  double bdf2GapChange_ = 0.0;
-  std::vector<Eigen::Vector3d> bdf2LastGap_;
-  Eigen::Vector3d bdf2P_, bdf2Spin_;  // its linear momentum and spin (about the centre of mass) at x_n
-  /// Constrains the free particles that v_n + h g would carry into a collider (see
-  /// solver_implicit_contact.cpp); returns whether any is.
-  bool constrainContacts(double h);
-  /// A free particle the solution carries into a collider joins the contact set (sticking, or
-  /// sliding when it was let go of and comes back slipping); returns whether it joined.
-  bool joinContact(std::size_t i, double h, double slop);
-  /// phi - r of particle i at the start of the sub-step against contact body b at its pose then
-  /// (negative: a penetration the sub-step did not make).
-  double startDepth(std::size_t i, int b) const;
-  /// The collider (index into contactBodies_, at body.now) x is deepest in, counting a depth
-  /// phi - r below `within` (0: inside; a small positive value: touching), or -1; its depth,
-  /// outward normal and surface velocity at x.
-  int deepestContact(const Eigen::Vector3d& x, double within, Eigen::Vector3d& normal, double& depth,
-                     Eigen::Vector3d& colliderVelocity) const;
-  /// Every contact's impulse on its collider after the last solve.
-  void sumContactImpulses(double h, const std::vector<Eigen::Vector3d>& residual, std::size_t offset);
-  /// Per stencil of the Poisson term at x_n: its difference vectors F_ia scaled by 1 / d_ia, and
-  /// the weights of its Gauss-Newton Hessian (0 where the strain is clamped).
-  struct VolumetricLinearisation {
-    Eigen::Vector3d gradient[3];  // F_ia / d_ia
-    double weight = 0.0;          // lambda V_i, or 0
-    double deficit[3] = {0.0, 0.0, 0.0};
-    double stretch[3] = {0.0, 0.0, 0.0};  // max(0, sigma_a) / d_a^2, sigma_a = w e + D_a e_aa
-  };
-  std::vector<VolumetricLinearisation> volumetricLinear_;
 };
 
 }  // namespace deformable_flsm
