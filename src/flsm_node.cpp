@@ -44,6 +44,8 @@ int main(int argc, char** argv) {
       if (!clamped.empty()) ROS_WARN("flsm_node: %s%s", who.c_str(), clamped.c_str());
       const std::string thin = sectionWarning(o.info, o.params);
       if (!thin.empty()) ROS_WARN("flsm_node: %s%s", who.c_str(), thin.c_str());
+      const std::string stiff = stiffContactWarning(o.info, o.params);
+      if (!stiff.empty()) ROS_WARN("flsm_node: %s%s", who.c_str(), stiff.c_str());
       // (the first object's is ProblemReporter's, as for the single object)
       const std::string saturated = &o == &scene.objects.front() ? "" : saturationWarning(o.info, o.params);
       if (!saturated.empty()) ROS_WARN("flsm_node: %s%s", who.c_str(), saturated.c_str());

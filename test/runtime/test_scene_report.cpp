@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <string>
 #include <vector>
 
@@ -104,8 +106,31 @@ TEST(SceneReport, TheImplicitStepIsNotCappedSoDoesNotWarn) {
   const SceneInfo info = cubeInfo(p);
   EXPECT_EQ(info.substepsForModulus, 0);
   EXPECT_EQ(saturationWarning(info, p), "");
+  EXPECT_EQ(stiffContactWarning(info, p), "") << "alpha 2.6e3: below kStiffContactAlpha";
   const std::string material = sceneSummaryLines(info, p)[3];
   EXPECT_NE(material.find("alpha 2.6e+03 per sub-step (as asked)"), std::string::npos) << material;
+}
+
+// Above kStiffContactAlpha the implicit step's impacts may gain energy (bench_drop): the warning
+// names the alpha and the fewest ~substeps that bring it below (alpha goes as 1 / substeps^2).
+TEST(SceneReport, AStiffImplicitObjectWarnsWithTheSubstepsThatSettleItsContacts) {
+  NodeParams p = cubeParams();
+  p.youngsModulus = 1e10;  // alpha 2.6e4 per sub-step at 4 sub-steps
+  p.applyMaterial();
+  p.solver.integrator = Integrator::Implicit;
+  const SceneInfo info = cubeInfo(p);
+  ASSERT_GT(info.requestedAlpha, kStiffContactAlpha);
+  const int n = static_cast<int>(std::ceil(4.0 * std::sqrt(info.requestedAlpha / kStiffContactAlpha)));
+  EXPECT_LE(info.requestedAlpha * (4.0 / n) * (4.0 / n), kStiffContactAlpha);
+  EXPECT_GT(info.requestedAlpha * (4.0 / (n - 1)) * (4.0 / (n - 1)), kStiffContactAlpha) << "the fewest";
+  const std::string w = stiffContactWarning(info, p);
+  EXPECT_EQ(w.rfind("~youngs_modulus 1e+10 Pa at a sub-step of 0.00417 s asks for alpha 2.6e+04 per sub-step", 0), 0u)
+      << w;
+  EXPECT_NE(w.find("~substeps " + std::to_string(n) + " (instead of 4) keeps alpha below it."), std::string::npos)
+      << w;
+  // the explicit step caps alpha instead (saturationWarning())
+  p.solver.integrator = Integrator::Explicit;
+  EXPECT_EQ(stiffContactWarning(cubeInfo(p), p), "");
 }
 
 TEST(SceneReport, ARegionRadiusBeyondTheLimitIsReportedClamped) {

@@ -74,6 +74,14 @@ std::string describeScene(const SceneInfo& info, const NodeParams& params);
 /// Warning text when the time step is too long for the asked Young's modulus, else "".
 std::string saturationWarning(const SceneInfo& info, const NodeParams& params);
 
+/// The implicit step's collider contacts settle reliably up to this alpha per sub-step: above it
+/// an impact can gain energy (docs/method.md, the implicit step's limits; `bench_drop`).
+constexpr double kStiffContactAlpha = 1e4;
+
+/// Warning text when the implicit integrator's alpha per sub-step is above kStiffContactAlpha
+/// (the ~substeps that bring it below), else "".
+std::string stiffContactWarning(const SceneInfo& info, const NodeParams& params);
+
 /// Warning text when ~region_radius was more cells than the solver allows on this lattice and
 /// the regions were clamped to the largest that fit, else "".
 std::string regionClampWarning(const SceneInfo& info, const NodeParams& params);
