@@ -483,7 +483,7 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
 // world can hold (pinned, dragged or attached, or with colliders in the scene to rest on) is
 // damped relative to the world's rigid motion, zero: drag towards rest, as before, so that it
 // settles on its supports.
-bool Solver::heldByWorld() const { return pinnedCount_ > 0 || !drags_.empty() || !colliders_.empty(); }
+bool Solver::heldByWorld() const { return pinnedCount_ > 0 || !drags_.empty() || !colliders_->empty(); }
 
 void Solver::computeRigidMotion() {
   const auto& m = lattice_->masses();

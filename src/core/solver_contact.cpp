@@ -35,19 +35,35 @@ double Solver::contactRadius() const {
   return params_.contactRadius > 0.0 ? params_.contactRadius : 0.5 * lattice_->spacing();
 }
 
+void Solver::shareColliders(std::shared_ptr<ColliderMap> colliders) {
+  colliders_ = std::move(colliders);
+  ownsColliders_ = false;
+  rebuildContactBodies();
+}
+
+void Solver::collidersChanged() { rebuildContactBodies(); }
+
+void Solver::checkOwnsColliders(const char* what) const {
+  if (!ownsColliders_)
+    throw std::logic_error(std::string("solver: ") + what + ": this object's colliders are its World's (World::" + what +
+                           ")");
+}
+
 void Solver::setCollider(const std::string& id, const Collider& collider) {
+  checkOwnsColliders("setCollider");
   collider.validate();
   Collider c = collider;
   if (c.shape.type == ColliderType::Mesh && !c.shape.distanceField)
     c.shape.distanceField = std::make_shared<const MeshDistanceField>(*c.shape.mesh);
-  colliders_[id] = std::move(c);
+  (*colliders_)[id] = std::move(c);
   rebuildContactBodies();
 }
 
 bool Solver::moveCollider(const std::string& id, const Eigen::Isometry3d& pose,
                           const Eigen::Vector3d& linearVelocity, const Eigen::Vector3d& angularVelocity) {
-  auto it = colliders_.find(id);
-  if (it == colliders_.end()) return false;
+  checkOwnsColliders("moveCollider");
+  auto it = colliders_->find(id);
+  if (it == colliders_->end()) return false;
   if (!pose.matrix().allFinite() || !linearVelocity.allFinite() || !angularVelocity.allFinite())
     throw std::invalid_argument("solver: collider '" + id + "' given a non-finite pose or velocity");
   if (!isRotation(pose.linear()))
@@ -60,13 +76,15 @@ bool Solver::moveCollider(const std::string& id, const Eigen::Isometry3d& pose,
 }
 
 bool Solver::removeCollider(const std::string& id) {
-  const bool found = colliders_.erase(id) > 0;
+  checkOwnsColliders("removeCollider");
+  const bool found = colliders_->erase(id) > 0;
   rebuildContactBodies();
   return found;
 }
 
 void Solver::removeAllColliders() {
-  colliders_.clear();
+  checkOwnsColliders("removeAllColliders");
+  colliders_->clear();
   rebuildContactBodies();
 }
 
@@ -95,8 +113,8 @@ const std::vector<ParticleContact>& Solver::recordedContacts(const std::string& 
 // writes are sized now, so that the pass allocates nothing.
 void Solver::rebuildContactBodies() {
   std::vector<ContactBody> bodies;
-  bodies.reserve(colliders_.size());
-  for (auto& entry : colliders_) {
+  bodies.reserve(colliders_->size());
+  for (auto& entry : *colliders_) {
     ContactBody body;
     body.id = &entry.first;
     body.collider = &entry.second;
@@ -414,8 +432,8 @@ void Solver::endContactStep() {
 void Solver::poseCollidersAtStepEnd() {
   for (ContactBody& body : contactBodies_) {
     Collider& c = *body.collider;
-    c.pose = advancePose(body.start, c.linearVelocity, c.angularVelocity, params_.timeStep);
-    body.now = c.pose;
+    body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, params_.timeStep);
+    if (ownsColliders_) c.pose = body.now;  // a World's are moved by the World, once
   }
 }
 

@@ -10,9 +10,10 @@
 //   world.contactWrench("ground");                    // what all objects exerted on the ground
 // Each object is a Solver: its state, commands, diagnostics and its own wrench on a collider
 // (Solver::contactWrench(), the object contact pass's share against the colliders included)
-// are read there. Do not call Solver::step() on an object of a World, nor change its
-// colliders through the Solver (World::setCollider() gives them to all); an object whose
-// timeStep or substeps is changed to differ from the world's makes step() throw.
+// are read there. Do not call Solver::step() on an object of a World; the colliders are the
+// World's, kept once and read by every object (Solver::shareColliders(): changing them through
+// an object throws); an object whose timeStep or substeps is changed to differ from the world's
+// makes step() throw.
 // Per sub-step: every object's dynamics and collider contact (Solver::advanceSubstep()), then
 // the contact between objects and of objects with themselves (ObjectContactSolver), which
 // also holds the particles it touches against the colliders in the same solve.
@@ -67,7 +68,8 @@ void ObjectContactParams::validate() const {
 struct World::Impl {
   std::vector<std::unique_ptr<Solver>> objects;
   std::vector<Solver*> pointers;
-  std::map<std::string, Collider> colliders;
+  /// the scene's colliders, once: every object reads these (Solver::shareColliders())
+  std::shared_ptr<ColliderMap> colliders = std::make_shared<ColliderMap>();
   std::vector<SubstepCollider> substepColliders;
   std::vector<Eigen::Isometry3d> colliderStart;
   ObjectContactSolver contact;
@@ -152,7 +154,7 @@ Solver& World::addObject(const std::string& name, std::shared_ptr<const Lattice>
     }
   }
   solver->shareRegionScratch(impl_->scratch);
-  for (const auto& entry : impl_->colliders) solver->setCollider(entry.first, entry.second);
+  solver->shareColliders(impl_->colliders);
   Solver& added = *solver;
   if (!recordedIds_.empty() && contact_.couples(impl_->objects.size() + 1))
     throw std::invalid_argument("world: object '" + name + "' would touch the others, and contacts on collider '" +
@@ -204,23 +206,22 @@ void World::setCollider(const std::string& id, const Collider& collider) {
   // one distance field for every object
   if (c.shape.type == ColliderType::Mesh && !c.shape.distanceField)
     c.shape.distanceField = std::make_shared<const MeshDistanceField>(*c.shape.mesh);
-  for (auto& object : impl_->objects) object->setCollider(id, c);
-  auto old = impl_->colliders.find(id);
-  if (old != impl_->colliders.end()) impl_->sleeping.disturb(old->second);
+  auto old = impl_->colliders->find(id);
+  if (old != impl_->colliders->end()) impl_->sleeping.disturb(old->second);
   impl_->sleeping.disturb(c);
-  impl_->colliders[id] = std::move(c);
+  (*impl_->colliders)[id] = std::move(c);
+  for (auto& object : impl_->objects) object->collidersChanged();
 }
 
 bool World::moveCollider(const std::string& id, const Eigen::Isometry3d& pose, const Eigen::Vector3d& linearVelocity,
                          const Eigen::Vector3d& angularVelocity) {
-  auto it = impl_->colliders.find(id);
-  if (it == impl_->colliders.end()) return false;
+  auto it = impl_->colliders->find(id);
+  if (it == impl_->colliders->end()) return false;
   if (!pose.matrix().allFinite() || !linearVelocity.allFinite() || !angularVelocity.allFinite())
     throw std::invalid_argument("world: collider '" + id + "' given a non-finite pose or velocity");
   if (!isRotation(pose.linear()))
     throw std::invalid_argument("world: collider '" + id +
                                 "' given a pose whose rotation is not orthonormal with determinant +1");
-  for (auto& object : impl_->objects) object->moveCollider(id, pose, linearVelocity, angularVelocity);
   const bool jumped = impl_->sleeping.enabled() && !pose.isApprox(it->second.pose, 0.0);
   if (jumped) impl_->sleeping.disturb(it->second);  // where it was
   it->second.pose = pose;
@@ -231,11 +232,11 @@ bool World::moveCollider(const std::string& id, const Eigen::Isometry3d& pose, c
 }
 
 bool World::removeCollider(const std::string& id) {
-  auto it = impl_->colliders.find(id);
-  if (it == impl_->colliders.end()) return false;
+  auto it = impl_->colliders->find(id);
+  if (it == impl_->colliders->end()) return false;
   impl_->sleeping.disturb(it->second);
-  impl_->colliders.erase(it);
-  for (auto& object : impl_->objects) object->removeCollider(id);
+  impl_->colliders->erase(it);
+  for (auto& object : impl_->objects) object->collidersChanged();
   return true;
 }
 
@@ -343,10 +344,10 @@ void World::checkObjects() const {
 
 void World::gatherColliders() {
   Impl& im = *impl_;
-  im.substepColliders.resize(im.colliders.size());
-  im.colliderStart.resize(im.colliders.size());
+  im.substepColliders.resize(im.colliders->size());
+  im.colliderStart.resize(im.colliders->size());
   std::size_t c = 0;
-  for (const auto& entry : im.colliders) {
+  for (const auto& entry : *im.colliders) {
     im.substepColliders[c].id = &entry.first;
     im.substepColliders[c].collider = &entry.second;
     im.colliderStart[c] = entry.second.pose;
@@ -354,14 +355,14 @@ void World::gatherColliders() {
   }
 }
 
-void World::chooseSleepers() { impl_->sleeping.beforeStep(impl_->pointers, impl_->colliders, timeStep_); }
+void World::chooseSleepers() { impl_->sleeping.beforeStep(impl_->pointers, *impl_->colliders, timeStep_); }
 
 void World::beginObjects() {
   Impl& im = *impl_;
   const std::vector<char>& asleep = im.sleeping.asleepThisStep();
   for (std::size_t o = 0; o < im.objects.size(); ++o)
     if (!asleep[o]) im.pointers[o]->beginStep();
-  im.contact.beginStep(im.objects.size(), im.colliders.size());
+  im.contact.beginStep(im.objects.size(), im.colliders->size());
   im.contact.setAsleep(&asleep);
 }
 
@@ -441,7 +442,7 @@ void World::endObjects() {
 
 void World::advanceColliders() {
   std::size_t c = 0;
-  for (auto& entry : impl_->colliders) {
+  for (auto& entry : *impl_->colliders) {
     Collider& col = entry.second;
     col.pose = advancePose(impl_->colliderStart[c++], col.linearVelocity, col.angularVelocity, timeStep_);
   }

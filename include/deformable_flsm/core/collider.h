@@ -12,6 +12,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
 
@@ -105,5 +106,9 @@ struct ParticleContact {
   /// its force on the collider, the step's mean (N, simulation frame)
   Eigen::Vector3d force = Eigen::Vector3d::Zero();
 };
+
+/// A scene's colliders by id: kept once, by a World for all its objects (Solver::shareColliders())
+/// or by a Solver alone.
+using ColliderMap = std::map<std::string, Collider>;
 
 }  // namespace deformable_flsm

@@ -227,7 +227,14 @@ class Solver : private RegionKernel {
   /// Removes collider `id`. Returns false if there is no such collider.
   bool removeCollider(const std::string& id);
   void removeAllColliders();
-  const std::map<std::string, Collider>& colliders() const { return colliders_; }
+  const ColliderMap& colliders() const { return *colliders_; }
+  /// The object's colliders are `colliders`, a World's for all its objects: from now on the
+  /// World changes and moves them (and calls collidersChanged() after adding or removing one),
+  /// this object reads them; setCollider(), moveCollider(), removeCollider() and
+  /// removeAllColliders() then throw std::logic_error.
+  void shareColliders(std::shared_ptr<ColliderMap> colliders);
+  /// After the shared colliders were added to, replaced or removed from (between steps).
+  void collidersChanged();
   /// What the object exerted on collider `id` during the last step(); zero for an unknown id.
   ContactWrench contactWrench(const std::string& id) const;
   /// Records from the next step on (or stops recording) each particle's force on collider `id`
@@ -417,7 +424,12 @@ class Solver : private RegionKernel {
   }
   bool impulsePending_ = false;
   std::map<std::string, Drag> drags_;
-  std::map<std::string, Collider> colliders_;
+  /// the colliders: the object's own, or its World's (shareColliders()); their poses are
+  /// written only by their keeper (poseCollidersAtStepEnd())
+  std::shared_ptr<ColliderMap> colliders_ = std::make_shared<ColliderMap>();
+  bool ownsColliders_ = true;
+  /// throws std::logic_error when the colliders are a World's
+  void checkOwnsColliders(const char* what) const;
   /// A collider as the contact pass sees it, in the order of colliders_.
   struct ContactBody {
     const std::string* id = nullptr;

@@ -55,7 +55,7 @@ struct ObjectContactParams {
 /// (Lattice::objectSize()), with no drag, force or impulse on it and no collider moving near it.
 /// It wakes when a command or a state change reaches it (Solver::hasPendingCommands(),
 /// Solver::stateVersion()), when a collider of the World is set, moved or removed near it (or
-/// moves near it within a step; a collider set on its Solver directly is not watched), when
+/// moves near it within a step), when
 /// an object is added or removed or the contact parameters change, when a touching object
 /// moved farther than five hundredths of its contact radius in the last step (the RMS of its
 /// particles' |v| T: a push, not the jiggle of a soft pile), and when the other
@@ -101,9 +101,10 @@ class World {
 
   // --- objects ------------------------------------------------------------------------
   /// Adds object `name` (its lattice already placed where it starts: voxelize the mesh at its
-  /// pose and scale). The world's colliders are given to it. The objects' region sums share
-  /// one set of slice buffers (Solver::shareRegionScratch()): step them through step() only,
-  /// never two of them at once from different threads.
+  /// pose and scale). It reads the world's colliders (one map for every object,
+  /// Solver::shareColliders()). The objects' region sums share one set of slice buffers
+  /// (Solver::shareRegionScratch()): step them through step() only, never two of them at once
+  /// from different threads.
   /// @throws std::invalid_argument for an empty or duplicate name, params whose time step or
   ///         sub-steps differ from the world's, or an object that starts inside another
   ///         (particles closer than the sum of their contact radii), naming both objects
