@@ -610,10 +610,10 @@ struct Incline {
   double acceleration = 0.0;  // downhill over the following second (m/s^2)
 };
 
-// test_contact's incline at one implicit sub-step of 1/60 s: a 10 x 5 x 3 cm block (1 cm cells,
-// 100 kPa) settles on a horizontal plane through the origin, which then tilts at 0.1 rad/s about
-// y to theta (downhill is the plane's +x); the block's downhill displacement over `settle` s after
-// the tilt and its acceleration over the next second.
+// The incline of test_contact_scenes at one implicit sub-step of 1/60 s: a 10 x 5 x 3 cm block
+// (1 cm cells, 100 kPa) settles on a horizontal plane through the origin, which then tilts at
+// 0.1 rad/s about y to theta (downhill is the plane's +x); the block's downhill displacement over
+// `settle` s after the tilt and its acceleration over the next second.
 Incline inclineAtOneSubstep(double theta, double mus, double muk, double settle) {
   auto lattice = std::make_shared<const Lattice>(deformable_flsm::test::makeBox(10, 5, 3, 0.01), kDensity, 1);
   SolverParams p = implicitParams(1e5, 0.0, 1, 1.0 / 60.0);
