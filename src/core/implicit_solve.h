@@ -27,7 +27,7 @@ constexpr double kCgTolerance = 1e-2;
 /// may sit on a few particles: within a fraction of the whole norm, one particle's error could be
 /// sqrt(n) times the mean, and a 10k lattice's ears kept jittering and never came to rest. So the
 /// error left at any one particle is at most ~1e-3 of its gravity impulse g h whatever the lattice
-/// size, far below the rest tests' bound (test_solver_implicit).
+/// size, far below the rest tests' bound (test_solver_implicit_contact).
 constexpr double kCgFloor = 1e-3;
 /// At most this many CG iterations per sub-step: a bound on the cost of a step, far above the
 /// counts measured (docs/performance.md); the step then takes the iterate reached.
@@ -51,7 +51,7 @@ constexpr int kContactPasses = 4;
 /// the contact pass's push-out) leaves it a hair outside or inside. Counted only inside, resting
 /// contacts fell out of the set every other sub-step, and out of it a contact is held only by the
 /// contact pass's friction, at most mu times a normal change of about the slop over h: two pads
-/// gripping the bunny lifted it 2 cm of 10, then lost it (test_solver_implicit).
+/// gripping the bunny lifted it 2 cm of 10, then lost it (test_solver_implicit_contact).
 constexpr double kContactSlop = 1e-3;
 /// The CG and active-set loop of an implicit sub-step, one object's (Solver) or several objects'
 /// as one system (ImplicitCoupling): prepare() (the system's vectors, which a change of the set

@@ -83,7 +83,7 @@ bool Solver::ImplicitStep::constrainContacts(double h) {
     // Its friction turns against the slip it now has when that is faster than slipFloor (slower,
     // a grasp's contacts keep the direction that held): kept along the slip it joined with, a
     // block spun at 20 rad/s on a plane with mu 0.1 stopped at 0.4 s, where Coulomb's friction
-    // takes 0.7 s (test_solver_implicit).
+    // takes 0.7 s (test_solver_implicit_contact).
     //
     // A contact that did not stick in the last sub-step and slips faster than its own approach
     // could stop within the cone (|slip| > mu_s times its speed into the surface, and > slipFloor:
