@@ -37,7 +37,7 @@ namespace {
 /// pile's slow modes (objects rocking on each other's springs) are where CG leaves its error. At
 /// 1e-2 a stack of three 10 MPa cubes began to rock after 3 s and its top slid a centimetre by
 /// 4 s (at 1e-3 it stood for the 20 s watched); at 1e-3 a bin of twenty 30 kPa objects kept one
-/// particle rocking at 1.3 cm/s, at 1e-4 it came to rest (2.2 mm/s, test_world's bound 4.5) for
+/// particle rocking at 1.3 cm/s, at 1e-4 it came to rest (2.2 mm/s, test_world_scenes' bound 4.5) for
 /// 37 % more CPU. The floor was measured with them (1e-3 and 1e-4 of a particle's gravity impulse
 /// left the bin rocking at 1.2 and 0.14 cm/s with the tolerance at 1e-3).
 constexpr double kCouplingCgTolerance = 1e-4;

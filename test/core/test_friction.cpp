@@ -124,7 +124,7 @@ TEST(FrictionScene, ABinOfSoftObjectsComesToRestWithKineticBelowStatic) {
   }
   for (long i = 0; i < std::lround(14.0 / dt); ++i) world.step();
   // at rest: no particle moves a hundredth of its radius in a step over 2 s (the bound of the
-  // bin's own rest test in test_world.cpp: far below what an eye sees on objects of a few cm,
+  // bin's own rest test in test_world_scenes.cpp: far below what an eye sees on objects of a few cm,
   // and below the contacts' tolerance of penetration); the cycle ran at ten times it
   const double bound = 0.01 * r / dt;
   double fastest = 0.0;

@@ -1,5 +1,5 @@
 /// @file world_scenes.h
-/// The scenes and checks that the World's tests share (test_world, test_sleeping): blocks on the
+/// The scenes and checks that the World's tests share (test_world*, test_sleeping*): blocks on the
 /// ground, a bin and the node's bin of soft objects, meshes voxelized at a pose, overlaps.
 #pragma once
 
