@@ -62,7 +62,7 @@ struct LoopSettings {
   /// no particle has moved farther than restFraction object sizes (Lattice::objectSize()) from
   /// where it was idleHold seconds of simulated time earlier, with no drag or force acting. A speed
   /// threshold is not enough: a slow swing turns at its ends with almost no speed for a second or
-  /// more, far from where it settles (the soft cantilever of test_simulation_loop's
+  /// more, far from where it settles (the soft cantilever of test_simulation_loop_pace's
   /// RestsOnlyAtEquilibrium, with a period of several seconds; figures in docs/design.md). Over a
   /// whole second, a swing of amplitude A moves a particle by ~A (slow swings) to 2A (fast ones),
   /// and a creep moves it by what the next second would add, so the object rests within
