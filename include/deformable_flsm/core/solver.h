@@ -530,7 +530,8 @@ class Solver : private RegionKernel {
   /// iterations summed over its contact passes.
   const PcgResult& lastImplicitSolve() const;
 
-  // --- one member of a coupled implicit solve (ImplicitCoupling; solver_implicit.cpp) -------
+  // --- one member of a coupled implicit solve (ImplicitCoupling; solver_implicit.cpp): with the
+  // implicit integrator only ------------------------------------------------------------------
   // Several objects' sub-steps as one system: each object's system begun here, solved there
   // through implicitProduct(), implicitPrecondition() and updateContactSet(), ended here.
   /// Sub-step s of length h begun as a member: the drags' frames at its end and the object's
