@@ -62,125 +62,107 @@ def queued_messages(pubs):
     return n
 
 
-def run_client(args):
+def call_services(args, scale, p_bad, sent, lock, services, reconf):
+    """Service calls and reconfigures, in their own thread: a slow answer must not slow the
+    flood of messages."""
     import rospy
-    import dynamic_reconfigure.client
+    from geometry_msgs.msg import Point
+
+    reset, release_all, pin_box = services
+    srng = random.Random(args.seed + 1000)
+    next_service = time.time() + srng.uniform(0.0, 0.3)
+    next_reconf = time.time() + 0.5
+    while time.time() < args.until:
+        time.sleep(0.02)
+        now = time.time()
+        if now >= next_service:
+            next_service = now + srng.uniform(0.1, 0.5)
+            try:
+                r = srng.random()
+                if r < 0.2:
+                    reset()
+                elif r < 0.5:
+                    release_all()
+                else:
+                    lo = random_point(srng, scale, p_bad * 0.3)
+                    hi = random_point(srng, scale, p_bad * 0.3)
+                    pin_box(Point(*lo), Point(*hi), srng.random() < 0.5)
+                with lock:
+                    sent['services'] += 1
+            except (rospy.ServiceException, rospy.ROSException) as e:
+                print('client %d: service call failed: %s' % (args.client, e),
+                      file=sys.stderr)
+        if reconf is not None and now >= next_reconf:
+            next_reconf = now + srng.uniform(0.3, 1.0)
+            good = {'youngs_modulus': srng.uniform(2e3, 3e4),
+                    'stiffness': srng.uniform(0.2, 1.0), 'damping': srng.uniform(0.0, 30.0),
+                    'ambient_damping': srng.uniform(0.0, 3.0),
+                    'gravity_z': srng.uniform(-20.0, 5.0)}
+            bad = {'youngs_modulus': [-5.0, NAN, 1e12], 'stiffness': [0.0, 2.0, NAN],
+                   'damping': [-1.0, INF], 'ambient_damping': [NAN, -3.0],
+                   'gravity_z': [NAN, 1e9]}
+            key = srng.choice(sorted(good))
+            value = srng.choice(bad[key]) if srng.random() < 0.6 else good[key]
+            try:
+                reconf.update_configuration({key: value})
+                with lock:
+                    sent['reconfigures'] += 1
+            except Exception as e:  # the client raises on a timeout; the node lives on
+                print('client %d: reconfigure %s=%r failed: %s' % (args.client, key, value,
+                                                                   e), file=sys.stderr)
+
+
+def collider_command(rng, scale, frames, bad_frames, collider_ids, bad_ids):
+    """A collider ADD, MOVE or REMOVE of this client's own ids (never the scene's ground),
+    most of them invalid: NaN and infinite poses, a zero quaternion, unknown types and
+    frames, negative sizes and friction, missing meshes, ids too long."""
     from geometry_msgs.msg import Point, Quaternion, Vector3
-    from std_srvs.srv import Trigger
-    from deformable_flsm.msg import ColliderCommand, DragCommand, ForceCommand
-    from deformable_flsm.srv import PinBox
+    from deformable_flsm.msg import ColliderCommand
 
-    rng = random.Random(args.seed)
-    dropped = count_own_queue_drops()
-    rospy.init_node('soak_client_%d' % args.client, disable_signals=True)
-    drag_pub = rospy.Publisher(NODE + '/drag', DragCommand, queue_size=1000)
-    force_pub = rospy.Publisher(NODE + '/force', ForceCommand, queue_size=1000)
-    collider_pub = rospy.Publisher(NODE + '/collider', ColliderCommand, queue_size=1000)
-    for name in ('reset', 'release_all', 'pin_box'):
-        rospy.wait_for_service(NODE + '/' + name, timeout=60)
-    reset = rospy.ServiceProxy(NODE + '/reset', Trigger)
-    release_all = rospy.ServiceProxy(NODE + '/release_all', Trigger)
-    pin_box = rospy.ServiceProxy(NODE + '/pin_box', PinBox)
-    reconf = None
-    if args.client == 0:
-        reconf = dynamic_reconfigure.client.Client(NODE, timeout=60)
-    end = time.time() + 30.0
-    while (drag_pub.get_num_connections() == 0 or force_pub.get_num_connections() == 0
-           or collider_pub.get_num_connections() == 0) and time.time() < end:
-        time.sleep(0.05)
+    good_meshes = ['/usr/share/glmark2/models/cube.3ds']
+    bad_meshes = ['', '/no/such/mesh.obj', '/etc/hostname']
+    m = ColliderCommand()
+    m.header.frame_id = pick(rng, frames, bad_frames, 0.3)
+    m.action = pick(rng, [0, 0, 1, 1, 2], [3, 200], 0.1)
+    m.id = pick(rng, collider_ids, bad_ids, 0.1)
+    m.type = pick(rng, ['box', 'sphere', 'capsule', 'plane', 'mesh'],
+                  ['', 'cylinder', 'BOX'], 0.15)
+    m.pose.position = Point(*random_point(rng, scale, 0.2))
+    q = pick(rng, [(0.0, 0.0, 0.0, 1.0), (0.0, 0.3826834, 0.0, 0.9238795)],
+             [(0.0, 0.0, 0.0, 0.0), (NAN, 0.0, 0.0, 1.0), (0.0, INF, 0.0, 1.0)], 0.15)
+    m.pose.orientation = Quaternion(*q)
+    m.follow_frame = pick(rng, [''] * 6 + ['world'], bad_frames, 0.1)
+    m.velocity.linear = Vector3(*[pick(rng, [rng.uniform(-0.2, 0.2)], [NAN, INF], 0.1)
+                                  for _ in range(3)])
+    m.size = Vector3(*[pick(rng, [rng.uniform(0.02, 0.3) * scale], [-1.0, 0.0, NAN, 1e9],
+                            0.1) for _ in range(3)])
+    m.radius = pick(rng, [rng.uniform(0.02, 0.2) * scale], [-1.0, 0.0, NAN, 1e9], 0.15)
+    m.length = pick(rng, [rng.uniform(0.0, 0.3) * scale], [-1.0, NAN], 0.1)
+    m.mesh = pick(rng, good_meshes, bad_meshes, 0.3)
+    m.mesh_scale = pick(rng, [0.02, 0.05], [0.0, -1.0, NAN], 0.1)
+    m.static_friction = pick(rng, [0.0, 0.5, 1.0], [-1.0, NAN, INF], 0.1)
+    m.kinetic_friction = pick(rng, [0.0, 0.3], [-0.5, NAN], 0.1)
+    return m
 
-    scale = args.size
-    p_bad = 0.8
-    sent = {'drag': 0, 'force': 0, 'collider': 0, 'services': 0, 'reconfigures': 0}
+
+def send_flood(args, rng, scale, pubs, sent, lock):
+    """Drag, force and collider messages at args.rate until args.until, most of them invalid."""
+    from geometry_msgs.msg import Point, Vector3
+    from deformable_flsm.msg import DragCommand, ForceCommand
+
+    drag_pub, force_pub, collider_pub = pubs
     frames = ['', 'world', 'flsm_object']
     bad_frames = ['nowhere_%d' % args.client, 'no/such/frame', ' ']
     ids = ['c%d_%d' % (args.client, i) for i in range(4)]
     bad_ids = ['', 'x' * 100, 'tab\tid']
     collider_ids = client_collider_ids(args.client)
-    good_meshes = ['/usr/share/glmark2/models/cube.3ds']
-    bad_meshes = ['', '/no/such/mesh.obj', '/etc/hostname']
     period = 1.0 / args.rate
-    lock = threading.Lock()
-
-    def services():
-        """Service calls and reconfigures, in their own thread: a slow answer must not slow the
-        flood of messages."""
-        srng = random.Random(args.seed + 1000)
-        next_service = time.time() + srng.uniform(0.0, 0.3)
-        next_reconf = time.time() + 0.5
-        while time.time() < args.until:
-            time.sleep(0.02)
-            now = time.time()
-            if now >= next_service:
-                next_service = now + srng.uniform(0.1, 0.5)
-                try:
-                    r = srng.random()
-                    if r < 0.2:
-                        reset()
-                    elif r < 0.5:
-                        release_all()
-                    else:
-                        lo = random_point(srng, scale, p_bad * 0.3)
-                        hi = random_point(srng, scale, p_bad * 0.3)
-                        pin_box(Point(*lo), Point(*hi), srng.random() < 0.5)
-                    with lock:
-                        sent['services'] += 1
-                except (rospy.ServiceException, rospy.ROSException) as e:
-                    print('client %d: service call failed: %s' % (args.client, e),
-                          file=sys.stderr)
-            if reconf is not None and now >= next_reconf:
-                next_reconf = now + srng.uniform(0.3, 1.0)
-                good = {'youngs_modulus': srng.uniform(2e3, 3e4),
-                        'stiffness': srng.uniform(0.2, 1.0), 'damping': srng.uniform(0.0, 30.0),
-                        'ambient_damping': srng.uniform(0.0, 3.0),
-                        'gravity_z': srng.uniform(-20.0, 5.0)}
-                bad = {'youngs_modulus': [-5.0, NAN, 1e12], 'stiffness': [0.0, 2.0, NAN],
-                       'damping': [-1.0, INF], 'ambient_damping': [NAN, -3.0],
-                       'gravity_z': [NAN, 1e9]}
-                key = srng.choice(sorted(good))
-                value = srng.choice(bad[key]) if srng.random() < 0.6 else good[key]
-                try:
-                    reconf.update_configuration({key: value})
-                    with lock:
-                        sent['reconfigures'] += 1
-                except Exception as e:  # the client raises on a timeout; the node lives on
-                    print('client %d: reconfigure %s=%r failed: %s' % (args.client, key, value,
-                                                                       e), file=sys.stderr)
-
-    service_thread = threading.Thread(target=services)
-    service_thread.start()
     t = time.time()
-    def collider_command():
-        """A collider ADD, MOVE or REMOVE of this client's own ids (never the scene's ground),
-        most of them invalid: NaN and infinite poses, a zero quaternion, unknown types and
-        frames, negative sizes and friction, missing meshes, ids too long."""
-        m = ColliderCommand()
-        m.header.frame_id = pick(rng, frames, bad_frames, 0.3)
-        m.action = pick(rng, [0, 0, 1, 1, 2], [3, 200], 0.1)
-        m.id = pick(rng, collider_ids, bad_ids, 0.1)
-        m.type = pick(rng, ['box', 'sphere', 'capsule', 'plane', 'mesh'],
-                      ['', 'cylinder', 'BOX'], 0.15)
-        m.pose.position = Point(*random_point(rng, scale, 0.2))
-        q = pick(rng, [(0.0, 0.0, 0.0, 1.0), (0.0, 0.3826834, 0.0, 0.9238795)],
-                 [(0.0, 0.0, 0.0, 0.0), (NAN, 0.0, 0.0, 1.0), (0.0, INF, 0.0, 1.0)], 0.15)
-        m.pose.orientation = Quaternion(*q)
-        m.follow_frame = pick(rng, [''] * 6 + ['world'], bad_frames, 0.1)
-        m.velocity.linear = Vector3(*[pick(rng, [rng.uniform(-0.2, 0.2)], [NAN, INF], 0.1)
-                                      for _ in range(3)])
-        m.size = Vector3(*[pick(rng, [rng.uniform(0.02, 0.3) * scale], [-1.0, 0.0, NAN, 1e9],
-                                0.1) for _ in range(3)])
-        m.radius = pick(rng, [rng.uniform(0.02, 0.2) * scale], [-1.0, 0.0, NAN, 1e9], 0.15)
-        m.length = pick(rng, [rng.uniform(0.0, 0.3) * scale], [-1.0, NAN], 0.1)
-        m.mesh = pick(rng, good_meshes, bad_meshes, 0.3)
-        m.mesh_scale = pick(rng, [0.02, 0.05], [0.0, -1.0, NAN], 0.1)
-        m.static_friction = pick(rng, [0.0, 0.5, 1.0], [-1.0, NAN, INF], 0.1)
-        m.kinetic_friction = pick(rng, [0.0, 0.3], [-0.5, NAN], 0.1)
-        return m
-
     while t < args.until:
         r = rng.random()
         if r < 0.1:
-            collider_pub.publish(collider_command())
+            collider_pub.publish(collider_command(rng, scale, frames, bad_frames, collider_ids,
+                                                  bad_ids))
             with lock:
                 sent['collider'] += 1
         elif r < 0.6:
@@ -215,8 +197,16 @@ def run_client(args):
             time.sleep(delay)
         else:
             t = time.time()  # behind: do not burst to catch up
-    service_thread.join()
-    for cid in collider_ids:  # leave the scene as it was: the node's rest is checked after
+
+
+def finish(args, pubs, sent, dropped):
+    """Removes this client's colliders, lets the publisher queues drain, prints what was sent
+    (JSON) and ends the process."""
+    from deformable_flsm.msg import ColliderCommand
+
+    collider_pub = pubs[2]
+    # leave the scene as it was: the node's rest is checked after
+    for cid in client_collider_ids(args.client):
         m = ColliderCommand()
         m.action = ColliderCommand.REMOVE
         m.id = cid
@@ -224,7 +214,6 @@ def run_client(args):
         sent['collider'] += 1
     # Let the last messages leave the publisher queues (the process ends without rospy's
     # shutdown): on a busy machine their threads lag the flood by up to a queue's worth.
-    pubs = (drag_pub, force_pub, collider_pub)
     end = time.time() + 30.0
     while queued_messages(pubs) and time.time() < end:
         time.sleep(0.05)
@@ -234,3 +223,43 @@ def run_client(args):
     print(json.dumps(sent))
     sys.stdout.flush()
     os._exit(0)  # rospy's shutdown hooks may wait on the master; the result is out
+
+
+def run_client(args):
+    import rospy
+    import dynamic_reconfigure.client
+    from std_srvs.srv import Trigger
+    from deformable_flsm.msg import ColliderCommand, DragCommand, ForceCommand
+    from deformable_flsm.srv import PinBox
+
+    rng = random.Random(args.seed)
+    dropped = count_own_queue_drops()
+    rospy.init_node('soak_client_%d' % args.client, disable_signals=True)
+    drag_pub = rospy.Publisher(NODE + '/drag', DragCommand, queue_size=1000)
+    force_pub = rospy.Publisher(NODE + '/force', ForceCommand, queue_size=1000)
+    collider_pub = rospy.Publisher(NODE + '/collider', ColliderCommand, queue_size=1000)
+    for name in ('reset', 'release_all', 'pin_box'):
+        rospy.wait_for_service(NODE + '/' + name, timeout=60)
+    reset = rospy.ServiceProxy(NODE + '/reset', Trigger)
+    release_all = rospy.ServiceProxy(NODE + '/release_all', Trigger)
+    pin_box = rospy.ServiceProxy(NODE + '/pin_box', PinBox)
+    reconf = None
+    if args.client == 0:
+        reconf = dynamic_reconfigure.client.Client(NODE, timeout=60)
+    end = time.time() + 30.0
+    while (drag_pub.get_num_connections() == 0 or force_pub.get_num_connections() == 0
+           or collider_pub.get_num_connections() == 0) and time.time() < end:
+        time.sleep(0.05)
+
+    scale = args.size
+    p_bad = 0.8
+    sent = {'drag': 0, 'force': 0, 'collider': 0, 'services': 0, 'reconfigures': 0}
+    lock = threading.Lock()
+    pubs = (drag_pub, force_pub, collider_pub)
+    service_thread = threading.Thread(target=call_services,
+                                      args=(args, scale, p_bad, sent, lock,
+                                            (reset, release_all, pin_box), reconf))
+    service_thread.start()
+    send_flood(args, rng, scale, pubs, sent, lock)
+    service_thread.join()
+    finish(args, pubs, sent, dropped)
