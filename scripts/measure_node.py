@@ -112,7 +112,7 @@ def stop(proc):
             os.killpg(proc.pid, signal.SIGKILL)
 
 
-def main():
+def parse_args():
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--rviz', action='store_true', help='subscribe with RViz under Xvfb')
@@ -125,7 +125,159 @@ def main():
             sys.exit('measure: %s is a scene of several objects (~objects): measure runs the '
                      'drag latency on ~particles, which such a scene does not publish; its cost is '
                      'in bench_world (--only bin) and its topics are under ~objects/<name>/' % path)
+    return args
 
+
+def launch_node(args, env, logdir, procs):
+    """roscore, Xvfb with --rviz, and flsm.launch; returns the path of the node's log."""
+    procs.append(start(['roscore', '-p', str(PORT)],
+                       open(os.path.join(logdir, 'roscore.log'), 'w'), env))
+    time.sleep(3)
+    launch = ['roslaunch', 'deformable_flsm', 'flsm.launch']
+    if args.params:
+        launch.append('params:=' + os.path.abspath(args.params))
+    if args.scene:
+        launch.append('scene_params:=' + os.path.abspath(args.scene))
+    if args.rviz:
+        env['DISPLAY'] = XVFB_DISPLAY
+        env['LIBGL_ALWAYS_SOFTWARE'] = '1'
+        procs.append(start(['Xvfb', XVFB_DISPLAY, '-screen', '0', '1200x846x24',
+                            '-nolisten', 'tcp'], subprocess.DEVNULL, env))
+        time.sleep(2)
+        launch.append('rviz:=true')
+    node_log = os.path.join(logdir, 'node.log')
+    procs.append(start(['stdbuf', '-oL'] + launch, open(node_log, 'w'), env))
+    return node_log
+
+
+def startup_report(node_log):
+    """Waits for ~state; prints the node's start-up report. Returns the latest ~state (a dict
+    kept up to date), the node's pid, its time step and publish period."""
+    rospy.init_node('measure_node')
+    state = {'msg': None}
+    rospy.Subscriber('/flsm_node/state', SimulationState,
+                     lambda m: state.__setitem__('msg', m), queue_size=1)
+    rospy.wait_for_message('/flsm_node/state', SimulationState, timeout=120)
+    pid = node_pid('/flsm_node')
+    step_length = rospy.get_param('/flsm_node/time_step', 1.0 / 60.0)
+    publish_period = 1.0 / rospy.get_param('/flsm_node/publish_rate', 30.0)
+    print('== start-up report of flsm_node (pid %d)' % pid)
+    with open(node_log) as f:
+        for line in f:
+            if 'flsm_node' in line or line.startswith(('lattice', 'regions', 'material',
+                                                       'step', 'render', 'pinned')):
+                print('   ' + line.rstrip()[:200])
+    return state, pid, step_length, publish_period
+
+
+def measure_dragging(args, env, logdir, procs, state, pid, meters, who):
+    """The node's CPU and the topics' rates while flsm_demo drags and pokes."""
+    # (not rosrun: it also finds the copies under .build/ and asks which one)
+    demo_path = roslib.packages.find_node('deformable_flsm', 'flsm_demo')[0]
+    demo = start([demo_path],
+                 open(os.path.join(logdir, 'demo.log'), 'w'), env)
+    procs.append(demo)
+    while not (state['msg'] and state['msg'].active_drags > 0):
+        time.sleep(0.1)  # the demo has grabbed the ear
+    for m in meters:
+        m.reset()
+    share = cpu_share(pid, args.seconds)
+    s = state['msg']
+    print('\n== while flsm_demo drags and pokes, subscribed: %s' % who)
+    print('   node CPU %.1f %% of a core over %.0f s' % (100 * share, args.seconds))
+    for m in meters:
+        print('   ' + m.report())
+    print('   real-time factor %.3f (asked %.2f), step %.2f ms, %d steps dropped, '
+          '%d particles' % (s.real_time_factor, s.requested_real_time_factor,
+                            1e3 * s.step_time, s.dropped_steps, s.particles))
+    stop(demo)
+    procs.remove(demo)
+
+
+def drag_publisher(p):
+    """A function that publishes a drag of particle p (id 'latency') on ~drag, once the node
+    has subscribed."""
+    pub = rospy.Publisher('/flsm_node/drag', DragCommand, queue_size=10)
+    while pub.get_num_connections() == 0:
+        time.sleep(0.05)
+
+    def drag(action, target):
+        m = DragCommand()
+        m.action = action
+        m.id = 'latency'
+        m.particle = p
+        m.target = Point(*target)
+        pub.publish(m)
+    return drag
+
+
+def measure_latency(drag, x, p, size, step_length, publish_period):
+    """Grabs particle p, moves it LATENCY_SAMPLES times and prints the drag latency."""
+    seen = {'t': None, 'goal': None, 'generation': 0}
+    lock = threading.Lock()
+
+    def on_cloud(msg):
+        with lock:
+            goal, generation = seen['goal'], seen['generation']
+        if goal is None:
+            return
+        if isinstance(msg, rospy.AnyMsg):
+            # This process already reads the topic as raw bytes (the rate meter); rospy
+            # hands every subscriber of the topic that type.
+            msg = PointCloud2().deserialize(msg._buff)
+        q = next(point_cloud2.read_points(msg, field_names=('x', 'y', 'z'), skip_nans=False,
+                                          uvs=[(p, 0)]))
+        if np.linalg.norm(np.array(q) - goal) < 1e-4:
+            with lock:
+                # Only for the goal this callback compared with (not one set meanwhile).
+                if seen['t'] is None and seen['generation'] == generation:
+                    seen['t'] = time.time()
+                    seen['stamp'] = msg.header.stamp.to_sec()
+
+    sub = rospy.Subscriber('/flsm_node/particles', PointCloud2, on_cloud, queue_size=5,
+                           buff_size=2 ** 24)
+    drag(DragCommand.GRAB, x[p])
+    time.sleep(1.0)
+    latencies, stamped = [], []
+    rng = np.random.default_rng(7)
+    for k in range(LATENCY_SAMPLES):
+        goal = x[p] + size * 0.05 * np.array([np.cos(k), np.sin(k), 0.3])
+        with lock:
+            seen['t'] = None
+            seen['goal'] = goal
+            seen['generation'] = k + 1
+        t_sent = time.time()
+        drag(DragCommand.MOVE, goal)
+        while time.time() - t_sent < 2.0:
+            with lock:
+                if seen['t'] is not None:
+                    break
+            time.sleep(0.002)
+        with lock:
+            if seen['t'] is not None:
+                latencies.append(seen['t'] - t_sent)
+                stamped.append(seen['stamp'] - t_sent)
+        # Commands at phases spread evenly over the publish and step periods: a fixed pause
+        # (a multiple of either period) would sample one or two phases only.
+        time.sleep(0.3 + rng.uniform(0.0, 0.1))
+    lat = np.array(latencies) * 1e3
+    pub_lat = np.array(stamped) * 1e3
+    print('\n== drag latency (MOVE published -> ~particles shows the particle there), %d of %d'
+          % (len(lat), LATENCY_SAMPLES))
+    if len(lat):
+        print('   received: median %.0f ms, min %.0f ms, max %.0f ms (step %.1f ms of simulated '
+              'time, publish period %.1f ms)' % (np.median(lat), lat.min(), lat.max(),
+                                                 1e3 * step_length, 1e3 * publish_period))
+        # The stamp of ~mesh, ~surface and ~particles is the start of the publish tick that
+        # carries the state (the mesh is published first in it): what is left is building,
+        # sending and this script's Python receiving.
+        print('   published (the tick\'s stamp, ~mesh first): median %.0f ms, min %.0f ms, '
+              'max %.0f ms' % (np.median(pub_lat), pub_lat.min(), pub_lat.max()))
+    sub.unregister()
+
+
+def main():
+    args = parse_args()
     env = dict(os.environ)
     env['ROS_MASTER_URI'] = 'http://localhost:%d' % PORT
     env['ROS_HOSTNAME'] = 'localhost'
@@ -134,38 +286,8 @@ def main():
     os.makedirs(logdir, exist_ok=True)
     procs = []
     try:
-        procs.append(start(['roscore', '-p', str(PORT)],
-                           open(os.path.join(logdir, 'roscore.log'), 'w'), env))
-        time.sleep(3)
-        launch = ['roslaunch', 'deformable_flsm', 'flsm.launch']
-        if args.params:
-            launch.append('params:=' + os.path.abspath(args.params))
-        if args.scene:
-            launch.append('scene_params:=' + os.path.abspath(args.scene))
-        if args.rviz:
-            env['DISPLAY'] = XVFB_DISPLAY
-            env['LIBGL_ALWAYS_SOFTWARE'] = '1'
-            procs.append(start(['Xvfb', XVFB_DISPLAY, '-screen', '0', '1200x846x24',
-                                '-nolisten', 'tcp'], subprocess.DEVNULL, env))
-            time.sleep(2)
-            launch.append('rviz:=true')
-        node_log = os.path.join(logdir, 'node.log')
-        procs.append(start(['stdbuf', '-oL'] + launch, open(node_log, 'w'), env))
-
-        rospy.init_node('measure_node')
-        state = {'msg': None}
-        rospy.Subscriber('/flsm_node/state', SimulationState,
-                         lambda m: state.__setitem__('msg', m), queue_size=1)
-        rospy.wait_for_message('/flsm_node/state', SimulationState, timeout=120)
-        pid = node_pid('/flsm_node')
-        step_length = rospy.get_param('/flsm_node/time_step', 1.0 / 60.0)
-        publish_period = 1.0 / rospy.get_param('/flsm_node/publish_rate', 30.0)
-        print('== start-up report of flsm_node (pid %d)' % pid)
-        with open(node_log) as f:
-            for line in f:
-                if 'flsm_node' in line or line.startswith(('lattice', 'regions', 'material',
-                                                           'step', 'render', 'pinned')):
-                    print('   ' + line.rstrip()[:200])
+        node_log = launch_node(args, env, logdir, procs)
+        state, pid, step_length, publish_period = startup_report(node_log)
 
         # The rest positions, read before this process subscribes for the rates (rospy shares
         # one connection per topic within a process, so later readers see only new messages).
@@ -191,26 +313,7 @@ def main():
         print('   node CPU %.2f %% of a core over %.0f s' % (100 * share, args.seconds))
 
         # -- dragging --------------------------------------------------------------------
-        # (not rosrun: it also finds the copies under .build/ and asks which one)
-        demo_path = roslib.packages.find_node('deformable_flsm', 'flsm_demo')[0]
-        demo = start([demo_path],
-                     open(os.path.join(logdir, 'demo.log'), 'w'), env)
-        procs.append(demo)
-        while not (state['msg'] and state['msg'].active_drags > 0):
-            time.sleep(0.1)  # the demo has grabbed the ear
-        for m in meters + [state_meter]:
-            m.reset()
-        share = cpu_share(pid, args.seconds)
-        s = state['msg']
-        print('\n== while flsm_demo drags and pokes, subscribed: %s' % who)
-        print('   node CPU %.1f %% of a core over %.0f s' % (100 * share, args.seconds))
-        for m in meters + [state_meter]:
-            print('   ' + m.report())
-        print('   real-time factor %.3f (asked %.2f), step %.2f ms, %d steps dropped, '
-              '%d particles' % (s.real_time_factor, s.requested_real_time_factor,
-                                1e3 * s.step_time, s.dropped_steps, s.particles))
-        stop(demo)
-        procs.remove(demo)
+        measure_dragging(args, env, logdir, procs, state, pid, meters + [state_meter], who)
 
         # -- drag latency ----------------------------------------------------------------
         # ~mesh and ~surface keep a reader (the node builds and sends them as before), but in
@@ -221,79 +324,8 @@ def main():
                 m.sub.unregister()
             procs.append(start(['/usr/bin/python3', '-c', SINK], subprocess.DEVNULL, env))
             time.sleep(3.0)
-        pub = rospy.Publisher('/flsm_node/drag', DragCommand, queue_size=10)
-        while pub.get_num_connections() == 0:
-            time.sleep(0.05)
-        seen = {'t': None, 'goal': None, 'generation': 0}
-        lock = threading.Lock()
-
-        def on_cloud(msg):
-            with lock:
-                goal, generation = seen['goal'], seen['generation']
-            if goal is None:
-                return
-            if isinstance(msg, rospy.AnyMsg):
-                # This process already reads the topic as raw bytes (the rate meter); rospy
-                # hands every subscriber of the topic that type.
-                msg = PointCloud2().deserialize(msg._buff)
-            q = next(point_cloud2.read_points(msg, field_names=('x', 'y', 'z'), skip_nans=False,
-                                              uvs=[(p, 0)]))
-            if np.linalg.norm(np.array(q) - goal) < 1e-4:
-                with lock:
-                    # Only for the goal this callback compared with (not one set meanwhile).
-                    if seen['t'] is None and seen['generation'] == generation:
-                        seen['t'] = time.time()
-                        seen['stamp'] = msg.header.stamp.to_sec()
-
-        sub = rospy.Subscriber('/flsm_node/particles', PointCloud2, on_cloud, queue_size=5,
-                               buff_size=2 ** 24)
-
-        def drag(action, target):
-            m = DragCommand()
-            m.action = action
-            m.id = 'latency'
-            m.particle = p
-            m.target = Point(*target)
-            pub.publish(m)
-
-        drag(DragCommand.GRAB, x[p])
-        time.sleep(1.0)
-        latencies, stamped = [], []
-        rng = np.random.default_rng(7)
-        for k in range(LATENCY_SAMPLES):
-            goal = x[p] + size * 0.05 * np.array([np.cos(k), np.sin(k), 0.3])
-            with lock:
-                seen['t'] = None
-                seen['goal'] = goal
-                seen['generation'] = k + 1
-            t_sent = time.time()
-            drag(DragCommand.MOVE, goal)
-            while time.time() - t_sent < 2.0:
-                with lock:
-                    if seen['t'] is not None:
-                        break
-                time.sleep(0.002)
-            with lock:
-                if seen['t'] is not None:
-                    latencies.append(seen['t'] - t_sent)
-                    stamped.append(seen['stamp'] - t_sent)
-            # Commands at phases spread evenly over the publish and step periods: a fixed pause
-            # (a multiple of either period) would sample one or two phases only.
-            time.sleep(0.3 + rng.uniform(0.0, 0.1))
-        lat = np.array(latencies) * 1e3
-        pub_lat = np.array(stamped) * 1e3
-        print('\n== drag latency (MOVE published -> ~particles shows the particle there), %d of %d'
-              % (len(lat), LATENCY_SAMPLES))
-        if len(lat):
-            print('   received: median %.0f ms, min %.0f ms, max %.0f ms (step %.1f ms of simulated '
-                  'time, publish period %.1f ms)' % (np.median(lat), lat.min(), lat.max(),
-                                                     1e3 * step_length, 1e3 * publish_period))
-            # The stamp of ~mesh, ~surface and ~particles is the start of the publish tick that
-            # carries the state (the mesh is published first in it): what is left is building,
-            # sending and this script's Python receiving.
-            print('   published (the tick\'s stamp, ~mesh first): median %.0f ms, min %.0f ms, '
-                  'max %.0f ms' % (np.median(pub_lat), pub_lat.min(), pub_lat.max()))
-        sub.unregister()
+        drag = drag_publisher(p)
+        measure_latency(drag, x, p, size, step_length, publish_period)
 
         # -- time to rest ----------------------------------------------------------------
         drag(DragCommand.MOVE, x[p] + size * np.array([0.2, 0.0, 0.0]))
