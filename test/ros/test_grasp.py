@@ -247,7 +247,9 @@ class GraspTest(unittest.TestCase):
                                                   10.0),
                              'friction %.3g refused: %s' % (mu, self.flsm.state().last_rejection))
 
-    def test_grasp_and_lift(self):
+    def aim(self):
+        """Waits for the object to settle; returns its weight and the fingers' open and closed
+        positions (left, right) either side of it at the height of its centre of mass."""
         f = self.flsm
         if self.friction > 0.0:
             self.set_friction(self.friction)
@@ -278,10 +280,38 @@ class GraspTest(unittest.TestCase):
         open_r = (centre_x, hi + 0.03 + half, centre_z)
         closed_l = (centre_x, lo + self.squeeze - half, centre_z)
         closed_r = (centre_x, hi - self.squeeze + half, centre_z)
-        up = np.array([0.0, 0.0, LIFT])
         rospy.loginfo('grasp: weight %.3f N, object %.3f m across y at z %.3f; fingers close '
                       'from y %.3f / %.3f to %.3f / %.3f', weight, hi - lo, centre_z,
                       open_l[1], open_r[1], closed_l[1], closed_r[1])
+        return weight, open_l, open_r, closed_l, closed_r
+
+    def check_pads(self):
+        """The tactile pads: what each presses on its taxels adds up to its finger's force along
+        the pad's normal (finger_left's pad faces +y, finger_right's -y; the object pushes the
+        fingers apart), within 1 %, in every state both were sent for while gripping. (Not
+        while the object slips out: squeezed past the pads it also touches the fingers' backs,
+        which the pads do not cover and the finger's force nets out.)"""
+        compared, worst = 0, 0.0
+        pads = zip(FINGERS, (1.0, -1.0)) if self.expect == 'hold' else ()
+        with self.wrench_lock:
+            for finger, sign in pads:
+                for stamp, pa in self.pressed[finger].items():
+                    f = self.finger_force[finger].get(stamp)
+                    normal = None if f is None else -sign * f[1]
+                    if normal is None or normal < 0.1:
+                        continue
+                    self.assertAlmostEqual(pa, normal, delta=0.01 * normal,
+                                           msg='%s pad %.4f N against the finger force %.4f N' % (finger, pa, normal))
+                    compared += 1
+                    worst = max(worst, abs(pa / normal - 1.0))
+        rospy.loginfo('grasp: tactile pads against the finger forces in %d states: within %.3f %%',
+                      compared, 100.0 * worst)
+        if self.expect == 'hold':
+            self.assertGreater(compared, 20, 'too few tactile frames while gripping')
+
+    def test_grasp_and_lift(self):
+        weight, open_l, open_r, closed_l, closed_r = self.aim()
+        up = np.array([0.0, 0.0, LIFT])
         fg = self.fingers
         fg.go(APPROACH, open_l, open_r)
         fg.go(CLOSE, closed_l, closed_r)
@@ -308,28 +338,7 @@ class GraspTest(unittest.TestCase):
                       'ground contacts up to %d', self.expect, HOLD, 1e3 * LIFT, 1e3 * slip,
                       1e3 * drop, 1e3 * final_drop, carried, weight,
                       100.0 * (carried / weight - 1.0), on_ground)
-        # The tactile pads: what each presses on its taxels adds up to its finger's force along
-        # the pad's normal (finger_left's pad faces +y, finger_right's -y; the object pushes the
-        # fingers apart), within 1 %, in every state both were sent for while gripping. (Not
-        # while the object slips out: squeezed past the pads it also touches the fingers' backs,
-        # which the pads do not cover and the finger's force nets out.)
-        compared, worst = 0, 0.0
-        pads = zip(FINGERS, (1.0, -1.0)) if self.expect == 'hold' else ()
-        with self.wrench_lock:
-            for finger, sign in pads:
-                for stamp, pa in self.pressed[finger].items():
-                    f = self.finger_force[finger].get(stamp)
-                    normal = None if f is None else -sign * f[1]
-                    if normal is None or normal < 0.1:
-                        continue
-                    self.assertAlmostEqual(pa, normal, delta=0.01 * normal,
-                                           msg='%s pad %.4f N against the finger force %.4f N' % (finger, pa, normal))
-                    compared += 1
-                    worst = max(worst, abs(pa / normal - 1.0))
-        rospy.loginfo('grasp: tactile pads against the finger forces in %d states: within %.3f %%',
-                      compared, 100.0 * worst)
-        if self.expect == 'hold':
-            self.assertGreater(compared, 20, 'too few tactile frames while gripping')
+        self.check_pads()
         if self.expect == 'hold':
             # (The hanging jelly sags: its lowest particles may still brush the ground; what the
             # ground then carries is what the fingers' share misses, held within the tolerance.)
