@@ -95,13 +95,25 @@ void Solver::beginCoupledSubstep(int s, double h) {
 }
 
 std::vector<Eigen::Vector3d>& Solver::implicitVelocity() { return implicit_->velocity(); }
-const std::vector<Eigen::Vector3d>& Solver::implicitRhs() const { return implicit_->rhs(); }
-const std::vector<PcgConstraint>& Solver::implicitConstraints() const { return implicit_->constraints(); }
-const std::vector<Eigen::Vector3d>& Solver::implicitNormals() const { return implicit_->normals(); }
-const std::vector<Eigen::Vector3d>& Solver::implicitInvDiagonal() const { return implicit_->invDiagonal(); }
-double Solver::implicitRhsNorm2() const { return implicit_->rhsNorm2(); }
-double Solver::implicitGravityNorm2() const { return implicit_->gravityNorm2(); }
-std::size_t Solver::implicitFreeCount() const { return implicit_->freeCount(); }
+// (an explicit object has no system: empty, as a coupled solve may ask a sleeping neighbour's)
+namespace {
+const std::vector<Eigen::Vector3d> kNoVectors;
+const std::vector<PcgConstraint> kNoConstraints;
+}  // namespace
+
+const std::vector<Eigen::Vector3d>& Solver::implicitRhs() const { return implicit_ ? implicit_->rhs() : kNoVectors; }
+const std::vector<PcgConstraint>& Solver::implicitConstraints() const {
+  return implicit_ ? implicit_->constraints() : kNoConstraints;
+}
+const std::vector<Eigen::Vector3d>& Solver::implicitNormals() const {
+  return implicit_ ? implicit_->normals() : kNoVectors;
+}
+const std::vector<Eigen::Vector3d>& Solver::implicitInvDiagonal() const {
+  return implicit_ ? implicit_->invDiagonal() : kNoVectors;
+}
+double Solver::implicitRhsNorm2() const { return implicit_ ? implicit_->rhsNorm2() : 0.0; }
+double Solver::implicitGravityNorm2() const { return implicit_ ? implicit_->gravityNorm2() : 0.0; }
+std::size_t Solver::implicitFreeCount() const { return implicit_ ? implicit_->freeCount() : 0; }
 
 void Solver::implicitProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
   implicit_->product(p, y);

@@ -538,7 +538,8 @@ class Solver : private RegionKernel {
   /// system (ImplicitStep::begin()), which the accessors below show.
   void beginCoupledSubstep(int s, double h);
   /// The system A v = b of the sub-step begun: v_{n+1} (the unknown, which the coupled solve
-  /// sets), b, each row's constraint and normal, the inverse of the Jacobi diagonal.
+  /// sets), b, each row's constraint and normal, the inverse of the Jacobi diagonal (the const
+  /// ones empty, and the norms 0, for an explicit object).
   std::vector<Eigen::Vector3d>& implicitVelocity();
   const std::vector<Eigen::Vector3d>& implicitRhs() const;
   const std::vector<PcgConstraint>& implicitConstraints() const;
