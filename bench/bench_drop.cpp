@@ -72,17 +72,7 @@ Args parse(int argc, char** argv) {
 }
 
 std::shared_ptr<const Lattice> block(const Args& a) {
-  Voxelization v;
-  v.spacing = a.spacing;
-  v.dims = Eigen::Vector3i::Constant(a.cells);
-  v.closed = true;
-  for (int k = 0; k < a.cells; ++k)
-    for (int j = 0; j < a.cells; ++j)
-      for (int i = 0; i < a.cells; ++i) {
-        v.cells.emplace_back(i, j, k);
-        v.fillFraction.push_back(1.0);
-      }
-  return std::make_shared<const Lattice>(v, 1000.0, 1);
+  return std::make_shared<const Lattice>(boxVoxels(Eigen::Vector3i::Constant(a.cells), a.spacing), 1000.0, 1);
 }
 
 }  // namespace

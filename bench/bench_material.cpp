@@ -71,18 +71,7 @@ double gModulus = 0.0;
 constexpr int kOracleElementsAcross = 8;
 
 Voxelization box(int nx, int ny, int nz, double h, const Eigen::Vector3d& origin) {
-  Voxelization v;
-  v.origin = origin;
-  v.spacing = h;
-  v.dims = Eigen::Vector3i(nx, ny, nz);
-  v.closed = true;
-  for (int k = 0; k < nz; ++k)
-    for (int j = 0; j < ny; ++j)
-      for (int i = 0; i < nx; ++i) {
-        v.cells.emplace_back(i, j, k);
-        v.fillFraction.push_back(1.0);
-      }
-  return v;
+  return boxVoxels(Eigen::Vector3i(nx, ny, nz), h, origin);
 }
 
 struct Setting {

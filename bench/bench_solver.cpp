@@ -350,15 +350,7 @@ void boxTable(const Args& args) {
   const std::vector<Eigen::Vector3i> dims = {{20, 20, 25}, {20, 20, 125}, {20, 20, 500},
                                              {30, 30, 220}, {45, 45, 100}, {64, 64, 49}};
   for (const Eigen::Vector3i& d : dims) {
-    Voxelization v;
-    v.spacing = 0.01;
-    v.dims = d;
-    v.closed = true;
-    for (int k = 0; k < d.z(); ++k)
-      for (int j = 0; j < d.y(); ++j)
-        for (int i = 0; i < d.x(); ++i) v.cells.emplace_back(i, j, k);
-    v.fillFraction.assign(v.cells.size(), 1.0);
-    auto lat = std::make_shared<const Lattice>(v, 1000.0, 2);
+    auto lat = std::make_shared<const Lattice>(boxVoxels(d, 0.01), 1000.0, 2);
     SolverParams q;
     q.substeps = 1;
     boxes.push_back(std::make_unique<Timed>(lat, q, stepsPerRun(*lat)));

@@ -524,4 +524,17 @@ bool triangleBoxOverlap(const Eigen::Vector3d& boxCenter, const Eigen::Vector3d&
 }
 
 }  // namespace detail
+Voxelization boxVoxels(const Eigen::Vector3i& dims, double spacing, const Eigen::Vector3d& origin) {
+  Voxelization v;
+  v.origin = origin;
+  v.spacing = spacing;
+  v.dims = dims;
+  v.closed = true;
+  for (int k = 0; k < dims.z(); ++k)
+    for (int j = 0; j < dims.y(); ++j)
+      for (int i = 0; i < dims.x(); ++i) v.cells.emplace_back(i, j, k);
+  v.fillFraction.assign(v.cells.size(), 1.0);
+  return v;
+}
+
 }  // namespace deformable_flsm

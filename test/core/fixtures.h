@@ -97,7 +97,7 @@ struct Rest {
 
 /// A full box of nx x ny x nz cells.
 inline Voxelization makeBox(int nx, int ny, int nz, double spacing) {
-  return makeVoxels(Eigen::Vector3i(nx, ny, nz), spacing, [](int, int, int) { return true; });
+  return boxVoxels(Eigen::Vector3i(nx, ny, nz), spacing);
 }
 
 /// Axis-aligned box [lo, hi] as 12 counter-clockwise (outward-facing) triangles on 8 vertices;

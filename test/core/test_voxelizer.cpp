@@ -538,3 +538,18 @@ TEST(Voxelize, StanfordBunnyAtResolution30) {
 
 }  // namespace
 }  // namespace deformable_flsm
+
+// The box of tests and benchmarks: every cell full, in (k, j, i) order, at the origin given.
+TEST(BoxVoxels, FullCellsInSliceOrder) {
+  const deformable_flsm::Voxelization v = deformable_flsm::boxVoxels(Eigen::Vector3i(3, 2, 4), 0.5, Eigen::Vector3d(1, 2, 3));
+  ASSERT_EQ(v.cells.size(), 24u);
+  EXPECT_EQ(v.fillFraction, std::vector<double>(24, 1.0));
+  EXPECT_TRUE(v.closed);
+  EXPECT_EQ(v.dims, Eigen::Vector3i(3, 2, 4));
+  EXPECT_EQ(v.spacing, 0.5);
+  EXPECT_EQ(v.origin, Eigen::Vector3d(1, 2, 3));
+  EXPECT_EQ(v.cells[1], Eigen::Vector3i(1, 0, 0));
+  EXPECT_EQ(v.cells[3], Eigen::Vector3i(0, 1, 0));
+  EXPECT_EQ(v.cells[6], Eigen::Vector3i(0, 0, 1));
+  EXPECT_EQ(v.cells.back(), Eigen::Vector3i(2, 1, 3));
+}

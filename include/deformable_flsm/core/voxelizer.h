@@ -77,6 +77,12 @@ struct Voxelization {
 ///         would be occupied (the message names a resolution that fits).
 Voxelization voxelize(const TriMesh& mesh, const VoxelizeOptions& options);
 
+/// A solid box of dims.x() x dims.y() x dims.z() full cells of edge `spacing`, the lower corner of
+/// cell (0, 0, 0) at `origin`: closed, every fill fraction 1, cells in (k, j, i) order. The block
+/// of tests and benchmarks.
+Voxelization boxVoxels(const Eigen::Vector3i& dims, double spacing,
+                       const Eigen::Vector3d& origin = Eigen::Vector3d::Zero());
+
 namespace detail {
 
 /// Separating-axis test of a triangle against an axis-aligned box (Akenine-Moeller 2001, "Fast
