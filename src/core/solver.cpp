@@ -239,6 +239,7 @@ void Solver::advanceSubstep(int s) {
   const bool timed = singleSummer_ != nullptr;
   const auto t0 = timed ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point();
   interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
+  contactSubstep_ = s;
   if (params_.integrator == Integrator::Implicit)
     implicit_->substep(h);
   else
@@ -535,7 +536,7 @@ void Solver::substep(double h) {
 // What both integrators do after their velocity update: contact, the prescribed particles, the
 // timed forces' countdown and the clock.
 void Solver::endSubstep(double h, double elapsed) {
-  contactPass(h, elapsed);
+  contactPass(h);
   finishSubstep(h);
   for (TimedForce& f : forces_) f.remaining -= elapsed;
   forces_.erase(std::remove_if(forces_.begin(), forces_.end(),

@@ -143,7 +143,6 @@ void Solver::rebuildContactBodies() {
 }
 
 void Solver::beginContactStep() {
-  contactTime_ = 0.0;
   for (ContactBody& body : contactBodies_) {
     body.start = body.now = body.collider->pose;
     body.impulse.setZero();
@@ -219,12 +218,11 @@ void Solver::beginContactStep() {
 // The impulses m dv, and their moments about each collider's origin taken at the contact point
 // x* - r n, are summed per chunk, then over the chunks in order.
 // Pinned and hard-dragged particles are left alone: their motion is prescribed.
-void Solver::contactPass(double h, double elapsed) {
+void Solver::contactPass(double h) {
   ++contactPasses_;  // the counts of older passes no longer match (countedContact())
   if (contactBodies_.empty()) return;
-  contactTime_ += elapsed;
   const double r = contactRadius();
-  placeContactBodies(elapsed, r);
+  placeContactBodies(r);
   if (activeBodies_.empty()) return;
   ContactPassFrame pass;
   pass.h = h;
@@ -245,13 +243,13 @@ void Solver::contactPass(double h, double elapsed) {
   sumContactPartials(chunks);
 }
 
-void Solver::placeContactBodies(double elapsed, double r) {
+void Solver::placeContactBodies(double r) {
   Eigen::Vector3d lo = x_[0], hi = x_[0];
   for (const Eigen::Vector3d& x : x_) {
     lo = lo.cwiseMin(x);
     hi = hi.cwiseMax(x);
   }
-  poseContactBodies(contactTime_ - elapsed, contactTime_, r);
+  poseContactBodies(r);
   activeBodies_.clear();
   for (std::size_t b = 0; b < contactBodies_.size(); ++b) {
     ContactBody& body = contactBodies_[b];
@@ -262,7 +260,9 @@ void Solver::placeContactBodies(double elapsed, double r) {
   }
 }
 
-void Solver::poseContactBodies(double from, double to, double pad) {
+void Solver::poseContactBodies(double pad) {
+  const double H = params_.substepLength();
+  const double from = contactSubstep_ * H, to = (contactSubstep_ + 1) * H;
   for (ContactBody& body : contactBodies_) {
     const Collider& c = *body.collider;
     body.before = advancePose(body.start, c.linearVelocity, c.angularVelocity, from);

@@ -41,8 +41,6 @@ constexpr double kFrictionChange = 0.02;
 // the solve would leave the rest of the object moving as if it slid, and feed energy into it.
 bool Solver::ImplicitStep::constrainContacts(double h) {
   if (o_.contactBodies_.empty()) return false;
-  // the colliders move over the time the sub-step advances (BDF2 solves 2/3 of it)
-  const double elapsed = bdf2Step_ ? o_.params_.substepLength() : h;
   const double r = o_.contactRadius();
   const double slop = kContactSlop * r;
   // below this slip speed a contact's slip direction is noise: what gravity adds in a sub-step
@@ -50,7 +48,7 @@ bool Solver::ImplicitStep::constrainContacts(double h) {
   const double slipFloor = std::max(h * o_.params_.gravity.norm(), slop / h);
   // every collider where the contact pass will see it at the end of this sub-step (the contact
   // pass sets the same pose and bounds again)
-  o_.poseContactBodies(o_.contactTime_, o_.contactTime_ + elapsed, r + slop);
+  o_.poseContactBodies(r + slop);
   bool any = false;
   for (std::size_t i = 0; i < o_.x_.size(); ++i) {
     if (o_.pinned_[i] != 0 || o_.hardDragged_[i] != 0) continue;

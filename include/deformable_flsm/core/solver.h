@@ -347,7 +347,7 @@ class Solver : private RegionKernel {
   /// Collider poses at the start of a step, wrench accumulators cleared.
   void beginContactStep();
   /// The contact response of the free particles after the region pass of a sub-step of length h.
-  void contactPass(double h, double elapsed);
+  void contactPass(double h);
   /// What a contact pass's chunks share: the sub-step, the contact radius, whether the world holds
   /// the object, the depth below which all of it is inside, the region pass's goals.
   struct ContactPassFrame {
@@ -358,11 +358,10 @@ class Solver : private RegionKernel {
   /// contactPass()'s stages: each body's poses before and after the sub-step and bounds, the
   /// bodies near the object (activeBodies_); one chunk of particles against the bodies near it,
   /// its impulses in its ContactPartial; the partials summed on the bodies.
-  void placeContactBodies(double elapsed, double r);
-  /// Each contact body at `from` (before) and `to` (now) seconds into the step along its
-  /// velocities, with its bounds at `to` padded by `pad`: the one place a sub-step's collider
-  /// poses are worked out (the contact pass, the implicit solve's contacts).
-  void poseContactBodies(double from, double to, double pad);
+  void placeContactBodies(double r);
+  /// Each contact body at the start (before) and the end (now) of sub-step contactSubstep_ along
+  /// its velocities, with its bounds at the end padded by `pad`.
+  void poseContactBodies(double pad);
   /// Each collider (and its body's `now`) at the end of the step, from its pose at the start.
   void poseCollidersAtStepEnd();
   void contactChunk(std::ptrdiff_t chunk, const ContactPassFrame& pass);
@@ -478,7 +477,7 @@ class Solver : private RegionKernel {
   bool markCounted(std::size_t i, int a, std::uint64_t pass);
   std::vector<ContactPartial> contactPartials_;  // chunk-major, #chunks x #bodies
   std::vector<int> chunkBodies_;                // per chunk, the active bodies near it (#chunks x #bodies)
-  double contactTime_ = 0.0;                    // time since the start of the step (s)
+  int contactSubstep_ = 0;                      // the sub-step being taken, from 0
   std::vector<TimedForce> forces_;
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
   std::vector<std::uint32_t> forcedParticles_;  // where forceAccel_ is non-zero
