@@ -105,10 +105,9 @@ void ObjectContactSolver::beginStep(std::size_t objects, std::size_t colliders) 
 }
 
 // The pass after every object's sub-step (see object_contact.h).
-void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std::vector<SubstepCollider>& colliders,
+void ObjectContactSolver::substep(const std::vector<Solver*>& objects, const std::vector<PosedCollider>& colliders,
                                   const ObjectContactParams& params, double h, bool last) {
   for (PairImpulse& p : pairs_) p.contacts = 0;
-  for (ColliderImpulse& c : colliderImpulses_) c.contacts = 0;
   if (!params.enabled && !params.selfContact) return;
   Laps laps(timing_ ? &seconds_ : nullptr);
   const Staleness stale = updateList(objects, params, h, 0.0);
@@ -200,37 +199,22 @@ void ObjectContactSolver::findPairs(const ObjectContactParams& params) {
 }
 
 // A particle pressed onto the ground by another object is held by the ground in this solve, not a sub-step later.
-void ObjectContactSolver::findColliderContacts(const std::vector<SubstepCollider>& colliders, double h) {
+void ObjectContactSolver::findColliderContacts(const std::vector<PosedCollider>& colliders, double h) {
   colliderContacts_.clear();
   if (colliders.empty()) return;
-  // each collider's bounds once per sub-step, not per particle
-  colliderLo_.resize(colliders.size());
-  colliderHi_.resize(colliders.size());
-  colliderBounded_.resize(colliders.size());
-  for (std::size_t ci = 0; ci < colliders.size(); ++ci)
-    colliderBounded_[ci] = colliders[ci].collider->shape.type != ColliderType::HalfSpace &&
-                           colliderBounds(colliders[ci].collider->shape, colliders[ci].now, colliderLo_[ci],
-                                          colliderHi_[ci]);
   std::size_t kept = 0;  // walks keptCollider_, in the same (g, collider) order
   for (const std::uint32_t k : awakeParticles_) {
     if (!touched_[k] || w_[k] == 0.0) continue;
     const double r = r_[k];
     for (std::size_t ci = 0; ci < colliders.size(); ++ci) {
-      const SubstepCollider& sc = colliders[ci];
+      const PosedCollider& sc = colliders[ci];
       const Collider& col = *sc.collider;
-      const double margin = r * (1.0 + kContactMargin);
-      if (colliderBounded_[ci]) {
-        if (((x_[k].array() - margin) > colliderHi_[ci].array()).any() ||
-            ((x_[k].array() + margin) < colliderLo_[ci].array()).any())
-          continue;
-      } else if (!boxNearCollider(col.shape, sc.now, x_[k], x_[k], margin)) {
-        continue;
-      }
+      if (!sc.near(x_[k], r * (1.0 + kContactMargin))) continue;
       Eigen::Vector3d n;
-      const double gap = colliderDistance(col.shape, sc.now, x_[k], n) - r;
+      const double gap = sc.gap(x_[k], r, n);
       if (!(gap < r * kContactMargin)) continue;
       Eigen::Vector3d startNormal;
-      const double startGap = colliderDistance(col.shape, sc.before, x_[k] - h * v_[k], startNormal) - r;
+      const double startGap = sc.startGap(x_[k] - h * v_[k], r, startNormal);
       ColliderContact c;
       c.k = static_cast<std::uint32_t>(k);
       c.collider = static_cast<std::uint32_t>(ci);
@@ -240,7 +224,7 @@ void ObjectContactSolver::findColliderContacts(const std::vector<SubstepCollider
       c.wsum = w_[k];
       c.muS = col.staticFriction;
       c.muK = col.kineticFriction;
-      c.vc = col.linearVelocity + col.angularVelocity.cross(x_[k] - sc.now.translation());
+      c.vc = sc.surfaceVelocity(x_[k]);
       const std::uint32_t g = global_[k];
       while (kept < keptCollider_.size() &&
              (keptCollider_[kept].g < g || (keptCollider_[kept].g == g && keptCollider_[kept].collider < ci)))
@@ -373,7 +357,7 @@ void ObjectContactSolver::scatter(const std::vector<Solver*>& objects) {
 }
 
 // The step's wrenches: per object and collider (at the contact point x - r n), and per object pair (addPairWrench()).
-void ObjectContactSolver::accumulate(const std::vector<Solver*>& objects, const std::vector<SubstepCollider>& colliders,
+void ObjectContactSolver::accumulate(const std::vector<Solver*>& objects, const std::vector<PosedCollider>& colliders,
                                      bool last) {
   for (const ColliderContact& c : colliderContacts_) {
     const Eigen::Vector3d J = impulseOf(c);
@@ -381,9 +365,7 @@ void ObjectContactSolver::accumulate(const std::vector<Solver*>& objects, const 
     ColliderImpulse& ci = colliderImpulses_[object_[c.k] * colliderCount_ + c.collider];
     ci.impulse += J;
     ci.moment += (x_[c.k] - r * c.n - colliders[c.collider].now.translation()).cross(J);
-    // a particle its object's own contact pass (or solve) counted on this collider is one contact
-    if (last && c.lambda > 0.0 && !objects[object_[c.k]]->countedContact(index_[c.k], *colliders[c.collider].id))
-      ++ci.contacts;
+    if (last && c.lambda > 0.0) objects[object_[c.k]]->touchCollider(index_[c.k], c.collider);
   }
   for (const PairContact& c : contacts_) {
     const std::uint32_t o1 = object_[c.k1], o2 = object_[c.k2];

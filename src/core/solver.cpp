@@ -110,8 +110,6 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
   rotations_.assign(n, Eigen::Quaterniond::Identity());
   pinned_.assign(n, 0);
   hardDragged_.assign(n, 0);
-  countedBodies_.assign(n, 0);
-  countedPass_.assign(n, 0);
   pinnedList_.reserve(n);
   pinPosition_ = x0;
   impulseDv_.assign(n, Eigen::Vector3d::Zero());
@@ -239,7 +237,7 @@ void Solver::advanceSubstep(int s) {
   const bool timed = singleSummer_ != nullptr;
   const auto t0 = timed ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point();
   interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
-  contactSubstep_ = s;
+  beginContactSubstep(s);
   if (params_.integrator == Integrator::Implicit)
     implicit_->substep(h);
   else
@@ -270,8 +268,6 @@ void Solver::idleStep() {
   }
   std::fill(v_.begin(), v_.end(), Eigen::Vector3d::Zero());
   if (implicit_) implicit_->forgetHistory();  // its history is of before it stopped
-  for (ContactBody& body : contactBodies_) body.start = body.collider->pose;
-  poseCollidersAtStepEnd();
 }
 
 // One pass over the regions computes the goal positions and, when damping is on, the damping
@@ -484,7 +480,7 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
 // world can hold (pinned, dragged or attached, or with colliders in the scene to rest on) is
 // damped relative to the world's rigid motion, zero: drag towards rest, as before, so that it
 // settles on its supports.
-bool Solver::heldByWorld() const { return pinnedCount_ > 0 || !drags_.empty() || !colliders_->empty(); }
+bool Solver::heldByWorld() const { return pinnedCount_ > 0 || !drags_.empty() || !colliders_->map().empty(); }
 
 void Solver::computeRigidMotion() {
   const auto& m = lattice_->masses();

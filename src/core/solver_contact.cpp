@@ -35,7 +35,7 @@ double Solver::contactRadius() const {
   return params_.contactRadius > 0.0 ? params_.contactRadius : 0.5 * lattice_->spacing();
 }
 
-void Solver::shareColliders(std::shared_ptr<ColliderMap> colliders) {
+void Solver::shareColliders(std::shared_ptr<ColliderScene> colliders) {
   colliders_ = std::move(colliders);
   ownsColliders_ = false;
   rebuildContactBodies();
@@ -55,15 +55,16 @@ void Solver::setCollider(const std::string& id, const Collider& collider) {
   Collider c = collider;
   if (c.shape.type == ColliderType::Mesh && !c.shape.distanceField)
     c.shape.distanceField = std::make_shared<const MeshDistanceField>(*c.shape.mesh);
-  (*colliders_)[id] = std::move(c);
+  colliders_->map()[id] = std::move(c);
+  colliders_->changed();
   rebuildContactBodies();
 }
 
 bool Solver::moveCollider(const std::string& id, const Eigen::Isometry3d& pose,
                           const Eigen::Vector3d& linearVelocity, const Eigen::Vector3d& angularVelocity) {
   checkOwnsColliders("moveCollider");
-  auto it = colliders_->find(id);
-  if (it == colliders_->end()) return false;
+  auto it = colliders_->map().find(id);
+  if (it == colliders_->map().end()) return false;
   if (!pose.matrix().allFinite() || !linearVelocity.allFinite() || !angularVelocity.allFinite())
     throw std::invalid_argument("solver: collider '" + id + "' given a non-finite pose or velocity");
   if (!isRotation(pose.linear()))
@@ -77,20 +78,22 @@ bool Solver::moveCollider(const std::string& id, const Eigen::Isometry3d& pose,
 
 bool Solver::removeCollider(const std::string& id) {
   checkOwnsColliders("removeCollider");
-  const bool found = colliders_->erase(id) > 0;
+  const bool found = colliders_->map().erase(id) > 0;
+  colliders_->changed();
   rebuildContactBodies();
   return found;
 }
 
 void Solver::removeAllColliders() {
   checkOwnsColliders("removeAllColliders");
-  colliders_->clear();
+  colliders_->map().clear();
+  colliders_->changed();
   rebuildContactBodies();
 }
 
 ContactWrench Solver::contactWrench(const std::string& id) const {
-  for (const ContactBody& body : contactBodies_)
-    if (*body.id == id) return body.wrench;
+  for (std::size_t c = 0; c < contactBodies_.size(); ++c)
+    if (*posed(c).id == id) return contactBodies_[c].wrench;
   return ContactWrench();
 }
 
@@ -104,8 +107,8 @@ void Solver::recordContacts(const std::string& id, bool on) {
 
 const std::vector<ParticleContact>& Solver::recordedContacts(const std::string& id) const {
   static const std::vector<ParticleContact> kNone;
-  for (const ContactBody& body : contactBodies_)
-    if (*body.id == id) return body.recorded;
+  for (std::size_t c = 0; c < contactBodies_.size(); ++c)
+    if (*posed(c).id == id) return contactBodies_[c].recorded;
   return kNone;
 }
 
@@ -113,16 +116,14 @@ const std::vector<ParticleContact>& Solver::recordedContacts(const std::string& 
 // writes are sized now, so that the pass allocates nothing.
 void Solver::rebuildContactBodies() {
   std::vector<ContactBody> bodies;
-  bodies.reserve(colliders_->size());
-  for (auto& entry : *colliders_) {
+  bodies.reserve(colliders_->posed().size());
+  for (const PosedCollider& entry : colliders_->posed()) {
     ContactBody body;
-    body.id = &entry.first;
-    body.collider = &entry.second;
-    body.start = body.now = entry.second.pose;
+    body.collider = entry.collider;
     // a collider that stays (another was added or removed) keeps its last wrench
     for (const ContactBody& old : contactBodies_)
       if (old.collider == body.collider) body.wrench = old.wrench;
-    if (recordedIds_.count(entry.first) > 0) {
+    if (recordedIds_.count(*entry.id) > 0) {
       // sized now: recording allocates nothing in a step
       body.recording = true;
       body.particleImpulse.assign(x_.size(), Eigen::Vector3d::Zero());
@@ -140,14 +141,14 @@ void Solver::rebuildContactBodies() {
   const std::size_t chunks = (x_.size() + kContactChunk - 1) / kContactChunk;
   contactPartials_.assign(chunks * contactBodies_.size(), ContactPartial());
   chunkBodies_.assign(chunks * contactBodies_.size(), 0);
+  tally_.resize(x_.size(), contactBodies_.size());
 }
 
 void Solver::beginContactStep() {
+  if (ownsColliders_) colliders_->beginStep();
   for (ContactBody& body : contactBodies_) {
-    body.start = body.now = body.collider->pose;
     body.impulse.setZero();
     body.moment.setZero();
-    body.contacts = 0;
     body.buried = 0;
     if (body.recording) std::fill(body.particleImpulse.begin(), body.particleImpulse.end(), Eigen::Vector3d::Zero());
   }
@@ -218,8 +219,12 @@ void Solver::beginContactStep() {
 // The impulses m dv, and their moments about each collider's origin taken at the contact point
 // x* - r n, are summed per chunk, then over the chunks in order.
 // Pinned and hard-dragged particles are left alone: their motion is prescribed.
+void Solver::beginContactSubstep(int s) {
+  tally_.beginSubstep();
+  if (ownsColliders_) colliders_->poseSubstep(s, params_.substepLength());
+}
+
 void Solver::contactPass(double h) {
-  ++contactPasses_;  // the counts of older passes no longer match (countedContact())
   if (contactBodies_.empty()) return;
   const double r = contactRadius();
   placeContactBodies(r);
@@ -249,30 +254,9 @@ void Solver::placeContactBodies(double r) {
     lo = lo.cwiseMin(x);
     hi = hi.cwiseMax(x);
   }
-  poseContactBodies(r);
   activeBodies_.clear();
-  for (std::size_t b = 0; b < contactBodies_.size(); ++b) {
-    ContactBody& body = contactBodies_[b];
-    // the implicit solve's contacts, then the particles this pass moves out of the collider
-    body.contacts = body.solved;
-    body.solved = 0;
-    if (boxNearCollider(body.collider->shape, body.now, lo, hi, r)) activeBodies_.push_back(static_cast<int>(b));
-  }
-}
-
-void Solver::poseContactBodies(double pad) {
-  const double H = params_.substepLength();
-  const double from = contactSubstep_ * H, to = (contactSubstep_ + 1) * H;
-  for (ContactBody& body : contactBodies_) {
-    const Collider& c = *body.collider;
-    body.before = advancePose(body.start, c.linearVelocity, c.angularVelocity, from);
-    body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, to);
-    body.bounded = colliderBounds(c.shape, body.now, body.lo, body.hi);
-    if (body.bounded) {
-      body.lo.array() -= pad;
-      body.hi.array() += pad;
-    }
-  }
+  for (std::size_t b = 0; b < contactBodies_.size(); ++b)
+    if (boxNearCollider(posed(b).collider->shape, posed(b).now, lo, hi, r)) activeBodies_.push_back(static_cast<int>(b));
 }
 
 void Solver::contactChunk(std::ptrdiff_t chunk, const ContactPassFrame& pass) {
@@ -296,14 +280,14 @@ void Solver::contactChunk(std::ptrdiff_t chunk, const ContactPassFrame& pass) {
     bool touched = false, buried = false;
     for (int k = 0; k < nearCount; ++k) {
       const int a = near[k];
-      const ContactBody& body = contactBodies_[a];
-      if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
+      const PosedCollider& body = posed(static_cast<std::size_t>(a));
+      if (!body.near(x, r)) continue;
       const Collider& c = *body.collider;
       Eigen::Vector3d normal;
-      const double depth = colliderDistance(c.shape, body.now, x, normal) - r;
+      const double depth = body.gap(x, r, normal);
       if (!(depth < 0.0)) continue;
       Eigen::Vector3d startNormal;
-      const double startDepth = colliderDistance(c.shape, body.before, start, startNormal) - r;
+      const double startDepth = body.startGap(start, r, startNormal);
       // buried deeper than its radius since before the sub-step (above)
       if (startDepth < -r) {
         buried = true;
@@ -314,7 +298,7 @@ void Solver::contactChunk(std::ptrdiff_t chunk, const ContactPassFrame& pass) {
         }
       }
       const Eigen::Vector3d origin = body.now.translation();
-      const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - origin);
+      const Eigen::Vector3d vc = body.surfaceVelocity(x);
       const Eigen::Vector3d dv = contactVelocityChange(depth, startDepth, normal, v, vc, h, c.staticFriction,
                                                        c.kineticFriction);
       v += dv;
@@ -325,17 +309,16 @@ void Solver::contactChunk(std::ptrdiff_t chunk, const ContactPassFrame& pass) {
       p.moment += (x - r * normal - origin).cross(J);
       // (particle i is this chunk's alone: no other thread writes its entries)
       record(contactBodies_[a], i, J, x - r * normal);
-      // counted once: the implicit solve may have counted it on this body (sumContactImpulses())
-      if (markCounted(i, a, contactPasses_)) ++p.contacts;
+      tally_.touch(i, static_cast<std::size_t>(a));
       touched = true;
     }
     if (!touched) continue;
     const Eigen::Vector3d& goal = goals[i];
     for (int k = 0; k < nearCount; ++k) {
-      const ContactBody& body = contactBodies_[near[k]];
-      if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
+      const PosedCollider& body = posed(static_cast<std::size_t>(near[k]));
+      if (!body.near(x, r)) continue;
       Eigen::Vector3d normal;
-      const double depth = colliderDistance(body.collider->shape, body.now, x, normal) - r;
+      const double depth = body.gap(x, r, normal);
       if (!(depth < 0.0)) continue;
       // at most r per sub-step; a buried particle of a held object all inside the collider no
       // farther than r beyond its goal
@@ -358,7 +341,7 @@ int Solver::bodiesNear(std::size_t begin, std::size_t end, double r, int* near) 
   }
   int count = 0;
   for (int a : activeBodies_) {
-    const ContactBody& body = contactBodies_[a];
+    const PosedCollider& body = posed(static_cast<std::size_t>(a));
     if (boxNearCollider(body.collider->shape, body.now, lo, hi, r)) near[count++] = a;
   }
   return count;
@@ -373,51 +356,26 @@ void Solver::sumContactPartials(std::ptrdiff_t chunks) {
       const ContactPartial& partial = contactPartials_[static_cast<std::size_t>(chunk) * bodies + static_cast<std::size_t>(a)];
       body.impulse += partial.impulse;
       body.moment += partial.moment;
-      body.contacts += partial.contacts;
       buried += partial.buried;
     }
     body.buried = std::max(body.buried, buried);
   }
 }
 
-bool Solver::markCounted(std::size_t i, int a, std::uint64_t pass) {
-  if (a >= 64) return true;
-  if (countedPass_[i] != pass) {
-    countedPass_[i] = pass;
-    countedBodies_[i] = 0;
-  }
-  const std::uint64_t bit = std::uint64_t{1} << a;
-  if ((countedBodies_[i] & bit) != 0) return false;
-  countedBodies_[i] |= bit;
-  return true;
-}
-
-bool Solver::countedContact(std::uint32_t p, const std::string& id) const {
-  if (countedPass_[p] != contactPasses_) return false;
-  for (std::size_t a = 0; a < contactBodies_.size() && a < 64; ++a)
-    if (*contactBodies_[a].id == id) return (countedBodies_[p] >> a & 1u) != 0;
-  return false;
-}
-
-bool Solver::addColliderImpulse(const std::string& id, const Eigen::Vector3d& impulse, const Eigen::Vector3d& moment,
-                                std::size_t contacts) {
-  for (ContactBody& body : contactBodies_) {
-    if (*body.id != id) continue;
-    body.impulse += impulse;
-    body.moment += moment;
-    body.contacts += contacts;
-    return true;
-  }
-  return false;
+void Solver::addColliderImpulse(std::size_t c, const Eigen::Vector3d& impulse, const Eigen::Vector3d& moment) {
+  contactBodies_[c].impulse += impulse;
+  contactBodies_[c].moment += moment;
 }
 
 // The object's impulse on a collider is minus the particles' m dv; averaged over the step.
 void Solver::endContactStep() {
   const double T = params_.timeStep;
+  for (ContactBody& body : contactBodies_) body.wrench.contacts = 0;
+  // the particles in contact at the end of the last sub-step, each once per collider
+  tally_.count([this](std::size_t c) { ++contactBodies_[c].wrench.contacts; });
   for (ContactBody& body : contactBodies_) {
     body.wrench.force = -body.impulse / T;
     body.wrench.torque = -body.moment / T;
-    body.wrench.contacts = body.contacts;
     body.wrench.buried = body.buried;
     if (body.recording) {
       body.recorded.clear();
@@ -426,15 +384,7 @@ void Solver::endContactStep() {
           body.recorded.push_back({static_cast<std::uint32_t>(i), body.particlePoint[i], -body.particleImpulse[i] / T});
     }
   }
-  poseCollidersAtStepEnd();
-}
-
-void Solver::poseCollidersAtStepEnd() {
-  for (ContactBody& body : contactBodies_) {
-    Collider& c = *body.collider;
-    body.now = advancePose(body.start, c.linearVelocity, c.angularVelocity, params_.timeStep);
-    if (ownsColliders_) c.pose = body.now;  // a World's are moved by the World, once
-  }
+  if (ownsColliders_) colliders_->endStep(T);  // a World's are moved by the World, once
 }
 
 }  // namespace deformable_flsm

@@ -91,7 +91,7 @@ const PcgResult& Solver::lastImplicitSolve() const {
 
 void Solver::beginCoupledSubstep(int s, double h) {
   interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
-  contactSubstep_ = s;
+  beginContactSubstep(s);
   implicit_->begin(h);
 }
 

@@ -46,9 +46,6 @@ bool Solver::ImplicitStep::constrainContacts(double h) {
   // below this slip speed a contact's slip direction is noise: what gravity adds in a sub-step
   // (on a slope, along the surface), or the contact slop over a sub-step without gravity
   const double slipFloor = std::max(h * o_.params_.gravity.norm(), slop / h);
-  // every collider where the contact pass will see it at the end of this sub-step (the contact
-  // pass sets the same pose and bounds again)
-  o_.poseContactBodies(r + slop);
   bool any = false;
   for (std::size_t i = 0; i < o_.x_.size(); ++i) {
     if (o_.pinned_[i] != 0 || o_.hardDragged_[i] != 0) continue;
@@ -92,7 +89,7 @@ bool Solver::ImplicitStep::constrainContacts(double h) {
     // it (a block launched at 3 m/s along the ground took 1.08 mu_k times its normal impulse)
     const bool carried = last == kSliding && !slid.isZero(0.0);
     if (carried || (last != kSticking && slipSpeed > slipFloor &&
-                    slipSpeed > o_.contactBodies_[static_cast<std::size_t>(b)].collider->staticFriction * std::max(0.0, into))) {
+                    slipSpeed > o_.posed(static_cast<std::size_t>(b)).collider->staticFriction * std::max(0.0, into))) {
       if (carried) {
         friction_[i] = slid - slid.dot(normal) * normal;
         if (slipSpeed > slipFloor)
@@ -119,30 +116,29 @@ bool Solver::ImplicitStep::constrainContacts(double h) {
 }
 
 double Solver::ImplicitStep::startDepth(std::size_t i, int b) const {
-  const ContactBody& body = o_.contactBodies_[static_cast<std::size_t>(b)];
   Eigen::Vector3d normal;
   // BDF2 solves from its extrapolated start x_: the sub-step starts at x_n (a landing particle's
   // extrapolation into the collider is not a penetration to keep)
   const Eigen::Vector3d& x = bdf2Step_ ? bdf2LastX_[i] : o_.x_[i];
-  return colliderDistance(body.collider->shape, body.before, x, normal) - o_.contactRadius();
+  return o_.posed(static_cast<std::size_t>(b)).startGap(x, o_.contactRadius(), normal);
 }
 
 int Solver::ImplicitStep::deepestContact(const Eigen::Vector3d& x, double within, Eigen::Vector3d& normal, double& depth,
                            Eigen::Vector3d& colliderVelocity) const {
   const double r = o_.contactRadius();
+  const double reach = r + kContactSlop * r;  // bounds that miss x by more miss the contact
   int deepest = -1;
   depth = within;
   for (std::size_t b = 0; b < o_.contactBodies_.size(); ++b) {
-    const ContactBody& body = o_.contactBodies_[b];
-    if (body.bounded && ((x.array() < body.lo.array()).any() || (x.array() > body.hi.array()).any())) continue;
-    const Collider& c = *body.collider;
+    const PosedCollider& body = o_.posed(b);
+    if (!body.near(x, reach)) continue;
     Eigen::Vector3d n;
-    const double d = colliderDistance(c.shape, body.now, x, n) - r;
+    const double d = body.gap(x, r, n);
     if (!(d < depth)) continue;
     deepest = static_cast<int>(b);
     depth = d;
     normal = n;
-    colliderVelocity = c.linearVelocity + c.angularVelocity.cross(x - body.now.translation());
+    colliderVelocity = body.surfaceVelocity(x);
   }
   return deepest;
 }
@@ -203,7 +199,8 @@ bool Solver::ImplicitStep::updateContactSet(double h, bool& guessChanged, Pcg& p
       if (joinContact(i, h, slop)) changed = guessChanged = true;
       continue;
     }
-    const Collider& c = *o_.contactBodies_[static_cast<std::size_t>(contactBody_[i])].collider;
+    const PosedCollider& body = o_.posed(static_cast<std::size_t>(contactBody_[i]));
+    const Collider& c = *body.collider;
     const Eigen::Vector3d J = -residual[offset + i];
     const double Jn = J.dot(normal_[i]);
     const Eigen::Vector3d& n = normal_[i];
@@ -228,9 +225,7 @@ bool Solver::ImplicitStep::updateContactSet(double h, bool& guessChanged, Pcg& p
         changed = true;
       }
     } else {
-      const Eigen::Vector3d x = o_.x_[i] + h * velocity_[i];
-      const Eigen::Isometry3d& pose = o_.contactBodies_[static_cast<std::size_t>(contactBody_[i])].now;
-      const Eigen::Vector3d vc = c.linearVelocity + c.angularVelocity.cross(x - pose.translation());
+      const Eigen::Vector3d vc = body.surfaceVelocity(o_.x_[i] + h * velocity_[i]);
       const Eigen::Vector3d rel = velocity_[i] - vc;
       const Eigen::Vector3d slip = rel - rel.dot(n) * n;
       const double f = friction_[i].norm(), kinetic = c.kineticFriction * Jn;
@@ -274,12 +269,12 @@ void Solver::ImplicitStep::sumContactImpulses(double h, const std::vector<Eigen:
   // BDF2's solve of 2/3 of the sub-step takes 2/3 of its impulses (its momentum balance is
   // P+ = (4 P_n - P_{n-1}) / 3 + (2h/3) (F + contact)): the sub-step's impulse is 3/2 of it
   const double perSubstep = bdf2Step_ ? o_.params_.substepLength() / h : 1.0;
-  for (ContactBody& body : o_.contactBodies_) body.solved = 0;
   for (std::size_t i = 0; i < o_.x_.size(); ++i) {
     if (contactBody_[i] < 0) continue;
-    ContactBody& body = o_.contactBodies_[static_cast<std::size_t>(contactBody_[i])];
+    const std::size_t b = static_cast<std::size_t>(contactBody_[i]);
+    ContactBody& body = o_.contactBodies_[b];
     const Eigen::Vector3d& n = normal_[i];
-    const Eigen::Isometry3d& pose = body.now;
+    const Eigen::Isometry3d& pose = o_.posed(b).now;
     Eigen::Vector3d J = -residual[offset + i];
     // a sliding contact's impulse: the normal one and the kinetic friction the solve applied
     if (constraint_[i] == PcgConstraint::Normal) J = std::max(0.0, J.dot(n)) * n + friction_[i];
@@ -288,10 +283,8 @@ void Solver::ImplicitStep::sumContactImpulses(double h, const std::vector<Eigen:
     body.impulse += J;
     body.moment += (x - r * n - pose.translation()).cross(J);
     record(body, i, J, x - r * n);
-    // a contact whose normal impulse pushes (one the solve let go of does not), counted on this
-    // body in the contact pass that follows in this sub-step (countedContact())
-    if ((-residual[offset + i]).dot(n) > 0.0 && o_.markCounted(i, contactBody_[i], o_.contactPasses_ + 1))
-      ++body.solved;
+    // a contact whose normal impulse pushes (one the solve let go of does not)
+    if ((-residual[offset + i]).dot(n) > 0.0) o_.tally_.touch(i, b);
   }
 }
 

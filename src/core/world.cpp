@@ -69,9 +69,7 @@ struct World::Impl {
   std::vector<std::unique_ptr<Solver>> objects;
   std::vector<Solver*> pointers;
   /// the scene's colliders, once: every object reads these (Solver::shareColliders())
-  std::shared_ptr<ColliderMap> colliders = std::make_shared<ColliderMap>();
-  std::vector<SubstepCollider> substepColliders;
-  std::vector<Eigen::Isometry3d> colliderStart;
+  std::shared_ptr<ColliderScene> colliders = std::make_shared<ColliderScene>();
   ObjectContactSolver contact;
   ImplicitCoupling coupling;
   std::vector<char> coupled;  // per object, whether its implicit sub-step is in the coupled solve
@@ -206,17 +204,19 @@ void World::setCollider(const std::string& id, const Collider& collider) {
   // one distance field for every object
   if (c.shape.type == ColliderType::Mesh && !c.shape.distanceField)
     c.shape.distanceField = std::make_shared<const MeshDistanceField>(*c.shape.mesh);
-  auto old = impl_->colliders->find(id);
-  if (old != impl_->colliders->end()) impl_->sleeping.disturb(old->second);
+  ColliderMap& map = impl_->colliders->map();
+  auto old = map.find(id);
+  if (old != map.end()) impl_->sleeping.disturb(old->second);
   impl_->sleeping.disturb(c);
-  (*impl_->colliders)[id] = std::move(c);
+  map[id] = std::move(c);
+  impl_->colliders->changed();
   for (auto& object : impl_->objects) object->collidersChanged();
 }
 
 bool World::moveCollider(const std::string& id, const Eigen::Isometry3d& pose, const Eigen::Vector3d& linearVelocity,
                          const Eigen::Vector3d& angularVelocity) {
-  auto it = impl_->colliders->find(id);
-  if (it == impl_->colliders->end()) return false;
+  auto it = impl_->colliders->map().find(id);
+  if (it == impl_->colliders->map().end()) return false;
   if (!pose.matrix().allFinite() || !linearVelocity.allFinite() || !angularVelocity.allFinite())
     throw std::invalid_argument("world: collider '" + id + "' given a non-finite pose or velocity");
   if (!isRotation(pose.linear()))
@@ -232,10 +232,11 @@ bool World::moveCollider(const std::string& id, const Eigen::Isometry3d& pose, c
 }
 
 bool World::removeCollider(const std::string& id) {
-  auto it = impl_->colliders->find(id);
-  if (it == impl_->colliders->end()) return false;
+  auto it = impl_->colliders->map().find(id);
+  if (it == impl_->colliders->map().end()) return false;
   impl_->sleeping.disturb(it->second);
-  impl_->colliders->erase(it);
+  impl_->colliders->map().erase(it);
+  impl_->colliders->changed();
   for (auto& object : impl_->objects) object->collidersChanged();
   return true;
 }
@@ -317,7 +318,7 @@ ContactWrench World::objectWrench(const std::string& from, const std::string& on
 
 void World::step() {
   checkObjects();
-  gatherColliders();
+  impl_->colliders->beginStep();
   chooseSleepers();
   beginObjects();
   const bool couple = planCoupling();
@@ -342,27 +343,14 @@ void World::checkObjects() const {
   }
 }
 
-void World::gatherColliders() {
-  Impl& im = *impl_;
-  im.substepColliders.resize(im.colliders->size());
-  im.colliderStart.resize(im.colliders->size());
-  std::size_t c = 0;
-  for (const auto& entry : *im.colliders) {
-    im.substepColliders[c].id = &entry.first;
-    im.substepColliders[c].collider = &entry.second;
-    im.colliderStart[c] = entry.second.pose;
-    ++c;
-  }
-}
-
-void World::chooseSleepers() { impl_->sleeping.beforeStep(impl_->pointers, *impl_->colliders, timeStep_); }
+void World::chooseSleepers() { impl_->sleeping.beforeStep(impl_->pointers, impl_->colliders->map(), timeStep_); }
 
 void World::beginObjects() {
   Impl& im = *impl_;
   const std::vector<char>& asleep = im.sleeping.asleepThisStep();
   for (std::size_t o = 0; o < im.objects.size(); ++o)
     if (!asleep[o]) im.pointers[o]->beginStep();
-  im.contact.beginStep(im.objects.size(), im.colliders->size());
+  im.contact.beginStep(im.objects.size(), im.colliders->posed().size());
   im.contact.setAsleep(&asleep);
 }
 
@@ -395,6 +383,7 @@ void World::substep(int s, bool couple) {
   const std::size_t N = im.objects.size();
   const std::vector<char>& asleep = im.sleeping.asleepThisStep();
   const double h = timeStep_ / substeps_;
+  im.colliders->poseSubstep(s, h);
   if (couple) {
     im.contact.refreshList(im.pointers, contact_, h);  // before any object moves
     for (std::size_t o = 0; o < N; ++o)
@@ -409,12 +398,7 @@ void World::substep(int s, bool couple) {
     im.contact.setCouplingImpulses(nullptr);
   }
   if (N < 2 && !contact_.selfContact) return;
-  for (std::size_t c = 0; c < im.substepColliders.size(); ++c) {
-    SubstepCollider& sc = im.substepColliders[c];
-    sc.before = advancePose(im.colliderStart[c], sc.collider->linearVelocity, sc.collider->angularVelocity, s * h);
-    sc.now = advancePose(im.colliderStart[c], sc.collider->linearVelocity, sc.collider->angularVelocity, (s + 1) * h);
-  }
-  im.contact.substep(im.pointers, im.substepColliders, contact_, h, s + 1 == substeps_);
+  im.contact.substep(im.pointers, im.colliders->posed(), contact_, h, s + 1 == substeps_);
 }
 
 void World::advanceClock() {
@@ -430,23 +414,16 @@ void World::endObjects() {
       im.objects[o]->idleStep();
       continue;
     }
-    for (std::size_t c = 0; c < im.substepColliders.size(); ++c) {
+    for (std::size_t c = 0; c < im.colliders->posed().size(); ++c) {
       const ColliderImpulse& ci = im.contact.colliderImpulse(o, c);
-      if (ci.contacts == 0 && ci.impulse.isZero(0.0)) continue;
-      im.objects[o]->addColliderImpulse(*im.substepColliders[c].id, ci.impulse, ci.moment, ci.contacts);
+      if (!ci.impulse.isZero(0.0)) im.objects[o]->addColliderImpulse(c, ci.impulse, ci.moment);
     }
     im.objects[o]->endStep();
   }
   im.contact.endStep();
 }
 
-void World::advanceColliders() {
-  std::size_t c = 0;
-  for (auto& entry : *impl_->colliders) {
-    Collider& col = entry.second;
-    col.pose = advancePose(impl_->colliderStart[c++], col.linearVelocity, col.angularVelocity, timeStep_);
-  }
-}
+void World::advanceColliders() { impl_->colliders->endStep(timeStep_); }
 
 void World::collectWrenches() {
   Impl& im = *impl_;

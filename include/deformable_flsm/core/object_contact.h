@@ -7,6 +7,7 @@
 #pragma once
 
 #include "deformable_flsm/core/collider.h"
+#include "deformable_flsm/core/collider_scene.h"
 #include "deformable_flsm/core/implicit_coupling.h"
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/spatial_hash.h"
@@ -27,14 +28,6 @@ namespace deformable_flsm {
 
 struct ObjectContactParams;
 
-/// A collider as the object contact pass sees it in a sub-step.
-struct SubstepCollider {
-  const std::string* id = nullptr;
-  const Collider* collider = nullptr;
-  /// its pose at the start and at the end of the sub-step
-  Eigen::Isometry3d before = Eigen::Isometry3d::Identity(), now = Eigen::Isometry3d::Identity();
-};
-
 /// What one object pair's contacts did over a step: the impulse on the object of the higher
 /// index (b) from the lower (a), its moment about the origin, and the contacts of the last
 /// sub-step.
@@ -46,11 +39,11 @@ struct PairImpulse {
 };
 
 /// What the object contact pass gave one object's particles against one collider over a step
-/// (sum of m dv, its moment about the collider's origin, contacts of the last sub-step).
+/// (sum of m dv, and its moment about the collider's origin); its contacts are the object's
+/// (Solver::touchCollider()).
 struct ColliderImpulse {
   Eigen::Vector3d impulse = Eigen::Vector3d::Zero();
   Eigen::Vector3d moment = Eigen::Vector3d::Zero();
-  std::size_t contacts = 0;
 };
 
 /// A contact as a Gauss-Seidel pass updates it (ObjectContactSolver's passes, and pairUpdate() and
@@ -224,7 +217,7 @@ class ObjectContactSolver {
   /// @param[in]     colliders  the colliders at this sub-step, in the same order as for
   ///                           beginStep()
   /// @param[in]     last       whether this is the step's last sub-step (the contacts counted)
-  void substep(const std::vector<Solver*>& objects, const std::vector<SubstepCollider>& colliders,
+  void substep(const std::vector<Solver*>& objects, const std::vector<PosedCollider>& colliders,
                const ObjectContactParams& params, double h, bool last);
 
   /// The object pairs whose contacts carried an impulse in the step, in increasing (a, b).
@@ -310,7 +303,7 @@ class ObjectContactSolver {
   // --- the passes (object_contact.cpp) ---
   void gather(const std::vector<Solver*>& objects, double h);
   void findPairs(const ObjectContactParams& params);
-  void findColliderContacts(const std::vector<SubstepCollider>& colliders, double h);
+  void findColliderContacts(const std::vector<PosedCollider>& colliders, double h);
   void warmStart(double h);
   /// @return the passes it ran
   int solve(double h, int iterations);
@@ -324,7 +317,7 @@ class ObjectContactSolver {
   }
   void pushOut();
   void scatter(const std::vector<Solver*>& objects);
-  void accumulate(const std::vector<Solver*>& objects, const std::vector<SubstepCollider>& colliders, bool last);
+  void accumulate(const std::vector<Solver*>& objects, const std::vector<PosedCollider>& colliders, bool last);
   PairImpulse& pairSlot(std::uint32_t a, std::uint32_t b);
   PairImpulse& addPairWrench(std::uint32_t o1, std::uint32_t o2, const Eigen::Vector3d& x1,
                              const Eigen::Vector3d& x2, double r1, double r2, const Eigen::Vector3d& J);
@@ -416,8 +409,6 @@ class ObjectContactSolver {
   std::vector<char> restChecked_;
   std::vector<std::uint64_t> restVersion_;
   SpatialHash hash_;  // of the anchors, at the build
-  std::vector<Eigen::Vector3d> colliderLo_, colliderHi_;  // each collider's bounds in the sub-step
-  std::vector<char> colliderBounded_;                     // whether it has them (not a half-space)
   std::vector<ColliderContact> colliderContacts_;  // solved first: the support below settles before the pairs above
   std::vector<PairContact> contacts_;
   // the step's sums

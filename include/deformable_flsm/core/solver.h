@@ -10,6 +10,8 @@
 #pragma once
 
 #include "deformable_flsm/core/collider.h"
+#include "deformable_flsm/core/collider_scene.h"
+#include "deformable_flsm/core/contact_tally.h"
 #include "deformable_flsm/core/fast_summation.h"
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/pcg.h"
@@ -227,12 +229,12 @@ class Solver : private RegionKernel {
   /// Removes collider `id`. Returns false if there is no such collider.
   bool removeCollider(const std::string& id);
   void removeAllColliders();
-  const ColliderMap& colliders() const { return *colliders_; }
+  const ColliderMap& colliders() const { return colliders_->map(); }
   /// The object's colliders are `colliders`, a World's for all its objects: from now on the
   /// World changes and moves them (and calls collidersChanged() after adding or removing one),
   /// this object reads them; setCollider(), moveCollider(), removeCollider() and
   /// removeAllColliders() then throw std::logic_error.
-  void shareColliders(std::shared_ptr<ColliderMap> colliders);
+  void shareColliders(std::shared_ptr<ColliderScene> colliders);
   /// After the shared colliders were added to, replaced or removed from (between steps).
   void collidersChanged();
   /// What the object exerted on collider `id` during the last step(); zero for an unknown id.
@@ -300,15 +302,14 @@ class Solver : private RegionKernel {
   /// Whether particle p's motion is prescribed (pinned or hard-dragged): to contact, a
   /// particle of infinite mass.
   bool isPrescribed(std::uint32_t p) const { return pinned_[p] != 0 || hardDragged_[p] != 0; }
-  /// Whether particle p is already among collider `id`'s contacts of the last sub-step (its contact
-  /// pass, or the implicit solve, counted it): another contact solver does not count it again.
-  bool countedContact(std::uint32_t p, const std::string& id) const;
-  /// Counts into contactWrench(id) an impulse that another contact solver gave this object's
-  /// particles against collider `id` during the step begun (before endStep()): `impulse` the
-  /// sum of m dv on the particles, `moment` its moment about the collider's origin, `contacts`
-  /// the particles it touched in the last sub-step. Returns false if there is no such collider.
-  bool addColliderImpulse(const std::string& id, const Eigen::Vector3d& impulse, const Eigen::Vector3d& moment,
-                          std::size_t contacts);
+  /// Particle p touches the shared collider of place c (in colliders()' order) in the sub-step
+  /// just taken: another contact solver's contact, counted in contactWrench() once with the
+  /// object's own.
+  void touchCollider(std::uint32_t p, std::size_t c) { tally_.touch(p, c); }
+  /// Counts into the wrench of the shared collider of place c an impulse that another contact
+  /// solver gave this object's particles during the step begun (before endStep()): `impulse` the
+  /// sum of m dv on the particles, `moment` its moment about the collider's origin.
+  void addColliderImpulse(std::size_t c, const Eigen::Vector3d& impulse, const Eigen::Vector3d& moment);
 
  private:
   double stepSeconds_ = 0.0;  // time spent in this step's sub-steps, for the thread governor
@@ -355,15 +356,12 @@ class Solver : private RegionKernel {
     bool held = false;
     const std::vector<Eigen::Vector3d>* goals = nullptr;
   };
-  /// contactPass()'s stages: each body's poses before and after the sub-step and bounds, the
-  /// bodies near the object (activeBodies_); one chunk of particles against the bodies near it,
-  /// its impulses in its ContactPartial; the partials summed on the bodies.
+  /// contactPass()'s stages: the bodies near the object (activeBodies_); one chunk of particles
+  /// against the bodies near it, its impulses in its ContactPartial; the partials summed on the
+  /// bodies.
   void placeContactBodies(double r);
-  /// Each contact body at the start (before) and the end (now) of sub-step contactSubstep_ along
-  /// its velocities, with its bounds at the end padded by `pad`.
-  void poseContactBodies(double pad);
-  /// Each collider (and its body's `now`) at the end of the step, from its pose at the start.
-  void poseCollidersAtStepEnd();
+  /// Collider c of the scene as the sub-step sees it (ColliderScene::posed()).
+  const PosedCollider& posed(std::size_t c) const { return colliders_->posed()[c]; }
   void contactChunk(std::ptrdiff_t chunk, const ContactPassFrame& pass);
   /// The active bodies near particles [begin, end) (within r of their bounding box), into `near`;
   /// returns their count.
@@ -423,26 +421,18 @@ class Solver : private RegionKernel {
   }
   bool impulsePending_ = false;
   std::map<std::string, Drag> drags_;
-  /// the colliders: the object's own, or its World's (shareColliders()); their poses are
-  /// written only by their keeper (poseCollidersAtStepEnd())
-  std::shared_ptr<ColliderMap> colliders_ = std::make_shared<ColliderMap>();
+  /// the colliders: the object's own, or its World's (shareColliders()); posed over a step only
+  /// by their keeper (the World, or the lone object)
+  std::shared_ptr<ColliderScene> colliders_ = std::make_shared<ColliderScene>();
   bool ownsColliders_ = true;
   /// throws std::logic_error when the colliders are a World's
   void checkOwnsColliders(const char* what) const;
-  /// A collider as the contact pass sees it, in the order of colliders_.
+  /// What the object gave collider c (posed(c)) over the step, in the order of colliders_.
   struct ContactBody {
-    const std::string* id = nullptr;
-    Collider* collider = nullptr;
-    Eigen::Isometry3d start = Eigen::Isometry3d::Identity();  // pose at the start of the step
-    Eigen::Isometry3d now = Eigen::Isometry3d::Identity();    // pose at the end of this sub-step
-    Eigen::Isometry3d before = Eigen::Isometry3d::Identity(); // pose at the start of this sub-step
-    Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();  // bounds + radius
-    bool bounded = false;
+    const Collider* collider = nullptr;  // to keep a staying collider's wrench over a change of the set
     Eigen::Vector3d impulse = Eigen::Vector3d::Zero();  // sum of m dv on the particles this step
     Eigen::Vector3d moment = Eigen::Vector3d::Zero();   // sum of (contact point - origin) x m dv
-    std::size_t contacts = 0;                            // in the last sub-step
     std::size_t buried = 0;  // the most particles buried deeper than r at a sub-step's start, this step
-    std::size_t solved = 0;  // pushing contacts of this sub-step's implicit solve (contactPass() adds its own)
     ContactWrench wrench;                                // over the last step
     /// recordContacts(): per particle its impulse on the body this step (m dv, summed) and its
     /// last contact point; the step's contacts as a list
@@ -462,22 +452,15 @@ class Solver : private RegionKernel {
   struct ContactPartial {
     Eigen::Vector3d impulse = Eigen::Vector3d::Zero();
     Eigen::Vector3d moment = Eigen::Vector3d::Zero();
-    std::size_t contacts = 0;
     std::size_t buried = 0;
   };
   std::vector<ContactBody> contactBodies_;
   std::vector<int> activeBodies_;               // bodies near the object in this sub-step
-  // per particle: the bodies (bit a for body a < 64) the contact pass numbered countedPass_, or
-  // the implicit solve before it, counted it on; contactPasses_ numbers the passes
-  std::vector<std::uint64_t> countedBodies_;
-  std::vector<std::uint64_t> countedPass_;
-  std::uint64_t contactPasses_ = 0;
-  /// Marks particle i as counted on body a in pass `pass`; false if it already was (a body past
-  /// the 64th is never marked: counted every time).
-  bool markCounted(std::size_t i, int a, std::uint64_t pass);
+  ContactTally tally_;  // the colliders each particle touched in the sub-step, for the wrenches' contacts
+  /// Starts a sub-step's contacts; a lone object poses its colliders for sub-step s.
+  void beginContactSubstep(int s);
   std::vector<ContactPartial> contactPartials_;  // chunk-major, #chunks x #bodies
   std::vector<int> chunkBodies_;                // per chunk, the active bodies near it (#chunks x #bodies)
-  int contactSubstep_ = 0;                      // the sub-step being taken, from 0
   std::vector<TimedForce> forces_;
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
   std::vector<std::uint32_t> forcedParticles_;  // where forceAccel_ is non-zero

@@ -205,8 +205,6 @@ class World {
   // the stages of step(), in their order
   /// an object given a time step or scheme the world cannot step is refused before anything moves
   void checkObjects() const;
-  /// the colliders' poses at the step's start, from which every sub-step's poses are advanced
-  void gatherColliders();
   /// which objects sleep through the step: those at rest that nothing has reached (Sleeping)
   void chooseSleepers();
   /// the awake objects begin their step; the contact pass learns which objects sleep through it
