@@ -4,6 +4,7 @@
 #pragma once
 
 #include "deformable_flsm/core/solver.h"
+#include "support/params.h"
 
 #include <Eigen/Core>
 
@@ -16,15 +17,7 @@ constexpr double kDensity = 1000.0;
 constexpr double kBig = 1e3;
 
 inline SolverParams implicitParams(double E, double nu, int w, double timeStep) {
-  SolverParams p;
-  p.density = kDensity;
-  p.youngsModulus = E;
-  p.poissonsRatio = nu;
-  p.regionHalfWidth = w;
-  p.timeStep = timeStep;
-  p.substeps = 1;
-  p.integrator = Integrator::Implicit;
-  return p;
+  return test::physicalParams(E, nu, w, timeStep, 1, Integrator::Implicit);
 }
 
 /// A ground plane `gap` below the solver's lowest particle's contact sphere.

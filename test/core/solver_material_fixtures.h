@@ -6,6 +6,7 @@
 
 #include "deformable_flsm/core/solver.h"
 #include "fixtures.h"
+#include "support/params.h"
 
 #include <Eigen/Core>
 
@@ -31,14 +32,7 @@ inline Voxelization box(int nx, int ny, int nz, double h, const Eigen::Vector3d&
 inline double modulusFor(double h) { return 0.3 * kDensity * h * h * 2.0 / (3.0 * std::pow(kStep / 4, 2)); }
 
 inline SolverParams physical(double E, double nu, int w, int substeps) {
-  SolverParams p;
-  p.density = kDensity;
-  p.youngsModulus = E;
-  p.poissonsRatio = nu;
-  p.regionHalfWidth = w;
-  p.timeStep = kStep;
-  p.substeps = substeps;
-  return p;
+  return test::physicalParams(E, nu, w, kStep, substeps);
 }
 
 /// Pulls a bar of `along` cells along x apart: -F on its first cell layer, +F on its last, for

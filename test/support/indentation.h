@@ -7,6 +7,7 @@
 #include "deformable_flsm/core/solver.h"
 #include "support/axisymmetric_press.h"
 #include "support/fem_oracle.h"
+#include "support/params.h"
 
 #include <Eigen/Core>
 
@@ -49,14 +50,8 @@ struct PressResult {
 
 /// The solver's parameters for `how`, gravity off.
 inline SolverParams solverParams(const Press& how) {
-  SolverParams p;
+  SolverParams p = test::physicalParams(how.youngsModulus, how.nu, how.w, how.timeStep, how.substeps, how.integrator);
   p.density = how.density;
-  p.youngsModulus = how.youngsModulus;
-  p.poissonsRatio = how.nu;
-  p.regionHalfWidth = how.w;
-  p.timeStep = how.timeStep;
-  p.substeps = how.substeps;
-  p.integrator = how.integrator;
   p.gravity.setZero();
   return p;
 }

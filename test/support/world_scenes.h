@@ -6,6 +6,7 @@
 #include "core/fixtures.h"
 #include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/core/world.h"
+#include "support/params.h"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -122,13 +123,8 @@ inline bool allFinite(const World& world) {
 /// A cube of a physical material of Young's modulus E (regions of half-width 1), one implicit
 /// sub-step of 1/60 s, ambient damping 1/s.
 inline SolverParams implicitCube(double E) {
-  SolverParams p;
-  p.regionHalfWidth = 1;
-  p.youngsModulus = E;
+  SolverParams p = test::physicalParams(E, 0.0, 1, kStep, 1, Integrator::Implicit);
   p.ambientDamping = 1.0;
-  p.timeStep = kStep;
-  p.substeps = 1;
-  p.integrator = Integrator::Implicit;
   return p;
 }
 
@@ -169,14 +165,8 @@ inline std::vector<std::pair<std::string, Collider>> fillSoftBin(World& world, I
     const Eigen::Vector3d lo(-0.165 + 0.12 * (k % 3), -0.165 + 0.12 * (k / 3), 0.02 + 0.12 * layer);
     auto lattice = n % 2 == 0 ? meshAt(kBunnyMeshPath, true, yaw[n], 0.09, 6, lo)
                               : meshAt("/usr/share/glmark2/models/cube.3ds", false, yaw[n], 0.08, 5, lo);
-    SolverParams p;
-    p.regionHalfWidth = 1;
-    p.youngsModulus = 30000.0;
-    p.stiffness = 1.0;
+    SolverParams p = test::physicalParams(30000.0, 0.0, 1, dt, substeps, integrator);
     p.ambientDamping = 1.0;
-    p.timeStep = dt;
-    p.substeps = substeps;
-    p.integrator = integrator;
     Solver& s = world.addObject("o" + std::to_string(n), lattice, p);
     r = std::min(r, s.contactRadius());
   }
