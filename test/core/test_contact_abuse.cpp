@@ -8,6 +8,7 @@
 #include "deformable_flsm/core/solver.h"
 #include "contact_fixtures.h"
 #include "fixtures.h"
+#include "support/params.h"
 #include "support/world_scenes.h"
 
 #include <gtest/gtest.h>
@@ -33,11 +34,8 @@ TEST(Contact, ColliderSetIntoTheObjectPushesItOutWithoutThrowingIt) {
   // it on the surface in one sub-step gives 1 / alpha times that as kinetic energy instead, and
   // where colliders overlap it grew without bound (the soak's blown-up states).
   auto lattice = std::make_shared<const Lattice>(test::makeBox(8, 8, 8, 0.01), 1000.0, 2);
-  SolverParams p;
-  p.regionHalfWidth = lattice->regionHalfWidth();
-  p.youngsModulus = 3e4;  // the node's default material and sub-steps: alpha 0.34
-  p.timeStep = 1.0 / 60.0;
-  p.substeps = 11;
+  // the node's default material and sub-steps: alpha 0.34
+  SolverParams p = test::physicalParams(3e4, 0.0, lattice->regionHalfWidth(), 1.0 / 60.0, 11);
   p.gravity.setZero();
   p.damping = 0.0;
   p.ambientDamping = 0.0;
@@ -163,10 +161,7 @@ NodeBunny nodeBunny() {
   const ResolutionChoice c = finestResolutionWithin(zUpBunny(), 2500);
   const int w = regionHalfWidthForSection(measureSectionThickness(c.voxels).thinnest, 5);
   b.lattice = std::make_shared<const Lattice>(c.voxels, 1000.0, w);
-  b.params.regionHalfWidth = w;
-  b.params.youngsModulus = 1e7;
-  b.params.timeStep = 1.0 / 60.0;
-  b.params.substeps = 11;
+  b.params = test::physicalParams(1e7, 0.0, w, 1.0 / 60.0, 11);
   return b;
 }
 

@@ -10,6 +10,7 @@
 #include "deformable_flsm/core/solver.h"
 #include "contact_fixtures.h"
 #include "fixtures.h"
+#include "support/params.h"
 #include "support/world_scenes.h"
 
 #include <gtest/gtest.h>
@@ -270,15 +271,8 @@ void indenterMovedInOneCommand(bool implicit, std::vector<double>& reactions) {
   const ResolutionChoice choice = finestResolutionWithin(zUpBunny(), 2000);
   const int w = regionHalfWidthForSection(measureSectionThickness(choice.voxels).thinnest, 5);
   auto lattice = std::make_shared<const Lattice>(choice.voxels, 1000.0, w);
-  SolverParams p;
-  p.regionHalfWidth = w;
-  p.youngsModulus = 3e4;
-  p.timeStep = 1.0 / 60.0;
-  p.substeps = 11;
-  if (implicit) {
-    p.integrator = Integrator::Implicit;
-    p.substeps = 1;
-  }
+  const SolverParams p = implicit ? test::physicalParams(3e4, 0.0, w, 1.0 / 60.0, 1, Integrator::Implicit)
+                                  : test::physicalParams(3e4, 0.0, w, 1.0 / 60.0, 11);
   for (bool pinned : {false, true}) {
     Solver s(lattice, p);
     s.setCollider("ground", groundBelow(s, 0.02));

@@ -7,6 +7,7 @@
 #include "fixtures.h"
 #include "support/fem_oracle.h"
 #include "support/indentation.h"
+#include "support/params.h"
 
 #include <gtest/gtest.h>
 
@@ -37,15 +38,11 @@ class DragForce : public ::testing::TestWithParam<HangCase> {};
 TEST_P(DragForce, AHungBlockAtRestHangsOnItsDragWithItsWeightAndItsMoment) {
   const HangCase c = GetParam();
   auto lattice = std::make_shared<const Lattice>(test::makeBox(6, 6, 6, kSpacing), 1000.0, 1);
-  SolverParams p;
-  p.regionHalfWidth = 1;
-  p.youngsModulus = 2e4;
-  p.poissonsRatio = 0.3;
+  const int substeps = c.integrator == Integrator::Explicit ? 32 : 2;
+  SolverParams p = test::physicalParams(2e4, 0.3, 1, 1.0 / 60.0, substeps, c.integrator);
   p.gravity = Eigen::Vector3d(0, 0, -kGravity);
   p.ambientDamping = 20.0;
-  p.integrator = c.integrator;
   p.implicitScheme = c.scheme;
-  p.substeps = c.integrator == Integrator::Explicit ? 32 : 2;
   Solver s(lattice, p);
   std::vector<std::uint32_t> patch;
   for (std::uint32_t i = 0; i < lattice->size(); ++i) {

@@ -5,6 +5,7 @@
 #include "deformable_flsm/core/mesh.h"
 #include "deformable_flsm/core/voxelizer.h"
 #include "deformable_flsm/core/world.h"
+#include "support/params.h"
 
 #include <gtest/gtest.h>
 
@@ -113,12 +114,8 @@ TEST(FrictionScene, ABinOfSoftObjectsComesToRestWithKineticBelowStatic) {
     const Eigen::Vector3d at(-0.12 + 0.12 * (n % 3), -0.12 + 0.12 * ((n % 9) / 3), 0.06 + 0.12 * (n / 9));
     auto lattice = n % 2 == 0 ? placed(kBunnyMeshPath, 0.045, 1.5708, 6, at, yaw[n])
                               : placed(cube, 0.04, 0.0, 5, at, yaw[n]);
-    SolverParams p;
-    p.regionHalfWidth = 1;
-    p.youngsModulus = 30000.0;
+    SolverParams p = test::physicalParams(30000.0, 0.0, 1, dt, substeps);
     p.ambientDamping = 1.0;
-    p.timeStep = dt;
-    p.substeps = substeps;
     Solver& s = world.addObject("o" + std::to_string(n), lattice, p);
     r = std::min(r, s.contactRadius());
   }

@@ -4,6 +4,7 @@
 #include "deformable_flsm/core/simd.h"
 #include "deformable_flsm/core/solver.h"
 #include "fixtures.h"
+#include "support/params.h"
 
 #include <gtest/gtest.h>
 
@@ -35,11 +36,7 @@ struct LevelGuard {
 /// Poisson term all work), deformed and spinning, stepped 40 times: the positions.
 std::vector<Eigen::Vector3d> spinningBlock(Integrator integrator) {
   auto lattice = std::make_shared<const Lattice>(deformable_flsm::test::makeBox(7, 6, 5, 0.01), 1000.0, 2);
-  SolverParams p;
-  p.regionHalfWidth = 2;
-  p.poissonsRatio = 0.3;
-  p.youngsModulus = 2e4;
-  p.integrator = integrator;
+  SolverParams p = deformable_flsm::test::physicalParams(2e4, 0.3, 2, 1.0 / 60.0, 4, integrator);
   p.gravity.setZero();
   Solver s(lattice, p);
   deformable_flsm::test::deformAndSpin(s, Eigen::Vector3d(0.0, 0.0, 3.0), 7);
