@@ -21,6 +21,7 @@
 #include "deformable_flsm/core/resolution.h"
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/voxelizer.h"
+#include "support/params.h"
 
 #include <algorithm>
 #include <chrono>
@@ -226,10 +227,7 @@ int main(int argc, char** argv) {
   const Voxelization vox = nearestResolution(mesh, args.particles).voxels;
   const int w = regionHalfWidthForRadius(0.048, vox.spacing);
   auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
-  SolverParams p;
-  p.regionHalfWidth = w;
-  p.youngsModulus = 14e3;
-  p.substeps = 4;
+  const SolverParams p = test::physicalParams(14e3, 0.0, w, 1.0 / 60.0, 4);
   std::printf("mesh %s: %zu particles, spacing %.4g m, w = %d, %d sub-steps of %.4g s\n", args.mesh.c_str(),
               lattice->size(), vox.spacing, w, p.substeps, p.substepLength());
 

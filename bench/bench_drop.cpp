@@ -12,6 +12,7 @@
 #include "deformable_flsm/core/lattice.h"
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/voxelizer.h"
+#include "support/params.h"
 
 #include <Eigen/Geometry>
 
@@ -79,14 +80,7 @@ std::shared_ptr<const Lattice> block(const Args& a) {
 
 int main(int argc, char** argv) {
   const Args a = parse(argc, argv);
-  SolverParams p;
-  p.density = 1000.0;
-  p.youngsModulus = a.modulus;
-  p.poissonsRatio = a.nu;
-  p.regionHalfWidth = 1;
-  p.timeStep = a.step;
-  p.substeps = a.substeps;
-  p.integrator = a.integrator;
+  const SolverParams p = test::physicalParams(a.modulus, a.nu, 1, a.step, a.substeps, a.integrator);
   const auto lattice = block(a);
   const int steps = static_cast<int>(std::lround(a.seconds / a.step));
   std::printf("block of %d^3 cells of %.3g m (%.3g kg), E %.3g Pa, nu %.2f, %s, %d sub-step(s) of %.4g s, "

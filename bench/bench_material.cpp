@@ -40,6 +40,7 @@
 #include "deformable_flsm/core/voxelizer.h"
 #include "support/fem_oracle.h"
 #include "support/indentation.h"
+#include "support/params.h"
 
 #include <cmath>
 #include <cstdio>
@@ -95,14 +96,8 @@ int regionHalfWidthFor(const Setting& s, const Voxelization& vox) {
 }
 
 SolverParams paramsFor(const Setting& s, int w, double E, const Eigen::Vector3d& load, double settleRate) {
-  SolverParams p;
+  SolverParams p = test::physicalParams(E, s.nu, w, kStep, s.substeps, s.integrator);
   p.density = kDensity;
-  p.youngsModulus = E;
-  p.poissonsRatio = s.nu;
-  p.regionHalfWidth = w;
-  p.timeStep = kStep;
-  p.substeps = s.substeps;
-  p.integrator = s.integrator;
   p.gravity = load;
   p.ambientDamping = settleRate;
   return p;

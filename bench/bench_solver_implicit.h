@@ -8,6 +8,7 @@
 #include "deformable_flsm/core/mesh.h"
 #include "deformable_flsm/core/resolution.h"
 #include "deformable_flsm/core/solver.h"
+#include "support/params.h"
 
 #include <Eigen/Geometry>
 
@@ -96,12 +97,7 @@ inline void implicitTable(const TriMesh& mesh, std::size_t particles, int w, con
     const Voxelization vox = voxelizeNear(mesh, target);
     auto lattice = std::make_shared<const Lattice>(vox, 1000.0, w);
     for (double E : moduli) {
-      SolverParams p;
-      p.regionHalfWidth = w;
-      p.youngsModulus = E;
-      p.poissonsRatio = 0.3;
-      p.substeps = 1;
-      p.integrator = Integrator::Implicit;
+      const SolverParams p = test::physicalParams(E, 0.3, w, 1.0 / 60.0, 1, Integrator::Implicit);
       const DropRun imp = drop(lattice, p, 2.0);
       SolverParams e = p;
       e.integrator = Integrator::Explicit;
@@ -117,15 +113,9 @@ inline void implicitTable(const TriMesh& mesh, std::size_t particles, int w, con
 /// The bunny's material in the demo and sway tables: E, nu 0, the node's region damping 10 and
 /// ambient damping 0.5, steps of h in `substeps`.
 inline SolverParams bunnyParams(int w, double E, Integrator integrator, double h, int substeps) {
-  SolverParams p;
-  p.regionHalfWidth = w;
-  p.youngsModulus = E;
-  p.poissonsRatio = 0.0;
+  SolverParams p = test::physicalParams(E, 0.0, w, h, substeps, integrator);
   p.damping = 10.0;
   p.ambientDamping = 0.5;
-  p.timeStep = h;
-  p.substeps = substeps;
-  p.integrator = integrator;
   return p;
 }
 
