@@ -8,6 +8,7 @@
 #pragma once
 
 #include "deformable_flsm/core/solver_params.h"
+#include "support/params.h"
 
 #include <Eigen/Core>
 
@@ -60,17 +61,12 @@ struct Setting {
 /// @return parameters that pass SolverParams::validate()
 inline SolverParams flsmParams(const Setting& setting, int regionHalfWidth, SolverKind kind,
                                Integrator integrator = Integrator::Explicit) {
-  SolverParams p;
+  SolverParams p = test::physicalParams(setting.youngsModulus, setting.poissonRatio, regionHalfWidth,
+                                        setting.frameStep, setting.substeps, integrator);
   p.kind = kind;
-  p.integrator = integrator;
   p.density = kStudyDensity;
-  p.youngsModulus = setting.youngsModulus;
-  p.poissonsRatio = setting.poissonRatio;
   p.stiffness = 1.0;
-  p.regionHalfWidth = regionHalfWidth;
   p.ambientDamping = setting.ambientDamping;
-  p.timeStep = setting.frameStep;
-  p.substeps = setting.substeps;
   p.gravity = setting.gravity;
   p.threads = 1;  // the study compares single-thread costs
   p.validate();
