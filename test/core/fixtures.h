@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <functional>
 #include <random>
+#include <string>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -154,6 +155,23 @@ inline MomentumScale deformAndSpin(Solver& solver, const Eigen::Vector3d& spin, 
     scale.angular += solver.lattice().masses()[i] * x[i].norm() * v[i].norm();
   }
   return scale;
+}
+
+/// Moves every particle of `solver` to the degenerate start `name`: "point" (all on one point),
+/// "plane" (flattened onto z = 0), "scrambled" (anywhere within the object's size about the
+/// origin, std::mt19937 seeded with 21) or "stretched" (ten times as far from the origin).
+inline void degenerateStart(Solver& solver, const std::string& name) {
+  const double size = solver.lattice().objectSize();
+  std::vector<Eigen::Vector3d> x = solver.positions();
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (auto& xi : x) {
+    if (name == "point") xi = Eigen::Vector3d(0.3, 0.3, 0.3);
+    if (name == "plane") xi.z() = 0.0;
+    if (name == "scrambled") xi = size * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    if (name == "stretched") xi *= 10.0;
+  }
+  solver.setPositions(x);
 }
 
 }  // namespace test

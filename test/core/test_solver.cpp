@@ -132,16 +132,7 @@ TEST_P(Stability, RecoversFromDegenerateStartWithLargeStep) {
   Solver s(bar(), p);
   const std::string name = GetParam();
   const double size = s.lattice().objectSize();
-  std::vector<Eigen::Vector3d> x = s.positions();
-  std::mt19937 rng(21);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  for (auto& xi : x) {
-    if (name == "point") xi = Eigen::Vector3d(0.3, 0.3, 0.3);
-    if (name == "plane") xi.z() = 0.0;
-    if (name == "scrambled") xi = size * Eigen::Vector3d(u(rng), u(rng), u(rng));
-    if (name == "stretched") xi *= 10.0;
-  }
-  s.setPositions(x);
+  deformable_flsm::test::degenerateStart(s, name);
   for (int i = 0; i < 900; ++i) {
     s.step();
     ASSERT_TRUE(allFinite(s.positions())) << "NaN at step " << i;
