@@ -455,8 +455,8 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
       }
       Eigen::Vector3d v;
       if (k.relative) {
-        // ambient damping of the motion relative to the object's rigid motion (computeRigidMotion())
-        const Eigen::Vector3d rigid = rigidVelocity_ + rigidSpin_.cross(x_[i] - xref_);
+        // ambient damping of the motion relative to the object's rigid motion (rigidMotion())
+        const Eigen::Vector3d rigid = rigid_.velocity + rigid_.spin.cross(x_[i] - xref_);
         v = rigid + k.keep * (v_[i] - rigid) + dv;
       } else {
         v = (v_[i] + dv) * k.keep;  // held by the world: drag towards rest
@@ -482,7 +482,7 @@ void Solver::particleResult(std::size_t begin, std::size_t end, const double* su
 // settles on its supports.
 bool Solver::heldByWorld() const { return pinnedCount_ > 0 || !drags_.empty() || !colliders_->map().empty(); }
 
-void Solver::computeRigidMotion() {
+Solver::RigidMotion Solver::rigidMotion() {
   const auto& m = lattice_->masses();
   xref_ = x_[anchor_];
   double M = 0.0;
@@ -500,8 +500,10 @@ void Solver::computeRigidMotion() {
   const Eigen::Vector3d L = l - c.cross(mv);                 // about the centre of mass
   const Eigen::Matrix3d P = mxx - M * c * c.transpose();     // second moment about it
   const Eigen::Matrix3d I = P.trace() * Eigen::Matrix3d::Identity() - P;
-  rigidSpin_ = solveInertia(I, L);
-  rigidVelocity_ = V - rigidSpin_.cross(c);
+  RigidMotion rigid;
+  rigid.spin = solveInertia(I, L);
+  rigid.velocity = V - rigid.spin.cross(c);
+  return rigid;
 }
 
 // One sub-step of FastLSM dynamics (Rivers & James 2007, eq. 7):
@@ -509,7 +511,7 @@ void Solver::computeRigidMotion() {
 // Shape matching and both dampings act on the state at the start of the sub-step:
 //   v <- v_obj + keep (v - v_obj) + alpha s_i (g - x) / h + h f / m + kd (v_rigid(v) - v)
 // with v_obj the object's rigid motion; v <- (v + ...) keep when held by the world (see
-// computeRigidMotion()).
+// rigidMotion()).
 // The update of each particle is the last step of the region pass (particleResult()), done as
 // soon as its goal is known: the state is read and written in one sweep over the lattice.
 void Solver::substep(double h) {
@@ -522,7 +524,7 @@ void Solver::substep(double h) {
   step_.keep = std::exp(-params_.ambientDamping * h);
   step_.relative = params_.ambientDamping > 0.0 && !heldByWorld();
   step_.forced = !forcedParticles_.empty();
-  if (step_.relative) computeRigidMotion();
+  if (step_.relative) rigid_ = rigidMotion();
   if (volumetric_) computeVolumetricForces();
   regionPass(step_.kd > 0.0);
   step_.integrate = false;

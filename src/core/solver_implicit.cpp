@@ -286,7 +286,7 @@ void Solver::ImplicitStep::begin(double h) {
     linearizeVolumetric();
   }
   const bool relative = o_.params_.ambientDamping > 0.0 && !o_.heldByWorld();
-  if (relative) o_.computeRigidMotion();
+  const RigidMotion rigid = relative ? o_.rigidMotion() : RigidMotion();
 
   // The system: A = diag(M (1 + h c [a free object]) + h^2 k_spring) + sum_r (h^2 k beta_r + h damping) K_r
   // (+ h^2 H_vol), h^2 k = alpha.
@@ -321,7 +321,7 @@ void Solver::ImplicitStep::begin(double h) {
     }
     // relative ambient damping pulls towards the object's rigid motion as gravity carries it
     // over the sub-step (as the explicit step damps before adding gravity): free fall is exact
-    if (relative) b += (h * c * m[i]) * (o_.rigidVelocity_ + o_.rigidSpin_.cross(o_.x_[i] - o_.xref_) + h * o_.params_.gravity);
+    if (relative) b += (h * c * m[i]) * (rigid.velocity + rigid.spin.cross(o_.x_[i] - o_.xref_) + h * o_.params_.gravity);
     rhs_[i] = b;
     invPrecond_[i] = (diagonal_[i].array() + hessian_->diagonalBound(i)).inverse();
     constraint_[i] = (o_.pinned_[i] != 0 || o_.hardDragged_[i] != 0) ? PcgConstraint::Fixed : PcgConstraint::Free;

@@ -475,11 +475,14 @@ class Solver : private RegionKernel {
     bool forced = false;     // some particle has a force or spring acceleration (forceAccel_)
     bool relative = false;   // ambient damping relative to the object's rigid motion
   } step_;
-  /// The object's rigid motion at the start of the sub-step, v_obj(x) = rigidVelocity_ +
-  /// rigidSpin_ x (x - xref_), what ambient damping leaves alone (see computeRigidMotion()).
-  Eigen::Vector3d rigidVelocity_ = Eigen::Vector3d::Zero(), rigidSpin_ = Eigen::Vector3d::Zero();
   std::size_t pinnedCount_ = 0;
-  void computeRigidMotion();
+  /// The object's rigid motion v_obj(x) = velocity + spin x (x - xref_), what relative ambient
+  /// damping leaves alone: rigidMotion() gives the one that keeps its momenta now (xref_ updated).
+  struct RigidMotion {
+    Eigen::Vector3d velocity = Eigen::Vector3d::Zero(), spin = Eigen::Vector3d::Zero();
+  };
+  RigidMotion rigidMotion();
+  RigidMotion rigid_;  // the explicit sub-step's, at its start (step_.relative)
   /// pinned, dragged or attached, or with colliders to rest on: ambient damping drags to rest
   bool heldByWorld() const;
   std::vector<double> regionWeight_;     // beta_r
