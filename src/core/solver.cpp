@@ -3,6 +3,7 @@
 #include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/core/polar.h"
 #include "deformable_flsm/core/small_matrix.h"
+#include "explicit_step.h"
 #include "implicit_step.h"
 #include "inertia.h"
 #include "lanes.h"
@@ -113,9 +114,7 @@ Solver::Solver(std::shared_ptr<const Lattice> lattice, const SolverParams& param
   pinnedList_.reserve(n);
   pinPosition_ = x0;
   impulseDv_.assign(n, Eigen::Vector3d::Zero());
-  freeVelocity_.assign(n, Eigen::Vector3d::Zero());
   forceAccel_.assign(n, Eigen::Vector3d::Zero());
-  goal_.assign(n, Eigen::Vector3d::Zero());
 }
 
 void Solver::setParams(const SolverParams& params) {
@@ -150,7 +149,8 @@ void Solver::reset() {
   impulsePending_ = false;
   frameRotation_.setIdentity();
   for (ContactBody& body : contactBodies_) body.wrench = ContactWrench();
-  // the implicit step's memory of the last sub-step: its warm start and contact states
+  // the implicit step's memory of the last sub-step: its warm start and contact states (also of
+  // one kept from before a switch to the explicit integrator)
   if (implicit_) implicit_->forgetMemory();
   time_ = 0.0;
   substeps_ = 0;
@@ -241,7 +241,7 @@ void Solver::advanceSubstep(int s) {
   if (params_.integrator == Integrator::Implicit)
     implicit_->substep(h);
   else
-    substep(h);
+    explicit_->substep(h);
   if (timed) stepSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
@@ -426,47 +426,17 @@ void Solver::regionData(std::size_t begin, std::size_t end, const double* sums, 
 void Solver::particleResult(std::size_t begin, std::size_t end, const double* sums) {
   detail::withSimd([&] {
     const int outK = scatterChannels();
-    const StepConstants& k = step_;
+    ExplicitStep* const step = integrating_;
     for (std::size_t i = begin; i < end; ++i) {
       const double* s = sums + (i - begin) * outK;
       const Eigen::Vector3d& q = restCentered_[i];
       Eigen::Vector3d g(s[9], s[10], s[11]);
       for (int a = 0; a < 3; ++a) g[a] += s[3 * a] * q.x() + s[3 * a + 1] * q.y() + s[3 * a + 2] * q.z();
       g = g * invWeightSum_[i] + xref_;
-      if (!k.integrate) {
+      if (step == nullptr)
         (*goalsOut_)[i] = g;
-        continue;
-      }
-      // v <- v_obj + keep (v - v_obj) + alpha s_i (g - x) / h + h (gravity + f / m) + kd (v_rigid - v);
-      // x <- x + h v
-      goal_[i] = g;  // the contact pass bounds its push-out by it
-      // (a pinned or hard-dragged particle is left to finishSubstep(), the latter's free velocity
-      // kept for its drag's impulse)
-      if (pinned_[i] != 0) continue;
-      Eigen::Vector3d a = params_.gravity;
-      if (k.forced) a += forceAccel_[i];
-      if (volumetric_) a += volumetricAccel_[i];
-      Eigen::Vector3d dv = k.pull * stiffnessFactor_[i] * (g - x_[i]) + k.h * a;
-      if (passDamping_) {
-        const Eigen::Vector3d p = x_[i] - xref_;
-        const Eigen::Vector3d target =
-            (Eigen::Vector3d(s[12], s[13], s[14]) + Eigen::Vector3d(s[15], s[16], s[17]).cross(p)) * invCount_[i];
-        dv += k.kd * (target - v_[i]);
-      }
-      Eigen::Vector3d v;
-      if (k.relative) {
-        // ambient damping of the motion relative to the object's rigid motion (rigidMotion())
-        const Eigen::Vector3d rigid = rigid_.velocity + rigid_.spin.cross(x_[i] - xref_);
-        v = rigid + k.keep * (v_[i] - rigid) + dv;
-      } else {
-        v = (v_[i] + dv) * k.keep;  // held by the world: drag towards rest
-      }
-      if (hardDragged_[i] != 0) {
-        freeVelocity_[i] = v;
-        continue;
-      }
-      v_[i] = v;
-      x_[i] += k.h * v;
+      else
+        step->update(i, g, s);
     }
   });
 }
@@ -506,31 +476,6 @@ Solver::RigidMotion Solver::rigidMotion() {
   return rigid;
 }
 
-// One sub-step of FastLSM dynamics (Rivers & James 2007, eq. 7):
-//   v <- v + alpha (g - x) / h + h f / m,   damping,   x <- x + h v.
-// Shape matching and both dampings act on the state at the start of the sub-step:
-//   v <- v_obj + keep (v - v_obj) + alpha s_i (g - x) / h + h f / m + kd (v_rigid(v) - v)
-// with v_obj the object's rigid motion; v <- (v + ...) keep when held by the world (see
-// rigidMotion()).
-// The update of each particle is the last step of the region pass (particleResult()), done as
-// soon as its goal is known: the state is read and written in one sweep over the lattice.
-void Solver::substep(double h) {
-  applyPendingImpulses();
-  accumulateForces(h);
-  step_.integrate = true;
-  step_.h = h;
-  step_.kd = 1.0 - std::exp(-params_.damping * h);
-  step_.pull = alpha_ / h;
-  step_.keep = std::exp(-params_.ambientDamping * h);
-  step_.relative = params_.ambientDamping > 0.0 && !heldByWorld();
-  step_.forced = !forcedParticles_.empty();
-  if (step_.relative) rigid_ = rigidMotion();
-  if (volumetric_) computeVolumetricForces();
-  regionPass(step_.kd > 0.0);
-  step_.integrate = false;
-  endSubstep(h, h);
-}
-
 // What both integrators do after their velocity update: contact, the prescribed particles, the
 // timed forces' countdown and the clock.
 void Solver::endSubstep(double h, double elapsed) {
@@ -544,11 +489,9 @@ void Solver::endSubstep(double h, double elapsed) {
   ++substeps_;
 }
 
-// The particles particleResult() leaves alone: hard-dragged ones follow their target (the
+// The particles the integrator leaves alone: hard-dragged ones follow their target (the
 // velocity that reaches it in one sub-step), pinned ones stay.
 void Solver::finishSubstep(double h) {
-  const bool explicitStep = params_.integrator == Integrator::Explicit;
-  const auto& m = lattice_->masses();
   for (auto& entry : drags_) {
     Drag& drag = entry.second;
     const Eigen::Isometry3d& frame = drag.frame;
@@ -558,10 +501,8 @@ void Solver::finishSubstep(double h) {
       if (pinned_[p] != 0) continue;
       v_[p] = (frame * drag.offsets[e] - x_[p]) / h;
       x_[p] += h * v_[p];
-      // the implicit step counted its impulse from the solve's residual (ImplicitStep::end()); the
-      // explicit one damps the updated velocity, v = keep (v_n + dv) (a dragged object is held
-      // by the world), so the drag's impulse is m (v / keep - (v_n + dv)) = m (v - v_free) / keep
-      if (explicitStep) countDragImpulse(drag, x_[p], m[p] * (v_[p] - freeVelocity_[p]) / step_.keep);
+      // the implicit step counted its impulse from the solve's residual (ImplicitStep::end())
+      if (integrating_ != nullptr) integrating_->countDragImpulse(drag, p);
     }
   }
   if (pinnedListStale_) {  // capacity #P, reserved at construction: no allocation here

@@ -24,6 +24,7 @@
 // six rigid modes of the solution are corrected (correctRigidModes()).
 #include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/core/solver.h"
+#include "explicit_step.h"
 #include "implicit_solve.h"
 #include "implicit_step.h"
 #include "inertia.h"
@@ -67,7 +68,10 @@ constexpr double kBdf2MaxGoalGapChange = 0.1;
 Solver::~Solver() = default;
 
 void Solver::configureIntegrator() {
-  if (params_.integrator != Integrator::Implicit) return;
+  if (params_.integrator != Integrator::Implicit) {
+    if (!explicit_) explicit_ = std::make_unique<ExplicitStep>(*this);
+    return;
+  }
   // No stability cap: alpha (and with it k = alpha / h^2, independent of h) as requested. The
   // Poisson term was scaled by alpha / requested with the cap; undo that.
   const double requested = params_.requestedAlpha(lattice_->spacing());

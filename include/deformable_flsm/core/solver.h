@@ -1,12 +1,13 @@
 /// @file solver.h
 /// The FastLSM dynamics (Rivers & James 2007): shape matching over lattice regions, region
 /// damping, external forces, pins and drags, advanced at a fixed time step.
-/// Its rooms: solver.cpp (rest state, the step, the region pass, integration and damping),
+/// Its rooms: solver.cpp (rest state, the step, the region pass, damping),
 /// solver_queries.cpp (what an observer reads: nearby particles, energy, momenta, rigid frame),
 /// solver_material.cpp (region weights, the Poisson term, the cap on alpha), solver_commands.cpp
 /// (pins, drags and their frames, forces, impulses, the spring limit), solver_contact.cpp
-/// (colliders and the contact pass), solver_implicit.cpp (the implicit and BDF2 sub-steps) and
-/// solver_implicit_contact.cpp (the implicit step's contact set).
+/// (colliders and the contact pass), solver_explicit.cpp (the explicit sub-step),
+/// solver_implicit.cpp (the implicit and BDF2 sub-steps) and solver_implicit_contact.cpp (the
+/// implicit step's contact set).
 #pragma once
 
 #include "deformable_flsm/core/collider.h"
@@ -315,9 +316,8 @@ class Solver : private RegionKernel {
   double stepSeconds_ = 0.0;  // time spent in this step's sub-steps, for the thread governor
 
  private:
-  void substep(double h);
-  /// The goals for the current state, with region damping when withDamping; when
-  /// step_.integrate, the sub-step's update of every free particle (see particleResult()),
+  /// The goals for the current state, with region damping when withDamping; while an explicit
+  /// step integrates (integrating_), its update of every particle (ExplicitStep::update()),
   /// else the goals into *goalsOut_ (computeGoals()).
   void regionPass(bool withDamping);
   /// the end of every sub-step, either integrator: contactPass() and finishSubstep() over the
@@ -394,7 +394,6 @@ class Solver : private RegionKernel {
 
   std::vector<Eigen::Vector3d> x_, v_;
   std::vector<Eigen::Vector3d>* goalsOut_ = nullptr;  // where computeGoals() wants the goals
-  std::vector<Eigen::Vector3d> goal_;  // each particle's goal in the sub-step's region pass (contactPass())
   std::vector<Eigen::Quaterniond> rotations_;
   std::vector<Eigen::Vector3d> restCentered_;  // q_i = x0_i - rest centre of mass
   Eigen::Vector3d restCom_ = Eigen::Vector3d::Zero();
@@ -411,9 +410,6 @@ class Solver : private RegionKernel {
   std::vector<Eigen::Vector3d> pinPosition_;
   mutable Eigen::Quaterniond frameRotation_ = Eigen::Quaterniond::Identity();  // rigidFrame warm start
   std::vector<Eigen::Vector3d> impulseDv_;  // velocity change pending from impulses
-  /// per hard-dragged particle: the velocity the explicit sub-step gave it before its drag held
-  /// it (finishSubstep() counts the difference as the drag's impulse)
-  std::vector<Eigen::Vector3d> freeVelocity_;
   /// Counts impulse J on particle p (at x_[p]) into drag d's sums.
   static void countDragImpulse(Drag& d, const Eigen::Vector3d& x, const Eigen::Vector3d& J) {
     d.impulse += J;
@@ -465,16 +461,6 @@ class Solver : private RegionKernel {
   std::vector<Eigen::Vector3d> forceAccel_;  // per-particle acceleration from forces and springs
   std::vector<std::uint32_t> forcedParticles_;  // where forceAccel_ is non-zero
   bool passDamping_ = false;  // the current region pass computes the damping field too
-  /// What the region pass of a sub-step needs to update the particles (particleResult()).
-  struct StepConstants {
-    bool integrate = false;  // false: goals only (computeGoals())
-    double h = 0.0;          // sub-step (s)
-    double kd = 0.0;         // region damping fraction per sub-step
-    double pull = 0.0;       // alpha / h
-    double keep = 1.0;       // ambient damping factor per sub-step
-    bool forced = false;     // some particle has a force or spring acceleration (forceAccel_)
-    bool relative = false;   // ambient damping relative to the object's rigid motion
-  } step_;
   std::size_t pinnedCount_ = 0;
   /// The object's rigid motion v_obj(x) = velocity + spin x (x - xref_), what relative ambient
   /// damping leaves alone: rigidMotion() gives the one that keeps its momenta now (xref_ updated).
@@ -482,7 +468,6 @@ class Solver : private RegionKernel {
     Eigen::Vector3d velocity = Eigen::Vector3d::Zero(), spin = Eigen::Vector3d::Zero();
   };
   RigidMotion rigidMotion();
-  RigidMotion rigid_;  // the explicit sub-step's, at its start (step_.relative)
   /// pinned, dragged or attached, or with colliders to rest on: ambient damping drags to rest
   bool heldByWorld() const;
   std::vector<double> regionWeight_;     // beta_r
@@ -556,12 +541,16 @@ class Solver : private RegionKernel {
   void addCoupledSolveTime(double seconds);
 
  private:
-  /// The implicit step (backward Euler and BDF2) with its own state (implicit_step.h), made
-  /// with the implicit integrator; null with the explicit one.
+  /// The integrators' sub-steps with their own state: the implicit step (backward Euler and
+  /// BDF2, implicit_step.h), the explicit one (explicit_step.h).
   class ImplicitStep;
-  std::unique_ptr<ImplicitStep> implicit_;
-  /// After computeRegionWeights(): with the implicit integrator, alpha as requested (no cap) and
-  /// the step's buffers sized; called from the constructor and setParams(), never in a step.
+  class ExplicitStep;
+  std::unique_ptr<ImplicitStep> implicit_;  // made with the implicit integrator, kept after a switch
+  std::unique_ptr<ExplicitStep> explicit_;  // made with the explicit integrator
+  ExplicitStep* integrating_ = nullptr;     // the explicit step whose sub-step runs: its region pass integrates
+  /// After computeRegionWeights(): the step of params_.integrator made; with the implicit one,
+  /// alpha as requested (no cap) and the step's buffers sized; called from the constructor and
+  /// setParams(), never in a step.
   void configureIntegrator();
 };
 
