@@ -6,6 +6,7 @@
 #pragma once
 
 #include "deformable_flsm/core/solver.h"
+#include "integrator_step.h"
 
 #include <Eigen/Core>
 
@@ -16,15 +17,14 @@
 namespace deformable_flsm {
 
 /// Reads and moves the object's particles (o_); what only this step needs is its own.
-class Solver::ExplicitStep {
+class Solver::ExplicitStep final : public Solver::IntegratorStep {
  public:
   explicit ExplicitStep(Solver& object);
 
-  /// One sub-step of length h, from the pending impulses to the prescribed particles and the
-  /// clock (Solver::endSubstep()).
-  void substep(double h);
-  /// The goals of the running sub-step's region pass (the contact pass's).
-  const std::vector<Eigen::Vector3d>& goals() const { return goal_; }
+  void substep(double h) override;
+  const std::vector<Eigen::Vector3d>& goals() const override { return goal_; }
+  /// Nothing carries over: every sub-step starts from the object's state alone.
+  void forgetHistory() override {}
 
   /// Particle i's sub-step in the region pass, g its goal and s its regions' sums (transforms,
   /// then the damping field's u and omega).

@@ -11,6 +11,7 @@
 #include "deformable_flsm/core/pcg.h"
 #include "deformable_flsm/core/solver.h"
 #include "deformable_flsm/core/two_level_preconditioner.h"
+#include "integrator_step.h"
 
 #include <Eigen/Core>
 
@@ -22,7 +23,7 @@ namespace deformable_flsm {
 
 /// Reads and moves the object's particles (o_): its positions, velocities, pins, drags, forces,
 /// material and contact bodies are the object's; what only this step needs is its own.
-class Solver::ImplicitStep {
+class Solver::ImplicitStep final : public Solver::IntegratorStep {
  public:
   explicit ImplicitStep(Solver& object);
 
@@ -32,11 +33,11 @@ class Solver::ImplicitStep {
   /// Forgets the last sub-step: warm start, contact states, BDF2's history (Solver::reset()).
   void forgetMemory();
   /// BDF2 starts again from a backward Euler step (the state was set, or the object slept).
-  void forgetHistory() { bdf2Ready_ = false; }
+  void forgetHistory() override { bdf2Ready_ = false; }
 
   /// One sub-step of length h: begin(), the solve with its contact passes, end(); BDF2 solves 2/3
   /// of it from its extrapolated start.
-  void substep(double h);
+  void substep(double h) override;
   /// The sub-step's system (right-hand side, diagonal, preconditioner, collider contacts, the
   /// warm start) and the solve's floor (floor_).
   void begin(double h);
@@ -67,7 +68,7 @@ class Solver::ImplicitStep {
   std::size_t freeCount() const { return freeCount_; }
   const PcgResult& lastSolve() const { return lastSolve_; }
   /// The goals of the sub-step's region pass at x_n (the contact pass's, as the explicit step's).
-  const std::vector<Eigen::Vector3d>& goals() const { return goals_; }
+  const std::vector<Eigen::Vector3d>& goals() const override { return goals_; }
 
  private:
   /// begin()'s parts: the Poisson term's Hessian at x_n (volumetricLinear_), the drags in the

@@ -160,14 +160,14 @@ void Solver::reset() {
 void Solver::setPositions(const std::vector<Eigen::Vector3d>& x) {
   if (x.size() != x_.size()) throw std::invalid_argument("solver: setPositions with the wrong size");
   x_ = x;
-  if (implicit_) implicit_->forgetHistory();
+  integrator_->forgetHistory();
   ++stateVersion_;
 }
 
 void Solver::setVelocities(const std::vector<Eigen::Vector3d>& v) {
   if (v.size() != v_.size()) throw std::invalid_argument("solver: setVelocities with the wrong size");
   v_ = v;
-  if (implicit_) implicit_->forgetHistory();
+  integrator_->forgetHistory();
   ++stateVersion_;
 }
 
@@ -238,10 +238,7 @@ void Solver::advanceSubstep(int s) {
   const auto t0 = timed ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point();
   interpolateDragFrames(static_cast<double>(s + 1) / params_.substeps);
   beginContactSubstep(s);
-  if (params_.integrator == Integrator::Implicit)
-    implicit_->substep(h);
-  else
-    explicit_->substep(h);
+  integrator_->substep(h);
   if (timed) stepSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
@@ -267,7 +264,7 @@ void Solver::idleStep() {
     ++substeps_;
   }
   std::fill(v_.begin(), v_.end(), Eigen::Vector3d::Zero());
-  if (implicit_) implicit_->forgetHistory();  // its history is of before it stopped
+  integrator_->forgetHistory();  // its history is of before it stopped
 }
 
 // One pass over the regions computes the goal positions and, when damping is on, the damping

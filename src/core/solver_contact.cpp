@@ -3,8 +3,7 @@
 #include "deformable_flsm/core/contact.h"
 #include "deformable_flsm/core/mesh_distance_field.h"
 #include "deformable_flsm/core/solver.h"
-#include "explicit_step.h"
-#include "implicit_step.h"
+#include "integrator_step.h"
 
 #include <algorithm>
 #include <cmath>
@@ -234,7 +233,7 @@ void Solver::contactPass(double h) {
   pass.h = h;
   pass.r = r;
   // the goals of this sub-step's region pass (the implicit step's linearisation point)
-  pass.goals = params_.integrator == Integrator::Implicit ? &implicit_->goals() : &explicit_->goals();
+  pass.goals = &integrator_->goals();
   // held: a pinned or hard-dragged particle keeps the object from leaving a collider as a body;
   // it cannot leave one whose surface is farther than its size from a particle (above)
   pass.held = pinnedCount_ > 0;

@@ -70,6 +70,7 @@ Solver::~Solver() = default;
 void Solver::configureIntegrator() {
   if (params_.integrator != Integrator::Implicit) {
     if (!explicit_) explicit_ = std::make_unique<ExplicitStep>(*this);
+    integrator_ = explicit_.get();
     return;
   }
   // No stability cap: alpha (and with it k = alpha / h^2, independent of h) as requested. The
@@ -86,6 +87,7 @@ void Solver::configureIntegrator() {
   alphaCap_ = requested;
   if (!implicit_) implicit_ = std::make_unique<ImplicitStep>(*this);
   implicit_->configure();
+  integrator_ = implicit_.get();
 }
 
 const PcgResult& Solver::lastImplicitSolve() const {

@@ -541,16 +541,18 @@ class Solver : private RegionKernel {
   void addCoupledSolveTime(double seconds);
 
  private:
-  /// The integrators' sub-steps with their own state: the implicit step (backward Euler and
-  /// BDF2, implicit_step.h), the explicit one (explicit_step.h).
+  /// The integrators' sub-steps with their own state: their interface (integrator_step.h), the
+  /// implicit step (backward Euler and BDF2, implicit_step.h), the explicit one (explicit_step.h).
+  class IntegratorStep;
   class ImplicitStep;
   class ExplicitStep;
   std::unique_ptr<ImplicitStep> implicit_;  // made with the implicit integrator, kept after a switch
   std::unique_ptr<ExplicitStep> explicit_;  // made with the explicit integrator
+  IntegratorStep* integrator_ = nullptr;    // the step of params_.integrator
   ExplicitStep* integrating_ = nullptr;     // the explicit step whose sub-step runs: its region pass integrates
-  /// After computeRegionWeights(): the step of params_.integrator made; with the implicit one,
-  /// alpha as requested (no cap) and the step's buffers sized; called from the constructor and
-  /// setParams(), never in a step.
+  /// After computeRegionWeights(): integrator_ made for params_.integrator; with the implicit
+  /// one, alpha as requested (no cap) and the step's buffers sized; called from the constructor
+  /// and setParams(), never in a step.
   void configureIntegrator();
 };
 
