@@ -102,25 +102,32 @@ void Solver::beginCoupledSubstep(int s, double h) {
 }
 
 std::vector<Eigen::Vector3d>& Solver::implicitVelocity() { return implicit_->velocity(); }
-// (an explicit object has no system: empty, as a coupled solve may ask a sleeping neighbour's)
+// (an explicit object has no system, even with an implicit step kept from before a switch:
+// empty, as a coupled solve may ask a sleeping neighbour's)
 namespace {
 const std::vector<Eigen::Vector3d> kNoVectors;
 const std::vector<PcgConstraint> kNoConstraints;
 }  // namespace
 
-const std::vector<Eigen::Vector3d>& Solver::implicitRhs() const { return implicit_ ? implicit_->rhs() : kNoVectors; }
+const Solver::ImplicitStep* Solver::implicitSystem() const {
+  return params_.integrator == Integrator::Implicit ? implicit_.get() : nullptr;
+}
+
+const std::vector<Eigen::Vector3d>& Solver::implicitRhs() const {
+  return implicitSystem() ? implicitSystem()->rhs() : kNoVectors;
+}
 const std::vector<PcgConstraint>& Solver::implicitConstraints() const {
-  return implicit_ ? implicit_->constraints() : kNoConstraints;
+  return implicitSystem() ? implicitSystem()->constraints() : kNoConstraints;
 }
 const std::vector<Eigen::Vector3d>& Solver::implicitNormals() const {
-  return implicit_ ? implicit_->normals() : kNoVectors;
+  return implicitSystem() ? implicitSystem()->normals() : kNoVectors;
 }
 const std::vector<Eigen::Vector3d>& Solver::implicitInvDiagonal() const {
-  return implicit_ ? implicit_->invDiagonal() : kNoVectors;
+  return implicitSystem() ? implicitSystem()->invDiagonal() : kNoVectors;
 }
-double Solver::implicitRhsNorm2() const { return implicit_ ? implicit_->rhsNorm2() : 0.0; }
-double Solver::implicitGravityNorm2() const { return implicit_ ? implicit_->gravityNorm2() : 0.0; }
-std::size_t Solver::implicitFreeCount() const { return implicit_ ? implicit_->freeCount() : 0; }
+double Solver::implicitRhsNorm2() const { return implicitSystem() ? implicitSystem()->rhsNorm2() : 0.0; }
+double Solver::implicitGravityNorm2() const { return implicitSystem() ? implicitSystem()->gravityNorm2() : 0.0; }
+std::size_t Solver::implicitFreeCount() const { return implicitSystem() ? implicitSystem()->freeCount() : 0; }
 
 void Solver::implicitProduct(const std::vector<Eigen::Vector3d>& p, std::vector<Eigen::Vector3d>& y) {
   implicit_->product(p, y);

@@ -145,3 +145,27 @@ INSTANTIATE_TEST_SUITE_P(Moduli, SoftStack, ::testing::Values(30e3, 1e6, 10e6),
                          [](const ::testing::TestParamInfo<double>& info) {
                            return std::to_string(static_cast<long>(info.param / 1000)) + "kPa";
                          });
+
+TEST(ImplicitCoupling, AnObjectSwitchedToTheExplicitStepShowsNoSystem) {
+  // a coupled solve reads a member's system through these accessors: an object that now steps
+  // explicitly has none, though its implicit step is kept for a switch back
+  auto lattice = boxAt(3, 3, 3, 0.01, Eigen::Vector3d(0, 0, 0.001));
+  Solver s(lattice, implicitCube(1e5));
+  s.setCollider("ground", ground(0.0));
+  s.step();
+  ASSERT_EQ(s.implicitRhs().size(), s.positions().size());
+  SolverParams p = s.params();
+  p.integrator = Integrator::Explicit;
+  p.substeps = kSubsteps;
+  s.setParams(p);
+  EXPECT_TRUE(s.implicitRhs().empty());
+  EXPECT_TRUE(s.implicitConstraints().empty());
+  EXPECT_TRUE(s.implicitInvDiagonal().empty());
+  EXPECT_EQ(s.implicitFreeCount(), 0u);
+  s.step();
+  p.integrator = Integrator::Implicit;
+  p.substeps = 1;
+  s.setParams(p);
+  s.step();
+  EXPECT_EQ(s.implicitRhs().size(), s.positions().size()) << "switched back";
+}

@@ -547,6 +547,9 @@ class Solver : private RegionKernel {
   class ImplicitStep;
   class ExplicitStep;
   std::unique_ptr<ImplicitStep> implicit_;  // made with the implicit integrator, kept after a switch
+  /// The implicit step when it is the integrator (one kept from before a switch to the explicit
+  /// step is not), else null: what the implicit-system accessors read.
+  const ImplicitStep* implicitSystem() const;
   std::unique_ptr<ExplicitStep> explicit_;  // made with the explicit integrator
   IntegratorStep* integrator_ = nullptr;    // the step of params_.integrator
   ExplicitStep* integrating_ = nullptr;     // the explicit step whose sub-step runs: its region pass integrates
