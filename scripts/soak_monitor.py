@@ -22,30 +22,46 @@ NODE = '/flsm_node'
 # every reading and none of its threads gained a nanosecond on a CPU is a span the kernel did not
 # run the node though it could have run: printed as 'unrun' [begin, end] pairs. (With autogroup
 # scheduling each session is a group, and the node, in a session of its own, can be left without
-# a CPU for seconds while other sessions run, this heartbeat among them.)
+# a CPU for seconds while other sessions run, this heartbeat among them.) A thread of the node in
+# uninterruptible sleep (state D: waiting on a disk or a page fault) at every reading for at least
+# UNRUN_S is printed as 'blocked' [begin, end, thread name, kernel function]: not taken out of the
+# gaps (the node answers for what it waits on), but named beside a gap it may explain.
 STALL_S = 0.25
 UNRUN_S = 0.1
 HEARTBEAT = '''
 import json, os, sys, time
 until, stall, unrun_s, pid = float(sys.argv[1]), float(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
+def read(path):
+    with open(path) as f:
+        return f.read()
 def node_threads():
-    """{tid: on-CPU ns}, and whether any of them is runnable, or None when the node is gone."""
-    cpu, runnable = {}, False
+    """{tid: on-CPU ns}, whether any of them is runnable and which are in state D, or None when
+    the node is gone."""
+    cpu, runnable, waiting = {}, False, set()
     try:
         tids = os.listdir('/proc/%s/task' % pid)
     except OSError:
-        return None, False
+        return None, False, waiting
     for tid in tids:
         try:
-            with open('/proc/%s/task/%s/schedstat' % (pid, tid)) as f:
-                cpu[tid] = int(f.read().split()[0])
-            with open('/proc/%s/task/%s/stat' % (pid, tid)) as f:
-                runnable = runnable or f.read().rsplit(')', 1)[1].split()[0] == 'R'
+            cpu[tid] = int(read('/proc/%s/task/%s/schedstat' % (pid, tid)).split()[0])
+            state = read('/proc/%s/task/%s/stat' % (pid, tid)).rsplit(')', 1)[1].split()[0]
+            runnable = runnable or state == 'R'
+            if state == 'D':
+                waiting.add(tid)
         except (OSError, IndexError, ValueError):
             pass  # a thread that ended meanwhile
-    return cpu, runnable
-gap, at, last, stalls, unrun = 0.0, 0.0, time.time(), [], []
-prev, prev_runnable, since, beats = None, False, None, 0
+    return cpu, runnable, waiting
+def blocked_span(tid, begin, end):
+    name, where = '?', '?'
+    try:
+        name = read('/proc/%s/task/%s/comm' % (pid, tid)).strip()
+        where = read('/proc/%s/task/%s/wchan' % (pid, tid)).strip() or '?'
+    except OSError:
+        pass
+    return [begin, end, name, where]
+gap, at, last, stalls, unrun, blocked = 0.0, 0.0, time.time(), [], [], []
+prev, prev_runnable, since, beats, d_since = None, False, None, 0, {}
 while last < until:
     time.sleep(0.005)
     now = time.time()
@@ -57,9 +73,17 @@ while last < until:
     beats += 1
     if beats % 4:
         continue
-    cpu, runnable = node_threads()
+    cpu, runnable, waiting = node_threads()
     if cpu is None:
         break
+    for tid in list(d_since):
+        if tid not in waiting:
+            if now - d_since[tid] >= unrun_s:
+                blocked.append(blocked_span(tid, d_since.pop(tid), now))
+            else:
+                d_since.pop(tid)
+    for tid in waiting:
+        d_since.setdefault(tid, now)
     if prev is not None:
         ran = sum(cpu[t] - prev[t] for t in cpu if t in prev)
         if ran == 0 and prev_runnable:
@@ -71,7 +95,10 @@ while last < until:
     prev, prev_runnable, prev_at = cpu, runnable, now
 if since is not None and prev_at - since >= unrun_s:
     unrun.append([since, prev_at])
-print(json.dumps({'gap': gap, 'at': at, 'stalls': stalls, 'unrun': unrun}))
+for tid, begin in d_since.items():
+    if last - begin >= unrun_s:
+        blocked.append(blocked_span(tid, begin, last))
+print(json.dumps({'gap': gap, 'at': at, 'stalls': stalls, 'unrun': unrun, 'blocked': blocked}))
 '''
 
 
