@@ -1,6 +1,8 @@
 // A scene's colliders and their poses over a step (collider_scene.h).
 #include "deformable_flsm/core/collider_scene.h"
 
+#include <stdexcept>
+
 namespace deformable_flsm {
 
 namespace {
@@ -38,6 +40,7 @@ void ColliderScene::poseSubstep(int s, double H) {
 }
 
 void ColliderScene::endStep(double T) {
+  if (posed_.size() != map_.size()) throw std::logic_error("collider scene: changed() not called after a change");
   auto it = map_.begin();
   for (PosedCollider& p : posed_) {
     Collider& c = (it++)->second;

@@ -362,9 +362,17 @@ void Solver::sumContactPartials(std::ptrdiff_t chunks) {
   }
 }
 
+void Solver::touchCollider(std::uint32_t p, std::size_t c) {
+  if (p >= x_.size() || c >= contactBodies_.size())
+    throw std::out_of_range("solver: touchCollider(" + std::to_string(p) + ", " + std::to_string(c) +
+                            "): no such particle or collider");
+  tally_.touch(p, c);
+}
+
 void Solver::addColliderImpulse(std::size_t c, const Eigen::Vector3d& impulse, const Eigen::Vector3d& moment) {
-  contactBodies_[c].impulse += impulse;
-  contactBodies_[c].moment += moment;
+  ContactBody& body = contactBodies_.at(c);
+  body.impulse += impulse;
+  body.moment += moment;
 }
 
 // The object's impulse on a collider is minus the particles' m dv; averaged over the step.

@@ -144,14 +144,18 @@ void SimulationLoop::run() {
   owed_ = 0.0;
   std::vector<Command> batch;
   batch.reserve(CommandLimits::kQueueCapacity);
+  using Wall = std::chrono::steady_clock;
   for (;;) {
     const Arrivals arrived = collect(batch);
     if (arrived.stop) break;
+    watchStage(Wall::now() - queueLockWait_, "waiting for the command queue's lock", -1);
+    const Wall::time_point applying = Wall::now();
     bool acted = false;
     for (Command& c : batch) {
       ++appliedKinds_[c.body.index()];
       acted = apply(c) || acted;
     }
+    watchStage(applying, "applying commands:", static_cast<long long>(batch.size()));
     batch.clear();
     const double dt = world_->timeStep();
     if (paused_) {
@@ -160,13 +164,18 @@ void SimulationLoop::run() {
     }
     const double rtf = realTimeFactor_.load();
     repace(rtf, acted, arrived.woken);
-    takeSteps(stepsDue(arrived, rtf, dt), acted, dt);
+    const Wall::time_point stepping = Wall::now();
+    const std::int64_t due = stepsDue(arrived, rtf, dt);
+    takeSteps(due, acted, dt);
+    watchStage(stepping, "stepping the scene and handing out its state, steps due:", static_cast<long long>(due));
     waitForNextStep(rtf, dt);
   }
 }
 
 SimulationLoop::Arrivals SimulationLoop::collect(std::vector<Command>& batch) {
+  const auto asked = std::chrono::steady_clock::now();
   std::unique_lock<std::mutex> lock(queueMutex_);
+  queueLockWait_ = std::chrono::steady_clock::now() - asked;
   // Nothing to do until something happens: paused (no steps asked), or at rest where the time
   // stands still with the state. At rest a served time goes on (takeSteps()), and a followed one
   // moves on with the time it follows.
@@ -299,6 +308,17 @@ void SimulationLoop::waitForNextStep(double rtf, double dt) {
                     clock_->now() + std::chrono::duration_cast<LoopClock::Duration>(
                                         std::chrono::duration<double>(wait)),
                     woke);
+}
+
+void SimulationLoop::watchStage(std::chrono::steady_clock::time_point since, const char* what, long long count) {
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+  if (!(seconds > kSlowStageSeconds) || !notice_) return;
+  std::ostringstream os;
+  os.precision(3);
+  os << "the simulation thread spent " << seconds << " s " << what;
+  if (count >= 0) os << " " << count;
+  os << " (no state goes out meanwhile; a machine without a free core, or a stalled disk, can do this)";
+  notice_(os.str());
 }
 
 void SimulationLoop::stepScene(double dt) {

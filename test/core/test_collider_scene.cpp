@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <random>
+#include <stdexcept>
 #include <vector>
 
 using namespace deformable_flsm;
@@ -132,4 +133,17 @@ TEST(ContactTally, AStackedBlocksBottomLayerIsCountedOnceOnTheGround) {
   EXPECT_EQ(world.objectWrench("bottom", "top").contacts, 25u);
   const double weight = (bottom->totalMass() + top->totalMass()) * kG;
   EXPECT_NEAR(mean, -weight, 0.02 * weight) << "the ground carries both";
+}
+
+TEST(ContactTally, AnotherSolversContactOutsideTheObjectIsRefused) {
+  auto lattice = boxAt(3, 3, 3, 0.01, Eigen::Vector3d(0, 0, 0.001));
+  Solver s(lattice, paramsFor(*lattice));
+  s.setCollider("ground", ground(0.0));
+  EXPECT_NO_THROW(s.touchCollider(0, 0));
+  EXPECT_THROW(s.touchCollider(static_cast<std::uint32_t>(s.positions().size()), 0), std::out_of_range);
+  EXPECT_THROW(s.touchCollider(0, 1), std::out_of_range);
+  EXPECT_THROW(s.addColliderImpulse(1, Eigen::Vector3d::UnitZ(), Eigen::Vector3d::Zero()), std::out_of_range);
+  ColliderScene scene;
+  scene.map()["a"] = ground(0.0);  // added without changed(): the scene cannot pose it
+  EXPECT_THROW(scene.endStep(0.01), std::logic_error);
 }

@@ -11,10 +11,12 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <mutex>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -308,6 +310,32 @@ TEST(SimulationLoopTime, SteppingOnRequestIsBitIdenticalFromRunToRun) {
     moved = std::max(moved, a[i].norm());
   }
   EXPECT_GT(moved, 1e-3) << "the scene stepped (m)";
+}
+
+
+TEST(SimulationLoopTime, AStageThatHoldsTheThreadForSecondsIsSaid) {
+  // a step that takes 1.2 s of wall time (here its tick's observer sleeps) holds every state up:
+  // the loop says so, naming the stage, so that a node's log tells what held its states
+  std::atomic<int> ticks{0};  // outlives the loop's thread
+  LoopSettings settings;
+  settings.realTimeFactor = 1.0;
+  TimeRig rig(settings, 0.02);
+  rig.loop->setTickObserver([&ticks](double, const Snapshot*) {
+    if (++ticks == 3) std::this_thread::sleep_for(std::chrono::milliseconds(1200));
+  });
+  rig.loop->start();
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  std::string said;
+  while (said.empty() && std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    std::lock_guard<std::mutex> lock(rig.ticks.mutex);
+    for (const std::string& n : rig.notices)
+      if (n.find("stepping the scene") != std::string::npos) said = n;
+  }
+  ASSERT_FALSE(said.empty()) << "a 1.2 s step was not said";
+  EXPECT_NE(said.find("the simulation thread spent 1."), std::string::npos) << said;
+  std::lock_guard<std::mutex> lock(rig.ticks.mutex);
+  EXPECT_EQ(rig.notices.size(), 1u) << "only the slow stage is said";
 }
 
 }  // namespace

@@ -306,10 +306,12 @@ class Solver : private RegionKernel {
   /// Particle p touches the shared collider of place c (in colliders()' order) in the sub-step
   /// just taken: another contact solver's contact, counted in contactWrench() once with the
   /// object's own.
-  void touchCollider(std::uint32_t p, std::size_t c) { tally_.touch(p, c); }
+  /// @throws std::out_of_range for a particle or a place that is not this object's.
+  void touchCollider(std::uint32_t p, std::size_t c);
   /// Counts into the wrench of the shared collider of place c an impulse that another contact
   /// solver gave this object's particles during the step begun (before endStep()): `impulse` the
   /// sum of m dv on the particles, `moment` its moment about the collider's origin.
+  /// @throws std::out_of_range for a place that is not one of the colliders'.
   void addColliderImpulse(std::size_t c, const Eigen::Vector3d& impulse, const Eigen::Vector3d& moment);
 
  private:

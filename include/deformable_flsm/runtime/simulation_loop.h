@@ -240,6 +240,9 @@ class SimulationLoop {
   void setColliderMotion(const std::string& id, const ColliderMotion& motion);
   /// Simulated seconds a followed collider keeps moving along its last sampled velocity.
   static constexpr double kMaxExtrapolation = 0.1;
+  /// A stage of the loop longer than this (s of wall time) is said (watchStage()): the longest
+  /// gap between states that the soak allows.
+  static constexpr double kSlowStageSeconds = 1.0;
 
   /// The newest snapshot. Single reader: the reference stays valid and unchanged until the next
   /// call of acquire().
@@ -293,6 +296,12 @@ class SimulationLoop {
   void takeSteps(std::int64_t steps, bool acted, double dt);
   /// Sleeps until the next step is due or something arrives.
   void waitForNextStep(double rtf, double dt);
+  /// A stage of the loop that held the simulation thread for more than kSlowStageSeconds of wall
+  /// time (`since` its start) is said (Notice) with what it did: what holds the states up for
+  /// seconds is then named in the node's log.
+  void watchStage(std::chrono::steady_clock::time_point since, const char* what, long long count);
+  /// the wall time collect() waited for the command queue's lock (not for work)
+  std::chrono::steady_clock::duration queueLockWait_{};
   /// Applies one command to the object it addresses (target_); returns true when accepted.
   bool apply(Command& command);
   /// The command's body applied to target_.
