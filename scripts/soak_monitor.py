@@ -52,14 +52,15 @@ def node_threads():
         except (OSError, IndexError, ValueError):
             pass  # a thread that ended meanwhile
     return cpu, runnable, waiting
-def blocked_span(tid, begin, end):
+def waiting_in(tid):
+    """The thread's name and the kernel function it sleeps in, read while it waits."""
     name, where = '?', '?'
     try:
         name = read('/proc/%s/task/%s/comm' % (pid, tid)).strip()
         where = read('/proc/%s/task/%s/wchan' % (pid, tid)).strip() or '?'
     except OSError:
         pass
-    return [begin, end, name, where]
+    return name, where
 gap, at, last, stalls, unrun, blocked = 0.0, 0.0, time.time(), [], [], []
 prev, prev_runnable, since, beats, d_since = None, False, None, 0, {}
 while last < until:
@@ -78,12 +79,12 @@ while last < until:
         break
     for tid in list(d_since):
         if tid not in waiting:
-            if now - d_since[tid] >= unrun_s:
-                blocked.append(blocked_span(tid, d_since.pop(tid), now))
-            else:
-                d_since.pop(tid)
+            begin, name, where = d_since.pop(tid)
+            if now - begin >= unrun_s:
+                blocked.append([begin, now, name, where])
     for tid in waiting:
-        d_since.setdefault(tid, now)
+        if tid not in d_since:
+            d_since[tid] = (now,) + waiting_in(tid)
     if prev is not None:
         ran = sum(cpu[t] - prev[t] for t in cpu if t in prev)
         if ran == 0 and prev_runnable:
@@ -95,9 +96,9 @@ while last < until:
     prev, prev_runnable, prev_at = cpu, runnable, now
 if since is not None and prev_at - since >= unrun_s:
     unrun.append([since, prev_at])
-for tid, begin in d_since.items():
+for begin, name, where in d_since.values():
     if last - begin >= unrun_s:
-        blocked.append(blocked_span(tid, begin, last))
+        blocked.append([begin, last, name, where])
 print(json.dumps({'gap': gap, 'at': at, 'stalls': stalls, 'unrun': unrun, 'blocked': blocked}))
 '''
 
