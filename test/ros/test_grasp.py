@@ -229,6 +229,9 @@ class GraspTest(unittest.TestCase):
         end = time.time() + 10.0
         while pub.get_num_connections() == 0 and time.time() < end:
             time.sleep(0.05)
+        # Read before publishing: a ~state that already counts these commands may arrive
+        # between the publish and a later read, and the wait would then ask for two more.
+        accepted = self.flsm.state().accepted_commands
         for name in FINGERS:
             spec = self.specs[name]
             m = ColliderCommand()
@@ -242,10 +245,10 @@ class GraspTest(unittest.TestCase):
             m.static_friction = mu
             m.kinetic_friction = mu
             pub.publish(m)
-        accepted = self.flsm.state().accepted_commands
         self.assertIsNotNone(self.flsm.wait_state(lambda s: s.accepted_commands >= accepted + 2,
                                                   10.0),
-                             'friction %.3g refused: %s' % (mu, self.flsm.state().last_rejection))
+                             'friction %.3g not accepted in 10 s (last rejection: %r)'
+                             % (mu, self.flsm.state().last_rejection))
 
     def aim(self):
         """Waits for the object to settle; returns its weight and the fingers' open and closed
