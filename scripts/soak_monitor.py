@@ -105,24 +105,92 @@ print(json.dumps({'gap': gap, 'at': at, 'stalls': stalls, 'unrun': unrun, 'block
 
 # The ~state recorder (see the flood): subscribes to ~state with no limit on its queue, so that a
 # late read loses no stamp, prints 'ready' at its first message, and when its standard input
-# closes prints every (arrival epoch s, header stamp s) as JSON. A process of its own, which
-# does nothing else (the monitor's threads decode clouds).
-STATE_RECORDER = '''
-import json, sys, threading, time
+# closes prints, as JSON, every (arrival epoch s, header stamp s) and the stalls it looked into.
+# A process of its own, which does nothing else (the monitor's threads decode clouds).
+# Its watchdog: when no ~state has arrived for WATCH_S (the gap `publishing` fails on), it writes
+# what each thread of the node is doing to stall-<k>.txt in the soak's log directory, at most
+# WATCH_DUMPS times: first from /proc, which stops nothing (name, state, the kernel function it
+# sleeps in, its system call, its kernel stack), then the threads' stacks from gdb when gdb is
+# installed (attaching holds the node ~0.5 s, after the gap has already failed the check).
+WATCH_S = 1.0
+WATCH_DUMPS = 3
+STATE_RECORDER = r'''
+import json, os, subprocess, sys, threading, time
 import rospy
 from deformable_flsm.msg import SimulationState
-topic = sys.argv[1]
-lock, seen = threading.Lock(), []
+topic, pid, watch_s, dumps_max, log_dir = (sys.argv[1], sys.argv[2], float(sys.argv[3]),
+                                          int(sys.argv[4]), sys.argv[5])
+lock, seen, stalls = threading.Lock(), [], []
+SYSCALLS = {0: 'read', 1: 'write', 7: 'poll', 23: 'select', 35: 'nanosleep', 42: 'connect',
+            44: 'sendto', 45: 'recvfrom', 46: 'sendmsg', 47: 'recvmsg', 202: 'futex',
+            230: 'clock_nanosleep', 232: 'epoll_wait', 270: 'pselect6', 271: 'ppoll',
+            281: 'epoll_pwait', 288: 'accept4'}
 def on_state(msg):
     with lock:
         if not seen:
             print('ready', flush=True)
         seen.append((time.time(), msg.header.stamp.to_sec()))
+def read(path):
+    try:
+        with open(path) as f:
+            return f.read().strip()
+    except OSError:
+        return '?'
+def threads_now():
+    """One line per thread of the node (and its kernel stack), read from /proc."""
+    lines, short = [], []
+    try:
+        tids = sorted(os.listdir('/proc/%s/task' % pid), key=int)
+    except OSError:
+        return ['the node is gone'], 'the node is gone'
+    for tid in tids:
+        t = '/proc/%s/task/%s/' % (pid, tid)
+        name, state = read(t + 'comm'), read(t + 'stat').rsplit(')', 1)[-1].split()[:1]
+        call = read(t + 'syscall').split()
+        what = SYSCALLS.get(int(call[0]), 'syscall ' + call[0]) if call and call[0].isdigit() \
+            else (call[0] if call else '?')
+        wchan = read(t + 'wchan') or '-'
+        lines.append('%s %-15s %s %-10s %s' % (tid, name, state[0] if state else '?', what, wchan))
+        lines.extend('      ' + k for k in read(t + 'stack').splitlines())
+        if name.startswith('flsm_'):  # the node's own threads (roscpp's are in the file)
+            short.append('%s %s %s' % (name, state[0] if state else '?', what))
+    return lines, ', '.join(short)
+def gdb_stacks():
+    try:
+        out = subprocess.run(['gdb', '-p', pid, '-batch', '-nx', '-ex', 'set pagination off',
+                              '-ex', 'thread apply all bt 24'], stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, timeout=60).stdout.decode(errors='replace')
+        return out
+    except (OSError, subprocess.TimeoutExpired) as e:
+        return 'no stacks from gdb: %s' % e
+def watch():
+    while len(stalls) < dumps_max:
+        time.sleep(0.05)
+        with lock:
+            last = seen[-1][0] if seen else None
+        if last is None or time.time() - last < watch_s:
+            continue
+        at = time.time()
+        lines, short = threads_now()
+        stacks = gdb_stacks()
+        path = os.path.join(log_dir, 'stall-%d.txt' % len(stalls))
+        with open(path, 'w') as f:
+            f.write('no ~state for %.3f s (the last arrived at %.3f, epoch s)\n\n' % (at - last, last))
+            f.write('threads of pid %s from /proc (tid, name, state, system call, kernel function; '
+                    'kernel stack):\n%s\n\n' % (pid, '\n'.join(lines)))
+            f.write('gdb, thread apply all bt:\n%s\n' % stacks)
+        stalls.append([last, at, path, short])
+        while True:  # one report per stall: wait for ~state again
+            time.sleep(0.05)
+            with lock:
+                if seen[-1][0] > last:
+                    break
 rospy.init_node('soak_state_recorder', anonymous=True, disable_signals=True)
 rospy.Subscriber(topic, SimulationState, on_state, queue_size=None, tcp_nodelay=True)
+threading.Thread(target=watch, daemon=True).start()
 sys.stdin.read()
 with lock:
-    print(json.dumps(seen), flush=True)
+    print(json.dumps({'seen': seen, 'stalls': list(stalls)}), flush=True)
 '''
 
 

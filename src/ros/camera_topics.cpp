@@ -5,6 +5,7 @@
 #include "deformable_flsm/ros/mesh_messages.h"
 
 #include "image_fill.h"
+#include "thread_name.h"
 
 #include <ros/console.h>
 #include <sensor_msgs/image_encodings.h>
@@ -94,6 +95,7 @@ CameraTopics::CameraTopics(ros::NodeHandle& pnh, const std::vector<CameraSpec>& 
                                [this, raw](const ros::TimerEvent&) { onTimer(*raw); });
     cameras_.push_back(std::move(c));
   }
+  nameQueueThread(queue_, "flsm_cameras");
   spinner_ = std::make_unique<ros::AsyncSpinner>(1, &queue_);
   spinner_->start();
 }

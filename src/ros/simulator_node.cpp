@@ -4,6 +4,7 @@
 #include "deformable_flsm/ros/object_params.h"
 
 #include "simulator_node_internal.h"
+#include "thread_name.h"
 #include "to_eigen.h"
 
 #include <geometry_msgs/TransformStamped.h>
@@ -176,6 +177,10 @@ void SimulatorNode::startThreads() {
                                    &SimulatorNode::onPublishTimer, this);
   stateTimer_ = stateNh_.createTimer(ros::Duration(1.0 / params_.publishRate),
                                      &SimulatorNode::onStateTimer, this);
+  nameQueueThread(stateQueue_, "flsm_state");
+  nameQueueThread(commandQueue_, "flsm_commands");
+  nameQueueThread(serviceQueue_, "flsm_services");
+  nameQueueThread(reconfigureQueue_, "flsm_reconfig");
   stateSpinner_ = std::make_unique<ros::AsyncSpinner>(1, &stateQueue_);
   stateSpinner_->start();
   commandSpinner_ = std::make_unique<ros::AsyncSpinner>(1, &commandQueue_);
@@ -357,7 +362,13 @@ CommandOutcome SimulatorNode::sendAndWaitForTheAnswer(CommandBody body) {
 bool SimulatorNode::startTfListener() {
   std::lock_guard<std::mutex> lock(tfListenerMutex_);
   if (tfListener_) return false;
+  // The listener's thread takes the name this thread has when it starts: "flsm_tf", not the
+  // name of whichever thread first needed tf.
+  char name[16] = {};
+  pthread_getname_np(pthread_self(), name, sizeof name);
+  pthread_setname_np(pthread_self(), "flsm_tf");
   tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_);
+  pthread_setname_np(pthread_self(), name);
   return true;
 }
 
