@@ -5,11 +5,11 @@
 /// than PublishQueueBound::kTicks ticks of messages in roscpp's unbounded publish queue.
 #pragma once
 
+#include "deformable_flsm/ros/log_queue.h"
 #include "deformable_flsm/ros/publish_queue_bound.h"
 #include "deformable_flsm/runtime/simulation_loop.h"
 
 #include <ros/advertise_options.h>
-#include <ros/console.h>
 #include <ros/node_handle.h>
 #include <ros/publisher.h>
 #include <ros/single_subscriber_publisher.h>
@@ -59,12 +59,14 @@ class LazyTopic {
     if (!wanted) return false;
     if (queueBound_->full()) {
       ++skippedTicks_;
-      ROS_WARN_THROTTLE(kSkipWarnPeriod,
-                        "flsm_node: %s skipped a publish tick (%llu so far): roscpp's publish "
-                        "queue still holds %u of its messages, because roscpp's poll thread "
-                        "waits for a CPU (a busy machine); the next tick sends the newest state",
-                        pub_.getTopic().c_str(), static_cast<unsigned long long>(skippedTicks_),
-                        queueBound_->capacity());
+      static LogThrottle throttle(kSkipWarnPeriod);  // one for every heavy topic, as before
+      if (throttle.ready())  // through the log's own thread: this one publishes
+        postLog(LogLevel::Warn,
+                formatted("flsm_node: %s skipped a publish tick (%llu so far): roscpp's publish "
+                          "queue still holds %u of its messages, because roscpp's poll thread "
+                          "waits for a CPU (a busy machine); the next tick sends the newest state",
+                          pub_.getTopic().c_str(), static_cast<unsigned long long>(skippedTicks_),
+                          queueBound_->capacity()));
       return false;
     }
     newSubscriber_ = false;  // the publish that follows reaches the new subscriber too
