@@ -367,7 +367,12 @@ bool SimulatorNode::startTfListener() {
   char name[16] = {};
   pthread_getname_np(pthread_self(), name, sizeof name);
   pthread_setname_np(pthread_self(), "flsm_tf");
-  tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_);
+  try {
+    tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_);
+  } catch (...) {
+    pthread_setname_np(pthread_self(), name);
+    throw;
+  }
   pthread_setname_np(pthread_self(), name);
   return true;
 }
