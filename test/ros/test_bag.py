@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """rosbag and simulated time: flsm_node serves /clock (~clock sim); `rosbag record` of its
 ~state and tf, then `rosbag play --clock` of the bag with the node paused. Checked: in
-the bag every state and tf is recorded within a step or two of its stamp (the recorder runs on
-the node's clock), the played messages carry the stamps recorded, and a tf listener on the
+the bag every state and tf is recorded within 0.1 s of its stamp (the recorder runs on the
+node's clock), the played messages carry the stamps recorded, and a tf listener on the
 played clock finds the object's frame at each played state's stamp."""
 
 import os
@@ -53,8 +53,11 @@ class BagTest(unittest.TestCase):
                     lag = (t - s).to_sec()
                     # recorded on the node's clock: a step's tf goes out just before the /clock
                     # of its step (a step of 1/60 s early), the rest after their stamp, within
-                    # a publish period of 1/30 s and a step
-                    self.assertGreaterEqual(lag, -STEP - 1e-6, '%s stamped %.4f recorded at %.4f' % (topic, s.to_sec(), t.to_sec()))
+                    # a publish period of 1/30 s and a step. The recorder reads /clock on
+                    # roscpp's internal thread and the messages on another: on a busy machine
+                    # either trails the other by a step or more (a tf recorded two steps early
+                    # was seen with a busy loop on each core), so both ways within 0.1 s
+                    self.assertGreater(lag, -0.1, '%s stamped %.4f recorded at %.4f' % (topic, s.to_sec(), t.to_sec()))
                     self.assertLess(lag, 0.1, '%s stamped %.4f recorded at %.4f' % (topic, s.to_sec(), t.to_sec()))
                 if topic == '/flsm_node/state':
                     recorded.append(msg.header.stamp)
