@@ -29,13 +29,13 @@
 // at --particles and a quarter of it: CPU ms per step and CG iterations in each phase, the figure
 // that says whether the node keeps real time at 60 steps a second (--demo-step 0.0333: at 30, the
 // implicit scene's config/implicit.yaml).
-// --only implicit prints those two tables alone.
+// --only implicit prints those two tables alone; --only simd the table of SIMD levels alone.
 // Last, what the implicit step's numerical damping does to the bunny's sway after a poke (every
 // other damping off) at 1/240, 1/60 and 1/30 s, against the explicit step; --only sway prints it
 // alone.
 //
 //   bench_solver [--mesh PATH] [--particles N] [--steps N] [--repeats N] [--max-naive-w W]
-//                [--only implicit|sway] [--implicit-alone 1] [--moduli E1,E2,...] [--w W] [--demo-step S]
+//                [--only implicit|sway|simd] [--implicit-alone 1] [--moduli E1,E2,...] [--w W] [--demo-step S]
 // --implicit-alone 1 leaves the explicit runs out of the implicit table (its iterations and cost
 // alone, quicker); --moduli replaces its 30 kPa, 1 MPa, 10 MPa; --w its region half-width 2;
 // --demo-step the demo's step, 1/60 s.
@@ -80,6 +80,7 @@ struct Args {
   int maxNaiveW = 4;
   bool onlyImplicit = false;
   bool onlySway = false;
+  bool onlySimd = false;
   bool implicitAlone = false;
   int regionHalfWidth = 2;  // of the implicit table
   std::vector<double> moduli = {30e3, 1e6, 10e6};
@@ -98,6 +99,7 @@ Args parse(int argc, char** argv) {
     else if (k == "--max-naive-w") a.maxNaiveW = std::atoi(v);
     else if (k == "--only" && std::string(v) == "implicit") a.onlyImplicit = true;
     else if (k == "--only" && std::string(v) == "sway") a.onlySway = true;
+    else if (k == "--only" && std::string(v) == "simd") a.onlySimd = true;
     else if (k == "--implicit-alone") a.implicitAlone = std::atoi(v) != 0;
     else if (k == "--w") a.regionHalfWidth = std::max(1, std::atoi(v));
     else if (k == "--demo-step") {
@@ -473,6 +475,10 @@ int main(int argc, char** argv) {
               vox.cells.size(), simdLevelNote().c_str());
   if (args.onlySway) {
     bench::swayTable(mesh, args.particles);
+    return 0;
+  }
+  if (args.onlySimd) {
+    simdTable(vox, args);
     return 0;
   }
   if (args.onlyImplicit) {
