@@ -1,5 +1,6 @@
 #include "deformable_flsm/core/simd.h"
 
+#include "region_kernels.h"
 #include "simd_dispatch.h"
 
 #include <algorithm>
@@ -109,11 +110,31 @@ std::string simdLevelNote() {
 
 namespace detail {
 
+// The per-level copies of region_kernels.cpp exist where simd_dispatch.h has wider entries:
+// CMakeLists.txt compiles them under the same condition and says so.
+#if (FLSM_SIMD_V3_ENTRY || FLSM_SIMD_V4_ENTRY) && !defined(FLSM_LEVEL_KERNELS)
+#error "a build for the x86-64 baseline needs region_kernels.cpp compiled per level (CMakeLists.txt)"
+#endif
+
+RegionKernels regionKernels() {
+  const SimdLevel level = simdLevel();
+#if FLSM_SIMD_V4_ENTRY
+  if (level == SimdLevel::X86_64_V4) return {rotationBatchV4, regionBatchV4, fusedMultiplyAddProbeV4};
+#endif
+#if FLSM_SIMD_V3_ENTRY
+  if (level == SimdLevel::X86_64_V3) return {rotationBatchV3, regionBatchV3, fusedMultiplyAddProbeV3};
+#endif
+  (void)level;
+  return {rotationBatchOwn, regionBatchOwn, fusedMultiplyAddProbeOwn};
+}
+
 double fusedMultiplyAddProbe(double a, double c) {
   double r = 0.0;
   withSimd([&] { r = a * a - c; });
   return r;
 }
+
+double regionKernelsFusedMultiplyAddProbe(double a, double c) { return regionKernels().fusedMultiplyAddProbe(a, c); }
 
 }  // namespace detail
 

@@ -4,7 +4,9 @@
 /// (gnu::target), so that the kernel and what it inlines use that level's instructions: the
 /// vector types (lanes.h, the sliding window's accumulators) its registers, and FMA throughout
 /// (Eigen chooses its packets by the build's macros, so its own vectors stay 128-bit); a call f
-/// makes that is not inlined runs the build's own code.
+/// makes that is not inlined runs the build's own code. The region pass's per-region kernels,
+/// where this fell furthest behind a build for the level, are whole units per level instead
+/// (region_kernels.h).
 #pragma once
 
 #include "deformable_flsm/core/simd.h"

@@ -6,7 +6,7 @@
 #include "explicit_step.h"
 #include "implicit_step.h"
 #include "inertia.h"
-#include "lanes.h"
+#include "region_kernels.h"
 #include "simd_dispatch.h"
 
 #include <Eigen/Eigenvalues>
@@ -46,6 +46,15 @@ inline Eigen::Vector3d solveInertia(const Eigen::Matrix3d& I, const Eigen::Vecto
   if (solveSymmetricPositive3(I, L, kInertiaRankTolerance * trace, w)) return w;
   return solveInertiaByEigen(I, L);
 }
+
+}  // namespace
+
+void detail::solveInertiaGeneral(const double* I, const double* L, double* w) {
+  Eigen::Map<Eigen::Vector3d> omega(w);
+  omega = solveInertia(Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(I), Eigen::Map<const Eigen::Vector3d>(L));
+}
+
+namespace {
 
 /// Threads to use: `requested`, or every hardware thread for 0.
 int resolveThreadCount(int requested) {
@@ -324,100 +333,25 @@ void Solver::particleData(std::size_t begin, std::size_t end, double* out) {
   });
 }
 
-static_assert(kRotationBatch == kLanes, "one region per SIMD lane");
-
-namespace {
-
-/// The damping field's rigid velocity of regions [first, first + count) of a batch (lane k the
-/// region first + k of `sums`, `in` channels each), their centres c, masses M and inverses iM in
-/// the lanes; u and w into channels 12..17 of `out` (`outK` channels a region).
-void regionVelocityField(const double* sums, std::size_t first, int count, int in, const Lanes c[3],
-                         const Lanes& M, const Lanes& iM, double* out, int outK) {
-  // Rigid velocity field u + w x p of each region: v_r = sum m~ v / M, angular momentum about c
-  // L_r = sum p x m~ v - c x sum m~ v, second moment about c P = sum m~ p p^T - M c c^T,
-  // inertia I = tr(P) 1 - P, w = I^+ L_r (solveInertia(): the cofactor solve here, lanes that
-  // are not clearly positive definite go to the general routine), u = v_r - w x c.
-  Lanes mv[3] = {}, l[3] = {}, pp[6] = {};
-  for (int k = 0; k < count; ++k) {
-    const double* s = sums + (first + static_cast<std::size_t>(k)) * in;
-    for (int i = 0; i < 3; ++i) {
-      mv[i][k] = s[12 + i];
-      l[i][k] = s[15 + i];
-    }
-    for (int i = 0; i < 6; ++i) pp[i][k] = s[18 + i];
-  }
-  Lanes vr[3], L[3];
-  for (int i = 0; i < 3; ++i) vr[i] = mv[i] * iM;
-  L[0] = l[0] - (c[1] * mv[2] - c[2] * mv[1]);
-  L[1] = l[1] - (c[2] * mv[0] - c[0] * mv[2]);
-  L[2] = l[2] - (c[0] * mv[1] - c[1] * mv[0]);
-  const Lanes p00 = pp[0] - M * c[0] * c[0], p11 = pp[1] - M * c[1] * c[1], p22 = pp[2] - M * c[2] * c[2];
-  const Lanes p01 = pp[3] - M * c[0] * c[1], p02 = pp[4] - M * c[0] * c[2], p12 = pp[5] - M * c[1] * c[2];
-  const Lanes h00 = p11 + p22, h11 = p00 + p22, h22 = p00 + p11, h01 = -p01, h02 = -p02, h12 = -p12;
-  const Lanes trace = h00 + h11 + h22;
-  const Lanes tol = kInertiaRankTolerance * trace;
-  const Lanes zero = {};
-  Lanes w[3];
-  LaneMask positive;
-  solveSymmetricPositive3(h00, h11, h22, h01, h02, h12, L, tol, w, positive);
-  const LaneMask fast = (trace > zero) & positive;
-  for (int k = 0; k < count; ++k) {
-    if (fast[k] != 0) continue;
-    Eigen::Matrix3d I;
-    I << h00[k], h01[k], h02[k], h01[k], h11[k], h12[k], h02[k], h12[k], h22[k];
-    const Eigen::Vector3d wk = solveInertia(I, Eigen::Vector3d(L[0][k], L[1][k], L[2][k]));
-    for (int i = 0; i < 3; ++i) w[i][k] = wk[i];
-  }
-  Lanes u[3];
-  u[0] = vr[0] - (w[1] * c[2] - w[2] * c[1]);
-  u[1] = vr[1] - (w[2] * c[0] - w[0] * c[2]);
-  u[2] = vr[2] - (w[0] * c[1] - w[1] * c[0]);
-  for (int k = 0; k < count; ++k) {
-    double* t = out + (first + static_cast<std::size_t>(k)) * outK;
-    for (int i = 0; i < 3; ++i) {
-      t[12 + i] = u[i][k];
-      t[15 + i] = w[i][k];
-    }
-  }
-}
-
-}  // namespace
+static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double), "rest centres as 3 doubles");
 
 void Solver::regionData(std::size_t begin, std::size_t end, const double* sums, double* out) {
-  detail::withSimd([&] {
-    const int in = gatherChannels(), outK = scatterChannels();
-    // Regions in batches of kRotationBatch, one SIMD lane each: the rotations are extracted
-    // together, and the damping field's inertia solve runs in the lanes too.
-    for (std::size_t r0 = begin; r0 < end; r0 += kRotationBatch) {
-      const int count = static_cast<int>(std::min<std::size_t>(kRotationBatch, end - r0));
-      double A[kRotationBatch * 9], R[kRotationBatch * 9];
-      Lanes c[3] = {}, c0[3] = {}, beta = {}, M = {}, iM = {};
-      for (int l = 0; l < count; ++l) {
-        const std::size_t r = r0 + static_cast<std::size_t>(l);
-        const double* s = sums + (r - begin) * in;
-        M[l] = regionMass_[r];
-        iM[l] = regionInvMass_[r];
-        beta[l] = regionWeight_[r];
-        for (int i = 0; i < 3; ++i) {
-          c[i][l] = s[i] * iM[l];
-          c0[i][l] = regionRestCenter_[r][i];
-        }
-        // A = sum m~ p q^T - M c c0^T (row-major)
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j) A[9 * l + 3 * i + j] = s[3 + 3 * i + j] - M[l] * c[i][l] * c0[j][l];
-      }
-      extractRotationBatch(count, A, rotations_.data() + r0, R);
-      for (int l = 0; l < count; ++l) {
-        double* t = out + (r0 + static_cast<std::size_t>(l) - begin) * outK;
-        const double* Rl = R + 9 * l;
-        for (int i = 0; i < 3; ++i) {
-          for (int j = 0; j < 3; ++j) t[3 * i + j] = beta[l] * Rl[3 * i + j];
-          t[9 + i] = beta[l] * (c[i][l] - (Rl[3 * i] * c0[0][l] + Rl[3 * i + 1] * c0[1][l] + Rl[3 * i + 2] * c0[2][l]));
-        }
-      }
-      if (passDamping_) regionVelocityField(sums, r0 - begin, count, in, c, M, iM, out, outK);
-    }
-  });
+  detail::RegionBatchArgs args;
+  args.begin = begin;
+  args.end = end;
+  args.in = gatherChannels();
+  args.outK = scatterChannels();
+  args.damping = passDamping_;
+  args.sums = sums;
+  args.mass = regionMass_.data();
+  args.invMass = regionInvMass_.data();
+  args.weight = regionWeight_.data();
+  args.restCenter = regionRestCenter_.data()->data();
+  args.quat = rotations_.data()->coeffs().data();
+  args.out = out;
+  args.angleTolerance = PolarOptions().angleTolerance;
+  args.inertiaRankTolerance = kInertiaRankTolerance;
+  detail::regionKernels().regionBatch(args);
 }
 
 void Solver::particleResult(std::size_t begin, std::size_t end, const double* sums) {

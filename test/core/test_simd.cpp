@@ -88,6 +88,10 @@ TEST(Simd, EachLevelRunsItsOwnInstructions) {
     const bool fused = level != SimdLevel::Baseline || deformable_flsm::builtSimdLevel() != SimdLevel::Baseline;
     std::printf("[ simd ] %s: a * a - c = %g (%s)\n", deformable_flsm::toString(level), r, fused ? "fused" : "rounded twice");
     EXPECT_EQ(r, fused ? std::ldexp(1.0, -60) : 0.0) << deformable_flsm::toString(level);
+    // the region kernels' unit, compiled whole for the level
+    const double k = deformable_flsm::detail::regionKernelsFusedMultiplyAddProbe(a, c);
+    std::printf("[ simd ] %s, region kernels: a * a - c = %g\n", deformable_flsm::toString(level), k);
+    EXPECT_EQ(k, fused ? std::ldexp(1.0, -60) : 0.0) << deformable_flsm::toString(level);
   }
 }
 

@@ -44,6 +44,8 @@ namespace detail {
 /// a * a - c computed at simdLevel(): rounded twice at a level without FMA, once with it (for
 /// tests: a = 1 + 2^-30, c = 1 + 2^-29 gives 0 without FMA and 2^-60 with it).
 double fusedMultiplyAddProbe(double a, double c);
+/// The same, computed by the region kernels' unit for simdLevel() (compiled whole per level).
+double regionKernelsFusedMultiplyAddProbe(double a, double c);
 }  // namespace detail
 
 }  // namespace deformable_flsm
