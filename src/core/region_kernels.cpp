@@ -1,13 +1,13 @@
 // The region pass's per-region kernels (region_kernels.h), compiled once for the build's own
 // level and, in a build for the x86-64 baseline, once more for x86-64-v3 and for x86-64-v4
 // (CMakeLists.txt: FLSM_KERNEL_LEVEL names the copy). Everything but the entries has internal
-// linkage, and nothing here is Eigen's or the standard library's beyond <cmath>: see the header.
+// linkage, and nothing here is Eigen's or the standard library's beyond <cmath>'s built-in
+// functions and <limits>' constants: see the header.
 #include "region_kernels.h"
 
 #include "lanes.h"
 
 #include <cmath>
-#include <cstdint>
 #include <limits>
 
 #ifndef FLSM_KERNEL_LEVEL
@@ -205,7 +205,7 @@ void regionBatchOf(Count count, const RegionBatchArgs& g, std::size_t r0) {
   const std::size_t begin = g.begin;
   const int in = g.in, outK = g.outK;
   double A[L * 9], R[L * 9];
-  if (count != L)  // a part batch (the lanes past count are never read: quiets GCC's warning)
+  if (count != L)  // a part batch: rotationBatch() reads no lane past count, but GCC cannot tell
     for (double& x : A) x = 0.0;
   Lanes c[3] = {}, c0[3] = {}, beta = {}, M = {}, iM = {};
   for (int l = 0; l < count; ++l) {
