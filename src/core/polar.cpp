@@ -102,6 +102,7 @@ static_assert(kRotationBatch == kLanes, "one matrix per SIMD lane");
 static_assert(sizeof(Eigen::Quaterniond) == 4 * sizeof(double), "quaternions as 4 doubles (x, y, z, w)");
 
 void extractRotationBatch(int count, const double* a, Eigen::Quaterniond* quat, double* r) {
+  if (count <= 0) return;  // nothing to read, and quat may be null
   detail::regionKernels().rotationBatch(count, a, quat->coeffs().data(), r, PolarOptions().angleTolerance);
 }
 
